@@ -1,0 +1,42 @@
+"""One error hierarchy for millpost: every refusal says where and why."""
+
+from __future__ import annotations
+
+
+class MillpostError(Exception):
+    """Base class of every error millpost raises on purpose (the CLI exits 2 on these)."""
+
+
+class ParseError(MillpostError):
+    """A program or file that millpost refuses, located at file:line:column.
+
+    `word` is the offending text, `expected` says what would have been accepted.
+    """
+
+    def __init__(self, message: str, *, file: str = "<string>", line: int = 0, column: int = 0,
+                 word: str = "", expected: str = "") -> None:
+        self.file, self.line, self.column = file, line, column
+        self.word, self.expected, self.reason = word, expected, message
+        where = f"{file}:{line}:{column}"
+        text = f"{where}: {message}"
+        if word:
+            text += f" (word {word!r})"
+        if expected:
+            text += f"; expected {expected}"
+        super().__init__(text)
+
+
+class ConfigError(MillpostError):
+    """An invalid value in a tool, material, machine or job description.
+
+    Names the field, the value and the rule it breaks (and the file when known).
+    """
+
+    def __init__(self, field: str, value: object, rule: str, *, file: str | None = None) -> None:
+        self.field, self.value, self.rule, self.file = field, value, rule, file
+        prefix = f"{file}: " if file else ""
+        super().__init__(f"{prefix}{field} = {value!r}: {rule}")
+
+
+class SolverError(MillpostError):
+    """The feed schedule could not be solved; callers keep the programmed feeds."""
