@@ -96,8 +96,9 @@ class Event:
 class Program:
     """An interpreted program. Moves in mm in the program frame; `text` is the source, untouched.
 
-    units: units as programmed, in order of first appearance ("mm", "inch"). move_inch: per move,
-    whether the program was in inches (for writing feeds back). feed_mode: per move 93/94/95.
+    units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
+    when it ran (for writing it back): move_inch (G20), feed_mode (93/94/95), incremental (G91),
+    arc_absolute (G90.1).
     notes: assumptions made (unknown home, rotary axes at zero, ...), each naming its line.
     """
 
@@ -109,6 +110,8 @@ class Program:
     units: list[str]
     move_inch: np.ndarray
     feed_mode: np.ndarray
+    incremental: np.ndarray
+    arc_absolute: np.ndarray
     events: list[Event]
     notes: list[str]
     dwell_s: float
@@ -145,6 +148,8 @@ class _Moves:
         self.block = array("i")
         self.inch = array("b")
         self.mode = array("h")
+        self.incremental = array("b")
+        self.arc_absolute = array("b")
 
     def to_toolpath(self) -> Toolpath:
         xyz = np.frombuffer(self.xyz, dtype=float).reshape(-1, 9) if len(self.xyz) else np.zeros((0, 9))
@@ -220,6 +225,8 @@ class Interpreter:
         m.block.append(self.block_index)
         m.inch.append(self.scale != 1.0)
         m.mode.append(self.feed_mode)
+        m.incremental.append(not self.absolute)
+        m.arc_absolute.append(self.arc_absolute)
         self.pos = np.array(end, float)
 
     def feed_rate(self, block: Block, length_mm: float) -> float:
@@ -379,6 +386,7 @@ class Interpreter:
         for code, idx in ((540, 1), (550, 2), (560, 3), (570, 4), (580, 5), (590, 6), (591, 7), (592, 8), (593, 9)):
             if code in gset:
                 self.set_offsets(lambda: setattr(self, "cs", idx))
+                self.events.append(Event(b.line, "work_offset", idx))
         for code in (900, 910):
             if code in gset:
                 self.absolute = code == 900
@@ -868,5 +876,7 @@ class Interpreter:
         return Program(
             path=path, text=text, toolpath=tp, dialect=self.dialect, blocks=self.blocks,
             units=self.units_seen or ["mm"], move_inch=np.frombuffer(self.m.inch, np.int8).astype(bool),
-            feed_mode=np.frombuffer(self.m.mode, np.int16).copy(), events=self.events, notes=self.notes,
+            feed_mode=np.frombuffer(self.m.mode, np.int16).copy(),
+            incremental=np.frombuffer(self.m.incremental, np.int8).astype(bool),
+            arc_absolute=np.frombuffer(self.m.arc_absolute, np.int8).astype(bool), events=self.events, notes=self.notes,
             dwell_s=self.dwell_s)
