@@ -18,7 +18,8 @@ from ..registry import plugins
 class Dialect:
     """How one controller family reads and writes G-code.
 
-    decimals_mm / decimals_inch: digits after the point when writing coordinates.
+    decimals_mm / decimals_inch: digits after the point when writing coordinates (4 and 6: rounding
+    stays under 1e-4 mm, finer than any of these controllers resolves).
     trailing_point: write whole numbers as "10." (Fanuc/Haas) instead of "10".
     canned_cycles: the controller runs G73/G8x cycles (else they are expanded into moves).
     line_numbers: N-number step when writing a program from scratch (0: none).
@@ -28,7 +29,7 @@ class Dialect:
 
     name: str
     decimals_mm: int = 4
-    decimals_inch: int = 5
+    decimals_inch: int = 6
     trailing_point: bool = False
     canned_cycles: bool = True
     line_numbers: int = 0
@@ -58,15 +59,15 @@ class Dialect:
         return sum(len(re.findall(m, head, flags=re.IGNORECASE | re.MULTILINE)) for m in self.markers)
 
 
-GRBL = Dialect("grbl", decimals_mm=3, decimals_inch=4, canned_cycles=False, end_code="M30",
+GRBL = Dialect("grbl", canned_cycles=False, end_code="M30",
                markers=(r"^\s*\$[A-Z0-9]", r"grbl", r"^G90 G94$", r"^\(When using Fusion 360 for Personal Use"))
 LINUXCNC = Dialect("linuxcnc", markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P",
                                         r"linuxcnc", r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
-FANUC = Dialect("fanuc", decimals_mm=3, decimals_inch=4, trailing_point=True, line_numbers=5, dwell_ms=True,
+FANUC = Dialect("fanuc", trailing_point=True, line_numbers=5, dwell_ms=True,
                 percent=True, end_code="M30",
                 markers=(r"^%\s*$", r"^O\d{3,5}", r"G28\s*G91", r"G43\s*Z[-\d.]+\s*H\d+", r"\bM29\b", r"\bM30\b",
                          r"haas", r"fanuc", r"G53\s*G0?0\s*Z"))
-MACH3 = Dialect("mach3", decimals_mm=4, decimals_inch=4, end_code="M30",
+MACH3 = Dialect("mach3", end_code="M30",
                 markers=(r"mach\s*3", r"vectric", r"^G00 G2[01] G17 G90 G40 G49 G80", r"^\( VECTRIC", r"\bG00\b"))
 
 

@@ -118,10 +118,11 @@ class Program:
 
     @property
     def tools(self) -> list[int]:
+        """Tools that cut or moved, in order of first use."""
         seen: list[int] = []
-        for e in self.events:
-            if e.kind == "tool_change" and e.value not in seen:
-                seen.append(e.value)
+        for t in self.toolpath.tool.tolist():
+            if t >= 0 and t not in seen:
+                seen.append(t)
         return seen
 
     @property
@@ -213,6 +214,9 @@ class Interpreter:
 
     def emit(self, kind: int, end, block: Block, center=(math.nan,) * 3, turns: int = 0,
              feed_mm_min: float = math.nan) -> None:
+        if self.tool < 0 and self.selected >= 0:  # no M6 yet: the selected tool is the one in the spindle
+            self.tool = self.selected
+            self.notes.append(f"line {block.line}: T{self.selected} selected without M6: taken as loaded")
         m = self.m
         m.kind.append(kind)
         m.xyz.extend((self.pos[0], self.pos[1], self.pos[2], end[0], end[1], end[2], center[0], center[1], center[2]))
