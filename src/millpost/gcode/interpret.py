@@ -180,7 +180,7 @@ class Interpreter:
         self.motion: int | None = None
         self.basic_motion: int | None = None  # last G0-G3 (Fanuc returns to it after G80)
         self.feed_mode = 940
-        self.f = 0.0  # program units per minute (G94), per rev (G95) or inverse minutes (G93)
+        self.f = 0.0  # mm per minute (G94) or per rev (G95), as set; G93 uses the block's own F
         self.s = 0.0
         self.spindle_on = False
         self.tool = -1
@@ -207,6 +207,13 @@ class Interpreter:
         col = word.column if word is not None else 1
         return ParseError(msg, file=self.file, line=block.line, column=col,
                           word=word.text if word is not None else "", expected=expected)
+
+    def pending_scale(self, b: Block) -> float:
+        """mm per unit for words of this block: a G20/G21 in the same block applies first."""
+        for w in b.words:
+            if w.letter == "G" and round(w.value * 10) in (200, 210):
+                return INCH if round(w.value * 10) == 200 else 1.0
+        return self.scale
 
     def offset(self) -> np.ndarray:
         """Program frame origin in machine coordinates: G5x + G92/G52 + tool length (on Z)."""
@@ -245,8 +252,8 @@ class Interpreter:
         if self.feed_mode == 950:
             if self.s <= 0:
                 raise self.err("feed per revolution (G95) with no spindle speed", block, None, "an S word")
-            return self.f * self.scale * self.s
-        return self.f * self.scale
+            return self.f * self.s
+        return self.f
 
     # --- blocks -----------------------------------------------------------------------------
     def run(self, text: str) -> None:
@@ -333,7 +340,8 @@ class Interpreter:
         if "F" in val:
             if val["F"].value < 0:
                 raise self.err("negative feed rate", b, val["F"], "F >= 0")
-            self.f = val["F"].value
+            # held in mm (per min or per rev) as set: a later G20/G21 does not change the machine's feed
+            self.f = val["F"].value * (1.0 if self.feed_mode == 930 else self.pending_scale(b))
         if "S" in val:
             if val["S"].value < 0:
                 raise self.err("negative spindle speed", b, val["S"], "S >= 0")

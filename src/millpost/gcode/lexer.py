@@ -140,7 +140,8 @@ def _locate_error(code: str, line: int, file: str) -> None:
             pos = m.end()
             continue
         ch = code[pos]
-        word = re.match(r"\S+", code[pos:]).group(0)
+        found = re.match(r"\S+", code[pos:])
+        word = found.group(0) if found else repr(ch)
         if ch == "#":
             raise ParseError("parameters (#) are not supported", file=file, line=line, column=pos + 1,
                              word=word, expected="plain numbers as a CAM post writes them")
