@@ -71,13 +71,15 @@ MACH3 = Dialect("mach3", end_code="M30",
                 markers=(r"mach\s*3", r"vectric", r"^G00 G2[01] G17 G90 G40 G49 G80", r"^\( VECTRIC", r"\bG00\b"))
 
 
-def builtin() -> dict[str, Dialect]:
-    return {d.name: d for d in (GRBL, LINUXCNC, FANUC, MACH3)}
+def available() -> dict[str, Dialect]:
+    """Every dialect: the built-ins and third-party ones, all registered in the ``millpost.dialects``
+    entry-point group (millpost's own pyproject declares grbl, linuxcnc, fanuc and mach3)."""
+    return {name: d for name, d in plugins("dialects").items() if isinstance(d, Dialect)}
 
 
 def get(name: str) -> Dialect:
-    """A dialect by name: built-ins and plugins from the ``millpost.dialects`` entry-point group."""
-    found = {**builtin(), **{k: v for k, v in plugins("dialects").items() if isinstance(v, Dialect)}}
+    """A dialect by name (haas is an alias of fanuc)."""
+    found = available()
     key = name.lower().replace("haas", "fanuc")
     if key not in found:
         raise MillpostError(f"unknown dialect {name!r}; known: {', '.join(sorted(found))} (haas = fanuc)")
@@ -85,10 +87,10 @@ def get(name: str) -> Dialect:
 
 
 def names() -> list[str]:
-    return sorted({*builtin(), *plugins("dialects")})
+    return sorted(available())
 
 
 def detect(text: str) -> Dialect:
-    """The dialect whose markers the text matches most; LinuxCNC (plain RS-274/NGC) on a tie at zero."""
-    ranked = sorted(builtin().values(), key=lambda d: d.score(text), reverse=True)
-    return ranked[0] if ranked[0].score(text) > 0 else LINUXCNC
+    """The dialect whose markers the text matches most; LinuxCNC (plain RS-274/NGC) when none match."""
+    ranked = sorted(available().values(), key=lambda d: (d.score(text), d.name == "linuxcnc"), reverse=True)
+    return ranked[0] if ranked and ranked[0].score(text) > 0 else LINUXCNC

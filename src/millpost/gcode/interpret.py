@@ -10,6 +10,7 @@ may write and that moves the machine is either interpreted or refused with file:
 from __future__ import annotations
 
 import math
+import re
 from array import array
 from dataclasses import dataclass, field
 
@@ -49,6 +50,9 @@ _UNSUPPORTED_G = {
 }
 _LATHE_G76 = "threading cycle G76 (LinuxCNC's G76 is a lathe threading cycle)"
 _AXES = "XYZ"
+_NO_CENTRE = (math.nan, math.nan, math.nan)
+_FAST = re.compile(r"[ \t]*(?:[Gg]0?([01])(?![0-9.])[ \t]*)?((?:[XYZFxyzf][ \t]*[-+]?(?:\d+\.?\d*|\.\d+)[ \t]*)+)")
+_FAST_WORD = re.compile(r"([XYZFxyzf])[ \t]*([-+]?(?:\d+\.?\d*|\.\d+))")
 _ROTARY = "ABCUVW"
 
 
@@ -134,32 +138,40 @@ class Program:
         return seen
 
 
+def _arc_length(start, end, center, axes, ccw: bool, turns: int) -> float:
+    """Helix length (mm), the same closed form as `Toolpath.lengths` for one arc."""
+    a1, a2, an = axes
+    r0 = math.hypot(start[a1] - center[a1], start[a2] - center[a2])
+    r1 = math.hypot(end[a1] - center[a1], end[a2] - center[a2])
+    t0 = math.atan2(start[a2] - center[a2], start[a1] - center[a1])
+    t1 = math.atan2(end[a2] - center[a2], end[a1] - center[a1])
+    sweep = (t1 - t0) % (2 * math.pi) if ccw else (t0 - t1) % (2 * math.pi)
+    if abs(sweep) <= 1e-12:
+        sweep = 2 * math.pi
+    sweep += 2 * math.pi * turns
+    return math.hypot(0.5 * (r0 + r1) * sweep, end[an] - start[an])
+
+
 class _Moves:
-    """Growable compact columns for the toolpath (array.array: 8 bytes a float, no objects)."""
+    """Growable compact columns for the toolpath: per move 11 floats (start, end, centre, feed, rpm)
+    and 10 ints (kind, plane, turns, tool, line, block, inch, feed mode, G91, G90.1) in two
+    array.arrays — 124 bytes a move, no Python objects, two appends."""
 
     def __init__(self) -> None:
-        self.kind = array("b")
-        self.xyz = array("d")  # start x y z, end x y z, centre x y z
-        self.plane = array("b")
-        self.turns = array("i")
-        self.feed = array("d")
-        self.rpm = array("d")
-        self.tool = array("i")
-        self.line = array("i")
-        self.block = array("i")
-        self.inch = array("b")
-        self.mode = array("h")
-        self.incremental = array("b")
-        self.arc_absolute = array("b")
+        self.f = array("d")
+        self.i = array("i")
 
-    def to_toolpath(self) -> Toolpath:
-        xyz = np.frombuffer(self.xyz, dtype=float).reshape(-1, 9) if len(self.xyz) else np.zeros((0, 9))
-        return Toolpath(
-            kind=np.frombuffer(self.kind, np.int8).copy(), start=xyz[:, 0:3].copy(), end=xyz[:, 3:6].copy(),
-            center=xyz[:, 6:9].copy(), plane=np.frombuffer(self.plane, np.int8).copy(),
-            turns=np.frombuffer(self.turns, np.int32).copy(), feed_mm_min=np.frombuffer(self.feed, float).copy(),
-            rpm=np.frombuffer(self.rpm, float).copy(), tool=np.frombuffer(self.tool, np.int32).copy(),
-            line=np.frombuffer(self.line, np.int32).copy(), block=np.frombuffer(self.block, np.int32).copy())
+    def __len__(self) -> int:
+        return len(self.i) // 10
+
+    def to_arrays(self) -> tuple[Toolpath, np.ndarray]:
+        """The toolpath (views over the float buffer, no copy) and the (n, 10) int columns."""
+        f = (np.frombuffer(self.f, float) if len(self.f) else np.zeros(0)).reshape(-1, 11)
+        i = (np.frombuffer(self.i, np.int32) if len(self.i) else np.zeros(0, np.int32)).reshape(-1, 10)
+        tp = Toolpath(kind=i[:, 0].astype(np.int8), start=f[:, 0:3], end=f[:, 3:6], center=f[:, 6:9],
+                      plane=i[:, 1].astype(np.int8), turns=i[:, 2], feed_mm_min=f[:, 9], rpm=f[:, 10], tool=i[:, 3],
+                      line=i[:, 4], block=i[:, 5])
+        return tp, i
 
 
 class Interpreter:
@@ -224,20 +236,7 @@ class Interpreter:
         if self.tool < 0 and self.selected >= 0:  # no M6 yet: the selected tool is the one in the spindle
             self.tool = self.selected
             self.notes.append(f"line {block.line}: T{self.selected} selected without M6: taken as loaded")
-        m = self.m
-        m.kind.append(kind)
-        m.xyz.extend((self.pos[0], self.pos[1], self.pos[2], end[0], end[1], end[2], center[0], center[1], center[2]))
-        m.plane.append(self.plane)
-        m.turns.append(turns)
-        m.feed.append(feed_mm_min)
-        m.rpm.append(self.s if self.spindle_on else 0.0)
-        m.tool.append(self.tool)
-        m.line.append(block.line)
-        m.block.append(self.block_index)
-        m.inch.append(self.scale != 1.0)
-        m.mode.append(self.feed_mode)
-        m.incremental.append(not self.absolute)
-        m.arc_absolute.append(self.arc_absolute)
+        self.record(kind, self.pos.tolist(), end, center, turns, feed_mm_min, block.line)
         self.pos = np.array(end, float)
 
     def feed_rate(self, block: Block, length_mm: float) -> float:
@@ -257,17 +256,20 @@ class Interpreter:
 
     # --- blocks -----------------------------------------------------------------------------
     def run(self, text: str) -> None:
-        lines = text.split("\n")
-        if lines and lines[-1] == "":
-            lines.pop()
         percent_seen = 0
-        for i, raw in enumerate(lines):
-            line_no = i + 1
-            raw = raw.rstrip("\r")
+        pos, size, line_no = 0, len(text), 0
+        while pos < size:  # one line at a time: no list of lines, no copy of the text
+            end = text.find("\n", pos)
+            end = size if end < 0 else end
+            raw = text[pos:end].rstrip("\r")
+            pos = end + 1
+            line_no += 1
             if self.ended:
                 if raw.strip() and raw.strip() != "%":
                     self.notes.append(f"line {line_no}: after program end (M2/M30): not executed")
                     break
+                continue
+            if self.fast_line(raw, line_no):
                 continue
             block = lex_line(raw, line_no, self.file, self.params)
             if block.percent:
@@ -286,6 +288,69 @@ class Interpreter:
                     self.events.append(Event(line_no, "comment", c))
             for key, value in block.assigns:
                 self.params[key] = value
+
+    def record(self, kind: int, start, end, center, turns: int, feed_mm_min: float, line: int) -> None:
+        """Append one move with the modal state it ran in."""
+        self.m.f.extend((start[0], start[1], start[2], end[0], end[1], end[2], center[0], center[1], center[2],
+                         feed_mm_min, self.s if self.spindle_on else 0.0))
+        self.m.i.extend((kind, self.plane, turns, self.tool, line, self.block_index, self.scale != 1.0,
+                         self.feed_mode, not self.absolute, self.arc_absolute))
+
+    def fast_line(self, raw: str, line_no: int) -> bool:
+        """The common block of CAM output — an optional G0/G1 then X/Y/Z/F words — without building
+        words or touching numpy. Returns False (the general path runs) for anything else."""
+        m = _FAST.fullmatch(raw)
+        if m is None or self.feed_mode != 940:
+            return False
+        g = m.group(1)
+        motion = self.motion if g is None else (0 if g == "0" else 10)
+        if motion not in (0, 10):
+            return False
+        words = _FAST_WORD.findall(m.group(2))
+        letters = [w[0].upper() for w in words]
+        if len(set(letters)) != len(letters):
+            return False
+        x, y, z = self.pos.tolist()
+        f = self.f
+        sc = self.scale
+        for L, v in zip(letters, words):
+            value = float(v[1])
+            if L == "F":
+                if value < 0:
+                    return False
+                f = value * sc
+            elif self.absolute:
+                if L == "X":
+                    x = value * sc
+                elif L == "Y":
+                    y = value * sc
+                else:
+                    z = value * sc
+            elif L == "X":
+                x += value * sc
+            elif L == "Y":
+                y += value * sc
+            else:
+                z += value * sc
+        if motion == 10 and f <= 0:
+            return False
+        self.f = f
+        if g is not None:
+            self.motion = self.basic_motion = motion
+            self.cycle_il = None
+        self.blocks += 1
+        if len(letters) > ("F" in letters) or g is not None:
+            self.emit_xyz(RAPID if motion == 0 else FEED, x, y, z, line_no, math.nan if motion == 0 else f)
+        self.block_index += 1
+        return True
+
+    def emit_xyz(self, kind: int, x: float, y: float, z: float, line: int, feed_mm_min: float) -> None:
+        """Append a straight move from the current point (floats, mm) — the fast path's `emit`."""
+        if self.tool < 0 and self.selected >= 0:
+            self.tool = self.selected
+            self.notes.append(f"line {line}: T{self.selected} selected without M6: taken as loaded")
+        self.record(kind, self.pos.tolist(), (x, y, z), _NO_CENTRE, 0, feed_mm_min, line)
+        self.pos = np.array((x, y, z))
 
     def execute(self, b: Block) -> None:
         g: list[tuple[int, Word]] = []
@@ -701,10 +766,7 @@ class Interpreter:
                                "a centre equidistant from start and end")
         center[an] = start[an]
         kind = ARC_CW if cw else ARC_CCW
-        one = Toolpath(np.array([kind], np.int8), start[None], end[None], center[None],
-                       np.array([self.plane], np.int8), np.array([turns], np.int32), np.zeros(1), np.zeros(1),
-                       np.zeros(1, np.int32), np.zeros(1, np.int32), np.zeros(1, np.int32))
-        L = float(one.lengths()[0])
+        L = _arc_length(start, end, center, (a1, a2, an), kind == ARC_CCW, turns)
         self.emit(kind, end, b, center=center, turns=turns, feed_mm_min=self.feed_rate(b, L))
 
     # --- canned cycles ------------------------------------------------------------------------
@@ -875,7 +937,7 @@ class Interpreter:
 
     # --- result -----------------------------------------------------------------------------
     def finish(self, path: str, text: str) -> Program:
-        tp = self.m.to_toolpath()
+        tp, ints = self.m.to_arrays()
         if self.safe_z_pending:
             z = np.concatenate([tp.start[:, 2], tp.end[:, 2]])
             finite = z[np.isfinite(z)]
@@ -887,8 +949,6 @@ class Interpreter:
             self.notes.append(f"safe height for unknown-home retracts: Z {safe:g} mm")
         return Program(
             path=path, text=text, toolpath=tp, dialect=self.dialect, blocks=self.blocks,
-            units=self.units_seen or ["mm"], move_inch=np.frombuffer(self.m.inch, np.int8).astype(bool),
-            feed_mode=np.frombuffer(self.m.mode, np.int16).copy(),
-            incremental=np.frombuffer(self.m.incremental, np.int8).astype(bool),
-            arc_absolute=np.frombuffer(self.m.arc_absolute, np.int8).astype(bool), events=self.events, notes=self.notes,
+            units=self.units_seen or ["mm"], move_inch=ints[:, 6].astype(bool), feed_mode=ints[:, 7].astype(np.int16),
+            incremental=ints[:, 8].astype(bool), arc_absolute=ints[:, 9].astype(bool), events=self.events, notes=self.notes,
             dwell_s=self.dwell_s)
