@@ -58,7 +58,8 @@ def test_tool_defaults_and_safety_factor():
     assert b.E_MPa == 600e3 and b.flute_diameter_mm == pytest.approx(4.8)
     assert b.shank_length_mm == pytest.approx(6)
     assert default_safety_factor(tool) == 2.0
-    assert default_safety_factor(Tool(diameter_mm=2, stickout_mm=12, flute_length_mm=6)) == 3.0
-    assert default_safety_factor(Tool(diameter_mm=2, stickout_mm=20, flute_length_mm=6)) == 3.75
+    small = dict(diameter_mm=2, shank_diameter_mm=6, stickout_mm=20)
+    assert default_safety_factor(Tool(flute_length_mm=6, **small)) == 3.0
+    assert default_safety_factor(Tool(flute_length_mm=10, **small)) == 3.75     # long reach
     hss = ToolBeam.of(Tool(diameter_mm=6, material="hss", flute_length_mm=18, stickout_mm=24))
     assert hss.deflection_mm(50) == pytest.approx(3 * b.deflection_mm(50), rel=1e-12)   # E 200 vs 600 GPa

@@ -36,12 +36,12 @@ FLUTE_DIAMETER_RATIO = 0.8   # Kops & Vo 1990
 def default_safety_factor(tool: Tool) -> float:
     """Safety factor on the bending strength, chosen from the geometry [engineering judgement, †]:
     2 for an ordinary end mill; ×1.5 below 3 mm diameter (runout and edge chipping are a larger share of
-    the load and the strength scatters more); ×1.25 when the stickout exceeds 4·D (vibration adds to the
-    quasi-static load). Brittle carbide gets no credit for ductility, HSS the same factor."""
+    the load and the strength scatters more); ×1.25 for a slender tool, flute length over 4·D or stickout
+    over 4·shank diameter (vibration adds to the quasi-static load). Brittle carbide gets no credit for ductility, HSS the same factor."""
     sf = 2.0
     if tool.diameter_mm < 3.0:
         sf *= 1.5
-    if tool.stickout > 4.0 * tool.diameter_mm:
+    if tool.flute_len > 4.0 * tool.diameter_mm or tool.stickout > 4.0 * tool.shank_diameter:
         sf *= 1.25
     return sf
 
