@@ -40,7 +40,7 @@ SUFFIX_UNITS: dict[str, tuple[str, dict[str, float]]] = {
     "mm_s2": ("acceleration", {"mm/s^2": 1.0, "mm/s2": 1.0, "m/s^2": 1e3, "m/s2": 1e3, "in/s^2": 25.4}),
     "mm3_min": ("removal rate", {"mm^3/min": 1.0, "cm^3/min": 1e3}),
     "MPa": ("stress", {"MPa": 1.0, "GPa": 1e3, "N/mm^2": 1.0, "N/mm2": 1.0, "psi": 6.894757e-3, "ksi": 6.894757}),
-    "N_mm2": ("specific cutting force", {"N/mm^2": 1.0, "N/mm2": 1.0, "MPa": 1.0, "N/m^2": 1e-6}),
+    "N_mm2": ("specific cutting force", {"N/mm^2": 1.0, "N/mm2": 1.0, "MPa": 1.0, "GPa": 1e3, "N/m^2": 1e-6}),
     "m_min": ("surface speed", {"m/min": 1.0, "SFM": 0.3048, "sfm": 0.3048, "ft/min": 0.3048}),
     "Hz": ("frequency", {"Hz": 1.0, "kHz": 1e3}),
     "s": ("time", {"s": 1.0, "ms": 1e-3}),
