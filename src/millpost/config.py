@@ -88,6 +88,31 @@ def resolve(kind: str, name_or_path: str | Path) -> Path:
     return Path(str(builtin))
 
 
+def quantity(value: Any, suffix: str | None, field: str, *, file: str | None = None) -> float:
+    """A finite float in the unit named by `suffix` (a key of SUFFIX_UNITS, None = dimensionless) from a
+    number or a "value unit" string; ConfigError(field, value, rule) otherwise."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ConfigError(field, value, "must be a number", file=file)
+    if isinstance(value, str):
+        m = _QUANTITY.match(value)
+        if not m:
+            raise ConfigError(field, value, "must be a number or 'value unit'", file=file)
+        number, unit = float(m.group(1)), (m.group(2) or "").replace(" ", "")
+        if unit:
+            if suffix is None:
+                raise ConfigError(field, value, "is dimensionless; give a plain number", file=file)
+            what, table = SUFFIX_UNITS[suffix]
+            if unit not in table:
+                raise ConfigError(field, value, f"unit {unit!r} is not a {what} unit; use {', '.join(table)}",
+                                  file=file)
+            number *= table[unit]
+        value = number
+    value = float(value)
+    if not math.isfinite(value):
+        raise ConfigError(field, value, "must be finite", file=file)
+    return value
+
+
 class Table:
     """A validated view of one TOML table. Reads fields with unit conversion and range rules, tracks
     which fields were read, and `done()` refuses the rest as unknown."""
@@ -116,27 +141,7 @@ class Table:
         return self.data[key]
 
     def _convert(self, key: str, value: Any) -> float:
-        """A number in the field's unit, from a number or a "value unit" string."""
-        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            raise self.fail(key, value, "must be a number")
-        suffix = _suffix(key)
-        if isinstance(value, str):
-            m = _QUANTITY.match(value)
-            if not m:
-                raise self.fail(key, value, "must be a number or 'value unit'")
-            number, unit = float(m.group(1)), (m.group(2) or "").replace(" ", "")
-            if unit:
-                if suffix is None:
-                    raise self.fail(key, value, "is dimensionless; give a plain number")
-                what, table = SUFFIX_UNITS[suffix]
-                if unit not in table:
-                    raise self.fail(key, value, f"unit {unit!r} is not a {what} unit; use {', '.join(table)}")
-                number *= table[unit]
-            value = number
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(key, value, "must be finite")
-        return value
+        return quantity(value, _suffix(key), self._field(key), file=self.file)
 
     def number(self, key: str, default: Any = _MISSING, *, gt: float | None = None, ge: float | None = None,
                lt: float | None = None, le: float | None = None) -> Any:
@@ -197,10 +202,12 @@ class Table:
             return default
         return Table(raw, self._field(key), self.file)
 
-    def done(self) -> None:
-        """Refuse fields nobody read (misspelt names and wrong unit suffixes land here)."""
+    def done(self, also_known: tuple[str, ...] = ()) -> None:
+        """Refuse fields nobody read (misspelt names and wrong unit suffixes land here). `also_known`
+        lists optional fields that were absent, so that a misspelling of one of them gets its hint."""
+        known = sorted(self._read | set(also_known))
         for key in self.data:
-            if key not in self._read:
-                close = difflib.get_close_matches(key, sorted(self._read), n=1, cutoff=0.5)
+            if key not in known:
+                close = difflib.get_close_matches(key, known, n=1, cutoff=0.5)
                 hint = f"; did you mean {close[0]!r}?" if close else ""
-                raise self.fail(key, self.data[key], f"unknown field{hint} (known: {', '.join(sorted(self._read))})")
+                raise self.fail(key, self.data[key], f"unknown field{hint} (known: {', '.join(known)})")

@@ -114,7 +114,7 @@ class Material:
         ratio = mc.number("ratio_to_edge_radius", gt=0, le=2)
         mc_source = mc.string("source")
         mc.done()
-        t.done()
+        t.done(("mechanistic",))
         return cls(name, description, kienzle, mech, speeds, speed_source, dia, fmin, fmax, chip_source,
                    ratio, mc_source, hardness)
 
