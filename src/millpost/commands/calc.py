@@ -23,7 +23,9 @@ depth ap; --climb (default) keeps the material on the right of the travel (down 
 spindle), --conventional on the left. Forces are those on the tool in machine X, Y, Z (Z up): F_avg_N is
 the mean over a tooth period, F_peak_N the largest in-plane |F| over a revolution (helix included).
 deflection_mm is the tool's lateral deflection under F_peak at mid-depth (two-segment cantilever, fluted
-diameter 0.8·D), plus the machine's axis compliance when --machine is given; break_ratio = F_peak over
+diameter 0.8·D); with --machine, machine_deflection_mm is F_peak over the softer of the X/Y axis
+stiffnesses (in series with the tool) and spindle_power_ratio the cutting power over the spindle's power
+at that speed; break_ratio = F_peak over
 the tool's allowed lateral force (bending strength / safety factor). Coefficients: --coeffs
 Ktc,Krc,Kac (N/mm²) and Kte,Kre,Kae (N/mm) for the mechanistic model; --kienzle kc11 (N/mm²), mc
 [, radial=F_r/F_t, axial=F_a/F_t]."""
@@ -137,9 +139,9 @@ class CutResult:
     torque_Nm: float
     power_W: float
     mrr_mm3_min: float
-    tool_deflection_mm: float
     deflection_mm: float
     break_ratio: float
+    machine_deflection_mm: float | None
     spindle_power_ratio: float | None
 
 
@@ -155,11 +157,9 @@ def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_m
     feed = fz_mm * tool.flutes * rpm
     beam = ToolBeam.of(tool)
     f_peak = float(loads.peak_force_xy_N[0])
-    tool_defl = beam.deflection_mm(f_peak, ap_mm)
-    defl = tool_defl
-    spindle_ratio = None
+    machine_defl = spindle_ratio = None
     if machine is not None:
-        defl += f_peak / min(machine.axes["x"].stiffness_N_per_mm, machine.axes["y"].stiffness_N_per_mm)
+        machine_defl = f_peak / min(machine.axes["x"].stiffness_N_per_mm, machine.axes["y"].stiffness_N_per_mm)
         avail = float(machine.spindle.power_available_W(rpm))
         spindle_ratio = float(loads.power_W[0]) / avail if avail > 0 else math.inf
     return CutResult(
@@ -169,8 +169,8 @@ def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_m
         chip_thinning_factor=chip_thinning_factor(ae, tool.diameter_mm),
         F_avg_N=tuple(float(v) for v in loads.force_N[0]), F_peak_N=f_peak, torque_Nm=float(loads.torque_Nm[0]),
         power_W=float(loads.power_W[0]), mrr_mm3_min=float(eng.area_mm2[0]) * feed,
-        tool_deflection_mm=tool_defl, deflection_mm=defl, break_ratio=f_peak / beam.breaking_force_N(ap_mm),
-        spindle_power_ratio=spindle_ratio)
+        deflection_mm=beam.deflection_mm(f_peak, ap_mm), break_ratio=f_peak / beam.breaking_force_N(ap_mm),
+        machine_deflection_mm=machine_defl, spindle_power_ratio=spindle_ratio)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -185,6 +185,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2))
     else:
         for key, value in out.items():
+            if value is None:
+                continue
             if isinstance(value, list):
                 value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
             elif isinstance(value, float):
