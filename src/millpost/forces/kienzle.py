@@ -97,14 +97,14 @@ class Kienzle:
         avg = Q * fz[:, None] ** p
         kc11 = self._coef()[0]
         st, ex, b = clipped_arcs(engagement)
-        peak_fxy, peak_t, _ = simulate(
+        peaks, _ = simulate(
             st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa,
             kc=kc11 * np.array([1.0, self.radial_ratio, self.axial_ratio]), ke=np.zeros(3), p=p,
             flutes=tool.flutes, helix_deg=tool.helix_deg, radius_mm=tool.radius_mm, fz_mm=fz,
             steps_per_rev=self.steps_per_rev)
         torque = avg[:, 3] / 1000.0
         return Loads(force_feed_N=avg[:, :3], force_N=to_machine(engagement.feed_dir, avg[:, :3]),
-                     peak_force_xy_N=peak_fxy, torque_Nm=torque, peak_torque_Nm=peak_t / 1000.0,
+                     peak_force_xy_N=peaks[:, 0], torque_Nm=torque, peak_torque_Nm=peaks[:, 3] / 1000.0,
                      power_W=torque * omega)
 
     def linear_loads(self, engagement: Engagement, tool: Tool, rpm, feed_ref_mm_min=None) -> LinearLoads:
@@ -124,11 +124,12 @@ class Kienzle:
         omega = 2 * np.pi * rpm_n / 60.0
         kc11 = self._coef()[0]
         st, ex, b = clipped_arcs(engagement)
-        peak1, _, _ = simulate(
+        peaks, _ = simulate(
             st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa,
             kc=kc11 * np.array([1.0, self.radial_ratio, self.axial_ratio]), ke=np.zeros(3), p=p,
             flutes=tool.flutes, helix_deg=tool.helix_deg, radius_mm=tool.radius_mm, fz_mm=np.ones(n),
             steps_per_rev=self.steps_per_rev)           # peak ∝ f_z^p as well
+        peak1 = peaks[:, 0]
         fd = engagement.feed_dir
         F = to_machine(fd, Q[:, :3])
         T = Q[:, 3] / 1000.0

@@ -110,21 +110,21 @@ class Mechanistic:
         avg = self._averages(engagement, fz, tool)
         st, ex, b = clipped_arcs(engagement)
         k = self._coef()
-        peak_fxy, peak_t, _ = simulate(
+        peaks, _ = simulate(
             st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa,
             kc=k[:3], ke=k[3:], p=1.0, flutes=tool.flutes, helix_deg=tool.helix_deg, radius_mm=tool.radius_mm,
             fz_mm=fz, runout_mm=self.runout_mm, steps_per_rev=self.steps_per_rev)
         torque = avg[:, 3] / 1000.0
         return Loads(force_feed_N=avg[:, :3], force_N=to_machine(engagement.feed_dir, avg[:, :3]),
-                     peak_force_xy_N=peak_fxy, torque_Nm=torque, peak_torque_Nm=peak_t / 1000.0,
+                     peak_force_xy_N=peaks[:, 0], torque_Nm=torque, peak_torque_Nm=peaks[:, 3] / 1000.0,
                      power_W=torque * omega)
 
     def linear_loads(self, engagement: Engagement, tool: Tool, rpm, feed_ref_mm_min=None) -> LinearLoads:
         """Exact affine loads in the feed v (mm/min): f_z = v / (flutes·rpm). feed_ref is not needed.
 
         The peak bound is max_φ ‖A(φ)‖·f_z + max_φ ‖B(φ)‖ (triangle inequality on the instantaneous
-        force f_z·A(φ) + B(φ)), from two time-domain runs (shearing part at f_z = 1, edge part alone);
-        runout is not included in this bound.
+        force f_z·A(φ) + B(φ)), shearing part at f_z = 1 and edge part from one time-domain run; runout is
+        not included in this bound.
         """
         n = len(engagement)
         rpm_n = rpm_array(rpm, n)
@@ -135,10 +135,9 @@ class Mechanistic:
         omega = 2 * np.pi * rpm_n / 60.0
         st, ex, b = clipped_arcs(engagement)
         geo = (st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa)
-        opts = dict(p=1.0, flutes=tool.flutes, helix_deg=tool.helix_deg, radius_mm=tool.radius_mm,
-                    steps_per_rev=self.steps_per_rev)
-        pa, _, _ = simulate(*geo, kc=k[:3], ke=np.zeros(3), fz_mm=np.ones(n), **opts)
-        pb, _, _ = simulate(*geo, kc=np.zeros(3), ke=k[3:], fz_mm=np.ones(n), **opts)
+        peaks, _ = simulate(*geo, kc=k[:3], ke=k[3:], fz_mm=np.ones(n), p=1.0, flutes=tool.flutes,
+                            helix_deg=tool.helix_deg, radius_mm=tool.radius_mm, steps_per_rev=self.steps_per_rev)
+        pa, pb = peaks[:, 1], peaks[:, 2]
         fd = engagement.feed_dir
         return LinearLoads(
             force_a=to_machine(fd, slope[:, :3]) * per_feed[:, None], force_b=to_machine(fd, icpt[:, :3]),
