@@ -54,34 +54,37 @@ def immersion(ae_mm: float, diameter_mm: float, *, climb: bool = True) -> tuple[
     return (np.pi - phi_s, np.pi) if climb else (0.0, phi_s)
 
 
-def given_cut(tool: Tool, ae_mm: float, ap_mm: float, *, climb: bool = True, slices: int = 24) -> Engagement:
-    """Engagement of one straight cut along +X beside a vertical wall: width ae (≥ D for a slot), depth ap.
+def given_cut(tool: Tool, ae_mm, ap_mm, *, climb: bool = True, slices: int | None = None) -> Engagement:
+    """Engagement of straight cuts along +X beside a vertical wall: width ae (≥ D is a slot), depth ap.
+    ae_mm and ap_mm are scalars or arrays (one sample per pair).
 
     Each axial slice at height z cuts with its own radius r(z) (corner radius, ball, chamfer): the wall sits
     R − ae from the axis, so the slice engages ae_z = r(z) − (R − ae) and its arc spans
     arccos(1 − ae_z/r(z)). Axial immersion κ(z) = atan2(1, dr/dz) (π/2 on the cylinder).
+    slices: axial slices (default 8 on a flat end mill, whose slices are alike, 24 along a profile).
     """
-    if not (ae_mm > 0 and ap_mm > 0):
+    if slices is None:
+        slices = 8 if tool.shape == "flat" else 24
+    ae, ap = np.broadcast_arrays(np.atleast_1d(np.asarray(ae_mm, float)), np.atleast_1d(np.asarray(ap_mm, float)))
+    if not (np.all(ae > 0) and np.all(ap > 0)):
         raise MillpostError(f"a cut needs ae > 0 and ap > 0 mm, got ae={ae_mm}, ap={ap_mm}")
-    dz = ap_mm / slices
-    z = (np.arange(slices) + 0.5) * dz
+    n = len(ae)
+    dz = (ap / slices)[:, None] * np.ones((1, slices))
+    z = (np.arange(slices) + 0.5)[None, :] * dz
     r = tool.radius_at(z)
     eps = 1e-4 * tool.diameter_mm
-    slope = (tool.radius_at(z + eps) - tool.radius_at(np.maximum(z - eps, 0.0))) / (z + eps - np.maximum(z - eps, 0.0))
-    kappa = np.arctan2(1.0, slope)
-    wall = tool.radius_mm - min(ae_mm, tool.diameter_mm)
-    ae_z = np.clip(r - wall, 0.0, 2 * r)
+    z_lo = np.maximum(z - eps, 0.0)
+    kappa = np.arctan2(1.0, (tool.radius_at(z + eps) - tool.radius_at(z_lo)) / (z + eps - z_lo))
+    ae_c = np.minimum(ae, tool.diameter_mm)
+    ae_z = np.clip(r - (tool.radius_mm - ae_c)[:, None], 0.0, 2 * r)
     with np.errstate(divide="ignore", invalid="ignore"):
         phi_s = np.arccos(np.clip(1.0 - ae_z / np.where(r > 0, r, 1.0), -1.0, 1.0))
     cutting = (ae_z > 0) & (r > 0)
     st = np.where(cutting, np.pi - phi_s if climb else 0.0, np.nan)
     ex = np.where(cutting, np.pi if climb else phi_s, np.nan)
-    area = float(np.sum(np.minimum(ae_z, 2 * r) * dz))
-    row = lambda a: np.asarray(a, float)[None, :]  # noqa: E731
-    return Engagement(phi_st=row(st), phi_ex=row(ex), dz_mm=row(np.where(cutting, dz, 0.0)), z_mm=row(z),
-                      r_mm=row(r), kappa=row(kappa), feed_dir=np.array([[1.0, 0.0, 0.0]]),
-                      ap_mm=np.array([ap_mm]), ae_mm=np.array([min(ae_mm, tool.diameter_mm)]),
-                      volume_mm3=np.array([np.nan]), area_mm2=np.array([area]))
+    return Engagement(phi_st=st, phi_ex=ex, dz_mm=np.where(cutting, dz, 0.0), z_mm=z, r_mm=r, kappa=kappa,
+                      feed_dir=np.tile([1.0, 0.0, 0.0], (n, 1)), ap_mm=ap.copy(), ae_mm=ae_c,
+                      volume_mm3=np.full(n, np.nan), area_mm2=np.sum(ae_z * dz, axis=1))
 
 
 def chip_thinning_factor(ae_mm: float, diameter_mm: float) -> float:
