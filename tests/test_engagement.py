@@ -162,10 +162,14 @@ def test_inside_corner_engagement_rises_and_returns():
     errs = []
     for k in corner:
         p = sm.xyz_mm[k, :2]
-        f = e.feed_dir[k, :2]
+        # the ring is the path point 0.15 mm further on, framed by the path direction there
+        sa = sm.s_mm[k] + 0.15
+        centre = np.array([np.interp(sa, sm.s_mm, sm.xyz_mm[:, 0]), np.interp(sa, sm.s_mm, sm.xyz_mm[:, 1])])
+        f = f1 if sa < 10 - 1e-6 else f2 if sa > 10 + 1e-6 else e.feed_dir[k, :2]
+        np.testing.assert_allclose(e.feed_dir[k, :2], f, atol=1e-9)
         n = np.array([-f[1], f[0]])
         swept = np.vstack([pts[0], *([pts[1]] if sm.s_mm[k] > 10 else []), p])
-        st, ex = _exact_arc(p + 0.15 * f, f, n, R, in_stock, swept)
+        st, ex = _exact_arc(centre, f, n, R, in_stock, swept)
         errs.append(np.degrees([e.phi_st[k, 0] - st, e.phi_ex[k, 0] - ex]))
     errs = np.abs(np.array(errs))
     assert np.nanmean(errs) < 0.3 and np.nanmax(errs) < 2.0

@@ -115,6 +115,33 @@ def _lowpass(x: np.ndarray, fresh: np.ndarray, sigma: float) -> np.ndarray:
     return out
 
 
+def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: float) -> np.ndarray:
+    """(n, 4) ring centre (x, y) and feed direction (x, y) per sample: the path point `look_ahead`
+    mm further along the path and the direction of the step there (following arcs and polyline
+    corners rather than the tangent line); past the end of a continuous run, straight on."""
+    n = len(xyz)
+    d = np.diff(xyz[:, :2], axis=0, prepend=xyz[:1, :2])
+    ln = np.hypot(d[:, 0], d[:, 1])
+    ok = (ln > 1e-12) & ~fresh
+    idx = np.maximum.accumulate(np.where(ok, np.arange(n), -1))
+    first = int(np.argmax(ok)) if ok.any() else -1
+    dirs = np.tile([1.0, 0.0], (n, 1))
+    if first >= 0:
+        src = np.where(idx >= 0, idx, first)
+        dirs = d[src] / ln[src, None]
+    starts = np.flatnonzero(fresh)
+    run_last = np.append(starts[1:] - 1, n - 1)[np.cumsum(fresh) - 1]
+    target = s + look_ahead
+    j = np.minimum(np.searchsorted(s, target, side="left"), run_last)
+    beyond = target > s[j]
+    jm = np.maximum(j - 1, 0)
+    span = s[j] - s[jm]
+    u = np.where(span > 0, (target - s[jm]) / np.where(span > 0, span, 1.0), 1.0)
+    centre = xyz[jm, :2] + u[:, None] * (xyz[j, :2] - xyz[jm, :2])
+    centre[beyond] = xyz[j[beyond], :2] + (target - s[j])[beyond, None] * dirs[j[beyond]]
+    return np.ascontiguousarray(np.column_stack([centre, dirs[j]]))
+
+
 def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices: int = 8,
              ring_samples: int = 180, look_ahead_mm: float | None = None, smooth_steps: float = 1.0,
              progress: bool | None = None) -> Engagement:
@@ -123,8 +150,9 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     tool: one Tool, or tools by number (samples.tool picks one; a change restarts the footprint).
     slices: K axial slices spread over each step's axial depth. ring_samples: coarse immersion
     samples over [0, π] (transitions are then refined by bisection to 1/256 of that spacing).
-    look_ahead_mm: how far ahead along the feed the ring is sampled (default max(2·step,
-    √(R·cell)), so that material at the tangent end of the arc is not yet cut by the current step).
+    look_ahead_mm: how far ahead along the path the ring is sampled (default max(2·step, √(R·cell)),
+    so that material at the tangent ends of the arc is not yet cut by the current step); the
+    reported engagement is thus the one the tool meets that distance later.
     smooth_steps: σ (in samples) of the zero-phase Gaussian low-pass applied to area and ae, which
     damps the cell-quantisation noise at a bandwidth tied to the step.
     Rapids that would remove material raise MillpostError naming the source line.
@@ -143,6 +171,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     rapid = np.asarray(samples.kind) == RAPID
     K, M = int(slices), int(ring_samples)
     nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
+    s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
     out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
                rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
                area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool))
@@ -162,15 +191,15 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
             raise MillpostError(f"line {int(samples.line[a])}: tool T{int(tool_no[a])} is not described")
         shape, R, rc, r_tip, tan_half = _tool_params(t)
         la = look_ahead_mm if look_ahead_mm is not None else max(2 * ds, math.sqrt(R * stock.cell_mm))
+        ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
         for c0 in range(a, b, chunk):
             c1 = min(b, c0 + chunk)
-            bad = _k.run(xyz, fresh, rapid, c0, c1, prev_f, top, stock.nx, stock.ny, stock.x0, stock.y0,
+            bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny, stock.x0, stock.y0,
                          stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits, stock.multi_ids,
                          stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half, t.flute_len, K, M,
-                         la, shape != _k.FLAT, 1e-3, out["phi_st"], out["phi_ex"], out["dz"], out["zmid"],
-                         out["rad"], out["arc"], out["ap"], out["ae"], out["vol"], out["area"], out["feed"],
-                         out["desc"])
+                         ring_at, shape != _k.FLAT, 1e-3, *(v[a:b] for v in out.values()))
             if bad != _k.OK:
+                bad += a
                 p = xyz[bad]
                 raise MillpostError(
                     f"line {int(samples.line[bad])}: rapid move runs into the stock at "

@@ -7,8 +7,8 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
    moving level or up, the crescent outside the previous disk; for other shapes, the half-plane
    of columns nearer the new centre than the old one; the full disk when descending or starting.
    Removed volume (column length × cell area) and the axial depth ap (deepest column cut) follow.
-2. Ring sampling of the updated stock on a ring pushed ahead along the feed by a look-ahead
-   distance, at K axial slices over [0, ap]: material inside slice k along the vertical line at
+2. Ring sampling of the updated stock on a ring centred a look-ahead distance further along the
+   path (so the thin fresh crescent near the arc's tangent ends is not yet cut), at K axial slices over [0, ap]: material inside slice k along the vertical line at
    immersion φ ∈ [0, π] (Altintas: φ clockwise from +y = left of feed, x = feed) decides whether
    the slice is engaged there (more than half the slice filled). Coarse samples find the arcs,
    bisection places each transition; the swept cross-section ∫ r sin φ · m(φ) dφ follows.
@@ -254,11 +254,12 @@ def _bisect(a, b, a_on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bili
 
 @njit(cache=True)
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
-        shape, R, rc, r_tip, tan_half, flute, K, M, look_ahead, bilinear, crash_tol,
+        shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
         phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o):
     """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
-    Outputs are written in place (rows k); returns OK or the index of a rapid that hits material.
-    prev_f: (2,) feed direction carried across calls (updated in place)."""
+    ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
+    look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
+    of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place)."""
     dphi = math.pi / M
     cells = np.empty((M + 1, 4), np.int64)
     wts = np.empty((M + 1, 2), np.float64)
@@ -285,7 +286,8 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
                 mode = 1 if shape == FLAT else 2
         else:
             qx, qy = px, py
-        feed_o[k, 0], feed_o[k, 1] = fx, fy
+        gx, gy = ring_at[k, 2], ring_at[k, 3]
+        feed_o[k, 0], feed_o[k, 1] = gx, gy
         desc_o[k] = descending
         rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
                                     top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
@@ -299,7 +301,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
             area_o[k] = vol_o[k] / step if step > 0.0 else 0.0
             continue
         dzs = ap / K
-        cx, cy = px + look_ahead * fx, py + look_ahead * fy
+        cx, cy = ring_at[k, 0], ring_at[k, 1]
         area = 0.0
         ae = 0.0
         r_prev = -1.0
@@ -309,7 +311,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
             zmid[k, s] = zm
             rad[k, s] = r
             if r != r_prev:
-                _ring_cells(cx, cy, fx, fy, r, M, dphi, x0, y0, h, nx, ny, bilinear, cells, wts)
+                _ring_cells(cx, cy, gx, gy, r, M, dphi, x0, y0, h, nx, ny, bilinear, cells, wts)
                 r_prev = r
             za, zb = pz + s * dzs, pz + (s + 1) * dzs
             half = 0.5 * dzs
@@ -345,7 +347,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
                     if on:
                         a_s += dphi
                     continue
-                t = _bisect(a, b, on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
+                t = _bisect(a, b, on, cx, cy, gx, gy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
                             top, zf, has_multi, bits, ids, ptr, lo, hi)
                 area += g[i] * (math.cos(a) - math.cos(t)) + g[i + 1] * (math.cos(t) - math.cos(b))
                 if on:
