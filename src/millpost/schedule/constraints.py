@@ -94,7 +94,7 @@ class Junction:
             with np.errstate(divide="ignore"):
                 acc = np.min(np.where(np.abs(u) > 1e-12, np.asarray(self.amax_mm_s2) / np.abs(u), np.inf), axis=1)
             sin_half = np.sqrt(np.maximum(0.0, (1 + cos_turn) / 2))  # θ = π − turn
-            with np.errstate(divide="ignore"):
+            with np.errstate(divide="ignore", over="ignore"):
                 v2 = np.minimum(acc, 1e300) * self.deviation_mm * sin_half / np.maximum(1 - sin_half, 1e-300)
             cap[1:-1] = np.where(corner, v2, np.inf)
         return [SpeedBounds(self.name, np.zeros(n), cap)]
