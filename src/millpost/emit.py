@@ -61,6 +61,16 @@ def _decimals(block: Block, default: int) -> int:
     return max(found + [default])
 
 
+def _trailing_point(block: Block, default: bool) -> bool:
+    """Whether this line writes whole numbers as "10." (from its own numbers, else the dialect)."""
+    nums = [w.text[1:].strip() for w in block.words if w.letter in "XYZIJKRF" and "[" not in w.text]
+    if any(t.endswith(".") for t in nums):
+        return True
+    if any("." not in t for t in nums):
+        return False
+    return default
+
+
 def _fmt(value: float, decimals: int, trailing_point: bool) -> str:
     text = f"{value:.{decimals}f}"
     if "." in text:
@@ -96,7 +106,8 @@ class _LineWriter:
                 edits.append((s, w.end, ""))
         missing = [L for L in new if L not in placed]
         if missing:
-            at = self.block.code_end
+            anchor = [w.end for w in self.block.words if w.letter in "GXYZIJKR" and w.letter not in drop]
+            at = max(anchor) if anchor else self.block.code_end
             edits.append((at, at, "".join(self.sep + L + new[L] if (at > 0 or i) else L + new[L]
                                           for i, L in enumerate(missing))))
         for s, e, rep in sorted(edits, key=lambda t: (t[0], t[1]), reverse=True):
@@ -110,8 +121,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     tp = program.toolpath
     if len(plan.feed_mm_min) != len(tp):
         raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
-    if trailing_point is None:
-        trailing_point = program.dialect == "fanuc"
+    default_trailing = program.dialect == "fanuc" if trailing_point is None else trailing_point
     lines = program.text.splitlines(keepends=True)
     lengths = tp.lengths()
     cutting = tp.kind != RAPID
@@ -142,6 +152,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         params.update(block.assigns)
         inch = bool(program.move_inch[moves[0]])
         decimals = _decimals(block, 4 if inch else 3)
+        trailing_point = _trailing_point(block, default_trailing)
         writer = _LineWriter(body, block)
 
         def f_value(i: int, feed_mm_min: float, length_mm: float) -> float:

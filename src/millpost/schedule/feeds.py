@@ -142,6 +142,8 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
     out = np.full(len(samples), np.nan)
     for lo, hi, sch in schedule.segments:
         _, b_hi = merged_bounds([c.window(lo, hi) for c in caps], hi - lo)
-        own = np.isin(sch.binding.astype(str), controller_enforced)
+        # where nothing binds (ramping from rest) or only the controller's own dynamics bind, the
+        # controller ramps by itself: program the caps there
+        own = np.isin(sch.binding.astype(str), controller_enforced + ("",))
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
     return out
