@@ -101,7 +101,7 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
     rpm = np.where(spin, samples.rpm, 1.0)
     k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
     peak_limit, defl_per_N = np.full(n, np.inf), np.zeros(n)
-    fz_hi, fz_lo, v_floor = np.full(n, np.inf), np.zeros(n), np.zeros(n)
+    fz_hi, fz_lo = np.full(n, np.inf), np.zeros(n)
     sin_max = _max_sin(eng)
     for number in np.unique(samples.tool[cutting]):
         tool = job.tools.get(int(number))
@@ -120,10 +120,10 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
         cut_here = idx[sin_max[idx] > 0]
         fz_hi[cut_here] = h_max / sin_max[cut_here]
         fz_lo[cut_here] = h_min / sin_max[cut_here]
-        v_floor[idx] = fz_lo[idx] * tool.flutes * rpm[idx] / 60.0
         limits.append(ChipLoad(tool.flutes, rpm, np.where(samples.tool == number, fz_lo, 0.0),
                                np.where(samples.tool == number, fz_hi, np.inf), name="chip_load"))
     loads["unavoidable"] = {}
+    v_hold = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0
     for name, a, b, bound in (
             ("cutting_force", loads["peak_a"], loads["peak_b"], peak_limit),
             ("deflection", loads["peak_a"] * defl_per_N, loads["peak_b"] * defl_per_N,
@@ -131,18 +131,22 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
             ("power", loads["power_a"], loads["power_b"], np.where(spin, m.spindle.power_available_W(rpm), np.inf)),
             ("torque", loads["torque_a"], loads["torque_b"], np.where(spin, m.spindle.torque_Nm(rpm), np.inf))):
         # Where the cut exceeds the bound at any feed (its edge forces alone: the depth or width of cut,
-        # not the feed, is at fault), feeding slower cannot help: hold the feed at the minimum chip there
-        # and report those samples rather than crawl.
+        # not the feed, is at fault), feeding slower cannot help: never feed faster than programmed
+        # there, and report those samples rather than crawl.
         over = b > bound
         loads["unavoidable"][name] = over
-        limits.append(SpeedLoad(a, b, np.where(over, a * v_floor + b, bound), name=name))
+        limits.append(SpeedLoad(a, b, np.where(over, a * v_hold + b, bound), name=name))
     rho = np.array([a.rho_m_per_rad for a in ax])
     mass = tuple(a.moving_mass_kg + a.motor.rotor_inertia_kgm2 / r**2 for a, r in zip(ax, rho))
     kf = tuple(a.motor.kt_Nm_per_A * a.efficiency / r for a, r in zip(ax, rho))
     current = tuple(a.motor.current_limit_A for a in ax)
+    # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
+    # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
+    v_cap = np.minimum(_static_caps(samples, limits), feed_max / 60.0)
+    at_cap = loads["force_a"] * v_cap[:, None] + loads["force_b"]
+    drive_force = -np.where(np.abs(at_cap) > np.abs(loads["force_b"]), at_cap, loads["force_b"])
     limits.append(MotorCurrent(mass, kf, current, tuple(a.friction_coulomb_N for a in ax),
-                               tuple(a.friction_viscous_N_s_per_mm for a in ax),
-                               cut_alpha=-loads["force_a"], cut_beta=-loads["force_b"]))
+                               tuple(a.friction_viscous_N_s_per_mm for a in ax), cut_beta=drive_force))
     limits.append(CurrentSlew(mass, kf, current, tuple(a.motor.resistance_ohm for a in ax),
                               tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                               min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)))
@@ -192,7 +196,7 @@ def replay(samples: Samples, limits: list, loads: dict, v_mm_s: np.ndarray, job:
     grid = PathGrid.from_samples(samples)
     cut = samples.kind != RAPID
     out: dict[str, float] = {}
-    v = np.where(cut, v_mm_s, 0.0)
+    v = v_mm_s
     for lim in limits:
         if isinstance(lim, SpeedLoad):
             value = lim.alpha * v + lim.beta
@@ -293,8 +297,10 @@ def _binding_fractions(samples: Samples, sched) -> dict[str, float]:
     total = 0.0
     acc: dict[str, float] = {}
     for lo, hi, s in sched.segments:
-        v = np.maximum(s.feed_mm_s, 1e-9)
-        dt = np.gradient(samples.s_mm[lo:hi]) / v
+        v = s.feed_mm_s
+        dt = np.zeros(hi - lo)
+        with np.errstate(divide="ignore", invalid="ignore"):  # trapezoid: interval time 2·Δs/(v₀+v₁)
+            dt[1:] = np.where(v[1:] + v[:-1] > 0, 2 * np.diff(samples.s_mm[lo:hi]) / (v[1:] + v[:-1]), 0.0)
         total += float(dt.sum())
         for name, w in zip(s.binding.astype(str), dt):
             if name:

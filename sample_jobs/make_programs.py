@@ -1,0 +1,109 @@
+"""Writes the sample jobs' programs (the project makes them itself, as a CAM system would post them).
+
+    python sample_jobs/make_programs.py      # rewrites sample_jobs/*/program.nc
+
+Each program is plain RS-274 as a Fusion/FreeCAD post writes it: G21 G90 G17, tool change, spindle,
+rapids to a clearance height, one programmed feed per operation.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+HERE = Path(__file__).parent
+
+
+def fmt(v: float) -> str:
+    s = f"{v:.3f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+def header(title: str, tool: int, rpm: int) -> list[str]:
+    return [f"({title})", "G21 G90 G17 G94", f"T{tool} M6", f"S{rpm} M3", "G0 Z10"]
+
+
+def adaptive_pocket() -> str:
+    """Adaptive-style clearing of a 40 × 14 mm slot pocket, 6 mm deep, 6 mm 3-flute in Al 6061:
+    trochoidal loops (radius 4 mm, 0.6 mm advance a loop) in fine linear segments, like Fusion's
+    adaptive clearing posts them; one programmed feed for the whole operation."""
+    out = header("adaptive pocket, 6 mm 3F flat, Al 6061", 1, 9000)
+    r, step, y0, z = 4.0, 0.6, 7.0, -6.0
+    x = -8.0  # start beside the stock and plunge in the air, as an adaptive entry from outside
+    out += [f"G0 X{fmt(x + r)} Y{fmt(y0)}", "G0 Z2", f"G1 Z{fmt(z)} F400", "F1500"]
+    while x + r <= 47.0:
+        for k in range(1, 37):
+            th = 2 * math.pi * k / 36
+            px = x + r * math.cos(th) + step * k / 36
+            py = y0 + r * math.sin(th)
+            out.append(f"G1 X{fmt(px)} Y{fmt(py)}")
+        x += step
+    out += ["G0 Z10", "M30"]
+    return "\n".join(out) + "\n"
+
+
+def slotting() -> str:
+    """Slotting-heavy job: three full-width slots 3 mm deep in two passes, then a side contour at
+    ae = 1 mm around the block, 6 mm 3-flute in Al 6061, one feed per operation."""
+    out = header("slots and contour, 6 mm 3F flat, Al 6061", 1, 9000)
+    for y in (8.0, 20.0, 32.0):
+        out += [f"G0 X-5 Y{fmt(y)}", "G0 Z2"]
+        for z in (-1.5, -3.0):
+            out += [f"G1 Z{fmt(z)} F300", "G1 X65 F700", "G0 Z2", f"G0 X-5 Y{fmt(y)}"]
+    out += ["G0 Z10", "G0 X-4 Y-4", "G0 Z2", "G1 Z-4 F300", "G1 X64 F900", "Y44", "X-4", "Y-4", "G0 Z10", "M30"]
+    return "\n".join(out) + "\n"
+
+
+def ball_roughing() -> str:
+    """3D roughing of a dome with a 6 mm ball end mill in POM: zig-zag rows 0.8 mm apart following
+    z = the dome surface + 0.3 mm stock, clipped at the roughing floor; one feed for the pass."""
+    out = header("dome roughing, 6 mm 2F ball, POM", 1, 16000)
+    R, cx, cy, top = 30.0, 25.0, 25.0, -2.0
+
+    def surface(x: float, y: float) -> float:
+        d2 = (x - cx) ** 2 + (y - cy) ** 2
+        return max(top - 12.0, top - 12.0 + math.sqrt(max(R * R - d2, 0.0)) - (R - 12.0)) + 0.3
+
+    out += ["G0 X0 Y0", "G0 Z2", f"G1 Z{fmt(surface(0, 0))} F500", "F2500"]
+    y, row = 0.0, 0
+    while y <= 50.0:
+        xs = [i * 0.5 for i in range(101)]
+        if row % 2:
+            xs = xs[::-1]
+        for x in xs:
+            out.append(f"G1 X{fmt(x)} Y{fmt(y)} Z{fmt(surface(x, y))}")
+        y += 0.8
+        row += 1
+    out += ["G0 Z10", "M30"]
+    return "\n".join(out) + "\n"
+
+
+def drill_and_mill() -> str:
+    """Canned cycles and tool changes: T1 6 mm end mill faces the top 1 mm and mills a 20 × 10 pocket;
+    T2 a 5 mm drill (118°) spots four holes with G81 and pecks them with G83 (Fanuc style)."""
+    out = ["%", "O1002", "(face, pocket, drill; Fanuc/Haas style)", "G21 G90 G17 G94 G40 G49 G80",
+           "T1 M6", "S9000 M3", "G54", "G0 X-4 Y2 Z10", "G43 Z10 H1", "G0 Z2", "G1 Z-1 F400"]
+    y = 2.0
+    while y <= 38.0:
+        out += [f"G1 X64 Y{fmt(y)} F1200", f"G1 Y{fmt(y + 4)}", "G1 X-4"]
+        y += 8.0
+    out += ["G0 Z2", "G0 X23 Y15", "G1 Z-4 F300"]
+    for k in range(4):
+        d = 1.0 + 1.0 * k
+        out += [f"G1 X{fmt(20 + d)} Y{fmt(15 + d)} F900", f"X{fmt(40 - d)}", f"Y{fmt(25 - d)}", f"X{fmt(20 + d)}",
+                f"Y{fmt(15 + d)}"]
+    out += ["G0 Z10", "M5", "G28 G91 Z0.", "G90", "T2 M6", "S3000 M3", "G0 X10 Y10 Z10", "G43 Z10 H2",
+            "G98 G81 X10 Y10 Z-2 R2 F200", "X50", "Y30", "X10", "G80",
+            "G98 G83 X10 Y10 Z-12 R2 Q3 F150", "X50", "Y30", "X10", "G80",
+            "G0 Z10", "M5", "G28 G91 Z0.", "G90", "M30", "%"]
+    return "\n".join(out) + "\n"
+
+
+PROGRAMS = {"adaptive_pocket": adaptive_pocket, "slotting": slotting, "ball_roughing": ball_roughing,
+            "drill_and_mill": drill_and_mill}
+
+if __name__ == "__main__":
+    for name, make in PROGRAMS.items():
+        (HERE / name).mkdir(exist_ok=True)
+        (HERE / name / "program.nc").write_text(make())
+        print(name, len(make().splitlines()), "lines")
