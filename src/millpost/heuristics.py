@@ -189,39 +189,44 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
         g_lo = np.where(right, 0.5 * g_lo, g_lo)
         lo, g_lo = np.where(left, x, lo), np.where(left, g, g_lo)
         hi, g_hi = np.where(right, x, hi), np.where(right, g, g_hi)
-        todo &= (hi - lo) > 1e-6 * hi
+        todo &= (hi - lo) > (1e-3 if search else 1e-7) * hi
     return np.where((lo >= bottom) & (lo > 0) & (top >= bottom), lo, np.nan)
 
 
 def _grid(lo: float, hi: float, n: int) -> np.ndarray:
-    return np.unique(np.linspace(lo, hi, n)) if hi > lo else np.array([hi])
+    """Geometric grid: light cuts (small ae, ap), where fast passes live, get as fine a grid as heavy ones."""
+    return np.unique(np.geomspace(lo, hi, n)) if hi > lo else np.array([hi])
 
 
 def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> tuple[float, float, float, float]:
-    """Grid over (ae, ap, rpm), then two finer grids around the best; f_z by `_best_fz` on each."""
+    """Geometric grid over (ae, ap, rpm) with the coarse search model, four finer grids around the best so
+    far, then the best dozen candidates re-solved with the full model; f_z is always the largest feasible."""
     d = s.tool.diameter_mm
     full = [(v, v) if v else rng for v, rng in
             ((ae_fixed, (0.02 * d, d)), (ap_fixed, (0.05 * d, s.ap_max_mm)), (rpm_fixed, (s.rpm_lo, s.rpm_hi)))]
     ranges = list(full)
-    best = None
-    for sizes in ((16, 12, 5), (7, 7, 5), (7, 7, 5)):
+    seen: dict[tuple[float, float, float], float] = {}
+    for sizes in ((20, 16, 4), (7, 7, 4), (7, 7, 3), (7, 7, 3), (7, 7, 3)):
         axes = [_grid(lo, hi, n) for (lo, hi), n in zip(ranges, sizes)]
         A, P, N = (g.ravel() for g in np.meshgrid(*axes, indexing="ij"))
         fz = _best_fz(s, A, P, N, search=True)
-        feed = fz * s.tool.flutes * N
-        mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * feed, -1.0)
-        if mrr.max() <= 0:
+        mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * fz * s.tool.flutes * N, -1.0)
+        seen.update({(a, p, n): m for a, p, n, m in zip(A, P, N, mrr) if m > 0})
+        if not seen:
             raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
-        near = mrr >= (1 - tie_tolerance) * mrr.max()
-        i = int(np.argmax(np.where(near, feed, -1.0)))
-        best = (float(A[i]), float(P[i]), float(N[i]), float(fz[i]))
-        steps = [(hi - lo) / max(n - 1, 1) for (lo, hi), n in zip(ranges, sizes)]
-        ranges = [(max(f[0], c - st), min(f[1], c + st)) for f, c, st in zip(full, best[:3], steps)]
-    ae, ap, rpm = best[:3]
-    fz = float(_best_fz(s, np.array([ae]), np.array([ap]), np.array([rpm]), iterations=40)[0])
-    if not np.isfinite(fz):
+        centre = max(seen, key=seen.get)
+        ratios = [(hi / lo) ** (1 / max(n - 1, 1)) for (lo, hi), n in zip(ranges, sizes)]
+        ranges = [(max(f[0], c / q), min(f[1], c * q)) for f, c, q in zip(full, centre, ratios)]
+    top = sorted(seen, key=seen.get, reverse=True)[:12]
+    A, P, N = (np.array(v) for v in zip(*top))
+    fz = _best_fz(s, A, P, N, iterations=30)
+    feed = fz * s.tool.flutes * N
+    mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * feed, -1.0)
+    if mrr.max() <= 0:
         raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
-    return ae, ap, rpm, fz
+    near = mrr >= (1 - tie_tolerance) * mrr.max()
+    i = int(np.argmax(np.where(near, feed, -1.0)))
+    return float(A[i]), float(P[i]), float(N[i]), float(fz[i])
 
 
 def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
