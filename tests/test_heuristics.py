@@ -151,3 +151,17 @@ def test_plastic_on_a_router():
     assert rec.ap_mm >= 2 * 6
     assert rec.power_W < mach.spindle.power_available_W(rec.rpm)
     assert {"deflection", "machine_feed", "chip_load", "dynamic_range"} & set(rec.binding)
+
+
+def test_user_limits_are_kept_and_reported(capsys):
+    # a stricter safety factor and a tighter deflection limit: calc with the same flags agrees
+    tool = Tool(diameter_mm=2, flutes=2, flute_length_mm=6, stickout_mm=15, shank_diameter_mm=4)
+    limits = Limits(safety_factor=8.0, max_deflection_mm=0.01, feed_max_mm_min=1500)
+    rec = recommend(tool, Material.load("steel1045"), Machine.load("vmc-small"), limits)
+    assert rec.feed_mm_min <= 1500 * (1 + 1e-9)
+    assert main(["calc", *tool_flags(tool), "--material", "steel1045", "--safety-factor", "8", "--ae",
+                 repr(rec.ae_mm), "--ap", repr(rec.ap_mm), "--rpm", repr(rec.rpm), "--fz", repr(rec.fz_mm),
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["break_ratio"] <= 1 + 1e-9 and out["deflection_mm"] <= 0.01 * (1 + 1e-9)
+    assert set(rec.binding) & {"breakage", "deflection", "feed_max", "chip_load"}

@@ -239,7 +239,8 @@ def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits =
 
 
 def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommendation:
-    res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, machine=s.machine)
+    res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, machine=s.machine,
+                       safety_factor=s.limits.safety_factor)
     eng = given_cut(s.tool, np.array([ae]), np.array([ap]))
     _, load_ratios = _loads_ok(s, eng, np.array([fz]), np.array([n]), np.array([ap]))
     ratios = {k: float(v[0]) for k, v in load_ratios.items()}

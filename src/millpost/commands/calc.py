@@ -66,6 +66,7 @@ def add_tool_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--flute-length", type=float, metavar="MM", help="cutting length (mm)")
     g.add_argument("--shank", type=float, metavar="MM", help="shank diameter (mm)")
     g.add_argument("--tool-material", choices=("carbide", "hss"), default="carbide")
+    g.add_argument("--safety-factor", type=float, help="on the tool's bending strength (default: by geometry)")
 
 
 def add_material_arguments(p: argparse.ArgumentParser) -> None:
@@ -146,7 +147,8 @@ class CutResult:
 
 
 def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_mm: float, rpm: float,
-                 fz_mm: float, climb: bool = True, machine: Machine | None = None) -> CutResult:
+                 fz_mm: float, climb: bool = True, machine: Machine | None = None,
+                 safety_factor: float | None = None) -> CutResult:
     """All loads of one straight cut (the API under `millpost calc`, also used by `recommend`)."""
     if rpm <= 0 or fz_mm <= 0:
         raise MillpostError("rpm and feed per tooth must be > 0")
@@ -155,7 +157,7 @@ def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_m
     ae = min(ae_mm, tool.diameter_mm)
     phi_s = math.acos(1 - 2 * ae / tool.diameter_mm)
     feed = fz_mm * tool.flutes * rpm
-    beam = ToolBeam.of(tool)
+    beam = ToolBeam.of(tool, safety_factor=safety_factor)
     f_peak = float(loads.peak_force_xy_N[0])
     machine_defl = spindle_ratio = None
     if machine is not None:
@@ -179,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
     machine = Machine.load(args.machine) if args.machine else None
     fz = args.fz if args.fz is not None else args.feed / (tool.flutes * args.rpm)
     res = evaluate_cut(tool, model, ae_mm=args.ae, ap_mm=args.ap, rpm=args.rpm, fz_mm=fz, climb=args.climb,
-                       machine=machine)
+                       machine=machine, safety_factor=args.safety_factor)
     out = {"model": model.name, **res.__dict__, "F_avg_N": list(res.F_avg_N)}
     if args.json:
         print(json.dumps(out, indent=2))

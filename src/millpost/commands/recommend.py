@@ -46,7 +46,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", choices=("mechanistic", "kienzle"), default="mechanistic", help="force model")
     lim = p.add_argument_group("limits")
     lim.add_argument("--max-deflection", type=float, default=0.025, metavar="MM", help="tool deflection (mm)")
-    lim.add_argument("--safety-factor", type=float, help="on the tool's bending strength (default: by geometry)")
     lim.add_argument("--feed-min", type=float, default=0.0, metavar="MM_MIN", help="slowest traversal rate")
     lim.add_argument("--feed-max", type=float, metavar="MM_MIN", help="fastest traversal rate (default: machine)")
     lim.add_argument("--dynamic-range", type=float, default=100.0, metavar="MM_S",
