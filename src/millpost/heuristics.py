@@ -35,7 +35,7 @@ import numpy as np
 
 from .commands.calc import evaluate_cut
 from .errors import MillpostError
-from .forces import Kienzle, Mechanistic, given_cut, max_chip_mm
+from .forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut
 from .machine import Machine
 from .materials import Material
 from .tools.beam import ToolBeam
@@ -93,7 +93,6 @@ class Recommendation:
 @dataclass(frozen=True)
 class _Setup:
     tool: Tool
-    material: Material
     machine: Machine
     limits: Limits
     model: Mechanistic | Kienzle
@@ -121,36 +120,28 @@ def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, mod
         caps["feed_max"] = limits.feed_max_mm_min
     reason = min(caps, key=caps.get)
     target = limits.chip_load_mm or float(np.mean(material.chip_load_mm(tool.diameter_mm)))
-    return _Setup(tool, material, machine, limits, material.force_model(model),
-                  material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV), ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
+    return _Setup(tool, machine, limits, material.force_model(model),
+                  material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV),
+                  ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
                   material.min_chip_mm(tool.edge_radius_mm), lo, hi, hi_reason, caps[reason], reason,
                   min(tool.flute_len, tool.stickout))
 
 
-def _rctf(ae: np.ndarray, d: float) -> np.ndarray:
-    """f_z / h_max for each width (1 at ae ≥ D/2)."""
-    return 1.0 / np.array([max_chip_mm(1.0, a, d) for a in np.atleast_1d(ae)])
-
-
-def _loads_ok(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
-              search: bool = False) -> tuple[np.ndarray, dict]:
-    """Feasibility of the force-dependent limits at feed per tooth fz, and each limit's ratio."""
+def _load_ratios(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
+                 search: bool = False) -> dict[str, np.ndarray]:
+    """Each force-dependent limit's load over its bound (≤ 1 is feasible) at feed per tooth fz."""
     loads = (s.search_model if search else s.model).predict(eng, fz, rpm, s.tool)
     comp = np.array([s.beam.compliance_mm_per_N(a) for a in ap])
     brk = np.array([s.beam.breaking_force_N(a) for a in ap])
     avail = s.machine.spindle.power_available_W(rpm)
     feed_mm_s = fz * s.tool.flutes * rpm / 60.0
     thrust = s.machine.axes["x"].max_thrust_N(feed_mm_s)
-    ratios = {
+    return {
         "deflection": loads.peak_force_xy_N * comp / s.limits.max_deflection_mm,
         "breakage": loads.peak_force_xy_N / brk,
         "spindle_power": np.where(avail > 0, loads.power_W / np.where(avail > 0, avail, 1), np.inf),
         "axis_thrust": np.where(thrust > 0, np.abs(loads.force_N[:, 0]) / np.where(thrust > 0, thrust, 1), np.inf),
     }
-    ok = np.ones(len(fz), bool)
-    for r in ratios.values():
-        ok &= r <= 1.0
-    return ok, ratios
 
 
 def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, search: bool = False,
@@ -163,13 +154,13 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
     |f_z A(φ) + B(φ)|, affine power). The feasible end of the bracket is returned.
     """
     eng = given_cut(s.tool, ae, ap)
-    rctf = _rctf(ae, s.tool.diameter_mm)
+    rctf = chip_thinning_factor(ae, s.tool.diameter_mm)
     per_fz = s.tool.flutes * rpm
     top = np.minimum(s.chip_target_mm * rctf, s.feed_cap_mm_min / per_fz)
     bottom = np.maximum(s.h_min_mm * rctf, s.limits.feed_min_mm_min / per_fz)
 
     def excess(fz):
-        _, ratios = _loads_ok(s, eng, fz, rpm, ap, search=search)
+        ratios = _load_ratios(s, eng, fz, rpm, ap, search=search)
         return np.minimum(np.max(np.stack(list(ratios.values())), axis=0), 1e6) - 1.0
 
     g_hi = excess(top)
@@ -242,7 +233,7 @@ def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommend
     res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, machine=s.machine,
                        safety_factor=s.limits.safety_factor)
     eng = given_cut(s.tool, np.array([ae]), np.array([ap]))
-    _, load_ratios = _loads_ok(s, eng, np.array([fz]), np.array([n]), np.array([ap]))
+    load_ratios = _load_ratios(s, eng, np.array([fz]), np.array([n]), np.array([ap]))
     ratios = {k: float(v[0]) for k, v in load_ratios.items()}
     ratios["chip_load"] = float(res.h_max_mm) / s.chip_target_mm
     ratios[s.feed_cap_reason] = res.feed_mm_min / s.feed_cap_mm_min

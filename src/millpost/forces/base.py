@@ -87,11 +87,14 @@ def given_cut(tool: Tool, ae_mm, ap_mm, *, climb: bool = True, slices: int | Non
                       volume_mm3=np.full(n, np.nan), area_mm2=np.sum(ae_z * dz, axis=1))
 
 
-def chip_thinning_factor(ae_mm: float, diameter_mm: float) -> float:
-    """Radial chip thinning factor RCTF = f_z / h_max: D / (2·sqrt(ae·(D − ae))) for ae < D/2, else 1."""
-    if ae_mm >= 0.5 * diameter_mm:
-        return 1.0
-    return diameter_mm / (2.0 * np.sqrt(ae_mm * (diameter_mm - ae_mm)))
+def chip_thinning_factor(ae_mm, diameter_mm: float):
+    """Radial chip thinning factor RCTF = f_z / h_max: D / (2·sqrt(ae·(D − ae))) for ae < D/2, else 1.
+    Scalar in, float out; array in, array out."""
+    ae = np.asarray(ae_mm, float)
+    d = diameter_mm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.where(ae >= 0.5 * d, 1.0, d / (2.0 * np.sqrt(ae * (d - ae))))
+    return float(f) if f.ndim == 0 else f
 
 
 def max_chip_mm(fz_mm: float, ae_mm: float, diameter_mm: float, kappa: float = np.pi / 2) -> float:
