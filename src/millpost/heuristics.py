@@ -42,8 +42,8 @@ from .tools.beam import ToolBeam
 from .tools.cutter import Tool
 
 
-SEARCH_STEPS_PER_REV = 90    # coarse angular step while searching; the answer is re-solved at the model's own
-RAMP_ANGLE_DEG = 2.0         # helical ramp: full-width cut, π·D·tan(2°) deep per turn (Fusion's default angle)
+SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
+RAMP_ANGLE_DEG = 2.0         # helical ramp: full-width cut π·D·tan(2°) deep per turn (a common CAM default)
 
 
 @dataclass(frozen=True)
@@ -131,8 +131,8 @@ def _load_ratios(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray
                  search: bool = False) -> dict[str, np.ndarray]:
     """Each force-dependent limit's load over its bound (≤ 1 is feasible) at feed per tooth fz."""
     loads = (s.search_model if search else s.model).predict(eng, fz, rpm, s.tool)
-    comp = np.array([s.beam.compliance_mm_per_N(a) for a in ap])
-    brk = np.array([s.beam.breaking_force_N(a) for a in ap])
+    comp = s.beam.compliance_mm_per_N(ap)
+    brk = s.beam.breaking_force_N(ap)
     avail = s.machine.spindle.power_available_W(rpm)
     feed_mm_s = fz * s.tool.flutes * rpm / 60.0
     thrust = s.machine.axes["x"].max_thrust_N(feed_mm_s)

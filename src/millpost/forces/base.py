@@ -128,6 +128,18 @@ def rpm_array(rpm, n: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class Measurements:
+    """Measured averages per sample for fitting. fz_mm, rpm: (N,) or scalar. force_N: (N, 3) average
+    force on the tool in machine XYZ (nan where not measured). power_W: (N,) cutting power (spindle
+    power minus the air-cut baseline), nan where not measured. Give either or both."""
+
+    fz_mm: np.ndarray
+    rpm: np.ndarray
+    force_N: np.ndarray | None = None
+    power_W: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
 class Loads:
     """Predicted loads per sample at the given feed. Forces are those the cut exerts on the tool.
 

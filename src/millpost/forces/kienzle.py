@@ -20,8 +20,7 @@ from scipy.special import betainc
 from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
-from .base import LinearLoads, Loads, NotFittedError, clipped_arcs, rpm_array, to_machine
-from .mechanistic import Measurements
+from .base import LinearLoads, Loads, Measurements, NotFittedError, clipped_arcs, rpm_array, to_machine
 from .timedomain import simulate
 
 # Medians of K_rc/K_tc and K_ac/K_tc over the aluminium rows of PHYSICS.md §1.6 (CJME 2021 Table 5).

@@ -10,29 +10,15 @@ to any engagement).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
-from .base import LinearLoads, Loads, NotFittedError, clipped_arcs, rpm_array, to_feed, to_machine
+from .base import LinearLoads, Loads, Measurements, NotFittedError, clipped_arcs, rpm_array, to_feed, to_machine
 from .timedomain import simulate
 
 COEF_NAMES = ("Ktc", "Krc", "Kac", "Kte", "Kre", "Kae")
-
-
-@dataclass(frozen=True)
-class Measurements:
-    """Measured averages per sample for fitting. fz_mm, rpm: (N,) or scalar. force_N: (N, 3) average
-    force on the tool in machine XYZ (nan where not measured). power_W: (N,) cutting power (spindle
-    power minus the air-cut baseline), nan where not measured. Give either or both."""
-
-    fz_mm: np.ndarray
-    rpm: np.ndarray
-    force_N: np.ndarray | None = None
-    power_W: np.ndarray | None = None
 
 
 def regressors(engagement: Engagement, flutes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -65,10 +51,12 @@ def regressors(engagement: Engagement, flutes: int) -> tuple[np.ndarray, np.ndar
 
 
 class Mechanistic:
-    """Linear edge-force model. Settings: runout_mm (per-flute radial offsets, peaks only),
-    steps_per_rev (angular resolution of the time-domain peak), reweight_steps (see `fit`). Learned: coef_ (K_tc, K_rc, K_ac in
-    N/mm², K_te, K_re, K_ae in N/mm — order `COEF_NAMES`), coef_cov_ (6×6 covariance from `fit`).
-    Build with known coefficients through `from_coefficients`."""
+    """Linear edge-force model.
+
+    Settings: runout_mm (per-flute radial offsets, peaks only), steps_per_rev (angular resolution of the
+    time-domain peak), reweight_steps (see `fit`). Learned: coef_ (K_tc, K_rc, K_ac in N/mm², K_te, K_re,
+    K_ae in N/mm — order `COEF_NAMES`), coef_cov_ (6×6 covariance from `fit`). Build with known
+    coefficients through `from_coefficients`."""
 
     name = "mechanistic"
 
