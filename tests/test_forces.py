@@ -225,6 +225,18 @@ def test_mechanistic_linear_loads_are_exact_and_bound_the_peak():
     assert lin.feed_cap(lin.power_a, lin.power_b, 100.0)[0] == 0.0     # edge power alone is over
 
 
+def test_air_samples_carry_no_load():
+    eng = cuts([(0, PI), (np.nan, np.nan)], ap=3.0, radius=5.0, slices=2)
+    tool = Tool(diameter_mm=10, flutes=3)
+    for model in (Mechanistic.from_coefficients(**AL7075), Kienzle.from_coefficients(800, 0.25)):
+        loads = model.predict(eng, 0.05, 10000, tool)
+        assert np.all(loads.force_N[1] == 0) and loads.power_W[1] == 0 and loads.peak_force_xy_N[1] == 0
+        assert np.all(loads.force_N[0] != 0)
+        lin = model.linear_loads(eng, tool, 10000, feed_ref_mm_min=1500)
+        assert lin.power_a[1] == lin.power_b[1] == lin.peak_a[1] == 0
+        assert lin.force_xy_cap(100.0)[1] == np.inf
+
+
 def test_unfitted_models_refuse():
     eng = cuts([(0, PI)])
     for model in (Mechanistic(), Kienzle()):

@@ -29,3 +29,5 @@ def test_recommend_cli(capsys, tmp_path):
     assert png.stat().st_size > 1000
     assert main([*base, "--max-deflection", "1e-7"]) == 2
     assert "relax a limit" in capsys.readouterr().err
+    assert main([*base[:-2], "--ap", "40"]) == 2
+    assert "outside" in capsys.readouterr().err

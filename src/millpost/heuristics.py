@@ -225,6 +225,10 @@ def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits =
               rpm: float | None = None, tie_tolerance: float = 0.005) -> Recommendation:
     """Best roughing cut for the tool, material and machine (ae, ap, rpm may be fixed by the caller)."""
     s = _setup(tool, material, machine, limits, model)
+    for name, value, lo, hi in (("ae_mm", ae_mm, 0.0, tool.diameter_mm), ("ap_mm", ap_mm, 0.0, s.ap_max_mm),
+                                ("rpm", rpm, machine.spindle.rpm_min, machine.spindle.rpm_max)):
+        if value is not None and not lo < value <= hi:
+            raise MillpostError(f"fixed {name} = {value:g} is outside ({lo:g}, {hi:g}] for this tool and machine")
     ae, ap, n, fz = _search(s, ae_mm, ap_mm, rpm, tie_tolerance)
     return _describe(s, ae, ap, n, fz)
 
