@@ -20,16 +20,16 @@ HELP = """\
 Units: lengths mm, feed per tooth mm, feed mm/min, speed rpm, forces N, torque N·m, power W,
 removal rate mm³/min. The cut is a straight pass along +X beside a wall, width ae (ae ≥ D is a slot),
 depth ap; --climb (default) keeps the material on the right of the travel (down milling with an M3
-spindle), --conventional on the left. Forces are those on the tool in machine X, Y, Z; F_z is the axial
-force +F_a of Altintas' convention (PHYSICS.md §1.1; which way it points depends on the helix hand, so
-take its magnitude). F_avg_N is the mean over a tooth period, F_peak_N the largest in-plane |F| over a revolution (helix included).
-deflection_mm is the tool's lateral deflection under F_peak at mid-depth (two-segment cantilever, fluted
-diameter 0.8·D); with --machine, machine_deflection_mm is F_peak over the softer of the X/Y axis
-stiffnesses (in series with the tool) and spindle_power_ratio the cutting power over the spindle's power
-at that speed; break_ratio = F_peak over
-the tool's allowed lateral force (bending strength / safety factor). Coefficients: --coeffs
-Ktc,Krc,Kac (N/mm²) and Kte,Kre,Kae (N/mm) for the mechanistic model; --kienzle kc11 (N/mm²), mc
-[, radial=F_r/F_t, axial=F_a/F_t]."""
+spindle), --conventional on the left. Forces are those on the tool in machine X, Y, Z; F_z is the
+axial force +F_a of Altintas' convention (PHYSICS.md §1.1; which way it points depends on the helix
+hand, so take its magnitude). F_avg_N is the mean over a tooth period, F_peak_N the largest in-plane
+|F| over a revolution (helix included). deflection_mm is the tool's lateral deflection under F_peak at
+mid-depth (two-segment cantilever, fluted diameter 0.8·D); break_ratio = F_peak over the tool's
+allowed lateral force (bending strength / safety factor). With --machine, machine_deflection_mm is
+F_peak over the softer X/Y axis stiffness (in series with the tool) and spindle_power_ratio the cutting
+power over the spindle's power at that speed. Coefficients: --coeffs Ktc,Krc,Kac (N/mm²) and
+Kte,Kre,Kae (N/mm) for the mechanistic model; --kienzle kc11 (N/mm²), mc [, radial=F_r/F_t,
+axial=F_a/F_t]."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
