@@ -327,3 +327,11 @@ def test_kienzle_fit_recovers_kc11_and_mc():
         sd = np.sqrt(np.diag(model.coef_cov_))
         hits += np.abs(model.coef_ - [1800, 0.24]) <= 1.96 * sd
     assert np.all(hits / trials >= 0.90), hits / trials
+
+
+def test_averages_only_mode():
+    model = Mechanistic.from_coefficients(**AL7075)
+    eng = cuts([(0, PI), (PI / 2, PI)])
+    full, fast = model.predict(eng, 0.1, 6000, TOOL_19), model.predict(eng, 0.1, 6000, TOOL_19, peaks=False)
+    np.testing.assert_array_equal(full.force_N, fast.force_N)
+    assert np.all(np.isnan(fast.peak_force_xy_N))

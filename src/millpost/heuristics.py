@@ -149,9 +149,10 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
     """Largest feasible feed per tooth per candidate (nan when none keeps the minimum chip and feed range).
 
     Start at the chip-load/feed cap; where a load limit is exceeded there, solve max ratio(f_z) = 1 on the
-    bracket [0, cap]: five bisections (the axis-thrust ratio jumps where the drive runs out of voltage),
-    then Illinois regula falsi (the force ratios are convex and nearly affine in f_z: peak
-    |f_z A(φ) + B(φ)|, affine power). The feasible end of the bracket is returned.
+    bracket [0, cap]: every ratio grows with f_z (peak |f_z A(φ) + B(φ)| is convex, power affine, the
+    axis thrust falls with speed), so five bisections (the thrust ratio jumps where the drive runs out of
+    voltage) and then Illinois regula falsi (the force ratios are nearly affine) converge. The feasible end
+    of the bracket is returned.
     """
     eng = given_cut(s.tool, ae, ap)
     rctf = chip_thinning_factor(ae, s.tool.diameter_mm)

@@ -16,6 +16,7 @@ import numpy as np
 from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
+from .timedomain import simulate
 
 
 class NotFittedError(MillpostError):
@@ -207,3 +208,21 @@ class LinearLoads:
         with np.errstate(divide="ignore", invalid="ignore"):
             root = np.where(A > 0, (-B + np.sqrt(np.maximum(disc, 0))) / np.where(A > 0, A, 1), np.inf)
         return np.where(disc < 0, 0.0, np.maximum(root, 0.0))
+
+
+def assemble_loads(engagement: Engagement, tool: Tool, avg: np.ndarray, fz: np.ndarray, rpm, *, kc, ke, p: float,
+                   runout_mm=None, steps_per_rev: int = 360, peaks: bool = True) -> Loads:
+    """`Loads` from the closed-form averages avg (N, 4) = [F_x, F_y, F_z (feed frame, N), T (N·mm)] plus,
+    when `peaks`, a time-domain run of the elemental law (kc, ke, p) for the peaks per revolution."""
+    omega = 2 * np.pi * rpm_array(rpm, len(engagement)) / 60.0
+    if peaks:
+        st, ex, b = clipped_arcs(engagement)
+        pk, _ = simulate(st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa,
+                         kc=kc, ke=ke, p=p, flutes=tool.flutes, helix_deg=tool.helix_deg,
+                         radius_mm=tool.radius_mm, fz_mm=fz, runout_mm=runout_mm, steps_per_rev=steps_per_rev)
+    else:
+        pk = np.full((len(engagement), 4), np.nan)
+    torque = avg[:, 3] / 1000.0
+    return Loads(force_feed_N=avg[:, :3], force_N=to_machine(engagement.feed_dir, avg[:, :3]),
+                 peak_force_xy_N=pk[:, 0], torque_Nm=torque, peak_torque_Nm=pk[:, 3] / 1000.0,
+                 power_W=torque * omega)
