@@ -4,6 +4,7 @@ each other (time-domain simulation vs closed form, exact vs affine forms)."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import itertools
 
 import numpy as np
@@ -335,3 +336,25 @@ def test_averages_only_mode():
     full, fast = model.predict(eng, 0.1, 6000, TOOL_19), model.predict(eng, 0.1, 6000, TOOL_19, peaks=False)
     np.testing.assert_array_equal(full.force_N, fast.force_N)
     assert np.all(np.isnan(fast.peak_force_xy_N))
+
+
+@pytest.mark.parametrize("shape, extra", [("ball", {}), ("bull", {"corner_radius_mm": 2.0}),
+                                          ("chamfer", {"tip_angle_deg": 90.0})])
+def test_shearing_power_equals_specific_energy_times_removal_rate(shape, extra):
+    # Energy balance, independent of the arcs and κ per slice: with only K_tc (no edge terms), the mean
+    # cutting power is K_tc × MRR for any cutter profile, because the chip swept per tooth integrates to the
+    # removed cross-section. And a ball-nose slot removes a circular segment.
+    from millpost.forces import given_cut
+    tool = Tool(diameter_mm=10, flutes=2, helix_deg=30, shape=shape, **extra)
+    eng = given_cut(tool, 10.0, 2.0, slices=400)
+    model = Mechanistic.from_coefficients(800.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    fz, rpm = 0.05, 12000
+    loads = model.predict(eng, fz, rpm, tool, peaks=False)
+    mrr_mm3_s = eng.area_mm2[0] * fz * 2 * rpm / 60
+    assert loads.power_W[0] == pytest.approx(800.0 * mrr_mm3_s / 1000, rel=1e-9)
+    if shape == "ball":
+        R, a = 5.0, 2.0
+        segment = R * R * math.acos((R - a) / R) - (R - a) * math.sqrt(2 * R * a - a * a)
+        assert eng.area_mm2[0] == pytest.approx(segment, rel=1e-4)
+    if shape == "chamfer":
+        assert eng.area_mm2[0] == pytest.approx(2.0 * 2.0 * math.tan(math.radians(45)), rel=1e-9)   # V groove
