@@ -169,8 +169,9 @@ class LinearLoads:
 
     For a convex scheduler: ‖F_xy(v)‖ = ‖a_xy·v + b_xy‖ ≤ F_max is a second-order cone in v (the vector
     tangent is a valid bound because all components share one exponent); tool deflection is
-    compliance·‖F_xy‖, so δ ≤ δ_max is the same cone with F_max = δ_max / compliance; torque and power
-    are one linear row each. All are increasing in v on the region of interest, so each gives a feed cap
+    compliance·‖F_xy‖ with compliance = ToolBeam.of(tool).compliance_mm_per_N(engagement.ap_mm) per sample,
+    so δ ≤ δ_max is the same cone with F_max = δ_max / compliance (on the peak: peak_a·v + peak_b ≤ F_max is
+    one linear row); torque and power are one linear row each. All are increasing in v on the region of interest, so each gives a feed cap
     too (`feed_cap`).
     """
 
