@@ -8,7 +8,8 @@ import math
 from dataclasses import dataclass
 
 from ..errors import ConfigError, MillpostError
-from ..forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut, max_chip_mm, mean_chip_mm
+from ..forces import (Kienzle, Mechanistic, chip_thinning_factor, given_cut, immersion, max_chip_mm,
+                      mean_chip_mm)
 from ..forces.mechanistic import COEF_NAMES
 from ..machine import Machine
 from ..materials import Material
@@ -156,7 +157,6 @@ def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_m
     eng = given_cut(tool, ae_mm, ap_mm, climb=climb)
     loads = model.predict(eng, fz_mm, rpm, tool)
     ae = min(ae_mm, tool.diameter_mm)
-    phi_s = math.acos(1 - 2 * ae / tool.diameter_mm)
     feed = fz_mm * tool.flutes * rpm
     beam = ToolBeam.of(tool, safety_factor=safety_factor)
     f_peak = float(loads.peak_force_xy_N[0])
@@ -168,7 +168,7 @@ def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_m
     return CutResult(
         fz_mm=fz_mm, feed_mm_min=feed, rpm=rpm, vc_m_min=math.pi * tool.diameter_mm * rpm / 1000.0,
         h_max_mm=max_chip_mm(fz_mm, ae, tool.diameter_mm),
-        h_mean_mm=float(mean_chip_mm(fz_mm, math.pi - phi_s, math.pi)),
+        h_mean_mm=float(mean_chip_mm(fz_mm, *immersion(ae, tool.diameter_mm))),
         chip_thinning_factor=chip_thinning_factor(ae, tool.diameter_mm),
         F_avg_N=tuple(float(v) for v in loads.force_N[0]), F_peak_N=f_peak, torque_Nm=float(loads.torque_Nm[0]),
         power_W=float(loads.power_W[0]), mrr_mm3_min=float(eng.area_mm2[0]) * feed,
