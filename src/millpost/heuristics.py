@@ -171,7 +171,11 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
     for it in range(iterations):
         if not todo.any():
             break
-        x = 0.5 * (lo + hi) if it < 5 else (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+        if it < 5:
+            x = 0.5 * (lo + hi)
+        else:
+            denom = g_hi - g_lo
+            x = np.where(denom > 0, (lo * g_hi - hi * g_lo) / np.where(denom > 0, denom, 1.0), 0.5 * (lo + hi))
         x = np.where(todo, x, lo)
         x = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
         g = excess(x)

@@ -193,6 +193,6 @@ def run(args: argparse.Namespace) -> int:
             if isinstance(value, list):
                 value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
             elif isinstance(value, float):
-                value = f"{value:.5g}"
+                value = f"{value:.6g}"
             print(f"{key:>22}  {value}")
     return 0

@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
             print(json.dumps({k: v for k, (v, _) in values.items()}, indent=2))
         else:
             for name, (value, unit) in values.items():
-                print(f"{name:>26}  {value:.4g} {unit}")
+                print(f"{name:>26}  {value:.6g} {unit}")
         return 0
     if args.json:
         print(json.dumps(as_dict(rec), indent=2))
@@ -144,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     out = sys.stdout
     for key in ("ap_mm", "ae_mm", "rpm", "vc_m_min", "fz_mm", "h_max_mm", "chip_target_mm", "feed_mm_min",
                 "ramp_feed_mm_min", "mrr_mm3_min", "F_peak_N", "deflection_mm", "break_ratio", "torque_Nm", "power_W"):
-        out.write(f"{key:>18}  {getattr(rec, key):.4g}\n")
+        out.write(f"{key:>18}  {getattr(rec, key):.6g}\n")
     out.write(f"{'binding':>18}  {', '.join(rec.binding) or 'none'}\n")
     out.write(f"{'limit ratios':>18}  " + ", ".join(f"{k} {v:.2f}" for k, v in sorted(rec.ratios.items())) + "\n")
     return 0
