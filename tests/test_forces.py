@@ -3,7 +3,6 @@ each other (time-domain simulation vs closed form, exact vs affine forms)."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import itertools
 
@@ -33,8 +32,7 @@ def cuts(arcs, ap=5.0, radius=19.05 / 2, **kw) -> Engagement:
 
 
 def concat(parts: list[Engagement]) -> Engagement:
-    return Engagement(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                         for f in dataclasses.fields(Engagement)})
+    return Engagement.concatenate(parts)
 
 
 @pytest.fixture(scope="module")
@@ -285,7 +283,7 @@ def test_fit_uncertainty_covers_truth(grid_forces):
     eng, fz, F, T = grid_forces
     n_small = len(fz) // 10                         # a smaller log so that the intervals are not trivial
     idx = np.arange(0, len(fz), 10)
-    sub = Engagement(**{f.name: getattr(eng, f.name)[idx] for f in dataclasses.fields(Engagement)})
+    sub = eng.select(idx)
     truth = np.array(list(AL7075.values()))
     hits = np.zeros(6)
     trials = 60

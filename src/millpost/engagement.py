@@ -1,4 +1,5 @@
-"""Cutter engagement per path sample: what the force model needs to know about the cut.
+"""Cutter engagement per path sample: what the force model needs to know about the cut, and
+`simulate`, which steps a tool through a `millpost.stock.Stock` along resampled toolpath samples.
 
 Conventions (Altintas): x = feed direction, y = in-plane normal to the left of x, z = tool axis.
 Immersion angle φ is measured clockwise from +y (the cutter turns clockwise seen from the spindle),
@@ -8,9 +9,17 @@ slot spans [0, π]. The tool is cut into K axial slices; each slice carries its 
 
 from __future__ import annotations
 
+import math
+import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+
+from ._kernels import engage as _k
+from .errors import MillpostError
+from .toolpath import RAPID, Samples
+from .tools import Tool
 
 
 @dataclass
@@ -25,6 +34,11 @@ class Engagement:
     feed_dir: (N, 3) unit feed direction (the x of the convention) in machine coordinates.
     ap_mm, ae_mm: (N,) axial depth and radial width of cut. volume_mm3: (N,) material removed on the
     step ending at the sample; area_mm2 = volume / step length (the cross-section the feed sweeps).
+
+    From `simulate` also (None otherwise): arc_rad (N, K) engaged angular measure of each slice
+    (≤ phi_ex − phi_st when the arc has gaps); step_mm (N,) path length of the step;
+    descending (N,) the step moves down (its area comes from the removed cells, not the ring);
+    move, line (N,) the toolpath move and source line of each sample.
     """
 
     phi_st: np.ndarray
@@ -38,9 +52,27 @@ class Engagement:
     ae_mm: np.ndarray
     volume_mm3: np.ndarray
     area_mm2: np.ndarray
+    arc_rad: np.ndarray | None = None
+    step_mm: np.ndarray | None = None
+    descending: np.ndarray | None = None
+    move: np.ndarray | None = None
+    line: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ap_mm)
+
+    @classmethod
+    def concatenate(cls, parts: "list[Engagement]") -> "Engagement":
+        """Samples of several engagements one after another (optional fields kept where all have them)."""
+        def cat(name: str):
+            values = [getattr(p, name) for p in parts]
+            return None if any(v is None for v in values) else np.concatenate(values)
+        return cls(**{name: cat(name) for name in cls.__dataclass_fields__})
+
+    def select(self, index) -> "Engagement":
+        """The samples at `index` (a slice, mask or index array)."""
+        return Engagement(**{name: None if getattr(self, name) is None else getattr(self, name)[index]
+                             for name in self.__dataclass_fields__})
 
     @classmethod
     def uniform(cls, phi_st, phi_ex, ap_mm: float, radius_mm: float, *, slices: int = 1,
@@ -62,3 +94,139 @@ class Engagement:
             dz_mm=full(dz), z_mm=np.tile((np.arange(slices) + 0.5) * dz, (n, 1)), r_mm=full(radius_mm),
             kappa=full(kappa), feed_dir=np.tile(np.asarray(feed_dir, float), (n, 1)),
             ap_mm=np.full(n, ap_mm), ae_mm=ae, volume_mm3=np.full(n, np.nan), area_mm2=area)
+
+
+def _tool_params(tool: Tool) -> tuple[int, float, float, float, float]:
+    """(shape code, R, corner radius, chamfer tip radius, tan of chamfer half angle) for the kernel."""
+    if tool.shape in ("ball", "bull"):
+        return _k.CORNER, tool.radius_mm, tool.corner_radius, 0.0, 1.0
+    if tool.shape == "chamfer":
+        return _k.CHAMFER, tool.radius_mm, 0.0, 0.5 * tool.tip_diameter_mm, math.tan(math.radians(0.5 * tool.tip_angle_deg))
+    return _k.FLAT, tool.radius_mm, 0.0, 0.0, 1.0
+
+
+def _kappa(tool: Tool, z_mm: np.ndarray) -> np.ndarray:
+    """Axial immersion angle κ: angle between the tool axis and the cutting surface normal at
+    height z (π/2 on a cylindrical flank, 0 at a ball tip), from the profile slope dr/dz."""
+    eps = 1e-5
+    zl = np.maximum(z_mm - eps, 0.0)
+    zh = zl + 2 * eps
+    return np.arctan2(zh - zl, tool.radius_at(zh) - tool.radius_at(zl))
+
+
+def _lowpass(x: np.ndarray, fresh: np.ndarray, sigma: float) -> np.ndarray:
+    """Zero-phase Gaussian low-pass (σ in samples) within each continuous run of samples."""
+    if sigma <= 0 or len(x) == 0:
+        return x
+    from scipy.ndimage import gaussian_filter1d
+
+    out = x.copy()
+    starts = np.flatnonzero(fresh).tolist() + [len(x)]
+    for a, b in zip(starts[:-1], starts[1:]):
+        if b - a > 1:
+            out[a:b] = gaussian_filter1d(x[a:b], sigma, mode="nearest")
+    return out
+
+
+def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: float) -> np.ndarray:
+    """(n, 4) ring centre (x, y) and feed direction (x, y) per sample: the path point `look_ahead`
+    mm further along the path and the direction of the step there (following arcs and polyline
+    corners rather than the tangent line); past the end of a continuous run, straight on."""
+    n = len(xyz)
+    d = np.diff(xyz[:, :2], axis=0, prepend=xyz[:1, :2])
+    ln = np.hypot(d[:, 0], d[:, 1])
+    ok = (ln > 1e-12) & ~fresh
+    idx = np.maximum.accumulate(np.where(ok, np.arange(n), -1))
+    first = int(np.argmax(ok)) if ok.any() else -1
+    dirs = np.tile([1.0, 0.0], (n, 1))
+    if first >= 0:
+        src = np.where(idx >= 0, idx, first)
+        dirs = d[src] / ln[src, None]
+    starts = np.flatnonzero(fresh)
+    run_last = np.append(starts[1:] - 1, n - 1)[np.cumsum(fresh) - 1]
+    target = s + look_ahead
+    j = np.minimum(np.searchsorted(s, target, side="left"), run_last)
+    beyond = target > s[j]
+    jm = np.maximum(j - 1, 0)
+    span = s[j] - s[jm]
+    u = np.where(span > 0, (target - s[jm]) / np.where(span > 0, span, 1.0), 1.0)
+    centre = xyz[jm, :2] + u[:, None] * (xyz[j, :2] - xyz[jm, :2])
+    centre[beyond] = xyz[j[beyond], :2] + (target - s[j])[beyond, None] * dirs[j[beyond]]
+    return np.ascontiguousarray(np.column_stack([centre, dirs[j]]))
+
+
+def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices: int = 8,
+             ring_samples: int = 180, look_ahead_mm: float | None = None, smooth_steps: float = 1.0,
+             progress: bool | None = None) -> Engagement:
+    """Step the tool(s) through `stock` (cut in place) along `samples` and return the engagement.
+
+    tool: one Tool, or tools by number (samples.tool picks one; a change restarts the footprint).
+    slices: K axial slices spread over each step's axial depth. ring_samples: coarse immersion
+    samples over [0, π] (transitions are then refined by bisection to 1/256 of that spacing).
+    look_ahead_mm: how far ahead along the path the ring is sampled (default max(2·step, √(R·cell)),
+    so that material at the tangent ends of the arc is not yet cut by the current step); the
+    reported engagement is thus the one the tool meets that distance later.
+    smooth_steps: σ (in samples) of the zero-phase Gaussian low-pass applied to area and ae, which
+    damps the cell-quantisation noise at a bandwidth tied to the step.
+    Rapids that would remove material raise MillpostError naming the source line.
+    """
+    n = len(samples)
+    if slices < 1 or ring_samples < 4:
+        raise MillpostError("simulate: slices must be >= 1 and ring_samples >= 4")
+    tools = tool if isinstance(tool, Mapping) else None
+    xyz = np.ascontiguousarray(samples.xyz_mm, dtype=np.float64)
+    steps = np.concatenate([[0.0], np.linalg.norm(np.diff(xyz, axis=0), axis=1)]) if n else np.zeros(0)
+    tool_no = np.asarray(samples.tool)
+    fresh = np.asarray(samples.segment_start, bool).copy()
+    if n:
+        fresh[0] = True
+        fresh[1:] |= tool_no[1:] != tool_no[:-1]
+    rapid = np.asarray(samples.kind) == RAPID
+    K, M = int(slices), int(ring_samples)
+    nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
+    s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
+    out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
+               rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
+               area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool))
+    top = stock.top.reshape(-1)
+    prev_f = np.array([1.0, 0.0])
+    moving = steps[steps > 0]
+    ds = float(np.median(moving)) if len(moving) else 0.0
+    show = sys.stderr.isatty() if progress is None else progress
+    chunk = 50_000
+    # runs of one tool, cut into chunks for the progress display
+    bounds = [0] + [int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1] + [n] if n else [0, 0]
+    runs = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        t = tools.get(int(tool_no[a])) if tools is not None else tool
+        runs.append((a, b, t))
+        if t is None:
+            raise MillpostError(f"line {int(samples.line[a])}: tool T{int(tool_no[a])} is not described")
+        shape, R, rc, r_tip, tan_half = _tool_params(t)
+        la = look_ahead_mm if look_ahead_mm is not None else max(2 * ds, math.sqrt(R * stock.cell_mm))
+        ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
+        for c0 in range(a, b, chunk):
+            c1 = min(b, c0 + chunk)
+            bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny, stock.x0, stock.y0,
+                         stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits, stock.multi_ids,
+                         stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half, t.flute_len, K, M,
+                         ring_at, shape != _k.FLAT, 1e-3, *(v[a:b] for v in out.values()))
+            if bad != _k.OK:
+                bad += a
+                p = xyz[bad]
+                raise MillpostError(
+                    f"line {int(samples.line[bad])}: rapid move runs into the stock at "
+                    f"X{p[0]:.3f} Y{p[1]:.3f} Z{p[2]:.3f} (a crash; use a feed move to cut)")
+            if show:
+                print(f"\rengagement {100 * c1 / n:5.1f} % ({c1}/{n} steps)", end="", file=sys.stderr, flush=True)
+    if show:
+        print(file=sys.stderr)
+    kappa = np.full((n, K), np.pi / 2)
+    for a, b, t in runs:
+        kappa[a:b] = _kappa(t, out["zmid"][a:b])
+    feed3 = np.column_stack([out["feed"], np.zeros(n)])
+    return Engagement(
+        phi_st=out["phi_st"], phi_ex=out["phi_ex"], dz_mm=out["dz"], z_mm=out["zmid"], r_mm=out["rad"],
+        kappa=kappa, feed_dir=feed3, ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
+        volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
+        step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line))

@@ -1,0 +1,372 @@
+"""Stepping kernel (numba): move a rotationally symmetric cutter through the stock sample by sample.
+
+Per step (sample k, tool tip p_k, coming from p_{k-1}):
+
+1. Footprint update: every column under the tool is cut down to the tool surface
+   z_tip + height(r). Only columns that can still lose material are visited: for a flat end mill
+   moving level or up, the crescent outside the previous disk; for other shapes, the half-plane
+   of columns nearer the new centre than the old one; the full disk when descending or starting.
+   Removed volume (column length × cell area) and the axial depth ap (deepest column cut) follow.
+2. Ring sampling of the updated stock on a ring centred a look-ahead distance further along the
+   path (so the thin fresh crescent near the arc's tangent ends is not yet cut), at K axial slices over [0, ap]: material inside slice k along the vertical line at
+   immersion φ ∈ [0, π] (Altintas: φ clockwise from +y = left of feed, x = feed) decides whether
+   the slice is engaged there (more than half the slice filled). Coarse samples find the arcs,
+   bisection places each transition; the swept cross-section ∫ r sin φ · m(φ) dφ follows.
+
+Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer. These closed
+forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+FLAT, CORNER, CHAMFER = 0, 1, 2
+OK = -1
+BISECT = 8  # transition refinement: coarse step / 2**8
+
+
+@njit(cache=True, inline="always")
+def surface_height(r, shape, R, rc, r_tip, tan_half):
+    """Height of the cutting surface above the tip at radius r ≤ R (mm)."""
+    if shape == CORNER:
+        x = r - (R - rc)
+        if x <= 0.0:
+            return 0.0
+        return rc - math.sqrt(max(rc * rc - x * x, 0.0))
+    if shape == CHAMFER:
+        return max(r - r_tip, 0.0) / tan_half
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def profile_radius(z, shape, R, rc, r_tip, tan_half):
+    """Cutting radius at height z ≥ 0 above the tip (mm)."""
+    if shape == CORNER:
+        d = rc - z
+        if d <= 0.0:
+            return R
+        return (R - rc) + math.sqrt(max(rc * rc - d * d, 0.0))
+    if shape == CHAMFER:
+        return min(r_tip + z * tan_half, R)
+    return R
+
+
+@njit(cache=True)
+def _profile_integral(za, zb, shape, R, rc, r_tip, tan_half):
+    """∫ r(z) dz over [za, zb] (mm²), composite Simpson on 32 intervals."""
+    n = 32
+    w = (zb - za) / n
+    s = profile_radius(za, shape, R, rc, r_tip, tan_half) + profile_radius(zb, shape, R, rc, r_tip, tan_half)
+    for i in range(1, n):
+        s += (4.0 if i % 2 else 2.0) * profile_radius(za + i * w, shape, R, rc, r_tip, tan_half)
+    return s * w / 3.0
+
+
+@njit(cache=True, inline="always")
+def _is_multi(c, has_multi, bits):
+    return has_multi and (bits[c >> 3] >> (c & 7)) & 1
+
+
+@njit(cache=True)
+def _cut(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi):
+    """Cut column c down to zc; returns the removed length (mm)."""
+    t = top[c]
+    if zc >= t:
+        return 0.0
+    if _is_multi(c, has_multi, bits):
+        m = np.searchsorted(ids, c)
+        rem = 0.0
+        newtop = zf
+        found = False
+        for k in range(ptr[m], ptr[m + 1]):
+            if zc < hi[k]:
+                nh = max(zc, lo[k])
+                rem += hi[k] - nh
+                hi[k] = nh
+            if not found and hi[k] > lo[k]:
+                newtop = hi[k]
+                found = True
+        top[c] = newtop
+        return rem
+    nz = max(zc, zf)
+    top[c] = nz
+    return t - top[c]
+
+
+@njit(cache=True)
+def _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi):
+    """Length of material above zc in column c (mm), without cutting."""
+    t = top[c]
+    if zc >= t:
+        return 0.0
+    if _is_multi(c, has_multi, bits):
+        m = np.searchsorted(ids, c)
+        s = 0.0
+        for k in range(ptr[m], ptr[m + 1]):
+            if zc < hi[k]:
+                s += hi[k] - max(zc, lo[k])
+        return s
+    return t - zc
+
+
+@njit(cache=True, inline="always")
+def _material(c, za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi):
+    """Material length of column c inside [za, zb] (mm); c < 0 is outside the grid (air)."""
+    if c < 0:
+        return 0.0
+    if _is_multi(c, has_multi, bits):
+        m = np.searchsorted(ids, c)
+        s = 0.0
+        for k in range(ptr[m], ptr[m + 1]):
+            s += max(min(hi[k], zb) - max(lo[k], za), 0.0)
+        return s
+    return max(min(top[c], zb) - max(zf, za), 0.0)
+
+
+@njit(cache=True)
+def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
+               has_multi, bits, ids, ptr, lo, hi, tol):
+    """Update (cut=True) or check (cut=False) the columns under the tool at tip (px, py, pz).
+
+    mode 0: full disk; 1: crescent outside the disk at (qx, qy); 2: half-plane nearer to p than q.
+    Returns (removed length sum, deepest cut below the old top, crash) in mm.
+    """
+    rem = 0.0
+    ap = 0.0
+    j0 = max(0, int(math.ceil((py - R - y0) / h - 0.5)))
+    j1 = min(ny - 1, int(math.floor((py + R - y0) / h - 0.5)))
+    A = 2.0 * (qx - px)
+    for j in range(j0, j1 + 1):
+        yc = y0 + (j + 0.5) * h
+        dy = yc - py
+        w2 = R * R - dy * dy
+        if w2 < 0.0:
+            continue
+        w = math.sqrt(w2)
+        ia = max(0, int(math.ceil((px - w - x0) / h - 0.5)))
+        ib = min(nx - 1, int(math.floor((px + w - x0) / h - 0.5)))
+        # up to two index ranges [a0, b0], [a1, b1] to visit on this row
+        a0, b0, a1, b1 = ia, ib, 1, 0
+        if mode == 1:
+            dq = yc - qy
+            wq2 = R * R - dq * dq
+            if wq2 >= 0.0:
+                wq = math.sqrt(wq2)
+                qa = int(math.ceil((qx - wq - x0) / h - 0.5))
+                qb = int(math.floor((qx + wq - x0) / h - 0.5))
+                a0, b0 = ia, min(ib, qa - 1)
+                a1, b1 = max(ia, qb + 1), ib
+        elif mode == 2:
+            # columns with |c - p|² < |c - q|²  <=>  x·A < B
+            B = (qx * qx - px * px) + (qy * qy - py * py) - 2.0 * yc * (qy - py)
+            if A == 0.0:
+                if not (B > 0.0):
+                    continue
+            else:
+                xb = (B / A - x0) / h - 0.5
+                if A > 0.0:
+                    b0 = min(ib, int(math.ceil(xb)) - 1)
+                else:
+                    a0 = max(ia, int(math.floor(xb)) + 1)
+        for seg in range(2):
+            lo_i, hi_i = (a0, b0) if seg == 0 else (a1, b1)
+            row = j * nx
+            for i in range(lo_i, hi_i + 1):
+                c = row + i
+                if shape == FLAT:
+                    zc = pz
+                else:
+                    dx = x0 + (i + 0.5) * h - px
+                    zc = pz + surface_height(math.sqrt(dx * dx + dy * dy), shape, R, rc, r_tip, tan_half)
+                t = top[c]
+                if zc >= t:
+                    continue
+                if cut:
+                    r = _cut(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi)
+                    if r > 0.0:
+                        rem += r
+                        ap = max(ap, t - pz)
+                elif _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi) > tol:
+                    return rem, ap, True
+    return rem, ap, False
+
+
+@njit(cache=True)
+def _ring_cells(cx, cy, fx, fy, r, M, dphi, x0, y0, h, nx, ny, bilinear, cells, wts):
+    """Columns (and bilinear weights) under M + 1 ring points at immersion φ_i = i·dphi."""
+    for i in range(M + 1):
+        _point_cells(cx, cy, fx, fy, r, i * dphi, x0, y0, h, nx, ny, bilinear, cells, wts, i)
+
+
+@njit(cache=True, inline="always")
+def _point_cells(cx, cy, fx, fy, r, phi, x0, y0, h, nx, ny, bilinear, cells, wts, i):
+    s, c = math.sin(phi), math.cos(phi)
+    # x = feed (fx, fy), y = left normal (-fy, fx); point = centre + r (sin φ x + cos φ y)
+    px = cx + r * (s * fx - c * fy)
+    py = cy + r * (s * fy + c * fx)
+    if bilinear:
+        u = (px - x0) / h - 0.5
+        v = (py - y0) / h - 0.5
+        iu = int(math.floor(u))
+        iv = int(math.floor(v))
+        wts[i, 0] = u - iu
+        wts[i, 1] = v - iv
+        for q in range(4):
+            ii = iu + (q & 1)
+            jj = iv + (q >> 1)
+            cells[i, q] = jj * nx + ii if (0 <= ii < nx and 0 <= jj < ny) else -1
+    else:
+        ii = int(math.floor((px - x0) / h))
+        jj = int(math.floor((py - y0) / h))
+        cells[i, 0] = jj * nx + ii if (0 <= ii < nx and 0 <= jj < ny) else -1
+
+
+@njit(cache=True, inline="always")
+def _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi):
+    if not bilinear:
+        return _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
+    wx, wy = wts[i, 0], wts[i, 1]
+    m00 = _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
+    m10 = _material(cells[i, 1], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
+    m01 = _material(cells[i, 2], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
+    m11 = _material(cells[i, 3], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
+    return (1 - wy) * ((1 - wx) * m00 + wx * m10) + wy * ((1 - wx) * m01 + wx * m11)
+
+
+@njit(cache=True)
+def _bisect(a, b, a_on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
+            top, zf, has_multi, bits, ids, ptr, lo, hi):
+    """Transition angle between a (engaged == a_on) and b (the opposite state)."""
+    for _ in range(BISECT):
+        mid = 0.5 * (a + b)
+        _point_cells(cx, cy, fx, fy, r, mid, x0, y0, h, nx, ny, bilinear, pc, pw, 0)
+        on = _ring_material(pc, pw, 0, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi) > half
+        if on == a_on:
+            a = mid
+        else:
+            b = mid
+    return 0.5 * (a + b)
+
+
+@njit(cache=True)
+def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
+        shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
+        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o):
+    """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
+    ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
+    look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
+    of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place)."""
+    dphi = math.pi / M
+    cells = np.empty((M + 1, 4), np.int64)
+    wts = np.empty((M + 1, 2), np.float64)
+    pc = np.empty((1, 4), np.int64)
+    pw = np.empty((1, 2), np.float64)
+    mat = np.empty(M + 1, np.float64)
+    g = np.empty(M + 1, np.float64)
+    fx, fy = prev_f[0], prev_f[1]
+    for k in range(k0, k1):
+        px, py, pz = xyz[k, 0], xyz[k, 1], xyz[k, 2]
+        mode = 0
+        step = 0.0
+        dxy = 0.0
+        descending = False
+        if not fresh[k]:
+            qx, qy, qz = xyz[k - 1, 0], xyz[k - 1, 1], xyz[k - 1, 2]
+            ddx, ddy, ddz = px - qx, py - qy, pz - qz
+            dxy = math.sqrt(ddx * ddx + ddy * ddy)
+            step = math.sqrt(dxy * dxy + ddz * ddz)
+            if dxy > 1e-12:
+                fx, fy = ddx / dxy, ddy / dxy
+            descending = ddz < -1e-9
+            if not descending and dxy < 2.0 * R:
+                mode = 1 if shape == FLAT else 2
+        else:
+            qx, qy = px, py
+        gx, gy = ring_at[k, 2], ring_at[k, 3]
+        feed_o[k, 0], feed_o[k, 1] = gx, gy
+        desc_o[k] = descending
+        rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
+                                    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
+        if crash:
+            prev_f[0], prev_f[1] = fx, fy
+            return k
+        vol_o[k] = rem * h * h
+        ap = min(ap, flute)
+        ap_o[k] = ap
+        if ap <= 1e-6 or step == 0.0:
+            area_o[k] = vol_o[k] / step if step > 0.0 else 0.0
+            continue
+        dzs = ap / K
+        cx, cy = ring_at[k, 0], ring_at[k, 1]
+        area = 0.0
+        ae = 0.0
+        r_prev = -1.0
+        for s in range(K):
+            zm = (s + 0.5) * dzs
+            r = profile_radius(zm, shape, R, rc, r_tip, tan_half)
+            zmid[k, s] = zm
+            rad[k, s] = r
+            if r != r_prev:
+                _ring_cells(cx, cy, gx, gy, r, M, dphi, x0, y0, h, nx, ny, bilinear, cells, wts)
+                r_prev = r
+            za, zb = pz + s * dzs, pz + (s + 1) * dzs
+            half = 0.5 * dzs
+            # swept cross-section weight g(φ): on a vertical flank r·(material in the slice); on a
+            # curved flank the slice's ∫ r dz where the slice is engaged (the column at the mid
+            # radius does not measure material at the other heights of a sloped edge)
+            flank = profile_radius(s * dzs, shape, R, rc, r_tip, tan_half) == R
+            rint = _profile_integral(s * dzs, (s + 1) * dzs, shape, R, rc, r_tip, tan_half)
+            mmax = 0.0
+            for i in range(M + 1):
+                mat[i] = _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi)
+                if flank:
+                    g[i] = r * mat[i]
+                else:
+                    g[i] = rint if mat[i] > half else 0.0
+            st = np.nan
+            ex = np.nan
+            a_s = 0.0
+            for i in range(M + 1):
+                on = mat[i] > half
+                if on:
+                    mmax = max(mmax, mat[i])
+                    if i == 0:
+                        st = 0.0
+                    if i == M:
+                        ex = math.pi
+                if i == M:
+                    break
+                a, b = i * dphi, (i + 1) * dphi
+                on_b = mat[i + 1] > half
+                if on == on_b:
+                    area += 0.5 * dphi * (math.sin(a) * g[i] + math.sin(b) * g[i + 1])
+                    if on:
+                        a_s += dphi
+                    continue
+                t = _bisect(a, b, on, cx, cy, gx, gy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
+                            top, zf, has_multi, bits, ids, ptr, lo, hi)
+                area += g[i] * (math.cos(a) - math.cos(t)) + g[i + 1] * (math.cos(t) - math.cos(b))
+                if on:
+                    a_s += t - a
+                    ex = t
+                else:
+                    a_s += b - t
+                    if math.isnan(st):
+                        st = t
+            if not math.isnan(st):
+                phi_st[k, s] = st
+                phi_ex[k, s] = ex
+                dz[k, s] = mmax
+                arc[k, s] = a_s
+                ae = max(ae, r * (math.cos(st) - math.cos(ex)))
+        ae_o[k] = ae
+        if descending:
+            area_o[k] = vol_o[k] / step
+        else:
+            area_o[k] = area * dxy / step
+    prev_f[0], prev_f[1] = fx, fy
+    return OK

@@ -1,0 +1,169 @@
+"""Scanline rasteriser: a closed triangle mesh to material intervals along vertical rays through the
+cell centres (numba).
+
+Each triangle is tested against the cell centres of its XY bounding box with exact integer edge
+functions (vertices snapped to 1/4096 of a cell) and a tie rule that gives a point on a shared edge
+to exactly one of the two triangles. The triangle's plane gives z at the centre, clamped to the
+triangle's z range (near-vertical triangles extrapolate badly). Up-facing triangles are where a ray
+leaves material, down-facing ones where it enters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+SUB = 4096  # fixed-point subdivisions per cell
+MULTI = np.uint8(128)  # flag bit in the per-column crossing count
+
+
+@njit(cache=True, inline="always")
+def _inside(e: np.int64, dx: np.int64, dy: np.int64) -> bool:
+    """Edge function e > 0 is inside; on the edge (e == 0) only one of two opposite edges wins."""
+    if e > 0:
+        return True
+    if e < 0:
+        return False
+    return dy > 0 or (dy == 0 and dx < 0)
+
+
+@njit(cache=True)
+def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z):
+    """Cells whose centre lies in the triangle's XY projection: writes flat ids and z, returns
+    (count, up) where up is +1 for an up-facing triangle, -1 down-facing, 0 vertical."""
+    X = np.empty(3, np.int64)
+    Y = np.empty(3, np.int64)
+    for v in range(3):
+        X[v] = np.int64(np.round((tri[v, 0] - x0) / h * SUB))
+        Y[v] = np.int64(np.round((tri[v, 1] - y0) / h * SUB))
+    area = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
+    if area == 0:
+        return 0, 0
+    up = 1 if area > 0 else -1
+    ia, ib, ic = 0, 1, 2
+    if area < 0:
+        ib, ic = 2, 1
+    ax, ay, bx, by, cx, cy = X[ia], Y[ia], X[ib], Y[ib], X[ic], Y[ic]
+    # plane z(x, y) in mm
+    ux, uy, uz = tri[1, 0] - tri[0, 0], tri[1, 1] - tri[0, 1], tri[1, 2] - tri[0, 2]
+    vx, vy, vz = tri[2, 0] - tri[0, 0], tri[2, 1] - tri[0, 1], tri[2, 2] - tri[0, 2]
+    nxp, nyp, nzp = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+    zmin = min(tri[0, 2], min(tri[1, 2], tri[2, 2]))
+    zmax = max(tri[0, 2], max(tri[1, 2], tri[2, 2]))
+    half = SUB // 2
+    i0 = max(0, -((-(min(ax, min(bx, cx)) - half)) // SUB))
+    i1 = min(nx - 1, (max(ax, max(bx, cx)) - half) // SUB)
+    j0 = max(0, -((-(min(ay, min(by, cy)) - half)) // SUB))
+    j1 = min(ny - 1, (max(ay, max(by, cy)) - half) // SUB)
+    n = 0
+    for j in range(j0, j1 + 1):
+        py = j * SUB + half
+        yc = y0 + (j + 0.5) * h
+        for i in range(i0, i1 + 1):
+            px = i * SUB + half
+            if not _inside((bx - ax) * (py - ay) - (by - ay) * (px - ax), bx - ax, by - ay):
+                continue
+            if not _inside((cx - bx) * (py - by) - (cy - by) * (px - bx), cx - bx, cy - by):
+                continue
+            if not _inside((ax - cx) * (py - cy) - (ay - cy) * (px - cx), ax - cx, ay - cy):
+                continue
+            xc = x0 + (i + 0.5) * h
+            z = tri[0, 2] - (nxp * (xc - tri[0, 0]) + nyp * (yc - tri[0, 1])) / nzp
+            out_c[n] = j * nx + i
+            out_z[n] = min(max(z, zmin), zmax)
+            n += 1
+    return n, up
+
+
+@njit(cache=True)
+def _bbox_cells(tris, x0, y0, h):
+    m = 1
+    for t in range(tris.shape[0]):
+        w = (max(tris[t, 0, 0], max(tris[t, 1, 0], tris[t, 2, 0])) - min(tris[t, 0, 0], min(tris[t, 1, 0], tris[t, 2, 0]))) / h + 2
+        d = (max(tris[t, 0, 1], max(tris[t, 1, 1], tris[t, 2, 1])) - min(tris[t, 0, 1], min(tris[t, 1, 1], tris[t, 2, 1]))) / h + 2
+        m = max(m, int(w * d) + 1)
+    return m
+
+
+@njit(cache=True)
+def first_pass(tris, x0, y0, h, nx, ny, z_floor, tol, top, count):
+    """Z-map of the up-facing crossings and per-column crossing counts; the MULTI bit marks columns
+    that enter material above z_floor (an undercut or a raised bottom)."""
+    cap = _bbox_cells(tris, x0, y0, h)
+    cells = np.empty(cap, np.int64)
+    zs = np.empty(cap, np.float64)
+    flat = top.reshape(-1)
+    for t in range(tris.shape[0]):
+        n, up = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs)
+        for k in range(n):
+            c = cells[k]
+            cnt = count[c] & 127
+            if cnt < 127:
+                count[c] = (count[c] & MULTI) | np.uint8(cnt + 1)
+            if up > 0:
+                if zs[k] > flat[c]:
+                    flat[c] = zs[k]
+            elif zs[k] > z_floor + tol:
+                count[c] |= MULTI
+
+
+@njit(cache=True)
+def second_pass(tris, x0, y0, h, nx, ny, multi_ids, ptr, zc, up_c):
+    """Collect every crossing (z, facing) of the multi columns into CSR slots."""
+    cap = _bbox_cells(tris, x0, y0, h)
+    cells = np.empty(cap, np.int64)
+    zs = np.empty(cap, np.float64)
+    fill = ptr[:-1].copy()
+    for t in range(tris.shape[0]):
+        n, up = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs)
+        for k in range(n):
+            m = np.searchsorted(multi_ids, cells[k])
+            if m < multi_ids.shape[0] and multi_ids[m] == cells[k] and fill[m] < ptr[m + 1]:
+                zc[fill[m]] = zs[k]
+                up_c[fill[m]] = up
+                fill[m] += 1
+
+
+@njit(cache=True)
+def intervals_from_crossings(ptr, zc, up_c, out_ptr, lo, hi):
+    """Per column: sort crossings by z (entries before exits at equal z), walk up counting inside
+    depth, emit non-empty intervals top-down. Returns the number of intervals written."""
+    w = 0
+    for m in range(ptr.shape[0] - 1):
+        a, b = ptr[m], ptr[m + 1]
+        out_ptr[m] = w
+        key = np.empty(b - a, np.float64)
+        for k in range(a, b):
+            key[k - a] = zc[k]
+        order = np.argsort(key, kind="mergesort")
+        # stable sort by z; at equal z put entries (down-facing, -1) first
+        n = b - a
+        for p in range(1, n):
+            q = p
+            while q > 0 and zc[a + order[q]] == zc[a + order[q - 1]] and up_c[a + order[q]] < up_c[a + order[q - 1]]:
+                order[q], order[q - 1] = order[q - 1], order[q]
+                q -= 1
+        start = w
+        depth = 0
+        z_in = 0.0
+        for p in range(n):
+            k = a + order[p]
+            if up_c[k] < 0:
+                if depth == 0:
+                    z_in = zc[k]
+                depth += 1
+            elif depth > 0:
+                depth -= 1
+                if depth == 0 and zc[k] > z_in:
+                    lo[w] = z_in
+                    hi[w] = zc[k]
+                    w += 1
+        # reverse this column's intervals to top-down order
+        i, j = start, w - 1
+        while i < j:
+            lo[i], lo[j] = lo[j], lo[i]
+            hi[i], hi[j] = hi[j], hi[i]
+            i += 1
+            j -= 1
+    out_ptr[ptr.shape[0] - 1] = w
+    return w

@@ -1,0 +1,202 @@
+"""The stock as a height field with sparse extra intervals (a Z-map with a dexel overflow).
+
+Cells are square, `cell_mm` wide, cell (i, j) has its centre at (x0 + (i + ½)h, y0 + (j + ½)h).
+Most columns hold one interval of material [z_floor, top]; columns with undercuts (a horizontal
+hole, an overhang, a bottom above z_floor) are "multi" columns whose intervals live in a CSR list
+(sorted top-down) and whose `top` mirrors the top of the highest non-empty interval. A vertical
+3-axis cutter only shortens or empties intervals, so nothing is allocated while cutting.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import MillpostError
+
+DEFAULT_CELL_MM = 0.025
+BYTES_PER_CELL = 4 + 1  # float32 top + the builder's uint8 crossing count (the bitset is 1/8 more)
+
+
+@dataclass
+class Stock:
+    """Material as columns over a regular XY grid (mm).
+
+    top: (ny, nx) float32 top of material per column (z_floor for an empty column).
+    multi_ids: sorted flat ids (j·nx + i) of columns with other than one [z_floor, top] interval;
+    multi_ptr: CSR pointers into lo/hi (float32 interval bottoms/tops, top-down per column).
+    multi_bits: little-endian bitset of multi columns (one byte when there are none).
+    """
+
+    x0: float
+    y0: float
+    cell_mm: float
+    z_floor: float
+    top: np.ndarray
+    multi_ids: np.ndarray
+    multi_ptr: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    multi_bits: np.ndarray
+
+    @property
+    def ny(self) -> int:
+        return self.top.shape[0]
+
+    @property
+    def nx(self) -> int:
+        return self.top.shape[1]
+
+    @property
+    def n_multi(self) -> int:
+        return len(self.multi_ids)
+
+    @property
+    def z_max(self) -> float:
+        """Highest material in the stock now (mm)."""
+        return float(self.top.max())
+
+    def bounds(self) -> np.ndarray:
+        """[[xmin, ymin, zfloor], [xmax, ymax, zmax]] of the grid (mm)."""
+        return np.array([[self.x0, self.y0, self.z_floor],
+                         [self.x0 + self.nx * self.cell_mm, self.y0 + self.ny * self.cell_mm, self.z_max]])
+
+    def volume_mm3(self) -> float:
+        """Material volume: column lengths times the cell area (mm³)."""
+        h2 = self.cell_mm ** 2
+        single = float(np.sum(self.top, dtype=np.float64)) - self.top.size * self.z_floor
+        if self.n_multi:
+            flat = self.top.reshape(-1)
+            single -= float(np.sum(flat[self.multi_ids], dtype=np.float64)) - self.n_multi * self.z_floor
+            single += float(np.sum(self.hi.astype(np.float64) - self.lo))
+        return single * h2
+
+    def intervals(self, i: int, j: int) -> list[tuple[float, float]]:
+        """Material intervals (bottom, top) of column (i, j), top-down; empty ones left out."""
+        c = j * self.nx + i
+        k = int(np.searchsorted(self.multi_ids, c))
+        if k < self.n_multi and self.multi_ids[k] == c:
+            a, b = self.multi_ptr[k], self.multi_ptr[k + 1]
+            return [(float(lo), float(hi)) for lo, hi in zip(self.lo[a:b], self.hi[a:b]) if hi > lo]
+        t = float(self.top[j, i])
+        return [(self.z_floor, t)] if t > self.z_floor else []
+
+    def cell_centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """x of the column centres (nx,) and y of the row centres (ny,), mm."""
+        h = self.cell_mm
+        return self.x0 + (np.arange(self.nx) + 0.5) * h, self.y0 + (np.arange(self.ny) + 0.5) * h
+
+    def copy(self) -> "Stock":
+        return Stock(self.x0, self.y0, self.cell_mm, self.z_floor, self.top.copy(), self.multi_ids.copy(),
+                     self.multi_ptr.copy(), self.lo.copy(), self.hi.copy(), self.multi_bits.copy())
+
+    def export_stl(self, path: str | os.PathLike, max_cells: int = 1_000_000) -> None:
+        """Write the height field as a closed binary STL (mm): top surface through the column tops,
+        vertical skirt and a flat bottom at z_floor. Columns are block-maximum-pooled so at most
+        about `max_cells` remain; undercut intervals below the top are not drawn."""
+        f = max(1, math.ceil(math.sqrt(self.top.size / max_cells)))
+        ny, nx = -(-self.ny // f), -(-self.nx // f)
+        pad = np.full((ny * f, nx * f), self.z_floor, np.float32)
+        pad[: self.ny, : self.nx] = self.top
+        z = pad.reshape(ny, f, nx, f).max(axis=(1, 3)).astype(np.float64)
+        tris = _heightfield_triangles(z, self.x0, self.y0, self.cell_mm * f, self.z_floor)
+        _write_binary_stl(path, tris)
+
+
+def _heightfield_triangles(z: np.ndarray, x0: float, y0: float, h: float, zf: float) -> np.ndarray:
+    """Triangles (n, 3, 3) of a closed solid: vertices at block centres on top, a skirt down to zf
+    along the outer ring of centres, and a bottom face. Outward normals (counter-clockwise)."""
+    ny, nx = z.shape
+    xs = x0 + (np.arange(nx) + 0.5) * h
+    ys = y0 + (np.arange(ny) + 0.5) * h
+    X, Y = np.meshgrid(xs, ys)
+    P = np.stack([X, Y, z], axis=-1)
+    a, b, c, d = P[:-1, :-1], P[:-1, 1:], P[1:, 1:], P[1:, :-1]
+    top = np.concatenate([np.stack([a, b, c], -2).reshape(-1, 3, 3), np.stack([a, c, d], -2).reshape(-1, 3, 3)])
+    # outer ring of top vertices, counter-clockwise seen from above
+    ring = np.concatenate([P[0, :], P[1:, -1], P[-1, -2::-1], P[-2:0:-1, 0]])
+    nxt = np.roll(ring, -1, axis=0)
+    low, low_n = ring.copy(), nxt.copy()
+    low[:, 2] = zf
+    low_n[:, 2] = zf
+    skirt = np.concatenate([np.stack([ring, low, low_n], 1), np.stack([ring, low_n, nxt], 1)])
+    ctr = np.array([[xs.mean(), ys.mean(), zf]])
+    bottom = np.stack([np.repeat(ctr, len(low), 0), low_n, low], 1)
+    return np.concatenate([top, skirt, bottom])
+
+
+def _write_binary_stl(path: str | os.PathLike, tris: np.ndarray) -> None:
+    """Binary STL written to a temporary file, then renamed into place."""
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.divide(n, ln, out=np.zeros_like(n), where=ln > 0)
+    rec = np.zeros(len(tris), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    rec["n"], rec["v"] = n, tris
+    path = os.fspath(path)
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)), suffix=".stl.tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(b"millpost stock".ljust(80, b" "))
+            fh.write(np.uint32(len(tris)).tobytes())
+            fh.write(rec.tobytes())
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def grid_shape(xy_min, xy_max, cell_mm: float) -> tuple[int, int]:
+    """(nx, ny) columns covering the XY rectangle at the cell size."""
+    w = np.asarray(xy_max, float) - np.asarray(xy_min, float)
+    nx, ny = (max(1, math.ceil(v / cell_mm - 1e-6)) for v in w)
+    return nx, ny
+
+
+def choose_cell(xy_min, xy_max, cell_mm: float | None = None, max_memory_mb: float | None = None) -> float:
+    """The cell size to use (mm): the requested one if it fits in memory (else a MillpostError saying
+    what would fit), or the default 25 µm coarsened just enough to fit when none is requested.
+
+    The limit is `max_memory_mb`, or 80 % of the memory available now.
+    """
+    if max_memory_mb is None:
+        import psutil
+
+        max_memory_mb = 0.8 * psutil.virtual_memory().available / 2**20
+    area = float(np.prod(np.asarray(xy_max, float) - np.asarray(xy_min, float)))
+    need = lambda h: area / h**2 * (BYTES_PER_CELL + 0.125) / 2**20  # noqa: E731
+    fit = math.sqrt(area * (BYTES_PER_CELL + 0.125) / 2**20 / max_memory_mb)
+    if cell_mm is None:
+        return max(DEFAULT_CELL_MM, math.ceil(fit * 1e4) / 1e4)
+    if not (math.isfinite(cell_mm) and cell_mm > 0):
+        raise MillpostError(f"stock cell size {cell_mm!r} mm: must be > 0")
+    if need(cell_mm) > max_memory_mb:
+        raise MillpostError(
+            f"a stock grid of {area:.0f} mm² at {cell_mm * 1000:g} µm cells needs {need(cell_mm):.0f} MiB, "
+            f"more than the {max_memory_mb:.0f} MiB allowed; use a cell of at least {fit * 1000:.1f} µm")
+    return cell_mm
+
+
+def empty_multi() -> dict:
+    """The sparse-interval fields of a stock without undercuts."""
+    return dict(multi_ids=np.zeros(0, np.int64), multi_ptr=np.zeros(1, np.int64), lo=np.zeros(0, np.float32),
+                hi=np.zeros(0, np.float32), multi_bits=np.zeros(1, np.uint8))
+
+
+def box(lo, hi, cell_mm: float | None = None, *, max_memory_mb: float | None = None) -> Stock:
+    """An axis-aligned block from corner lo = (x, y, z) to hi (mm). Columns whose centre falls outside
+    the block (the last row/column when the size is not a multiple of the cell) are left empty."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if lo.shape != (3,) or hi.shape != (3,) or not np.all(hi > lo):
+        raise MillpostError(f"stock box {lo.tolist()}..{hi.tolist()}: needs 3 coordinates each and max > min")
+    h = choose_cell(lo[:2], hi[:2], cell_mm, max_memory_mb)
+    nx, ny = grid_shape(lo[:2], hi[:2], h)
+    top = np.full((ny, nx), np.float32(hi[2]), np.float32)
+    xs = lo[0] + (np.arange(nx) + 0.5) * h
+    ys = lo[1] + (np.arange(ny) + 0.5) * h
+    top[:, xs > hi[0]] = lo[2]
+    top[ys > hi[1], :] = lo[2]
+    return Stock(float(lo[0]), float(lo[1]), h, float(lo[2]), top, **empty_multi())
