@@ -146,5 +146,7 @@ def run(args: argparse.Namespace) -> int:
                 "ramp_feed_mm_min", "mrr_mm3_min", "F_peak_N", "deflection_mm", "break_ratio", "torque_Nm", "power_W"):
         out.write(f"{key:>18}  {getattr(rec, key):.6g}\n")
     out.write(f"{'binding':>18}  {', '.join(rec.binding) or 'none'}\n")
+    if rec.ramp_feed_mm_min == 0:
+        out.write(f"{'note':>18}  no full-width 2° helical ramp keeps the limits: ramp shallower or pre-drill\n")
     out.write(f"{'limit ratios':>18}  " + ", ".join(f"{k} {v:.2f}" for k, v in sorted(rec.ratios.items())) + "\n")
     return 0
