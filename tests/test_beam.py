@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
+from millpost.errors import MillpostError
 from millpost.tools.beam import ToolBeam, default_safety_factor
 from millpost.tools.cutter import Tool
 
@@ -63,3 +65,13 @@ def test_tool_defaults_and_safety_factor():
     assert default_safety_factor(Tool(flute_length_mm=10, **small)) == 3.75     # long reach
     hss = ToolBeam.of(Tool(diameter_mm=6, material="hss", flute_length_mm=18, stickout_mm=24))
     assert hss.deflection_mm(50) == pytest.approx(3 * b.deflection_mm(50), rel=1e-12)   # E 200 vs 600 GPa
+
+
+def test_arrays_of_depths_for_the_scheduler():
+    b = beam(30, 20, 10, 8)
+    ap = np.array([0.0, 4.0, 10.0])
+    np.testing.assert_allclose(b.compliance_mm_per_N(ap), [b.compliance_mm_per_N(float(a)) for a in ap], rtol=1e-15)
+    np.testing.assert_allclose(b.breaking_force_N(ap), [b.breaking_force_N(float(a)) for a in ap], rtol=1e-15)
+    assert b.load_arm_mm(100.0) == pytest.approx(20.0)      # a cut deeper than the flutes loads them all
+    with pytest.raises(MillpostError, match="longer than the stickout"):
+        beam(20, 30, 10, 8)

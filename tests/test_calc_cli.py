@@ -62,6 +62,8 @@ def test_deflection_break_ratio_and_machine(capsys):
     beam = ToolBeam.of(Tool(diameter_mm=6, flutes=3, stickout_mm=24, flute_length_mm=15))
     assert out["deflection_mm"] == pytest.approx(beam.deflection_mm(out["F_peak_N"], 6), rel=1e-12)
     assert out["break_ratio"] == pytest.approx(out["F_peak_N"] / beam.breaking_force_N(6), rel=1e-12)
+    sf4 = calc(capsys, *args, "--safety-factor", "4")
+    assert sf4["break_ratio"] == pytest.approx(out["break_ratio"] * 4 / beam.safety_factor, rel=1e-12)
     with_machine = calc(capsys, *args, "--machine", "benchtop-belt")
     assert with_machine["deflection_mm"] == out["deflection_mm"]
     assert with_machine["machine_deflection_mm"] == pytest.approx(out["F_peak_N"] / 400, rel=1e-12)

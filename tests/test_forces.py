@@ -3,6 +3,7 @@ each other (time-domain simulation vs closed form, exact vs affine forms)."""
 
 from __future__ import annotations
 
+import math
 import itertools
 
 import numpy as np
@@ -223,6 +224,18 @@ def test_mechanistic_linear_loads_are_exact_and_bound_the_peak():
     assert lin.feed_cap(lin.power_a, lin.power_b, 100.0)[0] == 0.0     # edge power alone is over
 
 
+def test_air_samples_carry_no_load():
+    eng = cuts([(0, PI), (np.nan, np.nan)], ap=3.0, radius=5.0, slices=2)
+    tool = Tool(diameter_mm=10, flutes=3)
+    for model in (Mechanistic.from_coefficients(**AL7075), Kienzle.from_coefficients(800, 0.25)):
+        loads = model.predict(eng, 0.05, 10000, tool)
+        assert np.all(loads.force_N[1] == 0) and loads.power_W[1] == 0 and loads.peak_force_xy_N[1] == 0
+        assert np.all(loads.force_N[0] != 0)
+        lin = model.linear_loads(eng, tool, 10000, feed_ref_mm_min=1500)
+        assert lin.power_a[1] == lin.power_b[1] == lin.peak_a[1] == 0
+        assert lin.force_xy_cap(100.0)[1] == np.inf
+
+
 def test_unfitted_models_refuse():
     eng = cuts([(0, PI)])
     for model in (Mechanistic(), Kienzle()):
@@ -313,3 +326,33 @@ def test_kienzle_fit_recovers_kc11_and_mc():
         sd = np.sqrt(np.diag(model.coef_cov_))
         hits += np.abs(model.coef_ - [1800, 0.24]) <= 1.96 * sd
     assert np.all(hits / trials >= 0.90), hits / trials
+
+
+def test_averages_only_mode():
+    model = Mechanistic.from_coefficients(**AL7075)
+    eng = cuts([(0, PI), (PI / 2, PI)])
+    full, fast = model.predict(eng, 0.1, 6000, TOOL_19), model.predict(eng, 0.1, 6000, TOOL_19, peaks=False)
+    np.testing.assert_array_equal(full.force_N, fast.force_N)
+    assert np.all(np.isnan(fast.peak_force_xy_N))
+
+
+@pytest.mark.parametrize("shape, extra", [("ball", {}), ("bull", {"corner_radius_mm": 2.0}),
+                                          ("chamfer", {"tip_angle_deg": 90.0})])
+def test_shearing_power_equals_specific_energy_times_removal_rate(shape, extra):
+    # Energy balance, independent of the arcs and κ per slice: with only K_tc (no edge terms), the mean
+    # cutting power is K_tc × MRR for any cutter profile, because the chip swept per tooth integrates to the
+    # removed cross-section. And a ball-nose slot removes a circular segment.
+    from millpost.forces import given_cut
+    tool = Tool(diameter_mm=10, flutes=2, helix_deg=30, shape=shape, **extra)
+    eng = given_cut(tool, 10.0, 2.0, slices=400)
+    model = Mechanistic.from_coefficients(800.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    fz, rpm = 0.05, 12000
+    loads = model.predict(eng, fz, rpm, tool, peaks=False)
+    mrr_mm3_s = eng.area_mm2[0] * fz * 2 * rpm / 60
+    assert loads.power_W[0] == pytest.approx(800.0 * mrr_mm3_s / 1000, rel=1e-9)
+    if shape == "ball":
+        R, a = 5.0, 2.0
+        segment = R * R * math.acos((R - a) / R) - (R - a) * math.sqrt(2 * R * a - a * a)
+        assert eng.area_mm2[0] == pytest.approx(segment, rel=1e-4)
+    if shape == "chamfer":
+        assert eng.area_mm2[0] == pytest.approx(2.0 * 2.0 * math.tan(math.radians(45)), rel=1e-9)   # V groove

@@ -35,15 +35,15 @@ import numpy as np
 
 from .commands.calc import evaluate_cut
 from .errors import MillpostError
-from .forces import Kienzle, Mechanistic, given_cut, max_chip_mm
+from .forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut
 from .machine import Machine
 from .materials import Material
 from .tools.beam import ToolBeam
 from .tools.cutter import Tool
 
 
-SEARCH_STEPS_PER_REV = 90    # coarse angular step while searching; the answer is re-solved at the model's own
-RAMP_ANGLE_DEG = 2.0         # helical ramp: full-width cut, π·D·tan(2°) deep per turn (Fusion's default angle)
+SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
+RAMP_ANGLE_DEG = 2.0         # helical ramp: full-width cut π·D·tan(2°) deep per turn (a common CAM default)
 
 
 @dataclass(frozen=True)
@@ -93,7 +93,6 @@ class Recommendation:
 @dataclass(frozen=True)
 class _Setup:
     tool: Tool
-    material: Material
     machine: Machine
     limits: Limits
     model: Mechanistic | Kienzle
@@ -121,36 +120,28 @@ def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, mod
         caps["feed_max"] = limits.feed_max_mm_min
     reason = min(caps, key=caps.get)
     target = limits.chip_load_mm or float(np.mean(material.chip_load_mm(tool.diameter_mm)))
-    return _Setup(tool, material, machine, limits, material.force_model(model),
-                  material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV), ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
+    return _Setup(tool, machine, limits, material.force_model(model),
+                  material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV),
+                  ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
                   material.min_chip_mm(tool.edge_radius_mm), lo, hi, hi_reason, caps[reason], reason,
                   min(tool.flute_len, tool.stickout))
 
 
-def _rctf(ae: np.ndarray, d: float) -> np.ndarray:
-    """f_z / h_max for each width (1 at ae ≥ D/2)."""
-    return 1.0 / np.array([max_chip_mm(1.0, a, d) for a in np.atleast_1d(ae)])
-
-
-def _loads_ok(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
-              search: bool = False) -> tuple[np.ndarray, dict]:
-    """Feasibility of the force-dependent limits at feed per tooth fz, and each limit's ratio."""
+def _load_ratios(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
+                 search: bool = False) -> dict[str, np.ndarray]:
+    """Each force-dependent limit's load over its bound (≤ 1 is feasible) at feed per tooth fz."""
     loads = (s.search_model if search else s.model).predict(eng, fz, rpm, s.tool)
-    comp = np.array([s.beam.compliance_mm_per_N(a) for a in ap])
-    brk = np.array([s.beam.breaking_force_N(a) for a in ap])
+    comp = s.beam.compliance_mm_per_N(ap)
+    brk = s.beam.breaking_force_N(ap)
     avail = s.machine.spindle.power_available_W(rpm)
     feed_mm_s = fz * s.tool.flutes * rpm / 60.0
     thrust = s.machine.axes["x"].max_thrust_N(feed_mm_s)
-    ratios = {
+    return {
         "deflection": loads.peak_force_xy_N * comp / s.limits.max_deflection_mm,
         "breakage": loads.peak_force_xy_N / brk,
         "spindle_power": np.where(avail > 0, loads.power_W / np.where(avail > 0, avail, 1), np.inf),
         "axis_thrust": np.where(thrust > 0, np.abs(loads.force_N[:, 0]) / np.where(thrust > 0, thrust, 1), np.inf),
     }
-    ok = np.ones(len(fz), bool)
-    for r in ratios.values():
-        ok &= r <= 1.0
-    return ok, ratios
 
 
 def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, search: bool = False,
@@ -158,18 +149,19 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
     """Largest feasible feed per tooth per candidate (nan when none keeps the minimum chip and feed range).
 
     Start at the chip-load/feed cap; where a load limit is exceeded there, solve max ratio(f_z) = 1 on the
-    bracket [0, cap]: five bisections (the axis-thrust ratio jumps where the drive runs out of voltage),
-    then Illinois regula falsi (the force ratios are convex and nearly affine in f_z: peak
-    |f_z A(φ) + B(φ)|, affine power). The feasible end of the bracket is returned.
+    bracket [0, cap]: every ratio grows with f_z (peak |f_z A(φ) + B(φ)| is convex, power affine, the
+    axis thrust falls with speed), so five bisections (the thrust ratio jumps where the drive runs out of
+    voltage) and then Illinois regula falsi (the force ratios are nearly affine) converge. The feasible end
+    of the bracket is returned.
     """
     eng = given_cut(s.tool, ae, ap)
-    rctf = _rctf(ae, s.tool.diameter_mm)
+    rctf = chip_thinning_factor(ae, s.tool.diameter_mm)
     per_fz = s.tool.flutes * rpm
     top = np.minimum(s.chip_target_mm * rctf, s.feed_cap_mm_min / per_fz)
     bottom = np.maximum(s.h_min_mm * rctf, s.limits.feed_min_mm_min / per_fz)
 
     def excess(fz):
-        _, ratios = _loads_ok(s, eng, fz, rpm, ap, search=search)
+        ratios = _load_ratios(s, eng, fz, rpm, ap, search=search)
         return np.minimum(np.max(np.stack(list(ratios.values())), axis=0), 1e6) - 1.0
 
     g_hi = excess(top)
@@ -179,7 +171,11 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
     for it in range(iterations):
         if not todo.any():
             break
-        x = 0.5 * (lo + hi) if it < 5 else (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+        if it < 5:
+            x = 0.5 * (lo + hi)
+        else:
+            denom = g_hi - g_lo
+            x = np.where(denom > 0, (lo * g_hi - hi * g_lo) / np.where(denom > 0, denom, 1.0), 0.5 * (lo + hi))
         x = np.where(todo, x, lo)
         x = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
         g = excess(x)
@@ -189,39 +185,44 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
         g_lo = np.where(right, 0.5 * g_lo, g_lo)
         lo, g_lo = np.where(left, x, lo), np.where(left, g, g_lo)
         hi, g_hi = np.where(right, x, hi), np.where(right, g, g_hi)
-        todo &= (hi - lo) > 1e-6 * hi
+        todo &= (hi - lo) > (1e-3 if search else 1e-7) * hi
     return np.where((lo >= bottom) & (lo > 0) & (top >= bottom), lo, np.nan)
 
 
 def _grid(lo: float, hi: float, n: int) -> np.ndarray:
-    return np.unique(np.linspace(lo, hi, n)) if hi > lo else np.array([hi])
+    """Geometric grid: light cuts (small ae, ap), where fast passes live, get as fine a grid as heavy ones."""
+    return np.unique(np.geomspace(lo, hi, n)) if hi > lo else np.array([hi])
 
 
 def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> tuple[float, float, float, float]:
-    """Grid over (ae, ap, rpm), then two finer grids around the best; f_z by `_best_fz` on each."""
+    """Geometric grid over (ae, ap, rpm) with the coarse search model, four finer grids around the best so
+    far, then the best dozen candidates re-solved with the full model; f_z is always the largest feasible."""
     d = s.tool.diameter_mm
     full = [(v, v) if v else rng for v, rng in
             ((ae_fixed, (0.02 * d, d)), (ap_fixed, (0.05 * d, s.ap_max_mm)), (rpm_fixed, (s.rpm_lo, s.rpm_hi)))]
     ranges = list(full)
-    best = None
-    for sizes in ((16, 12, 5), (7, 7, 5), (7, 7, 5)):
+    seen: dict[tuple[float, float, float], float] = {}
+    for sizes in ((20, 16, 4), (7, 7, 4), (7, 7, 3), (7, 7, 3), (7, 7, 3)):
         axes = [_grid(lo, hi, n) for (lo, hi), n in zip(ranges, sizes)]
         A, P, N = (g.ravel() for g in np.meshgrid(*axes, indexing="ij"))
         fz = _best_fz(s, A, P, N, search=True)
-        feed = fz * s.tool.flutes * N
-        mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * feed, -1.0)
-        if mrr.max() <= 0:
+        mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * fz * s.tool.flutes * N, -1.0)
+        seen.update({(a, p, n): m for a, p, n, m in zip(A, P, N, mrr) if m > 0})
+        if not seen:
             raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
-        near = mrr >= (1 - tie_tolerance) * mrr.max()
-        i = int(np.argmax(np.where(near, feed, -1.0)))
-        best = (float(A[i]), float(P[i]), float(N[i]), float(fz[i]))
-        steps = [(hi - lo) / max(n - 1, 1) for (lo, hi), n in zip(ranges, sizes)]
-        ranges = [(max(f[0], c - st), min(f[1], c + st)) for f, c, st in zip(full, best[:3], steps)]
-    ae, ap, rpm = best[:3]
-    fz = float(_best_fz(s, np.array([ae]), np.array([ap]), np.array([rpm]), iterations=40)[0])
-    if not np.isfinite(fz):
+        centre = max(seen, key=seen.get)
+        ratios = [(hi / lo) ** (1 / max(n - 1, 1)) for (lo, hi), n in zip(ranges, sizes)]
+        ranges = [(max(f[0], c / q), min(f[1], c * q)) for f, c, q in zip(full, centre, ratios)]
+    top = sorted(seen, key=seen.get, reverse=True)[:12]
+    A, P, N = (np.array(v) for v in zip(*top))
+    fz = _best_fz(s, A, P, N, iterations=30)
+    feed = fz * s.tool.flutes * N
+    mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * feed, -1.0)
+    if mrr.max() <= 0:
         raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
-    return ae, ap, rpm, fz
+    near = mrr >= (1 - tie_tolerance) * mrr.max()
+    i = int(np.argmax(np.where(near, feed, -1.0)))
+    return float(A[i]), float(P[i]), float(N[i]), float(fz[i])
 
 
 def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
@@ -229,14 +230,19 @@ def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits =
               rpm: float | None = None, tie_tolerance: float = 0.005) -> Recommendation:
     """Best roughing cut for the tool, material and machine (ae, ap, rpm may be fixed by the caller)."""
     s = _setup(tool, material, machine, limits, model)
+    for name, value, lo, hi in (("ae_mm", ae_mm, 0.0, tool.diameter_mm), ("ap_mm", ap_mm, 0.0, s.ap_max_mm),
+                                ("rpm", rpm, machine.spindle.rpm_min, machine.spindle.rpm_max)):
+        if value is not None and not lo < value <= hi:
+            raise MillpostError(f"fixed {name} = {value:g} is outside ({lo:g}, {hi:g}] for this tool and machine")
     ae, ap, n, fz = _search(s, ae_mm, ap_mm, rpm, tie_tolerance)
     return _describe(s, ae, ap, n, fz)
 
 
 def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommendation:
-    res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, machine=s.machine)
+    res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, machine=s.machine,
+                       safety_factor=s.limits.safety_factor)
     eng = given_cut(s.tool, np.array([ae]), np.array([ap]))
-    _, load_ratios = _loads_ok(s, eng, np.array([fz]), np.array([n]), np.array([ap]))
+    load_ratios = _load_ratios(s, eng, np.array([fz]), np.array([n]), np.array([ap]))
     ratios = {k: float(v[0]) for k, v in load_ratios.items()}
     ratios["chip_load"] = float(res.h_max_mm) / s.chip_target_mm
     ratios[s.feed_cap_reason] = res.feed_mm_min / s.feed_cap_mm_min

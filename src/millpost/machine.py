@@ -103,7 +103,8 @@ class Axis:
         c_visc = self.friction_viscous_N_s_per_mm * 1000.0        # N·s/m
         f_axis = self.moving_mass_kg * a + self.friction_coulomb_N * np.sign(v) + c_visc * v + cut_force_N
         torque = m.rotor_inertia_kgm2 * a / rho + f_axis * rho / eta
-        dtorque = m.rotor_inertia_kgm2 * j / rho + (self.moving_mass_kg * j + c_visc * a + cut_force_rate_N_s) * rho / eta
+        dforce = self.moving_mass_kg * j + c_visc * a + cut_force_rate_N_s
+        dtorque = m.rotor_inertia_kgm2 * j / rho + dforce * rho / eta
         current = torque / m.kt_Nm_per_A
         di_dt = dtorque / m.kt_Nm_per_A
         omega = v / rho

@@ -8,7 +8,8 @@ import math
 from dataclasses import dataclass
 
 from ..errors import ConfigError, MillpostError
-from ..forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut, max_chip_mm, mean_chip_mm
+from ..forces import (Kienzle, Mechanistic, chip_thinning_factor, given_cut, immersion, max_chip_mm,
+                      mean_chip_mm)
 from ..forces.mechanistic import COEF_NAMES
 from ..machine import Machine
 from ..materials import Material
@@ -20,15 +21,16 @@ HELP = """\
 Units: lengths mm, feed per tooth mm, feed mm/min, speed rpm, forces N, torque N·m, power W,
 removal rate mm³/min. The cut is a straight pass along +X beside a wall, width ae (ae ≥ D is a slot),
 depth ap; --climb (default) keeps the material on the right of the travel (down milling with an M3
-spindle), --conventional on the left. Forces are those on the tool in machine X, Y, Z (Z up): F_avg_N is
-the mean over a tooth period, F_peak_N the largest in-plane |F| over a revolution (helix included).
-deflection_mm is the tool's lateral deflection under F_peak at mid-depth (two-segment cantilever, fluted
-diameter 0.8·D); with --machine, machine_deflection_mm is F_peak over the softer of the X/Y axis
-stiffnesses (in series with the tool) and spindle_power_ratio the cutting power over the spindle's power
-at that speed; break_ratio = F_peak over
-the tool's allowed lateral force (bending strength / safety factor). Coefficients: --coeffs
-Ktc,Krc,Kac (N/mm²) and Kte,Kre,Kae (N/mm) for the mechanistic model; --kienzle kc11 (N/mm²), mc
-[, radial=F_r/F_t, axial=F_a/F_t]."""
+spindle), --conventional on the left. Forces are those on the tool in machine X, Y, Z; F_z is the
+axial force +F_a of Altintas' convention (PHYSICS.md §1.1; which way it points depends on the helix
+hand, so take its magnitude). F_avg_N is the mean over a tooth period, F_peak_N the largest in-plane
+|F| over a revolution (helix included). deflection_mm is the tool's lateral deflection under F_peak at
+mid-depth (two-segment cantilever, fluted diameter 0.8·D); break_ratio = F_peak over the tool's
+allowed lateral force (bending strength / safety factor). With --machine, machine_deflection_mm is
+F_peak over the softer X/Y axis stiffness (in series with the tool) and spindle_power_ratio the cutting
+power over the spindle's power at that speed. Coefficients: --coeffs Ktc,Krc,Kac (N/mm²) and
+Kte,Kre,Kae (N/mm) for the mechanistic model; --kienzle kc11 (N/mm²), mc [, radial=F_r/F_t,
+axial=F_a/F_t]."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -66,6 +68,7 @@ def add_tool_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--flute-length", type=float, metavar="MM", help="cutting length (mm)")
     g.add_argument("--shank", type=float, metavar="MM", help="shank diameter (mm)")
     g.add_argument("--tool-material", choices=("carbide", "hss"), default="carbide")
+    g.add_argument("--safety-factor", type=float, help="on the tool's bending strength (default: by geometry)")
 
 
 def add_material_arguments(p: argparse.ArgumentParser) -> None:
@@ -146,16 +149,16 @@ class CutResult:
 
 
 def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_mm: float, rpm: float,
-                 fz_mm: float, climb: bool = True, machine: Machine | None = None) -> CutResult:
+                 fz_mm: float, climb: bool = True, machine: Machine | None = None,
+                 safety_factor: float | None = None) -> CutResult:
     """All loads of one straight cut (the API under `millpost calc`, also used by `recommend`)."""
     if rpm <= 0 or fz_mm <= 0:
         raise MillpostError("rpm and feed per tooth must be > 0")
     eng = given_cut(tool, ae_mm, ap_mm, climb=climb)
     loads = model.predict(eng, fz_mm, rpm, tool)
     ae = min(ae_mm, tool.diameter_mm)
-    phi_s = math.acos(1 - 2 * ae / tool.diameter_mm)
     feed = fz_mm * tool.flutes * rpm
-    beam = ToolBeam.of(tool)
+    beam = ToolBeam.of(tool, safety_factor=safety_factor)
     f_peak = float(loads.peak_force_xy_N[0])
     machine_defl = spindle_ratio = None
     if machine is not None:
@@ -165,7 +168,7 @@ def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_m
     return CutResult(
         fz_mm=fz_mm, feed_mm_min=feed, rpm=rpm, vc_m_min=math.pi * tool.diameter_mm * rpm / 1000.0,
         h_max_mm=max_chip_mm(fz_mm, ae, tool.diameter_mm),
-        h_mean_mm=float(mean_chip_mm(fz_mm, math.pi - phi_s, math.pi)),
+        h_mean_mm=float(mean_chip_mm(fz_mm, *immersion(ae, tool.diameter_mm))),
         chip_thinning_factor=chip_thinning_factor(ae, tool.diameter_mm),
         F_avg_N=tuple(float(v) for v in loads.force_N[0]), F_peak_N=f_peak, torque_Nm=float(loads.torque_Nm[0]),
         power_W=float(loads.power_W[0]), mrr_mm3_min=float(eng.area_mm2[0]) * feed,
@@ -179,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
     machine = Machine.load(args.machine) if args.machine else None
     fz = args.fz if args.fz is not None else args.feed / (tool.flutes * args.rpm)
     res = evaluate_cut(tool, model, ae_mm=args.ae, ap_mm=args.ap, rpm=args.rpm, fz_mm=fz, climb=args.climb,
-                       machine=machine)
+                       machine=machine, safety_factor=args.safety_factor)
     out = {"model": model.name, **res.__dict__, "F_avg_N": list(res.F_avg_N)}
     if args.json:
         print(json.dumps(out, indent=2))
@@ -190,6 +193,6 @@ def run(args: argparse.Namespace) -> int:
             if isinstance(value, list):
                 value = "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
             elif isinstance(value, float):
-                value = f"{value:.5g}"
+                value = f"{value:.6g}"
             print(f"{key:>22}  {value}")
     return 0

@@ -16,6 +16,7 @@ import numpy as np
 from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
+from .timedomain import simulate
 
 
 class NotFittedError(MillpostError):
@@ -87,11 +88,14 @@ def given_cut(tool: Tool, ae_mm, ap_mm, *, climb: bool = True, slices: int | Non
                       volume_mm3=np.full(n, np.nan), area_mm2=np.sum(ae_z * dz, axis=1))
 
 
-def chip_thinning_factor(ae_mm: float, diameter_mm: float) -> float:
-    """Radial chip thinning factor RCTF = f_z / h_max: D / (2·sqrt(ae·(D − ae))) for ae < D/2, else 1."""
-    if ae_mm >= 0.5 * diameter_mm:
-        return 1.0
-    return diameter_mm / (2.0 * np.sqrt(ae_mm * (diameter_mm - ae_mm)))
+def chip_thinning_factor(ae_mm, diameter_mm: float):
+    """Radial chip thinning factor RCTF = f_z / h_max: D / (2·sqrt(ae·(D − ae))) for ae < D/2, else 1.
+    Scalar in, float out; array in, array out."""
+    ae = np.asarray(ae_mm, float)
+    d = diameter_mm
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.where(ae >= 0.5 * d, 1.0, d / (2.0 * np.sqrt(ae * (d - ae))))
+    return float(f) if f.ndim == 0 else f
 
 
 def max_chip_mm(fz_mm: float, ae_mm: float, diameter_mm: float, kappa: float = np.pi / 2) -> float:
@@ -125,6 +129,18 @@ def rpm_array(rpm, n: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class Measurements:
+    """Measured averages per sample for fitting. fz_mm, rpm: (N,) or scalar. force_N: (N, 3) average
+    force on the tool in machine XYZ (nan where not measured). power_W: (N,) cutting power (spindle
+    power minus the air-cut baseline), nan where not measured. Give either or both."""
+
+    fz_mm: np.ndarray
+    rpm: np.ndarray
+    force_N: np.ndarray | None = None
+    power_W: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
 class Loads:
     """Predicted loads per sample at the given feed. Forces are those the cut exerts on the tool.
 
@@ -153,8 +169,9 @@ class LinearLoads:
 
     For a convex scheduler: ‖F_xy(v)‖ = ‖a_xy·v + b_xy‖ ≤ F_max is a second-order cone in v (the vector
     tangent is a valid bound because all components share one exponent); tool deflection is
-    compliance·‖F_xy‖, so δ ≤ δ_max is the same cone with F_max = δ_max / compliance; torque and power
-    are one linear row each. All are increasing in v on the region of interest, so each gives a feed cap
+    compliance·‖F_xy‖ with compliance = ToolBeam.of(tool).compliance_mm_per_N(engagement.ap_mm) per sample,
+    so δ ≤ δ_max is the same cone with F_max = δ_max / compliance (on the peak: peak_a·v + peak_b ≤ F_max is
+    one linear row); torque and power are one linear row each. All are increasing in v on the region of interest, so each gives a feed cap
     too (`feed_cap`).
     """
 
@@ -192,3 +209,21 @@ class LinearLoads:
         with np.errstate(divide="ignore", invalid="ignore"):
             root = np.where(A > 0, (-B + np.sqrt(np.maximum(disc, 0))) / np.where(A > 0, A, 1), np.inf)
         return np.where(disc < 0, 0.0, np.maximum(root, 0.0))
+
+
+def assemble_loads(engagement: Engagement, tool: Tool, avg: np.ndarray, fz: np.ndarray, rpm, *, kc, ke, p: float,
+                   runout_mm=None, steps_per_rev: int = 360, peaks: bool = True) -> Loads:
+    """`Loads` from the closed-form averages avg (N, 4) = [F_x, F_y, F_z (feed frame, N), T (N·mm)] plus,
+    when `peaks`, a time-domain run of the elemental law (kc, ke, p) for the peaks per revolution."""
+    omega = 2 * np.pi * rpm_array(rpm, len(engagement)) / 60.0
+    if peaks:
+        st, ex, b = clipped_arcs(engagement)
+        pk, _ = simulate(st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa,
+                         kc=kc, ke=ke, p=p, flutes=tool.flutes, helix_deg=tool.helix_deg,
+                         radius_mm=tool.radius_mm, fz_mm=fz, runout_mm=runout_mm, steps_per_rev=steps_per_rev)
+    else:
+        pk = np.full((len(engagement), 4), np.nan)
+    torque = avg[:, 3] / 1000.0
+    return Loads(force_feed_N=avg[:, :3], force_N=to_machine(engagement.feed_dir, avg[:, :3]),
+                 peak_force_xy_N=pk[:, 0], torque_Nm=torque, peak_torque_Nm=pk[:, 3] / 1000.0,
+                 power_W=torque * omega)

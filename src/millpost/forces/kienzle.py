@@ -20,8 +20,8 @@ from scipy.special import betainc
 from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
-from .base import LinearLoads, Loads, NotFittedError, clipped_arcs, rpm_array, to_machine
-from .mechanistic import Measurements
+from .base import (LinearLoads, Loads, Measurements, NotFittedError, assemble_loads, clipped_arcs, rpm_array,
+                   to_machine)
 from .timedomain import simulate
 
 # Medians of K_rc/K_tc and K_ac/K_tc over the aluminium rows of PHYSICS.md §1.6 (CJME 2021 Table 5).
@@ -88,24 +88,14 @@ class Kienzle:
         Q = power_law_coefficients(engagement, tool.flutes, mc, self.radial_ratio, self.axial_ratio)
         return kc11 * Q, 1.0 - mc
 
-    def predict(self, engagement: Engagement, fz_mm, rpm, tool: Tool) -> Loads:
-        """Loads per sample at feed per tooth fz_mm (scalar or (N,), mm) and spindle speed rpm."""
-        n = len(engagement)
-        fz = np.broadcast_to(np.asarray(fz_mm, float), (n,)).astype(float)
-        omega = 2 * np.pi * rpm_array(rpm, n) / 60.0
+    def predict(self, engagement: Engagement, fz_mm, rpm, tool: Tool, *, peaks: bool = True) -> Loads:
+        """Loads per sample at feed per tooth fz_mm (scalar or (N,), mm) and spindle speed rpm.
+        peaks=False skips the time-domain run (peak fields are nan): averages only, much faster."""
+        fz = np.broadcast_to(np.asarray(fz_mm, float), (len(engagement),)).astype(float)
         Q, p = self.power_law(engagement, tool)
-        avg = Q * fz[:, None] ** p
-        kc11 = self._coef()[0]
-        st, ex, b = clipped_arcs(engagement)
-        peaks, _ = simulate(
-            st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa,
-            kc=kc11 * np.array([1.0, self.radial_ratio, self.axial_ratio]), ke=np.zeros(3), p=p,
-            flutes=tool.flutes, helix_deg=tool.helix_deg, radius_mm=tool.radius_mm, fz_mm=fz,
-            steps_per_rev=self.steps_per_rev)
-        torque = avg[:, 3] / 1000.0
-        return Loads(force_feed_N=avg[:, :3], force_N=to_machine(engagement.feed_dir, avg[:, :3]),
-                     peak_force_xy_N=peaks[:, 0], torque_Nm=torque, peak_torque_Nm=peaks[:, 3] / 1000.0,
-                     power_W=torque * omega)
+        kc = self._coef()[0] * np.array([1.0, self.radial_ratio, self.axial_ratio])
+        return assemble_loads(engagement, tool, Q * fz[:, None] ** p, fz, rpm, kc=kc, ke=np.zeros(3), p=p,
+                              steps_per_rev=self.steps_per_rev, peaks=peaks)
 
     def linear_loads(self, engagement: Engagement, tool: Tool, rpm, feed_ref_mm_min=None) -> LinearLoads:
         """Tangent at feed_ref (mm/min, scalar or (N,)) of the exact law: an upper bound for every feed ≥ 0,

@@ -10,29 +10,16 @@ to any engagement).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
-from .base import LinearLoads, Loads, NotFittedError, clipped_arcs, rpm_array, to_feed, to_machine
+from .base import (LinearLoads, Loads, Measurements, NotFittedError, assemble_loads, clipped_arcs, rpm_array,
+                   to_feed, to_machine)
 from .timedomain import simulate
 
 COEF_NAMES = ("Ktc", "Krc", "Kac", "Kte", "Kre", "Kae")
-
-
-@dataclass(frozen=True)
-class Measurements:
-    """Measured averages per sample for fitting. fz_mm, rpm: (N,) or scalar. force_N: (N, 3) average
-    force on the tool in machine XYZ (nan where not measured). power_W: (N,) cutting power (spindle
-    power minus the air-cut baseline), nan where not measured. Give either or both."""
-
-    fz_mm: np.ndarray
-    rpm: np.ndarray
-    force_N: np.ndarray | None = None
-    power_W: np.ndarray | None = None
 
 
 def regressors(engagement: Engagement, flutes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -65,10 +52,12 @@ def regressors(engagement: Engagement, flutes: int) -> tuple[np.ndarray, np.ndar
 
 
 class Mechanistic:
-    """Linear edge-force model. Settings: runout_mm (per-flute radial offsets, peaks only),
-    steps_per_rev (angular resolution of the time-domain peak), reweight_steps (see `fit`). Learned: coef_ (K_tc, K_rc, K_ac in
-    N/mm², K_te, K_re, K_ae in N/mm — order `COEF_NAMES`), coef_cov_ (6×6 covariance from `fit`).
-    Build with known coefficients through `from_coefficients`."""
+    """Linear edge-force model.
+
+    Settings: runout_mm (per-flute radial offsets, peaks only), steps_per_rev (angular resolution of the
+    time-domain peak), reweight_steps (see `fit`). Learned: coef_ (K_tc, K_rc, K_ac in N/mm², K_te, K_re,
+    K_ae in N/mm — order `COEF_NAMES`), coef_cov_ (6×6 covariance from `fit`). Build with known
+    coefficients through `from_coefficients`."""
 
     name = "mechanistic"
 
@@ -102,22 +91,13 @@ class Mechanistic:
         k = self._coef()
         return fz[:, None] * (G @ k[:3]) + E @ k[3:]
 
-    def predict(self, engagement: Engagement, fz_mm, rpm, tool: Tool) -> Loads:
-        """Loads per sample at feed per tooth fz_mm (scalar or (N,), mm) and spindle speed rpm."""
-        n = len(engagement)
-        fz = np.broadcast_to(np.asarray(fz_mm, float), (n,)).astype(float)
-        omega = 2 * np.pi * rpm_array(rpm, n) / 60.0
-        avg = self._averages(engagement, fz, tool)
-        st, ex, b = clipped_arcs(engagement)
+    def predict(self, engagement: Engagement, fz_mm, rpm, tool: Tool, *, peaks: bool = True) -> Loads:
+        """Loads per sample at feed per tooth fz_mm (scalar or (N,), mm) and spindle speed rpm.
+        peaks=False skips the time-domain run (peak fields are nan): averages only, much faster."""
+        fz = np.broadcast_to(np.asarray(fz_mm, float), (len(engagement),)).astype(float)
         k = self._coef()
-        peaks, _ = simulate(
-            st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa,
-            kc=k[:3], ke=k[3:], p=1.0, flutes=tool.flutes, helix_deg=tool.helix_deg, radius_mm=tool.radius_mm,
-            fz_mm=fz, runout_mm=self.runout_mm, steps_per_rev=self.steps_per_rev)
-        torque = avg[:, 3] / 1000.0
-        return Loads(force_feed_N=avg[:, :3], force_N=to_machine(engagement.feed_dir, avg[:, :3]),
-                     peak_force_xy_N=peaks[:, 0], torque_Nm=torque, peak_torque_Nm=peaks[:, 3] / 1000.0,
-                     power_W=torque * omega)
+        return assemble_loads(engagement, tool, self._averages(engagement, fz, tool), fz, rpm, kc=k[:3], ke=k[3:],
+                              p=1.0, runout_mm=self.runout_mm, steps_per_rev=self.steps_per_rev, peaks=peaks)
 
     def linear_loads(self, engagement: Engagement, tool: Tool, rpm, feed_ref_mm_min=None) -> LinearLoads:
         """Exact affine loads in the feed v (mm/min): f_z = v / (flutes·rpm). feed_ref is not needed.

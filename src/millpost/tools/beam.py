@@ -18,6 +18,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..errors import MillpostError
 from .cutter import Tool
 
@@ -37,7 +39,7 @@ def default_safety_factor(tool: Tool) -> float:
     """Safety factor on the bending strength, chosen from the geometry [engineering judgement, †]:
     2 for an ordinary end mill; ×1.5 below 3 mm diameter (runout and edge chipping are a larger share of
     the load and the strength scatters more); ×1.25 for a slender tool, flute length over 4·D or stickout
-    over 4·shank diameter (vibration adds to the quasi-static load). Brittle carbide gets no credit for ductility, HSS the same factor."""
+    over 4·shank diameter (vibration adds to the quasi-static load). The same factors for carbide and HSS."""
     sf = 2.0
     if tool.diameter_mm < 3.0:
         sf *= 1.5
@@ -57,6 +59,14 @@ class ToolBeam:
     E_MPa: float
     strength_MPa: float
     safety_factor: float
+
+    def __post_init__(self) -> None:
+        for name in ("stickout_mm", "flute_length_mm", "shank_diameter_mm", "flute_diameter_mm", "E_MPa",
+                     "strength_MPa", "safety_factor"):
+            if not getattr(self, name) > 0:
+                raise MillpostError(f"tool beam: {name} must be > 0, got {getattr(self, name)}")
+        if self.flute_length_mm > self.stickout_mm:
+            raise MillpostError("tool beam: the flutes cannot be longer than the stickout")
 
     @classmethod
     def of(cls, tool: Tool, *, safety_factor: float | None = None, E_MPa: float | None = None,
@@ -78,42 +88,44 @@ class ToolBeam:
         return [(0.0, self.shank_length_mm, ei(self.shank_diameter_mm)),
                 (self.shank_length_mm, self.stickout_mm, ei(self.flute_diameter_mm))]
 
-    def load_arm_mm(self, ap_mm: float = 0.0) -> float:
-        """Distance from the holder to the resultant cutting force: stickout − a_p/2."""
-        arm = self.stickout_mm - 0.5 * min(max(ap_mm, 0.0), self.flute_length_mm)
-        if arm <= 0:
-            raise MillpostError("the cut is above the holder face")
-        return arm
+    def load_arm_mm(self, ap_mm=0.0):
+        """Distance from the holder to the resultant cutting force: stickout − a_p/2 (scalar or array)."""
+        return _out(self.stickout_mm - 0.5 * np.clip(np.asarray(ap_mm, float), 0.0, self.flute_length_mm))
 
-    def compliance_mm_per_N(self, ap_mm: float = 0.0, *, at_tip: bool = False) -> float:
-        """Lateral deflection per newton at the load point (or the tip) for a load at mid-depth of cut."""
-        a = self.load_arm_mm(ap_mm)
-        L = self.stickout_mm if at_tip else a
-        total = 0.0
+    def compliance_mm_per_N(self, ap_mm=0.0, *, at_tip: bool = False):
+        """Lateral deflection per newton (mm/N) at the load point (or the tip) for a load at mid-depth of
+        cut; ap_mm scalar or array (one compliance per sample, for the feed scheduler's deflection cone)."""
+        a = np.asarray(self.load_arm_mm(ap_mm), float)
+        L = np.full_like(a, self.stickout_mm) if at_tip else a
+        total = np.zeros_like(a)
         for x0, x1, ei in self._segments():
-            x1 = min(x1, a)
-            if x1 <= x0:
-                continue
-            # ∫ (a − x)(L − x) dx, exact for a polynomial
+            x1 = np.minimum(x1, a)
+            # ∫ (a − x)(L − x) dx over [x0, x1], exact for a polynomial
             F = lambda x: a * L * x - (a + L) * x * x / 2 + x ** 3 / 3  # noqa: E731
-            total += (F(x1) - F(x0)) / ei
-        return total
+            total += np.where(x1 > x0, (F(x1) - F(x0)) / ei, 0.0)
+        return _out(total)
 
-    def stiffness_N_per_mm(self, ap_mm: float = 0.0) -> float:
-        return 1.0 / self.compliance_mm_per_N(ap_mm)
+    def stiffness_N_per_mm(self, ap_mm=0.0):
+        return _out(1.0 / np.asarray(self.compliance_mm_per_N(ap_mm)))
 
-    def deflection_mm(self, force_N: float, ap_mm: float = 0.0) -> float:
+    def deflection_mm(self, force_N, ap_mm=0.0):
         """Deflection at the load point under a lateral force (N)."""
-        return force_N * self.compliance_mm_per_N(ap_mm)
+        return _out(np.asarray(force_N, float) * self.compliance_mm_per_N(ap_mm))
 
-    def bending_stress_MPa(self, force_N: float, ap_mm: float = 0.0, torque_Nm: float = 0.0) -> float:
+    def bending_stress_MPa(self, force_N, ap_mm=0.0, torque_Nm=0.0):
         """Largest of: bending at the holder, bending at the flute root, torsion in the flutes (equivalent)."""
-        a = self.load_arm_mm(ap_mm)
-        at_holder = 32.0 * force_N * a / (math.pi * self.shank_diameter_mm ** 3)
-        at_root = 32.0 * force_N * max(a - self.shank_length_mm, 0.0) / (math.pi * self.flute_diameter_mm ** 3)
-        torsion = 16.0 * torque_Nm * 1000.0 / (math.pi * self.flute_diameter_mm ** 3) / 0.577
-        return max(at_holder, at_root, torsion)
+        a = np.asarray(self.load_arm_mm(ap_mm), float)
+        f = np.asarray(force_N, float)
+        at_holder = 32.0 * f * a / (math.pi * self.shank_diameter_mm ** 3)
+        at_root = 32.0 * f * np.maximum(a - self.shank_length_mm, 0.0) / (math.pi * self.flute_diameter_mm ** 3)
+        torsion = 16.0 * np.asarray(torque_Nm, float) * 1000.0 / (math.pi * self.flute_diameter_mm ** 3) / 0.577
+        return _out(np.maximum(np.maximum(at_holder, at_root), torsion))
 
-    def breaking_force_N(self, ap_mm: float = 0.0) -> float:
-        """Allowed lateral force: bending stress reaches strength / safety factor at the weakest section."""
-        return (self.strength_MPa / self.safety_factor) / self.bending_stress_MPa(1.0, ap_mm)
+    def breaking_force_N(self, ap_mm=0.0):
+        """Allowed lateral force (N): bending stress reaches strength / safety factor at the weakest section."""
+        return _out((self.strength_MPa / self.safety_factor) / np.asarray(self.bending_stress_MPa(1.0, ap_mm)))
+
+
+def _out(x: np.ndarray):
+    """A float for scalar input, the array otherwise."""
+    return float(x) if np.ndim(x) == 0 else x

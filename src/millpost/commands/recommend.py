@@ -1,0 +1,152 @@
+"""`millpost recommend`: roughing depth, width, spindle speed and feed for a tool, material and machine."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from dataclasses import asdict
+from pathlib import Path
+
+from ..heuristics import Limits, Recommendation, recommend, sweep_ae
+from ..machine import Machine
+from ..materials import Material
+from .calc import add_tool_arguments, tool_from_args
+
+HELP = """\
+Heuristics (each limit is named in `binding` when it decides the answer):
+  surface_speed / spindle_rpm  rpm within the material's surface-speed window for the tool material
+                               (material file: Tungaloy/Amana/Machinery's Handbook tables) and the spindle range
+  chip_load     max chip thickness on the material's target with radial chip thinning:
+                fz = h_target · D / (2 sqrt(ae (D − ae))) for ae < D/2 (machinecalcs.com; PHYSICS.md §3.1)
+  minimum chip  h_max ≥ ratio · edge radius, or the edge rubs (Cheng 2018; PHYSICS.md §3.4)
+  deflection    tool deflection under the peak force ≤ --max-deflection (0.025 mm = Ingersoll's 0.001 in)
+  breakage      peak force ≤ breaking force / safety factor (bending at holder and flute root; PHYSICS.md §4)
+  spindle_power cutting power ≤ the spindle's power at that rpm (constant torque below base speed)
+  axis_thrust   feed-direction force within what the X drive can push at that feed (motor, screw, bus voltage)
+  machine_feed / feed_max / dynamic_range  feed ≤ the machine's, the user's, and the corner-to-open-pass
+                dynamic range (the reference's 100 mm/s)
+  max_depth / slot  ap at the flute length, ae at the full diameter
+Among cuts within 0.5 % of the best removal rate the fastest feed wins (fast, light passes over slow,
+heavy ones). Units: mm, rpm, mm/min, mm³/min, N, W. --format fusion|freecad prints the values under the
+names of those CAM dialogs (metric); the ramp feed is the feed of a full-width helical ramp at 2°."""
+
+KEYS = ("ap_mm", "ae_mm", "rpm", "fz_mm", "feed_mm_min", "mrr_mm3_min", "deflection_mm", "power_W")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("recommend", help="roughing ae, ap, rpm and feed from chip-thinning and tool-beam heuristics",
+                       description="Choose roughing depth, width, spindle speed and feed for CAM.",
+                       epilog=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_tool_arguments(p)
+    p.add_argument("--material", required=True, metavar="NAME|FILE", help="built-in material or material .toml")
+    p.add_argument("--machine", required=True, metavar="NAME|FILE", help="built-in machine or machine .toml")
+    p.add_argument("--model", choices=("mechanistic", "kienzle"), default="mechanistic", help="force model")
+    lim = p.add_argument_group("limits")
+    lim.add_argument("--max-deflection", type=float, default=0.025, metavar="MM", help="tool deflection (mm)")
+    lim.add_argument("--feed-min", type=float, default=0.0, metavar="MM_MIN", help="slowest traversal rate")
+    lim.add_argument("--feed-max", type=float, metavar="MM_MIN", help="fastest traversal rate (default: machine)")
+    lim.add_argument("--dynamic-range", type=float, default=100.0, metavar="MM_S",
+                     help="largest feed change between corners and open passes (mm/s, default 100)")
+    lim.add_argument("--chip-load", type=float, metavar="MM", help="target max chip thickness (default: material)")
+    fix = p.add_argument_group("fix a variable (the others are chosen)")
+    fix.add_argument("--ae", type=float, metavar="MM")
+    fix.add_argument("--ap", type=float, metavar="MM")
+    fix.add_argument("--rpm", type=float)
+    p.add_argument("--format", choices=("table", "fusion", "freecad"), default="table")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument("--sweep", action="store_true", help="best cut at each ae: MRR against ae (CSV, or JSON)")
+    p.add_argument("--plot", metavar="FILE.png", help="with --sweep: write MRR against ae as a PNG")
+    p.set_defaults(func=run)
+
+
+def limits_from_args(args: argparse.Namespace) -> Limits:
+    return Limits(max_deflection_mm=args.max_deflection, safety_factor=args.safety_factor,
+                  feed_min_mm_min=args.feed_min, feed_max_mm_min=args.feed_max,
+                  dynamic_range_mm_s=args.dynamic_range, chip_load_mm=args.chip_load)
+
+
+def as_dict(rec: Recommendation) -> dict:
+    d = asdict(rec)
+    d["F_avg_N"] = list(rec.F_avg_N)
+    d["binding"] = list(rec.binding)
+    return d
+
+
+def cam_values(rec: Recommendation, fmt: str, diameter_mm: float) -> dict[str, tuple[float, str]]:
+    """The recommendation under the field names of a CAM dialog (metric units)."""
+    if fmt == "fusion":
+        return {"Spindle speed": (rec.rpm, "rpm"), "Surface speed": (rec.vc_m_min, "m/min"),
+                "Cutting feedrate": (rec.feed_mm_min, "mm/min"), "Feed per tooth": (rec.fz_mm, "mm"),
+                "Ramp feedrate": (rec.ramp_feed_mm_min, "mm/min"), "Plunge feedrate": (rec.ramp_feed_mm_min, "mm/min"),
+                "Maximum roughing stepdown": (rec.ap_mm, "mm"), "Optimal load": (rec.ae_mm, "mm"),
+                "Maximum stepover": (rec.ae_mm, "mm")}
+    return {"Spindle speed": (rec.rpm, "rpm"), "Horizontal feed": (rec.feed_mm_min, "mm/min"),
+            "Vertical feed": (rec.ramp_feed_mm_min, "mm/min"), "Step down": (rec.ap_mm, "mm"),
+            "Step over": (100.0 * rec.ae_mm / diameter_mm, "%")}
+
+
+def _write_plot(path: str, recs: list[Recommendation], chosen: Recommendation, title: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot([r.ae_mm for r in recs], [r.mrr_mm3_min / 1000 for r in recs], "o-", label="best cut at this ae")
+    ax.plot([chosen.ae_mm], [chosen.mrr_mm3_min / 1000], "r*", ms=14, label="recommended")
+    for r in recs:
+        ax.annotate(",".join(r.binding), (r.ae_mm, r.mrr_mm3_min / 1000), fontsize=6, rotation=30)
+    ax.set_xlabel("radial width ae (mm)")
+    ax.set_ylabel("removal rate (cm³/min)")
+    ax.set_title(title)
+    ax.legend()
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(suffix=".png", dir=target.parent or ".")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
+        os.replace(tmp, target)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def run(args: argparse.Namespace) -> int:
+    tool = tool_from_args(args)
+    material, machine = Material.load(args.material), Machine.load(args.machine)
+    limits = limits_from_args(args)
+    rec = recommend(tool, material, machine, limits, model=args.model, ae_mm=args.ae, ap_mm=args.ap, rpm=args.rpm)
+    if args.sweep:
+        recs = sweep_ae(tool, material, machine, limits, model=args.model)
+        if args.plot:
+            _write_plot(args.plot, recs, rec, f"D{tool.diameter_mm:g} {tool.flutes}FL, {material.name}, {machine.name}")
+        if args.json:
+            print(json.dumps([as_dict(r) for r in recs], indent=2))
+        else:
+            print(",".join(KEYS) + ",binding")
+            for r in recs:
+                print(",".join(f"{getattr(r, k):.6g}" for k in KEYS) + "," + " ".join(r.binding))
+        return 0
+    if args.format != "table":
+        values = cam_values(rec, args.format, tool.diameter_mm)
+        if args.json:
+            print(json.dumps({k: v for k, (v, _) in values.items()}, indent=2))
+        else:
+            for name, (value, unit) in values.items():
+                print(f"{name:>26}  {value:.6g} {unit}")
+        return 0
+    if args.json:
+        print(json.dumps(as_dict(rec), indent=2))
+        return 0
+    out = sys.stdout
+    for key in ("ap_mm", "ae_mm", "rpm", "vc_m_min", "fz_mm", "h_max_mm", "chip_target_mm", "feed_mm_min",
+                "ramp_feed_mm_min", "mrr_mm3_min", "F_peak_N", "deflection_mm", "break_ratio", "torque_Nm", "power_W"):
+        out.write(f"{key:>18}  {getattr(rec, key):.6g}\n")
+    out.write(f"{'binding':>18}  {', '.join(rec.binding) or 'none'}\n")
+    if rec.ramp_feed_mm_min == 0:
+        out.write(f"{'note':>18}  no full-width 2° helical ramp keeps the limits: ramp shallower or pre-drill\n")
+    out.write(f"{'limit ratios':>18}  " + ", ".join(f"{k} {v:.2f}" for k, v in sorted(rec.ratios.items())) + "\n")
+    return 0
