@@ -210,6 +210,95 @@ def test_optimize_exports_a_non_box_stock_to_step(tmp_path):
     assert tomllib.loads((tmp_path / "part.job.toml").read_text())["stock"] == {"file": "part.stock.step"}
 
 
+def _fake_freecad(monkeypatch, objects_job, posted: list, console: list, legacy: bool = False) -> None:
+    """Fake FreeCAD modules: Console, the LinuxCNC post (records its arguments) and findParentJob."""
+    import types
+
+    def export(objectslist, filename, argstring):
+        posted.append((filename, argstring))
+        return None if "--refuse" in argstring else GCODE
+
+    linuxcnc = types.SimpleNamespace(export=export)
+    mods = {"FreeCAD": types.SimpleNamespace(Console=types.SimpleNamespace(
+        PrintWarning=lambda m: console.append(("warning", m)), PrintMessage=lambda m: console.append(("message", m)))),
+        "PathScripts": types.SimpleNamespace(PathUtils=types.SimpleNamespace(findParentJob=lambda o: objects_job))}
+    if legacy:  # FreeCAD 0.19-0.21 layout: PathScripts.post.linuxcnc_post
+        mods["PathScripts"].post = types.SimpleNamespace(linuxcnc_post=linuxcnc)
+        mods["PathScripts.post"] = mods["PathScripts"].post
+        monkeypatch.setitem(sys.modules, "Path", types.ModuleType("Path"))  # no Path.Post
+    else:
+        mods.update({"Path": types.SimpleNamespace(), "Path.Post": types.SimpleNamespace(),
+                     "Path.Post.scripts": types.SimpleNamespace(linuxcnc_post=linuxcnc)})
+    for name, module in mods.items():
+        monkeypatch.setitem(sys.modules, name, module)
+
+
+def _fake_job(volume_mm3: float, exported: list):
+    bb = SimpleNamespace(XMin=0.0, YMin=0.0, ZMin=-10.0, XMax=40.0, YMax=30.0, ZMax=0.0)
+    shape = SimpleNamespace(BoundBox=bb, Volume=volume_mm3, exportStep=lambda p: (exported.append(p),
+                                                                                   Path(p).write_text("step")))
+    job = SimpleNamespace(Stock=SimpleNamespace(Shape=shape))
+    tc1 = SimpleNamespace(ToolNumber=1, Tool=SimpleNamespace(ShapeName="endmill", Diameter=Q(6.0), Flutes=2,
+                                                             CuttingEdgeHeight=Q(15.0), Length=Q(40.0)))
+    tc7 = SimpleNamespace(ToolNumber=7, Tool=SimpleNamespace(ShapeName="drill", Diameter=Q(5.0)))
+    op1 = SimpleNamespace(InList=[], ToolController=tc1, Path=None)
+    op2 = SimpleNamespace(InList=[], ToolController=tc7, Path=None)
+    return job, [tc1, op1, tc7, op2]
+
+
+def test_export_posts_writes_the_job_and_returns_millposts_program(tmp_path, monkeypatch):
+    exe = _fake_millpost(tmp_path, (
+        "j = pathlib.Path(job); d = tomllib.loads(j.read_text())\n"
+        "pathlib.Path(out).write_text('(optimised)\\n' + (j.parent / d['program']).read_text())\n"))
+    job, objects = _fake_job(40 * 30 * 10.0, [])
+    posted, console = [], []
+    _fake_freecad(monkeypatch, job, posted, console)
+    target = tmp_path / "out" / "part.ngc"
+    target.parent.mkdir()
+    text = fc.export(objects, str(target), f"--no-show-editor --millpost {exe} --material al7075 --precision 4")
+    assert posted == [("-", "--no-show-editor --precision 4")]
+    assert text == "(optimised)\n" + GCODE == target.read_text()
+    assert (tmp_path / "out" / "part.posted.ngc").read_text() == GCODE
+    d = tomllib.loads((tmp_path / "out" / "part.job.toml").read_text())
+    _check_against_format(d)
+    assert d["stock"]["box"] == [[0.0, 0.0, -10.0], [40.0, 30.0, 0.0]] and d["material"] == "al7075"
+    assert list(d["tools"]) == ["1"] and d["tools"]["1"]["flutes"] == 2
+    assert any(kind == "warning" and "T7" in m for kind, m in console)  # the drill is reported, not written
+    assert any(kind == "message" and "optimised program" in m for kind, m in console)
+
+
+def test_export_in_freecad_1_0_mode_and_fallbacks(tmp_path, monkeypatch):
+    exported = []
+    job, objects = _fake_job(math.pi * 15.0**2 * 10.0, exported)  # a cylinder: stock goes out as STEP
+    posted, console = [], []
+    _fake_freecad(monkeypatch, job, posted, console, legacy=True)
+    exe = _fake_millpost(tmp_path, "sys.exit(2)\n")
+    text = fc.export(objects, "-", f"--millpost {exe}")  # FreeCAD 1.0 writes the returned text itself
+    assert text == GCODE and len(exported) == 1 and exported[0].endswith("program.stock.step")
+    assert tomllib.loads(Path(exported[0]).with_name("program.job.toml").read_text())["stock"] == {
+        "file": "program.stock.step"}
+    assert any(kind == "warning" and "exited with 2" in m for kind, m in console)
+    assert fc.export(objects, "-", "--no-optimize") == GCODE and len(exported) == 1  # no job at all
+    with pytest.raises(ValueError, match="refused the arguments"):
+        fc.export(objects, "-", "--refuse")
+
+
+def test_export_with_the_class_based_linuxcnc_post_of_freecad_1_1(tmp_path, monkeypatch):
+    job, objects = _fake_job(40 * 30 * 10.0, [])
+    posted, console = [], []
+    _fake_freecad(monkeypatch, job, posted, console)
+
+    class Linuxcnc:  # FreeCAD 1.1: a PostProcessor class posting the whole Job in sections
+        def __init__(self, j):
+            assert j is job
+
+        def export(self):
+            return [("setup", GCODE), ("empty", None)]
+
+    sys.modules["Path.Post.scripts"].linuxcnc_post = SimpleNamespace(Linuxcnc=Linuxcnc)
+    assert fc.export(objects, "-", "--no-optimize") == GCODE
+
+
 # --- Fusion post ---------------------------------------------------------------------------------
 
 needs_node = pytest.mark.skipif(NODE is None, reason="node is not installed (needed to check the Fusion .cps)")
