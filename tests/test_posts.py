@@ -186,6 +186,29 @@ def test_optimize_returns_millposts_program(tmp_path):
     assert job["program"] == "part.posted.ngc" and job["machine"] == "vmc"
 
 
+@pytest.mark.skipif(importlib.util.find_spec("millpost.commands.optimize") is None,
+                    reason="`millpost optimize` is not in this checkout yet (the lead's command)")
+def test_real_millpost_optimize_accepts_the_posts_job_and_keeps_the_path(tmp_path):
+    """Contract with the real command: the job the posts write is accepted and only feeds change."""
+    exe = tmp_path / "millpost"
+    exe.write_text(f"#!{sys.executable}\nimport sys\nfrom millpost.cli import main\nsys.exit(main())\n")
+    exe.chmod(0o755)
+    gcode = ("G21 G90 G17 G94\nT1 M6\nS12000 M3\nG0 X-5 Y10 Z5\nG1 Z-2 F300\nG1 X45 F900\n"
+             "G0 Z5\nG0 X-5 Y16\nG1 Z-2 F300\nG1 X45 F900\nG0 Z5\nM5\nM2\n")
+    tools = [fc.ToolSpec(1, 6.0, "flat", 3, 0.0, 18.0, 25.0)]
+    final, ok, message = fc.optimize(gcode, tmp_path, "slot", ".ngc", ((0, 0, -10), (40, 30, 0)), None, tools,
+                                     fc.parse_args(f"--millpost {exe} --timeout 120"))
+    assert ok, message
+    before, after = read_text(gcode).toolpath, read_text(final).toolpath
+    # millpost may split a move to change the feed along it: same length, every end point kept in order
+    assert after.lengths().sum() == pytest.approx(before.lengths().sum(), rel=1e-6)
+    j = 0
+    for end in before.end:
+        while j < len(after) and not np.allclose(after.end[j], end, atol=1e-3):
+            j += 1
+        assert j < len(after), f"end point {end} of the posted program is missing after millpost"
+
+
 def test_optimize_keeps_the_program_when_millpost_is_missing_or_refuses(tmp_path):
     final, ok, message = fc.optimize(GCODE, tmp_path / "a", "part", ".ngc", ((0, 0, -5), (30, 20, 0)), None, [],
                                      _options(str(tmp_path / "no-such-millpost")))
