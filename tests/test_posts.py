@@ -177,13 +177,13 @@ def test_optimize_returns_millposts_program(tmp_path):
         "prog = (j.parent / d['program']).read_text()\n"
         "pathlib.Path(out).write_text('(optimised ' + d['material'] + ')\\n' + prog)\n"))
     tools = [fc.ToolSpec(1, 6.0, "flat", 3, 0.0, 18.0, 25.0)]
-    final, ok, message = fc.optimize(GCODE, tmp_path / "job", "part", ".ngc", ((0, 0, -5), (30, 20, 0)), None,
+    final, ok, message = fc.optimize(GCODE, tmp_path / "job" / "part.ngc", ((0, 0, -5), (30, 20, 0)), None,
                                      tools, _options(exe))
-    assert ok and final == "(optimised al7075)\n" + GCODE
+    assert ok and final == "(optimised al7075)\n" + GCODE == (tmp_path / "job" / "part.ngc").read_text()
     assert (tmp_path / "job" / "part.posted.ngc").read_text() == GCODE
     job = tomllib.loads((tmp_path / "job" / "part.job.toml").read_text())
     _check_against_format(job)
-    assert job["program"] == "part.posted.ngc" and job["machine"] == "vmc"
+    assert (job["program"], job["output"], job["machine"]) == ("part.posted.ngc", "part.ngc", "vmc")
 
 
 @pytest.mark.skipif(importlib.util.find_spec("millpost.commands.optimize") is None,
@@ -196,7 +196,7 @@ def test_real_millpost_optimize_accepts_the_posts_job_and_keeps_the_path(tmp_pat
     gcode = ("G21 G90 G17 G94\nT1 M6\nS12000 M3\nG0 X-5 Y10 Z5\nG1 Z-2 F300\nG1 X45 F900\n"
              "G0 Z5\nG0 X-5 Y16\nG1 Z-2 F300\nG1 X45 F900\nG0 Z5\nM5\nM2\n")
     tools = [fc.ToolSpec(1, 6.0, "flat", 3, 0.0, 18.0, 25.0)]
-    final, ok, message = fc.optimize(gcode, tmp_path, "slot", ".ngc", ((0, 0, -10), (40, 30, 0)), None, tools,
+    final, ok, message = fc.optimize(gcode, tmp_path / "slot.ngc", ((0, 0, -10), (40, 30, 0)), None, tools,
                                      fc.parse_args(f"--millpost {exe} --timeout 120"))
     assert ok, message
     before, after = read_text(gcode).toolpath, read_text(final).toolpath
@@ -210,24 +210,25 @@ def test_real_millpost_optimize_accepts_the_posts_job_and_keeps_the_path(tmp_pat
 
 
 def test_optimize_keeps_the_program_when_millpost_is_missing_or_refuses(tmp_path):
-    final, ok, message = fc.optimize(GCODE, tmp_path / "a", "part", ".ngc", ((0, 0, -5), (30, 20, 0)), None, [],
+    final, ok, message = fc.optimize(GCODE, tmp_path / "a" / "part.ngc", ((0, 0, -5), (30, 20, 0)), None, [],
                                      _options(str(tmp_path / "no-such-millpost")))
     assert (final, ok) == (GCODE, False) and "not found" in message and "unoptimised" in message
+    assert (tmp_path / "a" / "part.ngc").read_text() == GCODE
     exe = _fake_millpost(tmp_path, "print('part.posted.ngc:5: feed word refused', file=sys.stderr)\nsys.exit(2)\n")
-    final, ok, message = fc.optimize(GCODE, tmp_path / "b", "part", ".ngc", ((0, 0, -5), (30, 20, 0)), None, [],
+    final, ok, message = fc.optimize(GCODE, tmp_path / "b" / "part.ngc", ((0, 0, -5), (30, 20, 0)), None, [],
                                      _options(exe))
-    assert (final, ok) == (GCODE, False)
+    assert (final, ok) == (GCODE, False) and (tmp_path / "b" / "part.ngc").read_text() == GCODE
     assert "exited with 2" in message and "part.posted.ngc:5: feed word refused" in message
-    exe = _fake_millpost(tmp_path, "sys.exit(0)\n")  # claims success but writes nothing
-    final, ok, message = fc.optimize(GCODE, tmp_path / "c", "part", ".ngc", ((0, 0, -5), (30, 20, 0)), None, [],
+    exe = _fake_millpost(tmp_path, "pathlib.Path(out).write_text('half a progr')\nsys.exit(1)\n")  # a crash
+    final, ok, message = fc.optimize(GCODE, tmp_path / "c" / "part.ngc", ((0, 0, -5), (30, 20, 0)), None, [],
                                      _options(exe))
-    assert (final, ok) == (GCODE, False) and "wrote no" in message
+    assert (final, ok) == (GCODE, False) and (tmp_path / "c" / "part.ngc").read_text() == GCODE
 
 
 def test_optimize_exports_a_non_box_stock_to_step(tmp_path):
     written = []
     exe = _fake_millpost(tmp_path, "sys.exit(3)\n")
-    fc.optimize(GCODE, tmp_path, "part", ".ngc", None, lambda p: (written.append(p), p.write_text("ISO-10303-21;")),
+    fc.optimize(GCODE, tmp_path / "part.ngc", None, lambda p: (written.append(p), p.write_text("ISO-10303-21;")),
                 [], _options(exe))
     assert written == [tmp_path / "part.stock.step"]
     assert tomllib.loads((tmp_path / "part.job.toml").read_text())["stock"] == {"file": "part.stock.step"}
@@ -287,7 +288,7 @@ def test_export_posts_writes_the_job_and_returns_millposts_program(tmp_path, mon
     assert d["stock"]["box"] == [[0.0, 0.0, -10.0], [40.0, 30.0, 0.0]] and d["material"] == "al7075"
     assert list(d["tools"]) == ["1"] and d["tools"]["1"]["flutes"] == 2
     assert any(kind == "warning" and "T7" in m for kind, m in console)  # the drill is reported, not written
-    assert any(kind == "message" and "optimised program" in m for kind, m in console)
+    assert any(kind == "message" and "millpost: optimised" in m for kind, m in console)
 
 
 def test_export_in_freecad_1_0_mode_and_fallbacks(tmp_path, monkeypatch):

@@ -241,20 +241,21 @@ def run_millpost(executable: str, job_path: Path, out_path: Path, timeout_s: flo
     report = (done.stdout + done.stderr).strip()
     if done.returncode != 0:
         return False, f"millpost exited with {done.returncode}: {report or 'no message'}"
-    if not out_path.is_file():
-        return False, f"millpost exited 0 but wrote no {out_path}"
     return True, report
 
 
-def optimize(gcode: str, folder: Path, stem: str, suffix: str, stock: tuple | None, stock_writer:
-             Callable[[Path], None] | None, tools: Sequence[ToolSpec], options: Options) -> tuple[str, bool, str]:
-    """Write <stem>.posted<suffix>, <stem>.job.toml (and a stock STEP) in `folder`, run millpost.
+def optimize(gcode: str, out_path: Path, stock: tuple | None, stock_writer: Callable[[Path], None] | None,
+             tools: Sequence[ToolSpec], options: Options) -> tuple[str, bool, str]:
+    """Post `gcode` to `out_path` and let millpost optimise it in place.
 
-    `stock` is the box, or None with `stock_writer(path)` exporting the stock solid to STEP.
-    Returns (final G-code, optimised?, message for the user): millpost's output, or `gcode`
-    unchanged with the reason when millpost is missing or fails.
+    Writes OUT (the plain program, so it is never missing), OUT-stem.posted.EXT (millpost's input),
+    OUT-stem.job.toml and, when `stock` is None, OUT-stem.stock.step via `stock_writer(path)`; then
+    runs `millpost optimize JOB -o OUT` (millpost writes atomically: OUT is the plain program until
+    it succeeds). Returns (final G-code, optimised?, message for the user).
     """
+    folder, stem, suffix = out_path.parent, out_path.stem, out_path.suffix
     folder.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(gcode)
     program = folder / f"{stem}.posted{suffix}"
     program.write_text(gcode)
     if stock is None:
@@ -262,17 +263,17 @@ def optimize(gcode: str, folder: Path, stem: str, suffix: str, stock: tuple | No
         stock_writer(stock_file)
         stock = stock_file.name
     job = folder / f"{stem}.job.toml"
-    out = folder / f"{stem}.millpost{suffix}"
-    job.write_text(job_toml(stock, tools, program.name, options.material, options.machine, out.name))
-    ok, message = run_millpost(options.millpost, job, out, options.timeout_s)
+    job.write_text(job_toml(stock, tools, program.name, options.material, options.machine, out_path.name))
+    ok, message = run_millpost(options.millpost, job, out_path, options.timeout_s)
     if not ok:
+        out_path.write_text(gcode)
         return gcode, False, f"millpost: kept the unoptimised program ({message}); job in {job}"
-    return out.read_text(), True, f"millpost: optimised program from {job}" + (f"\n{message}" if message else "")
+    return out_path.read_text(), True, f"millpost: optimised {out_path} from {job}" + (f"\n{message}" if message else "")
 
 
 # --- FreeCAD side ----------------------------------------------------------------------------------
 
-def _linuxcnc_gcode(objectslist: list, argstring: str, job: Any) -> str:
+def _linuxcnc_gcode(objectslist: list, argstring: str) -> str:
     """G-code of `objectslist` from FreeCAD's LinuxCNC post (1.0 module, 0.2x module or 1.1 class)."""
     try:
         from Path.Post.scripts import linuxcnc_post  # FreeCAD 1.x
@@ -284,7 +285,7 @@ def _linuxcnc_gcode(objectslist: list, argstring: str, job: Any) -> str:
             raise ValueError(f"the LinuxCNC post refused the arguments {argstring!r} (see its --help)")
         return gcode
     # 1.1 development tree: class post; it posts the whole Job (all sections) at once.
-    post = linuxcnc_post.Linuxcnc(job)
+    post = linuxcnc_post.Linuxcnc(_find_job(objectslist))
     return "".join(g for _, g in post.export() if g)
 
 
@@ -316,36 +317,34 @@ def export(objectslist, filename, argstring):
 
     console = FreeCAD.Console
     options = parse_args(argstring)
-    job = _find_job(objectslist)
-    gcode = _linuxcnc_gcode(objectslist, options.passthrough, job)
-    final = gcode
-    if options.optimize:
-        try:
-            tools, skipped = {}, []
-            for tc in _tool_controllers(objectslist):
-                number = int(tc.ToolNumber)
-                try:
-                    tools.setdefault(number, tool_spec(number, tc.Tool))
-                except ValueError as exc:
-                    skipped.append(str(exc))
-            for reason in skipped:
-                console.PrintWarning(f"millpost: {reason}\n")
-            shape = job.Stock.Shape
-            box = stock_box(shape.BoundBox)
-            exact_box = is_box(float(shape.Volume), box)
-            if filename and filename != "-":
-                target = Path(filename)
-                folder, stem, suffix = target.parent, target.stem, target.suffix or ".ngc"
-            else:  # FreeCAD 1.0 writes the returned text itself; the job goes to a folder of its own
-                folder, stem, suffix = Path(tempfile.mkdtemp(prefix="millpost-")), "program", ".ngc"
-            final, optimised, message = optimize(gcode, folder, stem, suffix, box if exact_box else None,
-                                      None if exact_box else (lambda p: shape.exportStep(str(p))),
-                                      list(tools.values()), options)
-            (console.PrintMessage if optimised else console.PrintWarning)(message + "\n")
-        except Exception as exc:  # never lose the user's program to a millpost-side problem
-            final = gcode
-            console.PrintWarning(f"millpost: kept the unoptimised program ({exc})\n")
-    if filename and filename != "-":
-        with open(filename, "w") as fh:
-            fh.write(final)
-    return final
+    gcode = _linuxcnc_gcode(objectslist, options.passthrough)
+    to_file = bool(filename) and filename != "-"
+    if not options.optimize:
+        if to_file:
+            Path(filename).write_text(gcode)
+        return gcode
+    try:
+        job = _find_job(objectslist)
+        tools = {}
+        for tc in _tool_controllers(objectslist):
+            number = int(tc.ToolNumber)
+            try:
+                tools.setdefault(number, tool_spec(number, tc.Tool))
+            except ValueError as exc:
+                console.PrintWarning(f"millpost: {exc}\n")
+        shape = job.Stock.Shape
+        box = stock_box(shape.BoundBox)
+        exact_box = is_box(float(shape.Volume), box)
+        # FreeCAD 0.2x names the output file; 1.0 writes the returned text itself, so the job goes
+        # to a folder of its own.
+        out = Path(filename) if to_file else Path(tempfile.mkdtemp(prefix="millpost-")) / "program.ngc"
+        final, optimised, message = optimize(gcode, out, box if exact_box else None,
+                                             None if exact_box else (lambda p: shape.exportStep(str(p))),
+                                             list(tools.values()), options)
+        (console.PrintMessage if optimised else console.PrintWarning)(message + "\n")
+        return final
+    except Exception as exc:  # never lose the user's program to a millpost-side problem
+        console.PrintWarning(f"millpost: kept the unoptimised program ({exc})\n")
+        if to_file:
+            Path(filename).write_text(gcode)
+        return gcode
