@@ -412,11 +412,12 @@ vm.runInContext(fs.readFileSync(cpsPath, 'utf8'), ctx, {filename: cpsPath});
 ctx.onOpen();
 sc.sections.forEach((s, i) => {
   sectionIndex = i; ctx.tool = s.tool; ctx.spindleSpeed = s.tool.spindleRPM;
-  ctx.currentSection = {workPlane: {forward: new Vector(0, 0, 1)}, workOffset: 1,
+  ctx.currentSection = {workPlane: {forward: new Vector(...(s.forward || [0, 0, 1]))}, workOffset: 1,
                         getInitialPosition: () => new Vector(...s.initial), getTool: () => s.tool};
   ctx.onSection();
   for (const [fn, ...args] of s.moves) {
     if (fn === 'cycle') { ctx.cycle = args[0]; continue; }
+    if (fn === 'compensation') { ctx.radiusCompensation = args[0]; ctx.onRadiusCompensation(); continue; }
     move(fn, args);
   }
   ctx.onSectionEnd();
@@ -471,16 +472,18 @@ EXPECTED = [  # kind, end (mm), centre (mm or None), feed mm/min (None for rapid
 
 
 def _run_cps(tmp_path: Path, *, unit: str = "mm", scale: float = 1.0, terminate: bool = False,
-             properties: dict | None = None) -> tuple[str, dict]:
-    """Drive millpost.cps under the stub; lengths in the scenario are the mm values × `scale`."""
+             properties: dict | None = None, base: list | None = None) -> tuple[str, dict]:
+    """Drive millpost.cps under the stub over `base` (default SECTIONS), lengths in mm × `scale`."""
     def s(v):
         return v * scale if isinstance(v, (int, float)) and not isinstance(v, bool) else v
 
     sections = []
-    for sec in SECTIONS:
+    for sec in base or SECTIONS:
         moves = []  # feeds are lengths per minute: they scale too
         for fn, *args in sec["moves"]:
-            if fn == "cycle":
+            if fn == "compensation":
+                moves.append([fn, *args])
+            elif fn == "cycle":
                 moves.append([fn, {k: v * scale for k, v in args[0].items()}])
             elif fn == "onCircular":  # clockwise, cx, cy, cz, x, y, z, feed, plane
                 moves.append([fn, args[0], *[s(a) for a in args[1:8]], args[8]])
@@ -488,7 +491,8 @@ def _run_cps(tmp_path: Path, *, unit: str = "mm", scale: float = 1.0, terminate:
                 moves.append([fn, *[s(a) for a in args]])
         tool = {k: (v * scale if k in {"diameter", "cornerRadius", "fluteLength", "bodyLength"} else v)
                 for k, v in sec["tool"].items()}
-        sections.append({"tool": tool, "initial": [s(a) for a in sec["initial"]], "moves": moves})
+        sections.append({"tool": tool, "initial": [s(a) for a in sec["initial"]], "moves": moves,
+                         "forward": sec.get("forward")})
     tools = [{k: (v * scale if k in {"diameter", "cornerRadius", "fluteLength", "bodyLength"} else v)
               for k, v in t.items()} for t in (T1, T2, T9)]
     scenario = {
@@ -568,3 +572,13 @@ def test_cps_keeps_the_posted_program_when_millpost_fails(tmp_path):
     gcode, report = _run_cps(tmp_path, terminate=True, properties={"millpostPath": str(tmp_path / "absent")})
     _assert_moves(gcode)
     assert any("could not run millpost" in w for w in report["warnings"])
+
+
+@needs_node
+def test_cps_refuses_tilted_work_planes_and_controller_compensation(tmp_path):
+    tilted = [{"tool": T1, "initial": [0, 0, 15], "forward": [1, 0, 0], "moves": [["onRapid", 0, 0, 5]]}]
+    _, report = _run_cps(tmp_path, base=tilted)
+    assert any("3-axis" in e for e in report["errors"])
+    compensated = [{"tool": T1, "initial": [0, 0, 15], "moves": [["compensation", 1], ["onLinear", 5, 0, 0, 100]]}]
+    _, report = _run_cps(tmp_path, base=compensated)
+    assert any("In computer" in e for e in report["errors"])
