@@ -214,7 +214,8 @@ def job_toml(stock: tuple[Sequence[float], Sequence[float]] | str, tools: Iterab
         lo, hi = stock
         lines.append(f"box = [[{', '.join(map(_toml_num, lo))}], [{', '.join(map(_toml_num, hi))}]]")
     for t in sorted(tools, key=lambda t: t.number):
-        lines += ["", f"[tools.{t.number}]", f"diameter_mm = {_toml_num(t.diameter_mm)}", f"shape = {_toml_str(t.shape)}"]
+        lines += ["", f"[tools.{t.number}]", f"diameter_mm = {_toml_num(t.diameter_mm)}",
+                  f"shape = {_toml_str(t.shape)}"]
         if t.flutes is not None:
             lines.append(f"flutes = {t.flutes}")
         for key in ("corner_radius_mm", "flute_length_mm", "stickout_mm"):
@@ -268,7 +269,8 @@ def optimize(gcode: str, out_path: Path, stock: tuple | None, stock_writer: Call
     if not ok:
         out_path.write_text(gcode)
         return gcode, False, f"millpost: kept the unoptimised program ({message}); job in {job}"
-    return out_path.read_text(), True, f"millpost: optimised {out_path} from {job}" + (f"\n{message}" if message else "")
+    note = f"millpost: optimised {out_path} from {job}" + (f"\n{message}" if message else "")
+    return out_path.read_text(), True, note
 
 
 # --- FreeCAD side ----------------------------------------------------------------------------------

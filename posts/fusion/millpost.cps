@@ -395,7 +395,8 @@ function onTerminate() {
       getProperty("millpostMaterial"), getProperty("millpostMachine")));
     file.close();
     // millpost writes the output atomically: on any failure the posted NC file is untouched.
-    var code = execute(getProperty("millpostPath"), "optimize \"" + jobPath + "\" -o \"" + outputPath + "\"", true, folder);
+    var args = "optimize \"" + jobPath + "\" -o \"" + outputPath + "\"";
+    var code = execute(getProperty("millpostPath"), args, true, folder);
     if (code != 0) {
       warning("millpost: 'millpost optimize' exited with " + code + "; kept the program as posted. Job: " + jobPath);
     }
