@@ -55,24 +55,26 @@ def slotting() -> str:
 
 
 def ball_roughing() -> str:
-    """3D roughing of a dome with a 6 mm ball end mill in POM: zig-zag rows 0.8 mm apart following
-    z = the dome surface + 0.3 mm stock, clipped at the roughing floor; one feed for the pass."""
-    out = header("dome roughing, 6 mm 2F ball, POM", 1, 16000)
-    R, cx, cy, top = 30.0, 25.0, 25.0, -2.0
+    """First roughing level of a dome with a 6 mm ball end mill in POM: zig-zag rows 1.5 mm apart at
+    z = max(dome + 0.3 mm stock, -1.5 mm), so the ball follows the dome where it rises above the level;
+    one feed for the pass."""
+    out = header("dome roughing level 1, 6 mm 2F ball, POM", 1, 16000)
+    R, cx, cy, height = 20.0, 15.0, 15.0, 12.0
 
-    def surface(x: float, y: float) -> float:
+    def z_at(x: float, y: float) -> float:
         d2 = (x - cx) ** 2 + (y - cy) ** 2
-        return max(top - 12.0, top - 12.0 + math.sqrt(max(R * R - d2, 0.0)) - (R - 12.0)) + 0.3
+        dome = -height + math.sqrt(max(R * R - d2, 0.0)) - (R - height) if d2 < R * R else -height
+        return max(dome + 0.3, -1.5)
 
-    out += ["G0 X0 Y0", "G0 Z2", f"G1 Z{fmt(surface(0, 0))} F500", "F2500"]
+    out += ["G0 X-4 Y0", "G0 Z2", f"G1 Z{fmt(z_at(-4, 0))} F500", "F2500"]
     y, row = 0.0, 0
-    while y <= 50.0:
-        xs = [i * 0.5 for i in range(101)]
+    while y <= 30.0:
+        xs = [-4 + i * 0.5 for i in range(77)]
         if row % 2:
             xs = xs[::-1]
         for x in xs:
-            out.append(f"G1 X{fmt(x)} Y{fmt(y)} Z{fmt(surface(x, y))}")
-        y += 0.8
+            out.append(f"G1 X{fmt(x)} Y{fmt(y)} Z{fmt(z_at(x, y))}")
+        y += 1.5
         row += 1
     out += ["G0 Z10", "M30"]
     return "\n".join(out) + "\n"

@@ -109,13 +109,15 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
             line = int(samples.line[np.flatnonzero(cutting & (samples.tool == number))[0]])
             raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
         idx = np.flatnonzero(samples.tool == number)
-        ll = model.linear_loads(eng.select(idx), tool, rpm[idx])
+        # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
+        ll = model.linear_loads(eng.select(idx), tool, rpm[idx],
+                                feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[idx], nan=100.0))
         for key in ("peak", "power", "torque", "force"):
             loads[f"{key}_a"][idx] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
             loads[f"{key}_b"][idx] = getattr(ll, f"{key}_b")
         beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
-        peak_limit[idx] = beam.breaking_force_N(0.0)
-        defl_per_N[idx] = beam.compliance_mm_per_N(0.0, at_tip=True) + 1.0 / k_xy
+        peak_limit[idx] = beam.breaking_force_N(eng.ap_mm[idx])  # the cut's depth sets the lever arm
+        defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + 1.0 / k_xy
         h_min, h_max = job.material.min_chip_mm(tool.edge_radius_mm), job.material.chip_load_mm(tool.diameter_mm)[1]
         cut_here = idx[sin_max[idx] > 0]
         fz_hi[cut_here] = h_max / sin_max[cut_here]

@@ -1,0 +1,126 @@
+"""`millpost optimize` end to end on the bundled sample jobs: golden summaries (fail on drift beyond the
+stated tolerances), no limit exceeded on the emitted program replayed through the controller and force
+models, the path unchanged (and accepted by LinuxCNC's rs274 when installed), and the solver-failure
+fallback to the programmed feeds. Set MILLPOST_UPDATE_GOLDEN=1 to rewrite the expected summaries."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rs274_oracle
+from millpost import optimize as opt_module
+from millpost.cli import main
+from millpost.errors import ConfigError
+from millpost.gcode import read_program, read_text
+from millpost.job import load_job
+from millpost.optimize import optimize
+from millpost.schedule import Status
+
+JOBS = Path(__file__).resolve().parents[1] / "sample_jobs"
+NAMES = ["adaptive_pocket", "slotting", "ball_roughing", "drill_and_mill"]
+ROUGHING_GOAL = {"adaptive_pocket": 0.25, "slotting": 0.25}  # cycle time at least 25 % under the baseline
+TOL_TIME = 0.03  # relative drift allowed on cycle times
+TOL_LIMIT = 1.005  # emitted program: no limit above its bound by more than 0.5 %
+
+
+@pytest.fixture(scope="module", params=NAMES)
+def run(request):
+    job = load_job(JOBS / request.param)
+    return request.param, job, optimize(job, progress=False)
+
+
+def test_summary_matches_golden(run):
+    name, job, result = run
+    s = result.summary
+    golden = JOBS / name / "expected.json"
+    keys = ["status", "cycle_time_before_s", "cycle_time_after_s", "cycle_time_baseline_s", "samples"]
+    if os.environ.get("MILLPOST_UPDATE_GOLDEN") or not golden.exists():
+        golden.write_text(json.dumps({k: s[k] for k in keys}, indent=2) + "\n")
+    expected = json.loads(golden.read_text())
+    assert s["status"] == expected["status"] == "solved"
+    assert s["samples"] == expected["samples"]
+    for k in keys[1:4]:
+        assert s[k] == pytest.approx(expected[k], rel=TOL_TIME), k
+
+
+def test_no_limit_exceeded_and_roughing_goal(run):
+    name, job, result = run
+    s = result.summary
+    over = {k: v for k, v in s["limits"].items() if v > TOL_LIMIT}
+    assert not over, f"{name}: limits exceeded on the emitted program: {over}"
+    assert s["cycle_time_after_s"] <= s["cycle_time_baseline_s"] * (1 + 1e-3)
+    if name in ROUGHING_GOAL:
+        assert s["improvement_vs_baseline"] >= ROUGHING_GOAL[name]
+
+
+def test_emitted_program_keeps_the_path(run, tmp_path):
+    name, job, result = run
+    original = read_program(job.program)
+    emitted = read_text(result.text, "emitted.nc")
+    if not result.summary["status"].startswith("fallback"):
+        assert len(emitted.toolpath) >= len(original.toolpath)  # moves may be split, never merged
+    assert swept_path_deviation(original, emitted) < 2e-3  # mm: the 3-decimal output precision
+    feeds = emitted.toolpath.feed_mm_min[emitted.toolpath.kind != 0]
+    assert np.nanmax(feeds) <= job.machine.feed_max_mm_min + 1e-9
+    if rs274_oracle.RS274:
+        out = tmp_path / "emitted.ngc"
+        out.write_text(result.text)
+        trace = rs274_oracle.run(out)
+        assert trace.error is None or "%" in trace.error, trace.error
+
+
+def swept_path_deviation(a, b, ds: float = 0.05) -> float:
+    """Largest distance (mm) between the two paths at equal arc length (rapids included); splitting a
+    move into pieces does not change it, any change of geometry does."""
+    sa, sb = a.toolpath.resample(ds), b.toolpath.resample(ds)
+    assert sa.s_mm[-1] == pytest.approx(sb.s_mm[-1], abs=1e-3)
+    pb = np.column_stack([np.interp(sa.s_mm, sb.s_mm, sb.xyz_mm[:, k]) for k in range(3)])
+    return float(np.abs(pb - sa.xyz_mm).max())
+
+
+def test_solver_failure_keeps_programmed_feeds(monkeypatch, tmp_path):
+    real = opt_module.schedule_samples
+
+    def failing(samples, limits, options=None):
+        sch = real(samples, limits, options)
+        for _, _, seg in sch.segments:
+            seg.status = Status.NUMERICAL_ERROR
+            seg.message = "forced failure"
+        return sch
+
+    monkeypatch.setattr(opt_module, "schedule_samples", failing)
+    job = load_job(JOBS / "slotting")
+    result = optimize(job, progress=False)
+    assert result.summary["status"] == "fallback_programmed_feeds"
+    assert "forced failure" in result.summary["message"]
+    assert result.text == job.program.read_text()
+
+
+def test_cli_writes_program_and_summary(tmp_path):
+    out, summary = tmp_path / "out.nc", tmp_path / "s.json"
+    assert main(["optimize", str(JOBS / "slotting"), "-o", str(out), "--json", str(summary)]) == 0
+    assert json.loads(summary.read_text())["output"] == str(out)
+    assert out.read_text().startswith("(slots and contour")
+
+
+@pytest.mark.parametrize("text,field", [
+    ('program = "program.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0,0,0],[1,1,-1]]\n'
+     '[tools.1]\ndiameter_mm = 6\n', "stock.box"),
+    ('program = "program.nc"\nmaterial = "unobtainium"\nmachine = "vmc-small"\n[stock]\nbox = [[0,0,-1],[1,1,0]]\n'
+     '[tools.1]\ndiameter_mm = 6\n', "material"),
+    ('program = "program.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0,0,-1],[1,1,0]]\n'
+     '[tools.1]\ndiameter_mm = -6\n', "tools.1.diameter_mm"),
+    ('program = "program.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0,0,-1],[1,1,0]]\n'
+     '[tools.1]\ndiameter_mm = 6\n[limits]\nspeed = 3\n', "limits.speed"),
+])
+def test_bad_job_files_name_the_field(tmp_path, text, field):
+    (tmp_path / "program.nc").write_text("G21\nM30\n")
+    (tmp_path / "job.toml").write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_job(tmp_path)
+    assert info.value.field == field
