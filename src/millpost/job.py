@@ -8,7 +8,7 @@
     [stock]                           # box = [[xmin,ymin,zmin],[xmax,ymax,zmax]] (mm) or file = "x.stl|.step|.py"
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
-    [limits]                          # optional: deflection_mm, feed_max_mm_min, feed_min_mm_min,
+    [limits]                          # optional: deflection_mm, feed_max_mm_min,
                                       # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle")
 
 A folder stands for the `job.toml` inside it.
@@ -27,7 +27,7 @@ from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
 
-_LIMIT_KEYS = {"deflection_mm": 0.025, "feed_max_mm_min": None, "feed_min_mm_min": 0.0, "tool_safety_factor": None,
+_LIMIT_KEYS = {"deflection_mm": 0.025, "feed_max_mm_min": None, "tool_safety_factor": None,
                "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None}
 
 
