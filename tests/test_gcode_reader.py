@@ -133,3 +133,19 @@ def test_fuzz_never_crashes(lines):
         read_text("\n".join(lines), "fuzz.nc")
     except ParseError as err:
         assert err.line >= 1
+
+
+def test_fanuc_fine_boring_back_boring_and_g80_return_to_g0():
+    text = ("%\nO0001\nG21 G90 G17\nG0 X0 Y0 Z10\nG98 G76 X5 Y5 Z-10 R2 Q0.5 P500 F100\nG80\nZ15.\n"
+            "G0 X20 Y0 Z10\nG87 X20 Y0 Z-4 R-12 Q0.5 F80\nG80\nM30\n%\n")
+    prog = read_text(text, "f.nc", ReaderOptions(dialect="fanuc"))
+    tp = prog.toolpath
+    ends = tp.end.tolist()
+    # G76: to the hole at the initial level, down to R, feed to Z, shift +X by Q, rapid out, shift back
+    assert ends[1:7] == [[5, 5, 10], [5, 5, 2], [5, 5, -10], [5.5, 5, -10], [5.5, 5, 10], [5, 5, 10]]
+    assert tp.kind[3] == 1 and prog.dwell_s == pytest.approx(0.5)  # Fanuc P in milliseconds
+    assert ends[7] == [5, 5, 15] and tp.kind[7] == 0  # after G80, Fanuc returns to G0
+    # G87: shift, rapid below the part to R, shift back, feed up to Z, shift, rapid up, shift back
+    assert ends[9:16] == [[20, 0, 10], [20.5, 0, 10], [20.5, 0, -12], [20, 0, -12], [20, 0, -4], [20.5, 0, -4],
+                          [20.5, 0, 10]]
+    assert ends[16] == [20, 0, 10]

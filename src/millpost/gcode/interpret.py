@@ -800,7 +800,7 @@ class Interpreter:
         else:
             r = cyc["R"] * sc + self.cycle_il  # LinuxCNC: from the level where the cycle sequence began
             bottom = r + cyc[an_letter] * sc
-        if bottom > r:
+        if bottom > r and code != 870:  # back boring cuts upwards from an R below the part
             raise self.err(f"canned cycle bottom {an_letter} above the R plane", b, val.get(an_letter),
                            f"{an_letter} below R")
         clear = r if not self.retract_old_z else max(r, self.cycle_il if self.cycle_il is not None else old)
@@ -828,7 +828,7 @@ class Interpreter:
                 p[a2] += d2.value * sc if d2 is not None else 0.0
             p[an] = old if rep == 0 else self.pos[an]
             self.emit(RAPID, p, b)
-            if self.pos[an] != r:
+            if self.pos[an] != r and code != 870:  # back boring goes down to R beside the bore itself
                 self.to_depth(RAPID, r, b)
             self.cycle_body(code, b, r, bottom, clear, feed, cyc)
             old = clear
@@ -894,41 +894,35 @@ class Interpreter:
             self.notes.append(f"line {b.line}: G88 stops for a manual retract; modelled as a rapid to the clear plane")
             self.to_depth(RAPID, clear, b)
         elif code == 760:  # Fanuc/Haas fine boring: feed in, orient, shift by Q, rapid out, shift back
-            a1 = PLANE_AXES[self.plane][0]
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
-            p = self.pos.copy()
-            p[a1] += delta  # the shift direction depends on the orientation; +first axis assumed
-            self.emit(RAPID, p, b)
+            self.shift(b, delta)  # the shift direction depends on the orientation; +first axis assumed
             self.to_depth(RAPID, clear, b)
-            p = self.pos.copy()
-            p[a1] -= delta
-            self.emit(RAPID, p, b)
-            self.notes.append(f"line {b.line}: G76 shift direction taken along +{_AXES[a1]} (assumed)")
+            self.shift(b, -delta)
+            self.notes.append(f"line {b.line}: G76 shift direction taken along +{_AXES[PLANE_AXES[self.plane][0]]} "
+                              "(assumed)")
         elif code == 870:
             self.back_bore(b, r, bottom, clear, feed, cyc)
 
+    def shift(self, b: Block, delta: float) -> None:
+        """Rapid sideways along the plane's first axis (the boring bar's oriented-stop shift)."""
+        p = self.pos.copy()
+        p[PLANE_AXES[self.plane][0]] += delta
+        self.emit(RAPID, p, b)
+
     def back_bore(self, b: Block, r: float, bottom: float, clear: float, feed: float, cyc: dict) -> None:
         """G87 back boring (Fanuc form: shift by Q, rapid to R below the part, shift back, feed up to Z)."""
-        a1, _, an = PLANE_AXES[self.plane]
         delta = cyc.get("Q", 0.0) * self.scale
-        start = self.pos[an]
-        p = self.pos.copy()
-        p[a1] += delta
-        self.emit(RAPID, p, b)
+        start = self.pos[PLANE_AXES[self.plane][2]]
+        self.shift(b, delta)
         self.to_depth(RAPID, r, b)
-        p = self.pos.copy()
-        p[a1] -= delta
-        self.emit(RAPID, p, b)
+        self.shift(b, -delta)
         self.to_depth(FEED, bottom, b, feed)
-        p = self.pos.copy()
-        p[a1] += delta
-        self.emit(RAPID, p, b)
+        self.shift(b, delta)
         self.to_depth(RAPID, start, b)
-        p = self.pos.copy()
-        p[a1] -= delta
-        self.emit(RAPID, p, b)
-        self.notes.append(f"line {b.line}: G87 back boring with the Fanuc sequence; shift along +{_AXES[a1]} (assumed)")
+        self.shift(b, -delta)
+        self.notes.append(f"line {b.line}: G87 back boring with the Fanuc sequence; shift along "
+                          f"+{_AXES[PLANE_AXES[self.plane][0]]} (assumed)")
 
     def add_dwell(self, b: Block, secs: float) -> None:
         if secs > 0:
