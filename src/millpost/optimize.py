@@ -230,11 +230,19 @@ def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions
     """Run the whole post step on a job and return the new program and its summary."""
     t_start = time.perf_counter()
     program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
+    result = schedule_program(job, program, samples, eng, options)
+    result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
+    return result
+
+
+def schedule_program(job: Job, program: Program, samples: Samples, eng,
+                     options: ScheduleOptions | None = None) -> Result:
+    """From the engagement on: limits, schedule, emitted text, cycle times and the replay check.
+    (Split from `optimize` so that tests can give engagements of known geometry.)"""
     tp = program.toolpath
     ds = float(job.limits["ds_mm"])
-    samples = tp.resample(ds)
-    stock = job.stock()
-    eng = engagement.simulate(stock, {k: t for k, t in job.tools.items()}, samples, progress=progress)
     limits, loads = build_limits(job, samples, eng)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options or ScheduleOptions())
@@ -271,7 +279,7 @@ def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions
         "improvement_vs_baseline": round(1.0 - after.time_s / baseline.time_s, 4) if baseline.time_s else None,
         "improvement_vs_programmed": round(1.0 - after.time_s / before.time_s, 4) if before.time_s else None,
         "baseline_feed_mm_min": base_per_tool,
-        "solver_s": round(solver_s, 3), "total_s": round(time.perf_counter() - t_start, 3),
+        "solver_s": round(solver_s, 3),
         "removed_volume_mm3": round(float(np.nansum(eng.volume_mm3)), 3),
         "limits": {k: round(v, 4) for k, v in sorted(ratios.items())},
         "binding": binding,
