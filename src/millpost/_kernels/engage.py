@@ -231,6 +231,14 @@ def _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, id
     if not bilinear:
         return _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
     wx, wy = wts[i, 0], wts[i, 1]
+    if not has_multi:  # bilinear height field, then the slice's share of [z_floor, H]
+        c0, c1, c2, c3 = cells[i, 0], cells[i, 1], cells[i, 2], cells[i, 3]
+        v0 = top[c0] if c0 >= 0 else zf
+        v1 = top[c1] if c1 >= 0 else zf
+        v2 = top[c2] if c2 >= 0 else zf
+        v3 = top[c3] if c3 >= 0 else zf
+        H = (1 - wy) * ((1 - wx) * v0 + wx * v1) + wy * ((1 - wx) * v2 + wx * v3)
+        return max(min(H, zb) - max(zf, za), 0.0)
     m00 = _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
     m10 = _material(cells[i, 1], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
     m01 = _material(cells[i, 2], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
@@ -251,6 +259,104 @@ def _bisect(a, b, a_on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bili
         else:
             b = mid
     return 0.5 * (a + b)
+
+
+@njit(cache=True, inline="always")
+def _clip(lo, hi, a, b):
+    """Narrow [lo, hi] to the x with a·x + b >= 0."""
+    if a > 1e-15:
+        return max(lo, -b / a), hi
+    if a < -1e-15:
+        return lo, min(hi, -b / a)
+    if b < 0.0:
+        return 1.0, 0.0
+    return lo, hi
+
+
+BAND, WEDGE, CAP = 0, 1, 2
+
+
+@njit(cache=True)
+def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
+            has_multi, bits, ids, ptr, lo, hi, tol):
+    """Cut (or check) the part of a level tool sweep at height pz (tip) that one step adds.
+
+    BAND: the straight sweep from q along unit f for Ls mm, columns whose foot on the segment lies
+    inside it, cut to the tool surface at their lateral distance (exact for a level move).
+    WEDGE: at a joint q between a previous direction e and the new f, the columns within R of q
+    beyond the previous sweep's end and before the new one's start.
+    CAP: the front half disk at q (f forward), where a run of level steps ends.
+    Returns (removed length sum, deepest cut below the old top, crash) in mm.
+    """
+    rem = 0.0
+    ap = 0.0
+    ylo = qy - R
+    yhi = qy + R
+    if kind == BAND:
+        ylo = min(qy, qy + Ls * fy) - R
+        yhi = max(qy, qy + Ls * fy) + R
+    j0 = max(0, int(math.ceil((ylo - y0) / h - 0.5)))
+    j1 = min(ny - 1, int(math.floor((yhi - y0) / h - 0.5)))
+    for j in range(j0, j1 + 1):
+        yc = y0 + (j + 0.5) * h
+        dy = yc - qy
+        xl, xh = -1e300, 1e300
+        if kind == BAND:
+            # 0 <= (c - q)·f <= Ls and -R <= (c - q)×f <= R
+            xl, xh = _clip(xl, xh, fx, dy * fy - qx * fx)
+            xl, xh = _clip(xl, xh, -fx, Ls - dy * fy + qx * fx)
+            xl, xh = _clip(xl, xh, -fy, R + dy * fx + qx * fy)
+            xl, xh = _clip(xl, xh, fy, R - dy * fx - qx * fy)
+        else:
+            w2 = R * R - dy * dy
+            if w2 < 0.0:
+                continue
+            w = math.sqrt(w2)
+            xl, xh = qx - w, qx + w
+            if kind == WEDGE:
+                xl, xh = _clip(xl, xh, ex, dy * ey - qx * ex)  # (c - q)·e >= 0
+                xl, xh = _clip(xl, xh, -fx, -dy * fy + qx * fx)  # (c - q)·f <= 0
+            else:
+                xl, xh = _clip(xl, xh, fx, dy * fy - qx * fx)
+        if xl > xh:
+            continue
+        i0 = max(0, int(math.ceil((xl - x0) / h - 0.5)))
+        i1 = min(nx - 1, int(math.floor((xh - x0) / h - 0.5)))
+        row = j * nx
+        for i in range(i0, i1 + 1):
+            dx = x0 + (i + 0.5) * h - qx
+            if kind == BAND:
+                d = abs(dy * fx - dx * fy)
+            else:
+                d = math.sqrt(dx * dx + dy * dy)
+            if d > R:
+                continue
+            zc = pz + surface_height(d, shape, R, rc, r_tip, tan_half)
+            c = row + i
+            t = top[c]
+            if zc >= t:
+                continue
+            if cut:
+                if _is_multi(c, has_multi, bits):
+                    r = _cut_multi(c, zc, top, zf, ids, ptr, lo, hi)
+                else:
+                    top[c] = max(zc, zf)
+                    r = t - top[c]
+                if r > 0.0:
+                    rem += r
+                    ap = max(ap, t - pz)
+            elif _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi) > tol:
+                return rem, ap, True
+    return rem, ap, False
+
+
+@njit(cache=True)
+def _level_step(k, n, xyz, fresh, shape):
+    """Step k is a level, horizontal move of a non-flat tool (swept as bands, wedges and caps)."""
+    if k < 1 or k >= n or fresh[k] or shape == FLAT:
+        return False
+    dx, dy = xyz[k, 0] - xyz[k - 1, 0], xyz[k, 1] - xyz[k - 1, 1]
+    return abs(xyz[k, 2] - xyz[k - 1, 2]) <= 1e-9 and dx * dx + dy * dy > 1e-24
 
 
 @njit(cache=True)
@@ -421,8 +527,26 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         gx, gy = ring_at[k, 2], ring_at[k, 3]
         feed_o[k, 0], feed_o[k, 1] = gx, gy
         desc_o[k] = descending
-        rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
-                                    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
+        n = xyz.shape[0]
+        if _level_step(k, n, xyz, fresh, shape):
+            # the level sweep of this step: its band, the wedge at its start (when the previous
+            # step was a band of the same kind), and its front cap when no such band follows
+            args = (R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
+                    crash_tol)
+            rem, ap, crash = _region(BAND, qx, qy, pz, 0.0, 0.0, fx, fy, dxy, not rapid[k], *args)
+            if not crash and _level_step(k - 1, n, xyz, fresh, shape) and rapid[k - 1] == rapid[k]:
+                ex, ey = xyz[k - 1, 0] - xyz[k - 2, 0], xyz[k - 1, 1] - xyz[k - 2, 1]
+                le = math.sqrt(ex * ex + ey * ey)
+                r2, a2, crash = _region(WEDGE, qx, qy, pz, ex / le, ey / le, fx, fy, 0.0, not rapid[k], *args)
+                rem += r2
+                ap = max(ap, a2)
+            if not crash and not (_level_step(k + 1, n, xyz, fresh, shape) and rapid[k + 1] == rapid[k]):
+                r2, a2, crash = _region(CAP, px, py, pz, 0.0, 0.0, fx, fy, 0.0, not rapid[k], *args)
+                rem += r2
+                ap = max(ap, a2)
+        else:
+            rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
+                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
         if crash:
             prev_f[0], prev_f[1] = fx, fy
             return k
