@@ -62,6 +62,19 @@ class Engagement:
         return len(self.ap_mm)
 
     @classmethod
+    def concatenate(cls, parts: "list[Engagement]") -> "Engagement":
+        """Samples of several engagements one after another (optional fields kept where all have them)."""
+        def cat(name: str):
+            values = [getattr(p, name) for p in parts]
+            return None if any(v is None for v in values) else np.concatenate(values)
+        return cls(**{name: cat(name) for name in cls.__dataclass_fields__})
+
+    def select(self, index) -> "Engagement":
+        """The samples at `index` (a slice, mask or index array)."""
+        return Engagement(**{name: None if getattr(self, name) is None else getattr(self, name)[index]
+                             for name in self.__dataclass_fields__})
+
+    @classmethod
     def uniform(cls, phi_st, phi_ex, ap_mm: float, radius_mm: float, *, slices: int = 1,
                 kappa: float = np.pi / 2, feed_dir=(1.0, 0.0, 0.0)) -> "Engagement":
         """A flank cut with the same arc on every slice: N samples from arrays phi_st, phi_ex.

@@ -1,0 +1,248 @@
+"""Writing a program back with new feeds: every line byte-identical except the words that must change.
+
+A `FeedPlan` gives, per move of the program's toolpath, the feed (mm/min) to run it at, and optionally
+fragments: a move whose feed must change part-way is split at fractions of its length, lines as lines
+and arcs as arcs (keeping the line's IJK or R style, its distance modes and its number format).
+F is modal, so an F word is written wherever the wanted feed differs from the one in force; an F the
+program already had and that still holds keeps its bytes. Blocks that run several moves (canned
+cycles, G28) get the lowest feed any of their moves wants: never faster than the plan.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MillpostError
+from .gcode.interpret import INCH, Program
+from .gcode.lexer import Block, lex_line
+from .toolpath import ARC_CW, PLANE_AXES, RAPID
+
+_AXIS_LETTERS = "XYZ"
+_ARC_LETTERS = "IJK"
+
+
+@dataclass
+class FeedPlan:
+    """Per move: `feed_mm_min` (nan for moves left as programmed, e.g. rapids) and, for moves split
+    part-way, `fragments[move] = [(u_end, feed_mm_min), ...]` with u_end increasing to 1."""
+
+    feed_mm_min: np.ndarray
+    fragments: dict[int, list[tuple[float, float]]]
+
+    @classmethod
+    def programmed(cls, program: Program) -> "FeedPlan":
+        return cls(program.toolpath.feed_mm_min.copy(), {})
+
+
+def write_atomic(path: str | Path, text: str) -> None:
+    """Write text to `path` through a temporary file in the same folder, then rename: a reader never
+    sees a half-written file, and a failure leaves any old file untouched."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".millpost-tmp", dir=path.parent or ".")
+    try:
+        with os.fdopen(fd, "w", newline="") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _decimals(block: Block, default: int) -> int:
+    found = [len(w.text.split(".")[1].rstrip()) for w in block.words if "." in w.text and "[" not in w.text]
+    return max(found + [default])
+
+
+def _fmt(value: float, decimals: int, trailing_point: bool) -> str:
+    text = f"{value:.{decimals}f}"
+    if "." in text:
+        text = text.rstrip("0")
+        if text.endswith(".") and not trailing_point:
+            text = text[:-1]
+    if text in ("-0", "-0.", "-", "-."):
+        text = "0." if trailing_point else "0"
+    return text
+
+
+class _LineWriter:
+    """Edits one source line: replace or add words, keeping every other byte."""
+
+    def __init__(self, raw: str, block: Block) -> None:
+        self.raw, self.block = raw, block
+        self.sep = " " if re.search(r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]", raw) else ""
+
+    def replace(self, new: dict[str, str], drop: set[str] = frozenset()) -> str:
+        """Words by letter set to new text (added after the last word when absent); `drop` removed."""
+        text = self.raw
+        edits = []  # (start, end, replacement)
+        placed = set()
+        for w in self.block.words:
+            if w.letter in new:
+                edits.append((w.start, w.end, w.letter + new[w.letter] if w.text[0].isupper() or not w.text[0].isalpha()
+                              else w.letter.lower() + new[w.letter]))
+                placed.add(w.letter)
+            elif w.letter in drop:
+                s = w.start
+                while s > 0 and text[s - 1] in " \t" and self.sep:
+                    s -= 1
+                edits.append((s, w.end, ""))
+        missing = [L for L in new if L not in placed]
+        if missing:
+            at = self.block.code_end
+            edits.append((at, at, "".join(self.sep + L + new[L] if (at > 0 or i) else L + new[L]
+                                          for i, L in enumerate(missing))))
+        for s, e, rep in sorted(edits, key=lambda t: (t[0], t[1]), reverse=True):
+            text = text[:s] + rep + text[e:]
+        return text
+
+
+def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None = None) -> str:
+    """The program's text with feeds as planned. Units, feed modes (G93/G94/G95) and distance modes
+    are those the program had at each line; numbers take the line's own precision."""
+    tp = program.toolpath
+    if len(plan.feed_mm_min) != len(tp):
+        raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
+    if trailing_point is None:
+        trailing_point = program.dialect == "fanuc"
+    lines = program.text.splitlines(keepends=True)
+    lengths = tp.lengths()
+    cutting = tp.kind != RAPID
+    by_line: dict[int, list[int]] = {}
+    for i in np.flatnonzero(cutting):
+        by_line.setdefault(int(tp.line[i]), []).append(int(i))
+    out: list[str] = []
+    modal_f: float | None = None  # F in force in the output (program units)
+    params: dict = {}
+    for n, raw in enumerate(lines, start=1):
+        body = raw.rstrip("\r\n")
+        ending = raw[len(body):]
+        moves = by_line.get(n)
+        if moves is None:
+            if "#" in body or "f" in body.lower():  # parameters to carry, or an F that sets the modal feed
+                try:
+                    block = lex_line(body, n, program.path, params)
+                except MillpostError:  # a line the interpreter never ran (after M2, block delete, ...)
+                    out.append(raw)
+                    continue
+                params.update(block.assigns)
+                f = next((w for w in block.words if w.letter == "F"), None)
+                if f is not None:
+                    modal_f = f.value
+            out.append(raw)
+            continue
+        block = lex_line(body, n, program.path, params)
+        params.update(block.assigns)
+        inch = bool(program.move_inch[moves[0]])
+        decimals = _decimals(block, 4 if inch else 3)
+        writer = _LineWriter(body, block)
+
+        def f_value(i: int, feed_mm_min: float, length_mm: float) -> float:
+            mode = program.feed_mode[i]
+            scale = INCH if inch else 1.0
+            if mode == 930:
+                value = feed_mm_min / max(length_mm, 1e-12)  # inverse time: 1/min
+            elif mode == 950:
+                value = feed_mm_min / scale / max(tp.rpm[i], 1e-12)  # per revolution
+            else:
+                value = feed_mm_min / scale
+            return value
+
+        def f_text(value: float) -> str:
+            """F in the program's units, rounded down (never faster) to 0.1 mm/min or 0.01 in/min."""
+            d = (2 if inch else 1) + (2 if value < 10 else 0)
+            return _fmt(math.floor(value * 10**d * (1 + 1e-12)) / 10**d, d, trailing_point)
+
+        split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1]
+        if split and len(moves) == 1:
+            i = moves[0]
+            new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, decimals,
+                                             trailing_point, lambda j, f, L: f_text(f_value(j, f, L)), lengths[i])
+            out.extend(new_lines)
+            continue
+        wanted = [plan.feed_mm_min[i] for i in moves if not math.isnan(plan.feed_mm_min[i])]
+        f_word = next((w for w in block.words if w.letter == "F"), None)
+        if not wanted:
+            if f_word is not None:
+                modal_f = f_word.value
+            out.append(raw)
+            continue
+        k = min(moves, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
+        value = f_value(k, plan.feed_mm_min[k], lengths[k])
+        if program.feed_mode[k] == 930 and len(moves) > 1:
+            raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
+        if f_word is not None and _same(f_word.value, value):
+            out.append(raw)  # the program's own F still holds: keep its bytes
+        elif f_word is None and modal_f is not None and _same(modal_f, value) and program.feed_mode[k] != 930:
+            out.append(raw)
+        else:
+            out.append(writer.replace({"F": f_text(value)}) + ending)
+            value = float(f_text(value))
+        modal_f = value
+    return "".join(out)
+
+
+def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
+                decimals: int, trailing_point: bool, f_text, length_mm: float) -> tuple[list[str], str]:
+    """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
+    words changed; later pieces are new lines with the motion word, end point, arc centre and F."""
+    tp = program.toolpath
+    inch = bool(program.move_inch[i])
+    scale = INCH if inch else 1.0
+    incremental = bool(program.incremental[i])
+    arc = tp.kind[i] >= ARC_CW
+    uses_r = any(w.letter == "R" for w in block.words)
+    g_word = next((w for w in block.words if w.letter == "G" and int(round(w.value)) in (1, 2, 3)), None)
+    two_digit = g_word.text.strip()[1:].lstrip(" \t").startswith("0") if g_word is not None else trailing_point
+    code = 1 if not arc else (2 if tp.kind[i] == ARC_CW else 3)
+    g_text = f"G{'0' if two_digit else ''}{code}"
+    us = np.array([0.0] + [u for u, _ in fragments])
+    points = tp.points(np.full(len(us), i), us)
+    a1, a2, an = PLANE_AXES[int(tp.plane[i])]
+    out = []
+    modal = None
+    for k, (u_end, feed) in enumerate(fragments):
+        start, end = points[k], points[k + 1]
+        seg_len = length_mm * (u_end - us[k])
+        words: dict[str, str] = {}
+        for ax in range(3):
+            value = (end[ax] - start[ax]) if incremental else end[ax]
+            if k == 0 or abs(end[ax] - start[ax]) > 0 or not incremental:
+                words[_AXIS_LETTERS[ax]] = _fmt(value / scale, decimals, trailing_point)
+        if arc:
+            if uses_r:
+                r = math.hypot(start[a1] - tp.center[i, a1], start[a2] - tp.center[i, a2])
+                sweep = _sweep(tp, i) * (u_end - us[k])
+                words["R"] = _fmt((r if abs(sweep) <= math.pi else -r) / scale, decimals, trailing_point)
+            else:
+                for ax in (a1, a2):  # relative to the start as written (rounded), so the centre stays exact
+                    written = round(start[ax] / scale, decimals) * scale
+                    c = tp.center[i, ax] if program.arc_absolute[i] else tp.center[i, ax] - written
+                    words[_ARC_LETTERS[ax]] = _fmt(c / scale, decimals, trailing_point)
+        f = f_text(i, feed, seg_len)
+        words["F"] = f
+        if k == 0:
+            drop = set(_AXIS_LETTERS + _ARC_LETTERS + "R") - set(words)
+            out.append(writer.replace(words, drop=drop) + ending)
+        else:
+            sep = writer.sep
+            out.append(g_text + "".join(sep + L + v if j or sep else L + v for j, (L, v) in enumerate(words.items()))
+                       + ending)
+        modal = float(f)
+    return out, modal
+
+
+def _same(a: float, b: float) -> bool:
+    return abs(a - b) <= 1e-9 * max(1.0, abs(a), abs(b))
+
+
+def _sweep(tp, i: int) -> float:
+    sub = tp.subset(np.array([i]))
+    return float(sub._arc_params()[3][0])

@@ -1,0 +1,194 @@
+"""What every force model returns, and the geometry they share.
+
+Frames: the *feed frame* of Altintas (x = feed, y = in-plane normal to the left of x, z = tool axis up)
+and machine XYZ. With a vertical tool the feed frame is the machine frame turned about Z by the
+heading of the horizontal feed direction (a pure plunge keeps heading +X).
+
+Loads are averages over a tooth period unless named `peak_*` (maximum over a revolution).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..engagement import Engagement
+from ..errors import MillpostError
+from ..tools.cutter import Tool
+
+
+class NotFittedError(MillpostError):
+    """A fitted model was used before `fit` (or before coefficients were given)."""
+
+
+def feed_frame(feed_dir: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations whose columns are the feed-frame axes x, y, z in machine coordinates."""
+    d = np.asarray(feed_dir, float).reshape(-1, 3)
+    h = np.hypot(d[:, 0], d[:, 1])
+    c = np.where(h > 1e-12, d[:, 0] / np.where(h > 0, h, 1), 1.0)
+    s = np.where(h > 1e-12, d[:, 1] / np.where(h > 0, h, 1), 0.0)
+    R = np.zeros((len(d), 3, 3))
+    R[:, 0, 0], R[:, 1, 0] = c, s          # x: horizontal feed heading
+    R[:, 0, 1], R[:, 1, 1] = -s, c         # y = z × x (left of the feed)
+    R[:, 2, 2] = 1.0
+    return R
+
+
+def to_machine(feed_dir: np.ndarray, vec_feed: np.ndarray) -> np.ndarray:
+    """Rotate (N, 3) vectors from the feed frame to machine XYZ."""
+    return np.einsum("nij,nj->ni", feed_frame(feed_dir), vec_feed)
+
+
+def to_feed(feed_dir: np.ndarray, vec_machine: np.ndarray) -> np.ndarray:
+    """Rotate (N, 3) vectors from machine XYZ into the feed frame."""
+    return np.einsum("nji,nj->ni", feed_frame(feed_dir), vec_machine)
+
+
+def immersion(ae_mm: float, diameter_mm: float, *, climb: bool = True) -> tuple[float, float]:
+    """Entry and exit angles (rad, Altintas) of a straight flank cut of width ae.
+
+    Climb (down) milling leaves at π, conventional (up) milling enters at 0; ae ≥ D is a slot.
+    """
+    phi_s = float(np.arccos(1.0 - 2.0 * min(ae_mm / diameter_mm, 1.0)))
+    return (np.pi - phi_s, np.pi) if climb else (0.0, phi_s)
+
+
+def given_cut(tool: Tool, ae_mm, ap_mm, *, climb: bool = True, slices: int | None = None) -> Engagement:
+    """Engagement of straight cuts along +X beside a vertical wall: width ae (≥ D is a slot), depth ap.
+    ae_mm and ap_mm are scalars or arrays (one sample per pair).
+
+    Each axial slice at height z cuts with its own radius r(z) (corner radius, ball, chamfer): the wall sits
+    R − ae from the axis, so the slice engages ae_z = r(z) − (R − ae) and its arc spans
+    arccos(1 − ae_z/r(z)). Axial immersion κ(z) = atan2(1, dr/dz) (π/2 on the cylinder).
+    slices: axial slices (default 8 on a flat end mill, whose slices are alike, 24 along a profile).
+    """
+    if slices is None:
+        slices = 8 if tool.shape == "flat" else 24
+    ae, ap = np.broadcast_arrays(np.atleast_1d(np.asarray(ae_mm, float)), np.atleast_1d(np.asarray(ap_mm, float)))
+    if not (np.all(ae > 0) and np.all(ap > 0)):
+        raise MillpostError(f"a cut needs ae > 0 and ap > 0 mm, got ae={ae_mm}, ap={ap_mm}")
+    n = len(ae)
+    dz = (ap / slices)[:, None] * np.ones((1, slices))
+    z = (np.arange(slices) + 0.5)[None, :] * dz
+    r = tool.radius_at(z)
+    eps = 1e-4 * tool.diameter_mm
+    z_lo = np.maximum(z - eps, 0.0)
+    kappa = np.arctan2(1.0, (tool.radius_at(z + eps) - tool.radius_at(z_lo)) / (z + eps - z_lo))
+    ae_c = np.minimum(ae, tool.diameter_mm)
+    ae_z = np.clip(r - (tool.radius_mm - ae_c)[:, None], 0.0, 2 * r)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        phi_s = np.arccos(np.clip(1.0 - ae_z / np.where(r > 0, r, 1.0), -1.0, 1.0))
+    cutting = (ae_z > 0) & (r > 0)
+    st = np.where(cutting, np.pi - phi_s if climb else 0.0, np.nan)
+    ex = np.where(cutting, np.pi if climb else phi_s, np.nan)
+    return Engagement(phi_st=st, phi_ex=ex, dz_mm=np.where(cutting, dz, 0.0), z_mm=z, r_mm=r, kappa=kappa,
+                      feed_dir=np.tile([1.0, 0.0, 0.0], (n, 1)), ap_mm=ap.copy(), ae_mm=ae_c,
+                      volume_mm3=np.full(n, np.nan), area_mm2=np.sum(ae_z * dz, axis=1))
+
+
+def chip_thinning_factor(ae_mm: float, diameter_mm: float) -> float:
+    """Radial chip thinning factor RCTF = f_z / h_max: D / (2·sqrt(ae·(D − ae))) for ae < D/2, else 1."""
+    if ae_mm >= 0.5 * diameter_mm:
+        return 1.0
+    return diameter_mm / (2.0 * np.sqrt(ae_mm * (diameter_mm - ae_mm)))
+
+
+def max_chip_mm(fz_mm: float, ae_mm: float, diameter_mm: float, kappa: float = np.pi / 2) -> float:
+    """Largest uncut chip thickness h_max = f_z·sin κ / RCTF (mm)."""
+    return fz_mm * np.sin(kappa) / chip_thinning_factor(ae_mm, diameter_mm)
+
+
+def mean_chip_mm(fz_mm, phi_st, phi_ex, kappa=np.pi / 2):
+    """Mean chip thickness over the engaged arc h_m = f_z sin κ (cos φ_st − cos φ_ex)/(φ_ex − φ_st) (mm)."""
+    phi_st, phi_ex = np.asarray(phi_st, float), np.asarray(phi_ex, float)
+    return fz_mm * np.sin(kappa) * (np.cos(phi_st) - np.cos(phi_ex)) / (phi_ex - phi_st)
+
+
+def clipped_arcs(engagement: Engagement) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entry/exit clipped to [0, π] (chip thickness f_z sin φ is ≤ 0 outside) and the slice width
+    b = dz / sin κ (mm) of slices that cut; non-cutting slices get an empty arc and b = 0."""
+    st = np.clip(np.nan_to_num(engagement.phi_st, nan=0.0), 0.0, np.pi)
+    ex = np.clip(np.nan_to_num(engagement.phi_ex, nan=0.0), 0.0, np.pi)
+    ex = np.maximum(ex, st)
+    cutting = np.isfinite(engagement.phi_st) & np.isfinite(engagement.phi_ex) & (engagement.dz_mm > 0)
+    sk = np.maximum(np.sin(engagement.kappa), 1e-6)
+    b = np.where(cutting, engagement.dz_mm / sk, 0.0)
+    return st, ex, b
+
+
+def rpm_array(rpm, n: int) -> np.ndarray:
+    r = np.broadcast_to(np.asarray(rpm, float), (n,)).astype(float)
+    if np.any(r <= 0):
+        raise MillpostError("spindle speed must be > 0 rpm for a cutting load")
+    return r
+
+
+@dataclass(frozen=True)
+class Loads:
+    """Predicted loads per sample at the given feed. Forces are those the cut exerts on the tool.
+
+    force_feed_N: (N, 3) average over a tooth period in the feed frame. force_N: (N, 3) the same in
+    machine XYZ. peak_force_xy_N: (N,) largest in-plane |F| over a revolution (bends the tool).
+    torque_Nm, power_W: (N,) average spindle torque and cutting power. peak_torque_Nm: (N,).
+    """
+
+    force_feed_N: np.ndarray
+    force_N: np.ndarray
+    peak_force_xy_N: np.ndarray
+    torque_Nm: np.ndarray
+    peak_torque_Nm: np.ndarray
+    power_W: np.ndarray
+
+
+@dataclass(frozen=True)
+class LinearLoads:
+    """Loads as affine functions of the feed v (mm/min) per sample: load(v) = a·v + b.
+
+    force_a, force_b: (N, 3) machine-XYZ average force, N/(mm/min) and N. peak_a, peak_b: (N,) an upper
+    bound of the peak in-plane |F| per revolution. torque_a/b (N·m), power_a/b (W): (N,).
+    `exact` is True when the affine form is the model itself (mechanistic); otherwise (Kienzle) every
+    quantity is the tangent at `feed_ref_mm_min` of a concave law, hence an upper bound for all v ≥ 0
+    that is exact at the reference.
+
+    For a convex scheduler: ‖F_xy(v)‖ = ‖a_xy·v + b_xy‖ ≤ F_max is a second-order cone in v (the vector
+    tangent is a valid bound because all components share one exponent); tool deflection is
+    compliance·‖F_xy‖, so δ ≤ δ_max is the same cone with F_max = δ_max / compliance; torque and power
+    are one linear row each. All are increasing in v on the region of interest, so each gives a feed cap
+    too (`feed_cap`).
+    """
+
+    force_a: np.ndarray
+    force_b: np.ndarray
+    peak_a: np.ndarray
+    peak_b: np.ndarray
+    torque_a: np.ndarray
+    torque_b: np.ndarray
+    power_a: np.ndarray
+    power_b: np.ndarray
+    exact: bool
+    feed_ref_mm_min: np.ndarray | None = None
+
+    def force_at(self, feed_mm_min) -> np.ndarray:
+        """(N, 3) average force (N) at feed v (scalar or (N,))."""
+        v = np.asarray(feed_mm_min, float)
+        return self.force_a * (v[..., None] if v.ndim else v) + self.force_b
+
+    @staticmethod
+    def feed_cap(a: np.ndarray, b: np.ndarray, limit: float | np.ndarray) -> np.ndarray:
+        """Largest v ≥ 0 with a·v + b ≤ limit per sample (inf where a ≤ 0, 0 where already over)."""
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = np.where(a > 0, (limit - b) / np.where(a > 0, a, 1.0), np.where(b <= limit, np.inf, 0.0))
+        return np.maximum(v, 0.0)
+
+    def force_xy_cap(self, limit_N: float | np.ndarray) -> np.ndarray:
+        """Largest v ≥ 0 per sample with ‖a_xy v + b_xy‖ ≤ limit (the cone above, solved exactly)."""
+        a, b = self.force_a[:, :2], self.force_b[:, :2]
+        A = np.einsum("ni,ni->n", a, a)
+        B = np.einsum("ni,ni->n", a, b)
+        C = np.einsum("ni,ni->n", b, b) - np.asarray(limit_N, float) ** 2
+        disc = B * B - A * C
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = np.where(A > 0, (-B + np.sqrt(np.maximum(disc, 0))) / np.where(A > 0, A, 1), np.inf)
+        return np.where(disc < 0, 0.0, np.maximum(root, 0.0))

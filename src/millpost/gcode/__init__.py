@@ -1,0 +1,38 @@
+"""Reading G-code: lexer (text → words), interpreter (modal state → moves), dialects.
+
+    program = read_program("part.nc")           # a Program; program.toolpath holds the moves in mm
+    program = read_text(text, name="part.nc")
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import ParseError
+from . import dialects
+from .interpret import Event, Interpreter, Program, ReaderOptions
+
+__all__ = ["Event", "Program", "ReaderOptions", "read_program", "read_text"]
+
+
+def read_text(text: str, name: str = "<string>", options: ReaderOptions | None = None) -> Program:
+    """Interpret G-code text. Raises ParseError (file:line:column, word, expected) on refusal."""
+    options = options or ReaderOptions()
+    dialect = dialects.get(options.dialect) if options.dialect else dialects.detect(text)
+    interp = Interpreter(options, name, dialect.name)
+    interp.run(text)
+    return interp.finish(name, text)
+
+
+def read_program(path: str | Path, options: ReaderOptions | None = None) -> Program:
+    """Read and interpret a G-code file (UTF-8, or Latin-1 when it is not UTF-8)."""
+    path = Path(path)
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")
+    if "\x00" in text:
+        raise ParseError("binary file, not G-code text", file=str(path), line=1, column=text.index("\x00") + 1,
+                         word="NUL", expected="a text file of G-code")
+    return read_text(text, str(path), options)

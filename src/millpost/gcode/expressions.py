@@ -1,0 +1,182 @@
+"""RS274/NGC parameters and expressions (LinuxCNC dialect): ``#1``, ``#<name>``, ``#[expr]``,
+``[1 + 2 * #3]``, functions (ABS ACOS ASIN ATAN COS EXP FIX FUP ROUND LN SIN SQRT TAN EXISTS) and
+operators (``**``; ``* / MOD``; ``+ -``; ``EQ NE GT GE LT LE``; ``AND OR XOR``). Angles in degrees.
+
+`scan_line` reads a whole line that uses them: words with evaluated values, plus the parameter
+assignments, which take effect after the line (as in LinuxCNC: a line reads the old values).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable
+
+from ..errors import ParseError
+
+_FUNCS: dict[str, Callable[[float], float]] = {
+    "ABS": abs, "ACOS": lambda v: math.degrees(math.acos(v)), "ASIN": lambda v: math.degrees(math.asin(v)),
+    "COS": lambda v: math.cos(math.radians(v)), "EXP": math.exp, "FIX": math.floor, "FUP": math.ceil,
+    "ROUND": lambda v: float(math.floor(v + 0.5)), "LN": math.log, "SIN": lambda v: math.sin(math.radians(v)),
+    "SQRT": math.sqrt, "TAN": lambda v: math.tan(math.radians(v)),
+}
+_BINOPS: list[dict[str, Callable[[float, float], float]]] = [  # lowest precedence first
+    {"AND": lambda a, b: float(bool(a) and bool(b)), "OR": lambda a, b: float(bool(a) or bool(b)),
+     "XOR": lambda a, b: float(bool(a) != bool(b))},
+    {"EQ": lambda a, b: float(a == b), "NE": lambda a, b: float(a != b), "GT": lambda a, b: float(a > b),
+     "GE": lambda a, b: float(a >= b), "LT": lambda a, b: float(a < b), "LE": lambda a, b: float(a <= b)},
+    {"+": lambda a, b: a + b, "-": lambda a, b: a - b},
+    {"*": lambda a, b: a * b, "/": lambda a, b: a / b, "MOD": lambda a, b: math.fmod(a, b) if a * b >= 0 else a % b},
+    {"**": lambda a, b: a ** b},
+]
+_NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
+
+
+class _Scanner:
+    """Cursor over one line with whitespace skipped; errors carry the column."""
+
+    def __init__(self, text: str, line: int, file: str, params: dict) -> None:
+        self.text, self.line, self.file, self.params = text, line, file, params
+        self.pos = 0
+
+    def error(self, message: str, expected: str, at: int | None = None) -> ParseError:
+        at = self.pos if at is None else at
+        word = self.text[at:at + 12].strip() or "end of line"
+        return ParseError(message, file=self.file, line=self.line, column=at + 1, word=word, expected=expected)
+
+    def skip(self) -> None:
+        while self.pos < len(self.text) and self.text[self.pos] in " \t":
+            self.pos += 1
+
+    def peek_word(self, options) -> str | None:
+        self.skip()
+        rest = self.text[self.pos:].upper()
+        for op in sorted(options, key=len, reverse=True):
+            if rest.startswith(op):
+                return op
+        return None
+
+    def expect(self, ch: str) -> None:
+        self.skip()
+        if self.text[self.pos:self.pos + 1] != ch:
+            raise self.error(f"expected {ch!r}", f"{ch!r}")
+        self.pos += 1
+
+    # --- grammar ---------------------------------------------------------------------------
+    def value(self) -> float:
+        """A real value: number, parameter, [expression], unary function, or signed value."""
+        self.skip()
+        ch = self.text[self.pos:self.pos + 1]
+        if ch in "+-" and ch:
+            self.pos += 1
+            v = self.value()
+            return -v if ch == "-" else v
+        if ch == "[":
+            self.pos += 1
+            v = self.expression()
+            self.expect("]")
+            return v
+        if ch == "#":
+            return self.params_get(self.parameter_ref())
+        m = _NUM.match(self.text, self.pos)
+        if m and ch not in "+-":
+            self.pos = m.end()
+            return float(m.group(0))
+        start = self.pos
+        name = re.match(r"[A-Za-z]+", self.text[self.pos:])
+        if name:
+            fn = name.group(0).upper()
+            self.pos += len(fn)
+            if fn == "ATAN":
+                self.expect("[")
+                a = self.expression()
+                self.expect("]")
+                self.expect("/")
+                self.expect("[")
+                b = self.expression()
+                self.expect("]")
+                return math.degrees(math.atan2(a, b))
+            if fn == "EXISTS":
+                self.expect("[")
+                self.skip()
+                try:
+                    key = self.parameter_ref()
+                except ParseError:  # a number out of range cannot exist
+                    key = None
+                    self.pos = self.text.index("]", self.pos)
+                self.expect("]")
+                return float(isinstance(key, int) or (key is not None and key in self.params))
+            if fn in _FUNCS:
+                self.expect("[")
+                a = self.expression()
+                self.expect("]")
+                try:
+                    return float(_FUNCS[fn](a))
+                except (ValueError, OverflowError) as exc:
+                    raise self.error(f"{fn} of {a:g} is undefined ({exc})", "an argument in the function's domain",
+                                     start) from None
+            self.pos = start
+        raise self.error("expected a number, parameter or expression", "a value such as 1.5, #3, #<name> or [1+2]")
+
+    def parameter_ref(self) -> int | str:
+        """After '#': a number, #<name>, or #[expr] / ##n (indirect). Returns the key."""
+        self.expect("#")
+        self.skip()
+        if self.text[self.pos:self.pos + 1] == "<":
+            end = self.text.find(">", self.pos)
+            if end < 0:
+                raise self.error("unterminated parameter name", "#<name>")
+            key = "".join(self.text[self.pos + 1:end].split()).lower()
+            self.pos = end + 1
+            return key
+        v = self.value()
+        if v != int(v) or not 0 <= v <= 5601:
+            raise self.error(f"parameter number {v:g} is out of range", "an integer parameter 0..5601")
+        return int(v)
+
+    def params_get(self, key: int | str) -> float:
+        if key in self.params:
+            return self.params[key]
+        if isinstance(key, int):
+            return 0.0
+        raise self.error(f"parameter #<{key}> is used before it is set", "a named parameter assigned earlier")
+
+    def expression(self, level: int = 0) -> float:
+        if level == len(_BINOPS):
+            return self.value()
+        left = self.expression(level + 1)
+        while True:
+            op = self.peek_word(_BINOPS[level])
+            if op is None:
+                return left
+            at = self.pos
+            self.pos += len(op)
+            right = self.expression(level + 1)
+            try:
+                left = float(_BINOPS[level][op](left, right))
+            except (ZeroDivisionError, OverflowError, ValueError) as exc:
+                raise self.error(f"{op} is undefined here ({exc})", "a defined arithmetic result", at) from None
+
+
+def scan_line(code: str, line: int, file: str, params: dict) -> tuple[list[tuple[str, float, int, int, int]], list]:
+    """Words (letter, value, column, start, end) and parameter assignments [(key, value)] of a line
+    whose comments were already blanked out."""
+    sc = _Scanner(code, line, file, params)
+    words: list[tuple[str, float, int, int, int]] = []
+    assigns: list[tuple[int | str, float]] = []
+    while True:
+        sc.skip()
+        if sc.pos >= len(code):
+            return words, assigns
+        start = sc.pos
+        ch = code[sc.pos]
+        if ch == "#":
+            key = sc.parameter_ref()
+            sc.expect("=")
+            assigns.append((key, sc.value()))
+            continue
+        if ch.isalpha() or ch in "@^":
+            sc.pos += 1
+            words.append((ch.upper(), sc.value(), start + 1, start, sc.pos))
+            continue
+        raise sc.error(f"unexpected character {ch!r}", "words (a letter and a value) or #parameter = value")

@@ -1,0 +1,954 @@
+"""The modal state machine: lexed blocks → `Program` (moves as a `Toolpath` in mm, plus events).
+
+Semantics follow LinuxCNC 2.9's interpreter (the project's oracle, `rs274 -g`), with the
+controller-specific differences that matter to a CAM post taken from the dialect (Fanuc/Haas G76
+fine boring and G87 back boring, dwell P in milliseconds, ...). Positions are program coordinates
+(after G5x, G92 and G52 offsets), as LinuxCNC's canonical trace reports them. Everything a CAM post
+may write and that moves the machine is either interpreted or refused with file:line:column.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from array import array
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ParseError
+from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
+from .lexer import Block, Word, lex_line
+
+INCH = 25.4
+# G codes as integers: round(value * 10)
+_MOTION = {0, 10, 20, 30, 730, 740, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
+_CYCLES = {730, 740, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
+_MODAL_GROUPS = {
+    **{g: "motion" for g in _MOTION | {800}},
+    170: "plane", 180: "plane", 190: "plane", 200: "units", 210: "units", 900: "distance", 910: "distance",
+    901: "arc distance", 911: "arc distance", 930: "feed mode", 940: "feed mode", 950: "feed mode",
+    400: "cutter comp", 430: "tool length", 431: "tool length",
+    432: "tool length", 490: "tool length", 980: "retract", 990: "retract",
+    **{g: "coordinate system" for g in (540, 550, 560, 570, 580, 590, 591, 592, 593)},
+    610: "path", 611: "path", 640: "path", 40: "non-modal", 100: "non-modal", 280: "non-modal",
+    281: "non-modal", 300: "non-modal", 301: "non-modal", 520: "non-modal", 530: "non-modal",
+    920: "non-modal", 921: "non-modal", 922: "non-modal", 923: "non-modal",
+}
+_UNSUPPORTED_G = {
+    50: "spline (G5)", 51: "spline (G5.1)", 52: "NURBS (G5.2)", 53: "NURBS (G5.3)", 70: "lathe diameter mode (G7)",
+    80: "lathe radius mode (G8)", 120: "circular pocket (G12)", 130: "circular pocket (G13)",
+    150: "polar coordinates (G15)", 160: "polar coordinates (G16)", 310: "skip function (G31)",
+    330: "spindle-synchronised motion (G33)", 331: "rigid tapping (G33.1)", 382: "probing (G38.2)",
+    383: "probing (G38.3)", 384: "probing (G38.4)", 385: "probing (G38.5)", 410: "cutter radius compensation (G41)",
+    420: "cutter radius compensation (G42)", 411: "dynamic cutter compensation (G41.1)",
+    421: "dynamic cutter compensation (G42.1)", 434: "5-axis tool centre point (G43.4)",
+    435: "5-axis tool centre point (G43.5)", 500: "scaling (G50)", 510: "scaling (G51)", 501: "mirroring (G50.1)",
+    511: "mirroring (G51.1)", 650: "macro call (G65)", 680: "coordinate rotation (G68)",
+    682: "5-axis tilted work plane (G68.2)", 700: "lathe cycle (G70)", 710: "lathe cycle (G71)", 720: "lathe cycle (G72)",
+    960: "constant surface speed (G96)", 1000: "user G code",
+}
+_LATHE_G76 = "threading cycle G76 (LinuxCNC's G76 is a lathe threading cycle)"
+_AXES = "XYZ"
+_NO_CENTRE = (math.nan, math.nan, math.nan)
+_FAST = re.compile(r"[ \t]*(?:[Gg]0?([01])(?![0-9.])[ \t]*)?((?:[XYZFxyzf][ \t]*[-+]?(?:\d+\.?\d*|\.\d+)[ \t]*)+)")
+_FAST_WORD = re.compile(r"([XYZFxyzf])[ \t]*([-+]?(?:\d+\.?\d*|\.\d+))")
+_ROTARY = "ABCUVW"
+
+
+@dataclass
+class ReaderOptions:
+    """What the program alone cannot say: the machine frame and how to treat unknowns.
+
+    home_g28_mm / home_g30_mm: G28/G30 home in machine coordinates (mm); None = unknown.
+    work_offsets_mm: G54..G59.3 offsets by index 1..9 (machine mm); unknown ones are zero.
+    machine_frame_known: whether machine coordinates (G53) are meaningful. When False (the usual case
+    for a post step), a Z-only move to home or to a machine coordinate (Fusion's ``G28 G91 Z0.``,
+    Haas's ``G53 G0 Z0.``) goes to `safe_z_mm` in the program frame — by default the highest Z the
+    program reaches — and the assumption is reported in `Program.notes`.
+    tool_lengths_mm: tool lengths by H number for G43 (unknown: 0, so Z is the tool tip).
+    dialect: name of the controller dialect (None: detect from the text).
+    block_delete: when True, lines starting with '/' are skipped (switch on); default off, as LinuxCNC.
+    """
+
+    home_g28_mm: tuple[float, float, float] | None = None
+    home_g30_mm: tuple[float, float, float] | None = None
+    work_offsets_mm: dict[int, tuple[float, float, float]] = field(default_factory=dict)
+    machine_frame_known: bool = False
+    tool_lengths_mm: dict[int, float] = field(default_factory=dict)
+    safe_z_mm: float | None = None
+    dialect: str | None = None
+    block_delete: bool = False
+
+    @classmethod
+    def linuxcnc(cls) -> "ReaderOptions":
+        """The frame LinuxCNC's standalone interpreter assumes: homes and offsets at machine zero."""
+        return cls(home_g28_mm=(0.0, 0.0, 0.0), home_g30_mm=(0.0, 0.0, 0.0), machine_frame_known=True,
+                   dialect="linuxcnc")
+
+
+@dataclass
+class Event:
+    """A non-motion action at a block: tool change, spindle, coolant, dwell, stop, comment, ..."""
+
+    line: int
+    kind: str
+    value: object = None
+
+
+@dataclass
+class Program:
+    """An interpreted program. Moves in mm in the program frame; `text` is the source, untouched.
+
+    units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
+    when it ran (for writing it back): move_inch (G20), feed_mode (93/94/95), incremental (G91),
+    arc_absolute (G90.1).
+    notes: assumptions made (unknown home, rotary axes at zero, ...), each naming its line.
+    """
+
+    path: str
+    text: str
+    toolpath: Toolpath
+    dialect: str
+    blocks: int
+    units: list[str]
+    move_inch: np.ndarray
+    feed_mode: np.ndarray
+    incremental: np.ndarray
+    arc_absolute: np.ndarray
+    events: list[Event]
+    notes: list[str]
+    dwell_s: float
+
+    @property
+    def tools(self) -> list[int]:
+        """Tools that cut or moved, in order of first use."""
+        seen: list[int] = []
+        for t in self.toolpath.tool.tolist():
+            if t >= 0 and t not in seen:
+                seen.append(t)
+        return seen
+
+    @property
+    def spindle_rpm(self) -> list[float]:
+        seen: list[float] = []
+        for e in self.events:
+            if e.kind == "spindle" and e.value[1] > 0 and e.value[1] not in seen:
+                seen.append(e.value[1])
+        return seen
+
+
+def _arc_length(start, end, center, axes, ccw: bool, turns: int) -> float:
+    """Helix length (mm), the same closed form as `Toolpath.lengths` for one arc."""
+    a1, a2, an = axes
+    r0 = math.hypot(start[a1] - center[a1], start[a2] - center[a2])
+    r1 = math.hypot(end[a1] - center[a1], end[a2] - center[a2])
+    t0 = math.atan2(start[a2] - center[a2], start[a1] - center[a1])
+    t1 = math.atan2(end[a2] - center[a2], end[a1] - center[a1])
+    sweep = (t1 - t0) % (2 * math.pi) if ccw else (t0 - t1) % (2 * math.pi)
+    if abs(sweep) <= 1e-12:
+        sweep = 2 * math.pi
+    sweep += 2 * math.pi * turns
+    return math.hypot(0.5 * (r0 + r1) * sweep, end[an] - start[an])
+
+
+class _Moves:
+    """Growable compact columns for the toolpath: per move 11 floats (start, end, centre, feed, rpm)
+    and 10 ints (kind, plane, turns, tool, line, block, inch, feed mode, G91, G90.1) in two
+    array.arrays — 124 bytes a move, no Python objects, two appends."""
+
+    def __init__(self) -> None:
+        self.f = array("d")
+        self.i = array("i")
+
+    def __len__(self) -> int:
+        return len(self.i) // 10
+
+    def to_arrays(self) -> tuple[Toolpath, np.ndarray]:
+        """The toolpath (views over the float buffer, no copy) and the (n, 10) int columns."""
+        f = (np.frombuffer(self.f, float) if len(self.f) else np.zeros(0)).reshape(-1, 11)
+        i = (np.frombuffer(self.i, np.int32) if len(self.i) else np.zeros(0, np.int32)).reshape(-1, 10)
+        tp = Toolpath(kind=i[:, 0].astype(np.int8), start=f[:, 0:3], end=f[:, 3:6], center=f[:, 6:9],
+                      plane=i[:, 1].astype(np.int8), turns=i[:, 2], feed_mm_min=f[:, 9], rpm=f[:, 10], tool=i[:, 3],
+                      line=i[:, 4], block=i[:, 5])
+        return tp, i
+
+
+class Interpreter:
+    """Runs blocks through the modal state. Use `read_program` / `read_text` rather than this directly."""
+
+    def __init__(self, options: ReaderOptions, file: str, dialect: str) -> None:
+        self.opt, self.file, self.dialect = options, file, dialect
+        self.m = _Moves()
+        self.events: list[Event] = []
+        self.notes: list[str] = []
+        self.params: dict = {}
+        self.units_seen: list[str] = []
+        # modal state
+        self.scale = 1.0  # mm per program unit
+        self.absolute = True
+        self.arc_absolute = False
+        self.plane = 0
+        self.motion: int | None = None
+        self.basic_motion: int | None = None  # last G0-G3 (Fanuc returns to it after G80)
+        self.feed_mode = 940
+        self.f = 0.0  # mm per minute (G94) or per rev (G95), as set; G93 uses the block's own F
+        self.s = 0.0
+        self.spindle_on = False
+        self.tool = -1
+        self.selected = -1
+        self.retract_old_z = True
+        self.cs = 1
+        self.g5x = {i: np.array(v, float) for i, v in options.work_offsets_mm.items()}
+        self.g92 = np.zeros(3)
+        self.tlo = 0.0  # tool length offset, mm
+        self.g92_saved = np.zeros(3)
+        self.pos = np.zeros(3)  # program frame, mm
+        self.rotary = {a: 0.0 for a in _ROTARY}
+        self.cycle: dict = {}
+        self.polar_step: tuple[float, float] | None = None
+        self.cycle_il = None
+        self.blocks = 0
+        self.dwell_s = 0.0
+        self.block_index = 0
+        self.ended = False
+        self.safe_z_pending = False
+
+    # --- helpers ----------------------------------------------------------------------------
+    def err(self, msg: str, block: Block, word: Word | None, expected: str) -> ParseError:
+        col = word.column if word is not None else 1
+        return ParseError(msg, file=self.file, line=block.line, column=col,
+                          word=word.text if word is not None else "", expected=expected)
+
+    def pending_scale(self, b: Block) -> float:
+        """mm per unit for words of this block: a G20/G21 in the same block applies first."""
+        for w in b.words:
+            if w.letter == "G" and round(w.value * 10) in (200, 210):
+                return INCH if round(w.value * 10) == 200 else 1.0
+        return self.scale
+
+    def offset(self) -> np.ndarray:
+        """Program frame origin in machine coordinates: G5x + G92/G52 + tool length (on Z)."""
+        return self.g5x.get(self.cs, np.zeros(3)) + self.g92 + np.array([0.0, 0.0, self.tlo])
+
+    def emit(self, kind: int, end, block: Block, center=(math.nan,) * 3, turns: int = 0,
+             feed_mm_min: float = math.nan) -> None:
+        if self.tool < 0 and self.selected >= 0:  # no M6 yet: the selected tool is the one in the spindle
+            self.tool = self.selected
+            self.notes.append(f"line {block.line}: T{self.selected} selected without M6: taken as loaded")
+        self.record(kind, self.pos.tolist(), end, center, turns, feed_mm_min, block.line)
+        self.pos = np.array(end, float)
+
+    def feed_rate(self, block: Block, length_mm: float) -> float:
+        """Programmed feed of a move in mm/min from the modal F and feed mode."""
+        if self.feed_mode == 930:
+            if self._f_this_block is None:
+                raise self.err("inverse-time feed mode (G93) needs an F word on every feed move", block, None,
+                               "an F word on this line")
+            return length_mm * self._f_this_block
+        if self.f <= 0:
+            raise self.err("feed move with no feed rate set", block, None, "an F word before or on this line")
+        if self.feed_mode == 950:
+            if self.s <= 0:
+                raise self.err("feed per revolution (G95) with no spindle speed", block, None, "an S word")
+            return self.f * self.s
+        return self.f
+
+    # --- blocks -----------------------------------------------------------------------------
+    def run(self, text: str) -> None:
+        percent_seen = 0
+        pos, size, line_no = 0, len(text), 0
+        while pos < size:  # one line at a time: no list of lines, no copy of the text
+            end = text.find("\n", pos)
+            end = size if end < 0 else end
+            raw = text[pos:end].rstrip("\r")
+            pos = end + 1
+            line_no += 1
+            if self.ended:
+                if raw.strip() and raw.strip() != "%":
+                    self.notes.append(f"line {line_no}: after program end (M2/M30): not executed")
+                    break
+                continue
+            if self.fast_line(raw, line_no):
+                continue
+            block = lex_line(raw, line_no, self.file, self.params)
+            if block.percent:
+                percent_seen += 1
+                if percent_seen == 2:
+                    break
+                continue
+            if block.block_delete and self.opt.block_delete:
+                continue
+            if block.words or block.assigns:
+                self.blocks += 1
+                self.execute(block)
+                self.block_index += 1
+            for c in block.comments:
+                if c:
+                    self.events.append(Event(line_no, "comment", c))
+            for key, value in block.assigns:
+                self.params[key] = value
+
+    def record(self, kind: int, start, end, center, turns: int, feed_mm_min: float, line: int) -> None:
+        """Append one move with the modal state it ran in."""
+        self.m.f.extend((start[0], start[1], start[2], end[0], end[1], end[2], center[0], center[1], center[2],
+                         feed_mm_min, self.s if self.spindle_on else 0.0))
+        self.m.i.extend((kind, self.plane, turns, self.tool, line, self.block_index, self.scale != 1.0,
+                         self.feed_mode, not self.absolute, self.arc_absolute))
+
+    def fast_line(self, raw: str, line_no: int) -> bool:
+        """The common block of CAM output — an optional G0/G1 then X/Y/Z/F words — without building
+        words or touching numpy. Returns False (the general path runs) for anything else."""
+        m = _FAST.fullmatch(raw)
+        if m is None or self.feed_mode != 940:
+            return False
+        g = m.group(1)
+        motion = self.motion if g is None else (0 if g == "0" else 10)
+        if motion not in (0, 10):
+            return False
+        words = _FAST_WORD.findall(m.group(2))
+        letters = [w[0].upper() for w in words]
+        if len(set(letters)) != len(letters):
+            return False
+        x, y, z = self.pos.tolist()
+        f = self.f
+        sc = self.scale
+        for L, v in zip(letters, words):
+            value = float(v[1])
+            if L == "F":
+                if value < 0:
+                    return False
+                f = value * sc
+            elif self.absolute:
+                if L == "X":
+                    x = value * sc
+                elif L == "Y":
+                    y = value * sc
+                else:
+                    z = value * sc
+            elif L == "X":
+                x += value * sc
+            elif L == "Y":
+                y += value * sc
+            else:
+                z += value * sc
+        if motion == 10 and f <= 0:
+            return False
+        self.f = f
+        if g is not None:
+            self.motion = self.basic_motion = motion
+            self.cycle_il = None
+        self.blocks += 1
+        if len(letters) > ("F" in letters) or g is not None:
+            self.emit_xyz(RAPID if motion == 0 else FEED, x, y, z, line_no, math.nan if motion == 0 else f)
+        self.block_index += 1
+        return True
+
+    def emit_xyz(self, kind: int, x: float, y: float, z: float, line: int, feed_mm_min: float) -> None:
+        """Append a straight move from the current point (floats, mm) — the fast path's `emit`."""
+        if self.tool < 0 and self.selected >= 0:
+            self.tool = self.selected
+            self.notes.append(f"line {line}: T{self.selected} selected without M6: taken as loaded")
+        self.record(kind, self.pos.tolist(), (x, y, z), _NO_CENTRE, 0, feed_mm_min, line)
+        self.pos = np.array((x, y, z))
+
+    def execute(self, b: Block) -> None:
+        g: list[tuple[int, Word]] = []
+        mcodes: list[tuple[int, Word]] = []
+        val: dict[str, Word] = {}
+        groups: dict[str, Word] = {}
+        for w in b.words:
+            L = w.letter
+            if L == "G":
+                code = int(round(w.value * 10))
+                if abs(w.value * 10 - code) > 1e-6:
+                    raise self.err(f"G{w.value:g} is not a G code", b, w, "a G code such as G1 or G90.1")
+                grp = _MODAL_GROUPS.get(code)
+                if code == 760 and self.dialect == "linuxcnc":
+                    raise self.err(f"{_LATHE_G76} is not supported", b, w, "milling canned cycles (G73, G81-G89)")
+                if grp is None:
+                    if code in _UNSUPPORTED_G:
+                        what = _UNSUPPORTED_G[code]
+                        raise self.err(f"{what} is not supported", b, w,
+                                       "3-axis milling motion (G0-G3, canned cycles); this feature is out of scope")
+                    if code == 690:  # cancel rotation / tilted plane: nothing to cancel
+                        continue
+                    if code == 970:  # rpm mode (the only one supported)
+                        continue
+                    raise self.err(f"unknown G code G{w.value:g}", b, w, "a G code of RS-274 milling")
+                if grp == "motion" and "motion" in groups and 800 in (code, int(round(groups[grp].value * 10))):
+                    # LinuxCNC accepts G80 beside another motion code (as in "G00 G17 G40 G80"): the other wins
+                    if code == 800:
+                        continue
+                    g = [(c, x) for c, x in g if c != 800]
+                elif grp in groups and grp != "non-modal":
+                    raise self.err(f"two G codes from the {grp} group in one block", b, w,
+                                   f"at most one of the {grp} group (first was {groups[grp].text})")
+                if grp == "non-modal" and "non-modal" in groups and code not in (530,):
+                    if groups["non-modal"].value * 10 != 530:
+                        raise self.err("two non-modal G codes in one block", b, w, "one of G4, G10, G28, G30, G52, G92")
+                groups[grp if code != 530 else "g53"] = w
+                g.append((code, w))
+            elif L == "M":
+                code = int(round(w.value))
+                mcodes.append((code, w))
+            else:
+                if L in val:
+                    raise self.err(f"word {L} appears twice in one block", b, w, f"one {L} word per block")
+                val[L] = w
+        gset = {c for c, _ in g}
+        # 1. feed mode, F, S
+        for code in (930, 940, 950):
+            if code in gset:
+                self.feed_mode = code
+        self._f_this_block = val["F"].value if "F" in val else None
+        if "F" in val:
+            if val["F"].value < 0:
+                raise self.err("negative feed rate", b, val["F"], "F >= 0")
+            # held in mm (per min or per rev) as set: a later G20/G21 does not change the machine's feed
+            self.f = val["F"].value * (1.0 if self.feed_mode == 930 else self.pending_scale(b))
+        if "S" in val:
+            if val["S"].value < 0:
+                raise self.err("negative spindle speed", b, val["S"], "S >= 0")
+            self.s = val["S"].value
+        # T select, M6 change, spindle, coolant
+        if "T" in val:
+            if val["T"].value < 0 or val["T"].value != int(val["T"].value):
+                raise self.err("tool number must be a non-negative integer", b, val["T"], "T followed by an integer")
+            self.selected = int(val["T"].value)
+        mset = {c for c, _ in mcodes}
+        for code, w in mcodes:
+            if code in (98, 99):
+                raise self.err("subprogram calls (M98/M99) are not supported", b, w,
+                               "straight-line G-code as a CAM post writes it")
+            if code not in (0, 1, 2, 30, 3, 4, 5, 6, 7, 8, 9, 29, 19, 48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65, 66,
+                            67, 68, 70, 71, 72, 73) and not 100 <= code <= 199:
+                self.events.append(Event(b.line, "m_code", code))
+                self.notes.append(f"line {b.line}: M{code} passed through (no motion)")
+        if 6 in mset:
+            tool = self.selected if self.selected >= 0 else (int(val["T"].value) if "T" in val else -1)
+            self.tool = tool
+            self.events.append(Event(b.line, "tool_change", tool))
+        for code in (3, 4, 5):
+            if code in mset:
+                self.spindle_on = code != 5
+                self.events.append(Event(b.line, "spindle", ("cw" if code == 3 else "ccw" if code == 4 else "off",
+                                                              self.s if code != 5 else 0.0)))
+        if "S" in val and self.spindle_on and not mset & {3, 4, 5}:
+            self.events.append(Event(b.line, "spindle", ("speed", self.s)))
+        for code in (7, 8, 9):
+            if code in mset:
+                self.events.append(Event(b.line, "coolant", {7: "mist", 8: "flood", 9: "off"}[code]))
+        # dwell
+        if 40 in gset:
+            p = val.get("P") or val.get("X") or val.get("U")
+            if p is None or p.value < 0:
+                raise self.err("dwell G4 needs a non-negative P (seconds; Fanuc: milliseconds)", b,
+                               groups.get("non-modal"), "G4 P<time>")
+            secs = p.value / 1000.0 if (self.dialect == "fanuc" and p.letter == "P" and "." not in p.text) else p.value
+            self.dwell_s += secs
+            self.events.append(Event(b.line, "dwell", secs))
+        # plane, units
+        for code, plane in ((170, 0), (180, 1), (190, 2)):
+            if code in gset:
+                self.plane = plane
+        for code, scale, name in ((200, INCH, "inch"), (210, 1.0, "mm")):
+            if code in gset:
+                self.scale = scale
+                if name not in self.units_seen:
+                    self.units_seen.append(name)
+        if gset & {430, 431, 432, 490}:
+            self.tool_length(gset, b, val)
+        # coordinate system
+        for code, idx in ((540, 1), (550, 2), (560, 3), (570, 4), (580, 5), (590, 6), (591, 7), (592, 8), (593, 9)):
+            if code in gset:
+                self.set_offsets(lambda: setattr(self, "cs", idx))
+                self.events.append(Event(b.line, "work_offset", idx))
+        for code in (900, 910):
+            if code in gset:
+                self.absolute = code == 900
+        for code in (901, 911):
+            if code in gset:
+                self.arc_absolute = code == 901
+        for code in (980, 990):
+            if code in gset:
+                self.retract_old_z = code == 980
+        for code, name in ((610, "exact path"), (611, "exact stop"), (640, "blend")):
+            if code in gset:
+                self.events.append(Event(b.line, "path_mode", (name, val["P"].value if "P" in val and code == 640
+                                                               else None)))
+        if "@" in val or "^" in val:
+            block_motion = next((c for c in gset if c in _MOTION), self.motion)
+            self.polar_words(b, val, block_motion in _CYCLES)
+        axis_words = {L: val[L] for L in _AXES if L in val}
+        self.check_rotary(b, val)
+        # non-modal: G10, G28/30, G52, G92, G53
+        nonmodal = [c for c in gset if _MODAL_GROUPS.get(c) == "non-modal" and c not in (40, 530)]
+        consumed_axes = False
+        for code in nonmodal:
+            consumed_axes = self.non_modal(code, b, val, axis_words) or consumed_axes
+        # motion
+        motion_code = next((c for c in gset if c in _MOTION or c == 800), None)
+        if motion_code == 800:
+            if axis_words and not consumed_axes:
+                raise self.err("axis words with G80", b, next(iter(axis_words.values())),
+                               "no axis words on a G80 line, or a G0/G1 word to move")
+            self.motion = self.basic_motion if self.dialect == "fanuc" else None
+            self.cycle_il = None
+        elif motion_code is not None:
+            if motion_code in _CYCLES and self.motion != motion_code:
+                self.cycle_il = None
+            if motion_code not in _CYCLES:
+                self.cycle_il = None
+                self.basic_motion = motion_code
+            self.motion = motion_code
+        # LinuxCNC moves (zero length) on a bare G0/G1 too, so the trace has a move for every motion word
+        if not consumed_axes and (axis_words or motion_code in (0, 10, 20, 30) or motion_code in _CYCLES):
+            if self.motion is None:
+                raise self.err("axis words with no motion mode in effect", b, next(iter(axis_words.values())),
+                               "a G0, G1, G2 or G3 word (after G80, the motion mode must be given again)")
+            g53 = 530 in gset
+            if self.motion in _CYCLES:
+                self.canned_cycle(b, val, axis_words)
+            elif self.motion in (20, 30):
+                self.arc(b, val, axis_words)
+            else:
+                self.straight(b, val, axis_words, g53)
+        # stops
+        for code, w in mcodes:
+            if code in (0, 1, 60):
+                self.events.append(Event(b.line, "stop", code))
+            elif code in (2, 30):
+                self.events.append(Event(b.line, "end", code))
+                self.ended = True
+
+    def tool_length(self, gset: set, b: Block, val: dict) -> None:
+        """G43 (H or current tool), G43.1 (dynamic Z/K), G43.2 (additional), G49 (cancel). Lengths come
+        from `ReaderOptions.tool_lengths_mm`; an unknown length is 0, so Z stays the tool tip."""
+        if 490 in gset:
+            new = 0.0
+        elif 431 in gset:
+            w = val.get("Z") or val.get("K")
+            new = w.value * self.scale if w is not None else 0.0
+            val.pop("Z", None)
+        else:
+            h = int(val["H"].value) if "H" in val else self.tool
+            length = self.opt.tool_lengths_mm.get(h)
+            if length is None and h >= 0 and "tool length" not in self.params:
+                self.params["tool length"] = 1.0
+                self.notes.append(f"line {b.line}: tool length of H{h} unknown: Z is programmed tool-tip Z")
+            new = (self.tlo if 432 in gset else 0.0) + (length or 0.0)
+        self.set_offsets(lambda: setattr(self, "tlo", new))
+        self.events.append(Event(b.line, "tool_length", new))
+
+    def polar_words(self, b: Block, val: dict, cycle: bool) -> None:
+        """LinuxCNC polar coordinates in G17: @ radius and ^ angle (degrees) about the origin, absolute
+        or (G91) incremental to the current point's radius and angle. Replaced by X/Y words."""
+        w = val.get("@") or val.get("^")
+        if self.plane != 0 or "X" in val or "Y" in val:
+            raise self.err("polar coordinates (@ ^) need G17 and no X/Y words", b, w, "@radius ^angle in G17 alone")
+        if cycle and not self.absolute and "L" in val:
+            self.polar_step = (val["@"].value if "@" in val else 0.0, val["^"].value if "^" in val else 0.0)
+            val.pop("@", None), val.pop("^", None)
+            return
+        x, y = self.polar_point(val.pop("@", None), val.pop("^", None))
+        for L, v in (("X", x), ("Y", y)):
+            val[L] = Word(L, v / self.scale, w.column, w.start, w.end, w.text)
+        if not self.absolute:  # the words above are absolute: express them as increments
+            for i, L in enumerate("XY"):
+                val[L].value = (val[L].value * self.scale - self.pos[i]) / self.scale
+
+    def polar_point(self, radius: Word | None, angle: Word | None, step=None) -> tuple[float, float]:
+        r0 = math.hypot(self.pos[0], self.pos[1])
+        a0 = math.degrees(math.atan2(self.pos[1], self.pos[0]))
+        if step is not None:
+            r, a = r0 + step[0] * self.scale, a0 + step[1]
+        elif self.absolute:
+            r = radius.value * self.scale if radius else r0
+            a = angle.value if angle else a0
+        else:
+            r = r0 + (radius.value * self.scale if radius else 0.0)
+            a = a0 + (angle.value if angle else 0.0)
+        return r * math.cos(math.radians(a)), r * math.sin(math.radians(a))
+
+    def check_rotary(self, b: Block, val: dict) -> None:
+        """Rotary and extra linear axes: accepted only where they stay at zero (no motion)."""
+        for L in _ROTARY:
+            if L in val:
+                w = val[L]
+                target = w.value if self.absolute else self.rotary[L] + w.value
+                if abs(target) > 1e-9:
+                    raise self.err(f"{L} axis motion is not supported (3-axis milling only)", b, w,
+                                   f"no {L} word, or {L}0 (an axis kept at zero)")
+                if abs(self.rotary[L]) < 1e-12 and f"{L}-zero" not in self.params:
+                    self.params[f"{L}-zero"] = 1.0
+                    self.notes.append(f"line {b.line}: {L} axis assumed at 0 at program start; {L}0 words accepted")
+
+    def set_offsets(self, change) -> None:
+        """Apply a change of offsets keeping the machine position fixed (program position moves)."""
+        before = self.offset()
+        change()
+        self.pos = self.pos + before - self.offset()
+
+    def target(self, axis_words: dict, absolute: bool | None = None) -> np.ndarray:
+        absolute = self.absolute if absolute is None else absolute
+        t = self.pos.copy()
+        for L, w in axis_words.items():
+            i = _AXES.index(L)
+            t[i] = w.value * self.scale if absolute else t[i] + w.value * self.scale
+        return t
+
+    def non_modal(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G10, G28/G28.1, G30/G30.1, G52, G92 family. Returns True if the axis words were used."""
+        if code == 100:
+            L = val.get("L")
+            if L is None:
+                raise self.err("G10 without an L word", b, None, "G10 L1/L10/L11 (tool table) or L2/L20 (offsets)")
+            lv = int(L.value)
+            if lv in (1, 10, 11):
+                self.events.append(Event(b.line, "tool_table", lv))
+                return True
+            if lv in (2, 20):
+                p = int(val["P"].value) if "P" in val else 0
+                idx = self.cs if p == 0 else p
+                if not 1 <= idx <= 9:
+                    raise self.err("G10 P must select a coordinate system 0..9", b, val.get("P"), "P0..P9")
+                if "R" in val and val["R"].value != 0:
+                    raise self.err("coordinate system rotation (G10 R) is not supported", b, val["R"], "R0 or no R")
+
+                def change() -> None:
+                    cur = self.g5x.get(idx, np.zeros(3)).copy()
+                    for Lt, w in axis_words.items():
+                        i = _AXES.index(Lt)
+                        if lv == 2:
+                            cur[i] = w.value * self.scale
+                        else:  # L20: set so the current point has the given coordinate
+                            machine = self.pos[i] + self.offset()[i]
+                            cur[i] = machine - self.g92[i] - w.value * self.scale
+                    self.g5x[idx] = cur
+                self.set_offsets(change)
+                return True
+            raise self.err(f"G10 L{lv} is not supported", b, L, "G10 L1, L2, L10, L11 or L20")
+        if code in (280, 300):
+            home_opt = self.opt.home_g28_mm if code == 280 else self.opt.home_g30_mm
+            if axis_words:
+                mid = self.target(axis_words)
+                self.emit(RAPID, mid, b)
+            axes = [_AXES.index(L) for L in axis_words] or [0, 1, 2]
+            end = self.pos.copy()
+            if home_opt is not None:
+                home = np.array(home_opt, float) - self.offset()
+                end[axes] = home[axes]
+            else:
+                if 2 in axes:
+                    end[2] = math.nan
+                    self.safe_z_pending = True
+                self.notes.append(f"line {b.line}: G{code // 10} home position unknown: Z retracts to the safe "
+                                  "height (highest Z of the program), X/Y stay (assumed)")
+            self.emit(RAPID, end, b)
+            return True
+        if code in (281, 301):
+            return False
+        if code in (920, 520):
+            if not axis_words:
+                if code == 520:
+                    return True
+                raise self.err("G92 without axis words", b, None, "G92 with at least one of X, Y, Z")
+
+            def change() -> None:
+                for L, w in axis_words.items():
+                    i = _AXES.index(L)
+                    if code == 920:  # current point gets the given coordinate
+                        machine = self.pos[i] + self.offset()[i]
+                        self.g92[i] = machine - self.g5x.get(self.cs, np.zeros(3))[i] - w.value * self.scale
+                    else:  # G52: local offset = the value
+                        self.g92[i] = w.value * self.scale
+            self.set_offsets(change)
+            return True
+        if code == 921 or code == 922:
+            def clear() -> None:
+                if code == 922:
+                    self.g92_saved = self.g92.copy()
+                self.g92 = np.zeros(3)
+            self.set_offsets(clear)
+            return False
+        if code == 923:
+            self.set_offsets(lambda: setattr(self, "g92", self.g92_saved.copy()))
+            return False
+        return False
+
+    def straight(self, b: Block, val: dict, axis_words: dict, g53: bool) -> None:
+        if g53:
+            if self.motion not in (0, 10):
+                raise self.err("G53 needs G0 or G1 motion", b, None, "G53 G0 or G53 G1")
+            if self.opt.machine_frame_known:
+                t = self.pos.copy()
+                off = self.offset()
+                for L, w in axis_words.items():
+                    i = _AXES.index(L)
+                    t[i] = w.value * self.scale - off[i]
+            elif set(axis_words) == {"Z"}:
+                t = self.pos.copy()
+                t[2] = math.nan
+                self.safe_z_pending = True
+                self.notes.append(f"line {b.line}: G53 Z move with the machine frame unknown: goes to the safe height "
+                                  "(highest Z of the program) (assumed)")
+            else:
+                t = self.target(axis_words, absolute=True)
+                self.notes.append(f"line {b.line}: G53 move with the machine frame unknown: machine coordinates taken "
+                                  "as program coordinates (assumed)")
+        else:
+            t = self.target(axis_words)
+        if self.motion == 0:
+            self.emit(RAPID, t, b)
+        else:
+            L = float(np.linalg.norm(t - self.pos)) if not np.isnan(t).any() else 0.0
+            self.emit(FEED, t, b, feed_mm_min=self.feed_rate(b, L))
+
+    def arc(self, b: Block, val: dict, axis_words: dict) -> None:
+        a1, a2, an = PLANE_AXES[self.plane]
+        offs = ("I", "J", "K")
+        o1, o2 = offs[a1], offs[a2]
+        end = self.target(axis_words)
+        start = self.pos
+        cw = self.motion == 20
+        turns = 0
+        if "P" in val:
+            p = val["P"].value
+            if p != int(p) or p < 1:
+                raise self.err("arc turns P must be a positive integer", b, val["P"], "P1, P2, ...")
+            turns = int(p) - 1
+        center = start.copy()
+        if "R" in val:
+            if o1 in val or o2 in val:
+                raise self.err("arc with both R and I/J/K", b, val["R"], "either R or centre offsets")
+            r = val["R"].value * self.scale
+            d1, d2 = end[a1] - start[a1], end[a2] - start[a2]
+            chord = math.hypot(d1, d2)
+            if chord < 1e-9:
+                raise self.err("full circle with R format (start equals end)", b, val["R"],
+                               "I/J/K centre offsets for a full circle")
+            half = chord / 2
+            if abs(r) < half:
+                if half - abs(r) > (0.0005 * INCH if self.scale != 1.0 else 0.005):  # LinuxCNC's tolerance
+                    raise self.err(f"arc radius {abs(r) / self.scale:g} too small to reach the end point "
+                                   f"(half chord {half / self.scale:g})", b, val["R"], "|R| >= half the chord")
+                r = math.copysign(half, r)
+            h = math.sqrt(max(r * r - half * half, 0.0))
+            # centre on the left of the chord for a CCW arc < 180 (R > 0), on the right for CW
+            left = (not cw) == (r > 0)
+            m1, m2 = start[a1] + d1 / 2, start[a2] + d2 / 2
+            n1, n2 = -d2 / chord, d1 / chord
+            sgn = 1.0 if left else -1.0
+            center[a1], center[a2] = m1 + sgn * h * n1, m2 + sgn * h * n2
+        else:
+            if o1 not in val and o2 not in val:
+                raise self.err("arc with neither R nor centre offsets", b, None,
+                               f"{o1} and/or {o2} (centre) or R (radius) for this plane")
+            if self.arc_absolute:
+                c1 = val[o1].value * self.scale if o1 in val else start[a1]
+                c2 = val[o2].value * self.scale if o2 in val else start[a2]
+                center[a1], center[a2] = c1, c2
+            else:
+                center[a1] = start[a1] + (val[o1].value * self.scale if o1 in val else 0.0)
+                center[a2] = start[a2] + (val[o2].value * self.scale if o2 in val else 0.0)
+            r0 = math.hypot(start[a1] - center[a1], start[a2] - center[a2])
+            r1 = math.hypot(end[a1] - center[a1], end[a2] - center[a2])
+            if r0 < 1e-9:
+                raise self.err("arc of zero radius", b, val.get(o1) or val.get(o2), "a centre away from the start point")
+            # LinuxCNC 2.9's rule: absolute threshold 2·0.001 in·√2 (2·0.01 mm·√2), relative 0.1 %;
+            # refused beyond 100× the absolute threshold, or beyond both thresholds.
+            t_abs = 2 * (0.001 * INCH if self.scale != 1.0 else 0.01) * math.sqrt(2)
+            err = abs(r1 - r0)
+            if err > 100 * t_abs or (err > t_abs and err / max(r0, r1) > 0.001):
+                raise self.err(f"radius to end of arc ({r1 / self.scale:g}) differs from radius to start "
+                               f"({r0 / self.scale:g})", b, val.get(o1) or val.get(o2),
+                               "a centre equidistant from start and end")
+        center[an] = start[an]
+        kind = ARC_CW if cw else ARC_CCW
+        L = _arc_length(start, end, center, (a1, a2, an), kind == ARC_CCW, turns)
+        self.emit(kind, end, b, center=center, turns=turns, feed_mm_min=self.feed_rate(b, L))
+
+    # --- canned cycles ------------------------------------------------------------------------
+    def canned_cycle(self, b: Block, val: dict, axis_words: dict) -> None:
+        """Expand a drilling/boring/tapping cycle into moves the way LinuxCNC does."""
+        code = self.motion
+        a1, a2, an = PLANE_AXES[self.plane]
+        an_letter = _AXES[an]
+        cyc = self.cycle
+        if self.cycle_il is None:  # first block of a cycle sequence
+            self.cycle_il = self.pos[an]
+            cyc.clear()
+        for L in ("R", "Q", "P", an_letter, "I", "J", "K"):
+            if L in val:
+                cyc[L] = val[L].value
+        for need in ("R", an_letter):
+            if need not in cyc:
+                raise self.err(f"canned cycle G{code / 10:g} without {need}", b, None, f"an {need} word")
+        if code in (730, 830) and cyc.get("Q", 0) <= 0:
+            raise self.err(f"peck cycle G{code / 10:g} needs Q > 0", b, val.get("Q"), "Q (peck depth) > 0")
+        repeats = 1
+        if "L" in val:
+            if val["L"].value < 0 or val["L"].value != int(val["L"].value):
+                raise self.err("repeat count L must be a non-negative integer", b, val["L"], "L0, L1, L2, ...")
+            repeats = int(val["L"].value)
+        sc = self.scale
+        old = self.pos[an]
+        if self.absolute:
+            r = cyc["R"] * sc
+            bottom = cyc[an_letter] * sc
+        else:
+            r = cyc["R"] * sc + self.cycle_il  # LinuxCNC: from the level where the cycle sequence began
+            bottom = r + cyc[an_letter] * sc
+        if bottom > r:
+            raise self.err(f"canned cycle bottom {an_letter} above the R plane", b, val.get(an_letter),
+                           f"{an_letter} below R")
+        clear = r if not self.retract_old_z else max(r, self.cycle_il if self.cycle_il is not None else old)
+        feed = self.feed_rate(b, 1.0)
+        if old < r:
+            p = self.pos.copy()
+            p[an] = r
+            self.emit(RAPID, p, b)
+            old = r
+        d1 = axis_words.get(_AXES[a1])
+        d2 = axis_words.get(_AXES[a2])
+        if self.polar_step is not None and self.plane != 0:
+            raise self.err("polar coordinates need G17", b, None, "G17")
+        for rep in range(repeats):
+            p = self.pos.copy()
+            if self.polar_step is not None:
+                p[0], p[1] = self.polar_point(None, None, self.polar_step)
+            elif self.absolute:
+                if d1 is not None:
+                    p[a1] = d1.value * sc
+                if d2 is not None:
+                    p[a2] = d2.value * sc
+            else:
+                p[a1] += d1.value * sc if d1 is not None else 0.0
+                p[a2] += d2.value * sc if d2 is not None else 0.0
+            p[an] = old if rep == 0 else self.pos[an]
+            self.emit(RAPID, p, b)
+            if self.pos[an] != r:
+                self.to_depth(RAPID, r, b)
+            self.cycle_body(code, b, r, bottom, clear, feed, cyc)
+            old = clear
+        self.polar_step = None
+
+    def to_depth(self, kind: int, depth: float, b: Block, feed: float = math.nan) -> None:
+        an = PLANE_AXES[self.plane][2]
+        p = self.pos.copy()
+        p[an] = depth
+        self.emit(kind, p, b, feed_mm_min=feed if kind == FEED else math.nan)
+
+    def cycle_body(self, code: int, b: Block, r: float, bottom: float, clear: float, feed: float, cyc: dict) -> None:
+        sc = self.scale
+        delta = cyc.get("Q", 0.0) * sc
+        rapid_delta = 0.010 * INCH if sc != 1.0 else 0.254  # LinuxCNC's G73/G83 clearance
+        dwell = cyc.get("P", 0.0)
+        if self.dialect == "fanuc" and dwell:
+            dwell = dwell / 1000.0
+        if code == 810:
+            self.to_depth(FEED, bottom, b, feed)
+            self.to_depth(RAPID, clear, b)
+        elif code == 820:
+            self.to_depth(FEED, bottom, b, feed)
+            self.add_dwell(b, dwell)
+            self.to_depth(RAPID, clear, b)
+        elif code in (730, 830):
+            depth = r - delta
+            while depth > bottom:
+                self.to_depth(FEED, depth, b, feed)
+                if code == 830:
+                    self.to_depth(RAPID, r, b)
+                    self.to_depth(RAPID, depth + rapid_delta, b)
+                else:
+                    self.to_depth(RAPID, depth + rapid_delta, b)
+                depth -= delta
+            self.to_depth(FEED, bottom, b, feed)
+            self.to_depth(RAPID, clear, b)
+        elif code in (840, 740):  # tapping: in, reverse, feed out to the clear plane
+            self.to_depth(FEED, bottom, b, feed)
+            self.add_dwell(b, dwell)
+            self.to_depth(FEED, clear, b, feed)
+        elif code == 850:
+            self.to_depth(FEED, bottom, b, feed)
+            self.to_depth(FEED, r, b, feed)
+            if clear != r:
+                self.to_depth(RAPID, clear, b)
+        elif code == 860:
+            self.to_depth(FEED, bottom, b, feed)
+            self.add_dwell(b, dwell)
+            self.events.append(Event(b.line, "spindle", ("off", 0.0)))
+            self.to_depth(RAPID, clear, b)
+            self.events.append(Event(b.line, "spindle", ("cw", self.s)))
+        elif code == 890:
+            self.to_depth(FEED, bottom, b, feed)
+            self.add_dwell(b, dwell)
+            self.to_depth(FEED, r, b, feed)
+            if clear != r:
+                self.to_depth(RAPID, clear, b)
+        elif code == 880:
+            self.to_depth(FEED, bottom, b, feed)
+            self.add_dwell(b, dwell)
+            self.events.append(Event(b.line, "stop", "G88 manual retract"))
+            self.notes.append(f"line {b.line}: G88 stops for a manual retract; modelled as a rapid to the clear plane")
+            self.to_depth(RAPID, clear, b)
+        elif code == 760:  # Fanuc/Haas fine boring: feed in, orient, shift by Q, rapid out, shift back
+            a1 = PLANE_AXES[self.plane][0]
+            self.to_depth(FEED, bottom, b, feed)
+            self.add_dwell(b, dwell)
+            p = self.pos.copy()
+            p[a1] += delta  # the shift direction depends on the orientation; +first axis assumed
+            self.emit(RAPID, p, b)
+            self.to_depth(RAPID, clear, b)
+            p = self.pos.copy()
+            p[a1] -= delta
+            self.emit(RAPID, p, b)
+            self.notes.append(f"line {b.line}: G76 shift direction taken along +{_AXES[a1]} (assumed)")
+        elif code == 870:
+            self.back_bore(b, r, bottom, clear, feed, cyc)
+
+    def back_bore(self, b: Block, r: float, bottom: float, clear: float, feed: float, cyc: dict) -> None:
+        """G87 back boring (Fanuc form: shift by Q, rapid to R below the part, shift back, feed up to Z)."""
+        a1, _, an = PLANE_AXES[self.plane]
+        delta = cyc.get("Q", 0.0) * self.scale
+        start = self.pos[an]
+        p = self.pos.copy()
+        p[a1] += delta
+        self.emit(RAPID, p, b)
+        self.to_depth(RAPID, r, b)
+        p = self.pos.copy()
+        p[a1] -= delta
+        self.emit(RAPID, p, b)
+        self.to_depth(FEED, bottom, b, feed)
+        p = self.pos.copy()
+        p[a1] += delta
+        self.emit(RAPID, p, b)
+        self.to_depth(RAPID, start, b)
+        p = self.pos.copy()
+        p[a1] -= delta
+        self.emit(RAPID, p, b)
+        self.notes.append(f"line {b.line}: G87 back boring with the Fanuc sequence; shift along +{_AXES[a1]} (assumed)")
+
+    def add_dwell(self, b: Block, secs: float) -> None:
+        if secs > 0:
+            self.dwell_s += secs
+            self.events.append(Event(b.line, "dwell", secs))
+
+    # --- result -----------------------------------------------------------------------------
+    def finish(self, path: str, text: str) -> Program:
+        tp, ints = self.m.to_arrays()
+        if self.safe_z_pending:
+            z = np.concatenate([tp.start[:, 2], tp.end[:, 2]])
+            finite = z[np.isfinite(z)]
+            safe = self.opt.safe_z_mm if self.opt.safe_z_mm is not None else (finite.max() if len(finite) else 0.0)
+            for arr in (tp.start, tp.end):
+                arr[np.isnan(arr[:, 2]), 2] = safe
+            arc = (tp.kind >= ARC_CW) & np.isnan(tp.center[:, 2])
+            tp.center[arc, 2] = safe
+            self.notes.append(f"safe height for unknown-home retracts: Z {safe:g} mm")
+        return Program(
+            path=path, text=text, toolpath=tp, dialect=self.dialect, blocks=self.blocks,
+            units=self.units_seen or ["mm"], move_inch=ints[:, 6].astype(bool), feed_mode=ints[:, 7].astype(np.int16),
+            incremental=ints[:, 8].astype(bool), arc_absolute=ints[:, 9].astype(bool), events=self.events, notes=self.notes,
+            dwell_s=self.dwell_s)

@@ -1,0 +1,271 @@
+"""Roughing parameters (axial depth, radial width, spindle speed, feed) from machining heuristics.
+
+The variables a realtime feed cannot change quickly are chosen here, before CAM. For a tool, a material
+and a machine, every candidate (ae, ap, rpm) gets the largest feed per tooth that keeps all limits, and
+the candidate with the highest material removal rate wins. The limits, with their sources:
+
+- surface speed window of the tool/material pair (material file; Tungaloy, Amana, Machinery's Handbook
+  table) and the spindle's speed range → rpm window;
+- chip load with radial chip thinning: f_z = h_target · RCTF(ae), RCTF = D / (2 sqrt(ae (D − ae))) for
+  ae < D/2 (machinecalcs.com radial chip thinning; PHYSICS.md §3.1), h_target the middle of the material's
+  chip-load range at this diameter (Tungaloy catalogue; PHYSICS.md §3.3) — keeps the real maximum chip on
+  target as ae shrinks;
+- minimum chip: h_max ≥ h_min = ratio · edge radius, else the edge rubs (Cheng 2018; PHYSICS.md §3.4);
+- tool beam: deflection under the peak in-plane force ≤ max deflection (0.025 mm default, Ingersoll's
+  0.001 in), peak force ≤ breaking force / safety factor (PHYSICS.md §4);
+- spindle power (hence torque) at the chosen rpm (machine spindle curve, §5.3);
+- axis thrust: the feed-direction force within what the X drive can push at that speed (§5.2);
+- feed range: the machine's maximum feed, the user's min/max traversal rate, and a cap on the dynamic
+  range between corners and open passes (the reference's 100 mm/s: above it, acceleration at corners
+  dominates and the programmed feed is never reached);
+- among candidates within `tie_tolerance` of the best removal rate, the fastest feed wins (the
+  reference's preference for fast, light passes over slow, heavy ones).
+
+Loads come from the same models as `millpost calc` (`evaluate_cut`), so an independent `calc` of the
+answer satisfies every limit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import math
+
+import numpy as np
+
+from .commands.calc import evaluate_cut
+from .errors import MillpostError
+from .forces import Kienzle, Mechanistic, given_cut, max_chip_mm
+from .machine import Machine
+from .materials import Material
+from .tools.beam import ToolBeam
+from .tools.cutter import Tool
+
+
+SEARCH_STEPS_PER_REV = 90    # coarse angular step while searching; the answer is re-solved at the model's own
+RAMP_ANGLE_DEG = 2.0         # helical ramp: full-width cut, π·D·tan(2°) deep per turn (Fusion's default angle)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """User limits. max_deflection_mm: tool deflection at the cut. safety_factor: on the tool's bending
+    strength (None: chosen from the geometry). feed_min/max_mm_min: traversal rate range (max None: the
+    machine's). dynamic_range_mm_s: largest feed change between corners and open passes. chip_load_mm:
+    target maximum chip thickness (None: the material's guidance)."""
+
+    max_deflection_mm: float = 0.025
+    safety_factor: float | None = None
+    feed_min_mm_min: float = 0.0
+    feed_max_mm_min: float | None = None
+    dynamic_range_mm_s: float = 100.0
+    chip_load_mm: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.max_deflection_mm <= 0 or self.dynamic_range_mm_s <= 0 or self.feed_min_mm_min < 0:
+            raise MillpostError("limits must be positive (deflection, dynamic range) and feed_min >= 0")
+
+
+@dataclass(frozen=True)
+class Recommendation:
+    """Chosen cut and its predicted loads (mm, rpm, mm/min, mm³/min, N, N·m, W). `binding` names the
+    limits at their bound (ratio ≥ 0.999); `ratios` gives every limit's load over its bound."""
+
+    ap_mm: float
+    ae_mm: float
+    rpm: float
+    fz_mm: float
+    feed_mm_min: float
+    mrr_mm3_min: float
+    h_max_mm: float
+    chip_target_mm: float
+    vc_m_min: float
+    F_avg_N: tuple[float, float, float]
+    F_peak_N: float
+    deflection_mm: float
+    break_ratio: float
+    torque_Nm: float
+    power_W: float
+    ramp_feed_mm_min: float
+    binding: tuple[str, ...]
+    ratios: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class _Setup:
+    tool: Tool
+    material: Material
+    machine: Machine
+    limits: Limits
+    model: Mechanistic | Kienzle
+    search_model: Mechanistic | Kienzle
+    beam: ToolBeam
+    chip_target_mm: float
+    h_min_mm: float
+    rpm_lo: float
+    rpm_hi: float
+    rpm_hi_reason: str
+    feed_cap_mm_min: float
+    feed_cap_reason: str
+    ap_max_mm: float
+
+
+def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, model: str) -> _Setup:
+    vc_lo, vc_hi = material.rpm_window(tool.diameter_mm, tool.material)
+    lo, hi = max(vc_lo, machine.spindle.rpm_min), min(vc_hi, machine.spindle.rpm_max)
+    hi_reason = "surface_speed" if vc_hi <= machine.spindle.rpm_max else "spindle_rpm"
+    if lo > hi:   # the spindle cannot reach the window: run at the nearest end it can
+        lo = hi = machine.spindle.rpm_max if vc_lo > machine.spindle.rpm_max else machine.spindle.rpm_min
+        hi_reason = "spindle_rpm"
+    caps = {"machine_feed": machine.feed_max_mm_min, "dynamic_range": 60.0 * limits.dynamic_range_mm_s}
+    if limits.feed_max_mm_min is not None:
+        caps["feed_max"] = limits.feed_max_mm_min
+    reason = min(caps, key=caps.get)
+    target = limits.chip_load_mm or float(np.mean(material.chip_load_mm(tool.diameter_mm)))
+    return _Setup(tool, material, machine, limits, material.force_model(model),
+                  material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV), ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
+                  material.min_chip_mm(tool.edge_radius_mm), lo, hi, hi_reason, caps[reason], reason,
+                  min(tool.flute_len, tool.stickout))
+
+
+def _rctf(ae: np.ndarray, d: float) -> np.ndarray:
+    """f_z / h_max for each width (1 at ae ≥ D/2)."""
+    return 1.0 / np.array([max_chip_mm(1.0, a, d) for a in np.atleast_1d(ae)])
+
+
+def _loads_ok(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
+              search: bool = False) -> tuple[np.ndarray, dict]:
+    """Feasibility of the force-dependent limits at feed per tooth fz, and each limit's ratio."""
+    loads = (s.search_model if search else s.model).predict(eng, fz, rpm, s.tool)
+    comp = np.array([s.beam.compliance_mm_per_N(a) for a in ap])
+    brk = np.array([s.beam.breaking_force_N(a) for a in ap])
+    avail = s.machine.spindle.power_available_W(rpm)
+    feed_mm_s = fz * s.tool.flutes * rpm / 60.0
+    thrust = s.machine.axes["x"].max_thrust_N(feed_mm_s)
+    ratios = {
+        "deflection": loads.peak_force_xy_N * comp / s.limits.max_deflection_mm,
+        "breakage": loads.peak_force_xy_N / brk,
+        "spindle_power": np.where(avail > 0, loads.power_W / np.where(avail > 0, avail, 1), np.inf),
+        "axis_thrust": np.where(thrust > 0, np.abs(loads.force_N[:, 0]) / np.where(thrust > 0, thrust, 1), np.inf),
+    }
+    ok = np.ones(len(fz), bool)
+    for r in ratios.values():
+        ok &= r <= 1.0
+    return ok, ratios
+
+
+def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, search: bool = False,
+            iterations: int = 14) -> np.ndarray:
+    """Largest feasible feed per tooth per candidate (nan when none keeps the minimum chip and feed range).
+
+    Start at the chip-load/feed cap; where a load limit is exceeded there, solve max ratio(f_z) = 1 on the
+    bracket [0, cap]: five bisections (the axis-thrust ratio jumps where the drive runs out of voltage),
+    then Illinois regula falsi (the force ratios are convex and nearly affine in f_z: peak
+    |f_z A(φ) + B(φ)|, affine power). The feasible end of the bracket is returned.
+    """
+    eng = given_cut(s.tool, ae, ap)
+    rctf = _rctf(ae, s.tool.diameter_mm)
+    per_fz = s.tool.flutes * rpm
+    top = np.minimum(s.chip_target_mm * rctf, s.feed_cap_mm_min / per_fz)
+    bottom = np.maximum(s.h_min_mm * rctf, s.limits.feed_min_mm_min / per_fz)
+
+    def excess(fz):
+        _, ratios = _loads_ok(s, eng, fz, rpm, ap, search=search)
+        return np.minimum(np.max(np.stack(list(ratios.values())), axis=0), 1e6) - 1.0
+
+    g_hi = excess(top)
+    todo = g_hi > 0
+    lo, hi = np.where(todo, 0.0, top), top.copy()
+    g_lo = np.full(len(top), -1.0)
+    for it in range(iterations):
+        if not todo.any():
+            break
+        x = 0.5 * (lo + hi) if it < 5 else (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+        x = np.where(todo, x, lo)
+        x = np.clip(x, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+        g = excess(x)
+        left = todo & (g <= 0)
+        right = todo & (g > 0)
+        g_hi = np.where(left, 0.5 * g_hi, g_hi)          # Illinois: halve the stale end
+        g_lo = np.where(right, 0.5 * g_lo, g_lo)
+        lo, g_lo = np.where(left, x, lo), np.where(left, g, g_lo)
+        hi, g_hi = np.where(right, x, hi), np.where(right, g, g_hi)
+        todo &= (hi - lo) > 1e-6 * hi
+    return np.where((lo >= bottom) & (lo > 0) & (top >= bottom), lo, np.nan)
+
+
+def _grid(lo: float, hi: float, n: int) -> np.ndarray:
+    return np.unique(np.linspace(lo, hi, n)) if hi > lo else np.array([hi])
+
+
+def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> tuple[float, float, float, float]:
+    """Grid over (ae, ap, rpm), then two finer grids around the best; f_z by `_best_fz` on each."""
+    d = s.tool.diameter_mm
+    full = [(v, v) if v else rng for v, rng in
+            ((ae_fixed, (0.02 * d, d)), (ap_fixed, (0.05 * d, s.ap_max_mm)), (rpm_fixed, (s.rpm_lo, s.rpm_hi)))]
+    ranges = list(full)
+    best = None
+    for sizes in ((16, 12, 5), (7, 7, 5), (7, 7, 5)):
+        axes = [_grid(lo, hi, n) for (lo, hi), n in zip(ranges, sizes)]
+        A, P, N = (g.ravel() for g in np.meshgrid(*axes, indexing="ij"))
+        fz = _best_fz(s, A, P, N, search=True)
+        feed = fz * s.tool.flutes * N
+        mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * feed, -1.0)
+        if mrr.max() <= 0:
+            raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
+        near = mrr >= (1 - tie_tolerance) * mrr.max()
+        i = int(np.argmax(np.where(near, feed, -1.0)))
+        best = (float(A[i]), float(P[i]), float(N[i]), float(fz[i]))
+        steps = [(hi - lo) / max(n - 1, 1) for (lo, hi), n in zip(ranges, sizes)]
+        ranges = [(max(f[0], c - st), min(f[1], c + st)) for f, c, st in zip(full, best[:3], steps)]
+    ae, ap, rpm = best[:3]
+    fz = float(_best_fz(s, np.array([ae]), np.array([ap]), np.array([rpm]), iterations=40)[0])
+    if not np.isfinite(fz):
+        raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
+    return ae, ap, rpm, fz
+
+
+def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
+              model: str = "mechanistic", ae_mm: float | None = None, ap_mm: float | None = None,
+              rpm: float | None = None, tie_tolerance: float = 0.005) -> Recommendation:
+    """Best roughing cut for the tool, material and machine (ae, ap, rpm may be fixed by the caller)."""
+    s = _setup(tool, material, machine, limits, model)
+    ae, ap, n, fz = _search(s, ae_mm, ap_mm, rpm, tie_tolerance)
+    return _describe(s, ae, ap, n, fz)
+
+
+def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommendation:
+    res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, machine=s.machine)
+    eng = given_cut(s.tool, np.array([ae]), np.array([ap]))
+    _, load_ratios = _loads_ok(s, eng, np.array([fz]), np.array([n]), np.array([ap]))
+    ratios = {k: float(v[0]) for k, v in load_ratios.items()}
+    ratios["chip_load"] = float(res.h_max_mm) / s.chip_target_mm
+    ratios[s.feed_cap_reason] = res.feed_mm_min / s.feed_cap_mm_min
+    ratios[s.rpm_hi_reason] = n / s.rpm_hi
+    ratios["max_depth"] = ap / s.ap_max_mm
+    ratios["slot"] = min(ae, s.tool.diameter_mm) / s.tool.diameter_mm
+    binding = tuple(sorted(k for k, v in ratios.items() if v >= 0.999))
+    ramp_ap = min(ap, math.pi * s.tool.diameter_mm * math.tan(math.radians(RAMP_ANGLE_DEG)))
+    ramp = _best_fz(s, np.array([s.tool.diameter_mm]), np.array([ramp_ap]), np.array([n]), iterations=40)[0]
+    ramp_feed = float(ramp * s.tool.flutes * n) if np.isfinite(ramp) else 0.0
+    return Recommendation(
+        ap_mm=ap, ae_mm=ae, rpm=n, fz_mm=fz, feed_mm_min=res.feed_mm_min, mrr_mm3_min=res.mrr_mm3_min,
+        h_max_mm=float(res.h_max_mm), chip_target_mm=s.chip_target_mm, vc_m_min=res.vc_m_min, F_avg_N=res.F_avg_N,
+        F_peak_N=res.F_peak_N, deflection_mm=res.deflection_mm, break_ratio=res.break_ratio,
+        torque_Nm=res.torque_Nm, power_W=res.power_W, ramp_feed_mm_min=min(ramp_feed, res.feed_mm_min),
+        binding=binding, ratios=ratios)
+
+
+def sweep_ae(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
+             model: str = "mechanistic", widths_mm: np.ndarray | None = None) -> list[Recommendation]:
+    """The best cut at each radial width (MRR against ae): why the recommendation chose its width."""
+    widths = widths_mm if widths_mm is not None else np.linspace(0.05, 1.0, 20) * tool.diameter_mm
+    s = _setup(tool, material, machine, limits, model)
+    out = []
+    for ae in widths:
+        try:
+            out.append(_describe(s, *_search(s, float(ae), None, None, 0.005)))
+        except MillpostError:
+            continue
+    return out
+
+

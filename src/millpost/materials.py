@@ -1,0 +1,162 @@
+"""Workpiece materials: cutting-force coefficients, surface-speed window and chip-load guidance.
+
+Built-ins live in ``millpost/data/materials/<name>.toml`` with a source for every number; a user file
+has the same layout (see any built-in). Load either with `Material.load(name_or_path)`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .config import Table, load_toml, resolve
+from .errors import ConfigError
+from .forces import Kienzle, Mechanistic
+
+
+@dataclass(frozen=True)
+class KienzleCoefficients:
+    """k_c1.1 (N/mm², force per mm of chip width at h = 1 mm), m_c, and F_r/F_t, F_a/F_t ratios."""
+
+    kc11_N_mm2: float
+    mc: float
+    radial_ratio: float
+    axial_ratio: float
+    source: str
+
+
+@dataclass(frozen=True)
+class MechanisticCoefficients:
+    """Altintas' shearing (N/mm²) and edge (N/mm) coefficients."""
+
+    Ktc_N_mm2: float
+    Krc_N_mm2: float
+    Kac_N_mm2: float
+    Kte_N_per_mm: float
+    Kre_N_per_mm: float
+    Kae_N_per_mm: float
+    source: str
+
+    def values(self) -> tuple[float, ...]:
+        return (self.Ktc_N_mm2, self.Krc_N_mm2, self.Kac_N_mm2, self.Kte_N_per_mm, self.Kre_N_per_mm,
+                self.Kae_N_per_mm)
+
+
+@dataclass(frozen=True)
+class Material:
+    """A workpiece material. Speeds m/min, chip loads mm per tooth, hardness HB (0 when not given).
+
+    surface_speed_m_min: {"carbide": (lo, hi), "hss": (lo, hi)}. chip_load: diameters (mm) with the
+    recommended f_z range at each (interpolated in between, clamped outside). min_chip_ratio: minimum
+    chip thickness over the cutting-edge radius (below it the edge ploughs instead of cutting).
+    """
+
+    name: str
+    description: str
+    kienzle: KienzleCoefficients
+    mechanistic: MechanisticCoefficients | None
+    surface_speed_m_min: dict[str, tuple[float, float]]
+    speed_source: str
+    chip_diameters_mm: tuple[float, ...]
+    fz_min_mm: tuple[float, ...]
+    fz_max_mm: tuple[float, ...]
+    chip_source: str
+    min_chip_ratio: float
+    min_chip_source: str
+    hardness_HB: float = 0.0
+
+    @classmethod
+    def load(cls, name_or_path: str | Path) -> "Material":
+        path = resolve("materials", name_or_path)
+        return cls.from_dict(load_toml(path), file=str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict, *, file: str | None = None) -> "Material":
+        t = Table(data, "", file)
+        name = t.string("name")
+        description = t.string("description", "")
+        hardness = t.number("hardness_HB", 0.0, ge=0)
+        k = t.table("kienzle")
+        kienzle = KienzleCoefficients(k.number("kc11_N_mm2", gt=0), k.number("mc", ge=0, lt=1),
+                                      k.number("radial_ratio", ge=0, le=2), k.number("axial_ratio", ge=0, le=2),
+                                      k.string("source"))
+        k.done()
+        mech = None
+        if t.has("mechanistic"):
+            m = t.table("mechanistic")
+            mech = MechanisticCoefficients(
+                m.number("Ktc_N_mm2", gt=0), m.number("Krc_N_mm2", ge=0), m.number("Kac_N_mm2"),
+                m.number("Kte_N_per_mm", ge=0), m.number("Kre_N_per_mm", ge=0), m.number("Kae_N_per_mm"),
+                m.string("source"))
+            m.done()
+        s = t.table("surface_speed")
+        speeds = {}
+        for tool_mat in ("carbide", "hss"):
+            lo, hi = s.numbers(f"{tool_mat}_m_min", gt=0, length=2)
+            if lo > hi:
+                raise s.fail(f"{tool_mat}_m_min", [lo, hi], "must be [low, high]")
+            speeds[tool_mat] = (lo, hi)
+        speed_source = s.string("source")
+        s.done()
+        c = t.table("chip_load")
+        dia = c.numbers("diameter_mm", gt=0)
+        fmin = c.numbers("fz_min_mm", gt=0, length=len(dia))
+        fmax = c.numbers("fz_max_mm", gt=0, length=len(dia))
+        if any(np.diff(dia) <= 0):
+            raise c.fail("diameter_mm", list(dia), "must increase")
+        if any(a > b for a, b in zip(fmin, fmax)):
+            raise c.fail("fz_max_mm", list(fmax), "must be >= fz_min_mm at every diameter")
+        chip_source = c.string("source")
+        c.done()
+        mc = t.table("min_chip")
+        ratio = mc.number("ratio_to_edge_radius", gt=0, le=2)
+        mc_source = mc.string("source")
+        mc.done()
+        t.done(("mechanistic",))
+        return cls(name, description, kienzle, mech, speeds, speed_source, dia, fmin, fmax, chip_source,
+                   ratio, mc_source, hardness)
+
+    # --- guidance -------------------------------------------------------------------------------
+    def chip_load_mm(self, diameter_mm: float) -> tuple[float, float]:
+        """Recommended (min, max) chip thickness per tooth for a tool diameter (mm)."""
+        return (float(np.interp(diameter_mm, self.chip_diameters_mm, self.fz_min_mm)),
+                float(np.interp(diameter_mm, self.chip_diameters_mm, self.fz_max_mm)))
+
+    def rpm_window(self, diameter_mm: float, tool_material: str = "carbide") -> tuple[float, float]:
+        """Spindle speed window n = 1000 v_c / (π D) for the surface-speed window (rpm)."""
+        lo, hi = self.surface_speed_m_min[tool_material]
+        k = 1000.0 / (np.pi * diameter_mm)
+        return lo * k, hi * k
+
+    def min_chip_mm(self, edge_radius_mm: float) -> float:
+        """Minimum uncut chip thickness for a cutting-edge radius (mm)."""
+        return self.min_chip_ratio * edge_radius_mm
+
+    # --- force models ---------------------------------------------------------------------------
+    def kienzle_model(self, **settings) -> Kienzle:
+        k = self.kienzle
+        return Kienzle.from_coefficients(k.kc11_N_mm2, k.mc, radial_ratio=k.radial_ratio,
+                                         axial_ratio=k.axial_ratio, **settings)
+
+    def mechanistic_model(self, *, h0_mm: float = 0.05, **settings) -> Mechanistic:
+        """Published coefficients when the file has them; otherwise the tangent of the Kienzle law at chip
+        thickness h0 (PHYSICS.md §2.1): K_tc = (1 − m_c) k_c1.1 h0^(−m_c), K_te = m_c k_c1.1 h0^(1−m_c),
+        radial and axial terms by the Kienzle ratios. The tangent bounds the Kienzle force from above."""
+        if self.mechanistic is not None:
+            return Mechanistic.from_coefficients(*self.mechanistic.values(), **settings)
+        if h0_mm <= 0:
+            raise ConfigError("h0_mm", h0_mm, "must be > 0")
+        k = self.kienzle
+        ktc = (1 - k.mc) * k.kc11_N_mm2 * h0_mm ** (-k.mc)
+        kte = k.mc * k.kc11_N_mm2 * h0_mm ** (1 - k.mc)
+        return Mechanistic.from_coefficients(ktc, k.radial_ratio * ktc, k.axial_ratio * ktc,
+                                             kte, k.radial_ratio * kte, k.axial_ratio * kte, **settings)
+
+    def force_model(self, kind: str = "mechanistic", **settings) -> Mechanistic | Kienzle:
+        if kind == "mechanistic":
+            return self.mechanistic_model(**settings)
+        if kind == "kienzle":
+            return self.kienzle_model(**settings)
+        raise ConfigError("model", kind, "must be mechanistic or kienzle")

@@ -1,0 +1,147 @@
+"""From a per-sample feed limit to piecewise-constant feeds a controller can follow.
+
+Each cutting move is cut into fragments of at least `min_fragment_mm` (shorter only when the move
+is), at most `1 + floor(L·max_changes_per_mm)` per move, each with the smallest limit over the
+samples it touches, rounded down to `resolution_mm_min`: the programmed feed never exceeds the
+limit anywhere (the limit is piecewise linear in b between samples, so its minimum over a fragment
+is at a sample). Fragments start as equal cells; adjacent ones are merged where that costs the
+least time until the count bound holds.
+
+Pass the schedule's feed (or just its process caps: loads, chip load, max feed). Samples where the
+limit is 0 are rest points (segment ends, exact-stop corners) that the controller produces itself;
+they do not pull a fragment's feed to zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from millpost.schedule.assemble import merged_bounds
+from millpost.schedule.constraints import path_blocks
+from millpost.schedule.rows import PathGrid, SpeedBounds
+from millpost.schedule.solve import ProgramSchedule
+from millpost.toolpath import ARC_CW, PLANE_AXES, RAPID, Samples, Toolpath
+
+
+@dataclass(frozen=True)
+class Fragment:
+    """Part [u_start, u_end] (fractions of the move's length) of move `move` at feed_mm_min."""
+
+    move: int
+    u_start: float
+    u_end: float
+    feed_mm_min: float
+
+
+def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Merge adjacent cells (length, speed) until at most max_count remain, cheapest time first."""
+    length, v = list(length), list(v)
+    # merge equal neighbours for free
+    i = 0
+    while i < len(v) - 1:
+        if v[i] == v[i + 1]:
+            length[i] += length.pop(i + 1)
+            v.pop(i + 1)
+        else:
+            i += 1
+    L, V = np.array(length), np.array(v)
+    while len(V) > max_count:
+        m = np.minimum(V[:-1], V[1:])
+        cost = (L[:-1] + L[1:]) / m - L[:-1] / V[:-1] - L[1:] / V[1:]
+        k = int(np.argmin(cost))
+        L = np.r_[L[:k], L[k] + L[k + 1], L[k + 2:]]
+        V = np.r_[V[:k], m[k], V[k + 2:]]
+    return L, V
+
+
+def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm: float = 2.0,
+                    max_changes_per_mm: float = 0.2, resolution_mm_min: float = 1.0) -> list[Fragment]:
+    """Fragments of every cutting move whose samples carry a finite limit (mm/s)."""
+    lim = np.where(np.asarray(limit_mm_s, float) > 0, limit_mm_s, np.inf)
+    out: list[Fragment] = []
+    mv = samples.move
+    starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
+    ends = np.r_[starts[1:], len(mv)]
+    for a, b in zip(starts, ends):
+        m = int(mv[a])
+        if samples.kind[a] == RAPID:
+            continue
+        first = a - 1 if a > 0 and not samples.segment_start[a] else a
+        s = samples.s_mm[first:b] - samples.s_mm[first]
+        v = lim[first:b]
+        L = float(s[-1])
+        if L <= 0 or not np.isfinite(v).any():
+            continue
+        ncell = max(1, int(L // min_fragment_mm))
+        edges = np.linspace(0.0, L, ncell + 1)
+        # a cell touches the samples bounding every sample interval that overlaps it
+        lo = np.clip(np.searchsorted(s, edges[:-1], side="right") - 1, 0, len(s) - 1)
+        hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
+        cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
+        cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
+        q = np.floor(cell_v * 60.0 / resolution_mm_min) * resolution_mm_min
+        q = np.where(q > 0, q, cell_v * 60.0) / 60.0
+        Lf, Vf = _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
+        u = np.r_[0.0, np.cumsum(Lf) / L]
+        u[-1] = 1.0
+        out.extend(Fragment(m, float(u[k]), float(u[k + 1]), float(Vf[k] * 60.0)) for k in range(len(Vf)))
+    return out
+
+
+def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
+    """The program with each fragmented move split at its fragment ends (arcs as arcs about the same
+    centre) and the fragment feeds; other moves unchanged. Keeps line and block of the source."""
+    by_move: dict[int, list[Fragment]] = {}
+    for f in fragments:
+        by_move.setdefault(f.move, []).append(f)
+    idx, u0, u1, feed = [], [], [], []
+    for m in range(len(tp)):
+        frs = by_move.get(m)
+        if not frs:
+            idx.append(m), u0.append(0.0), u1.append(1.0), feed.append(tp.feed_mm_min[m])
+            continue
+        for f in sorted(frs, key=lambda f: f.u_start):
+            idx.append(m), u0.append(f.u_start), u1.append(f.u_end), feed.append(f.feed_mm_min)
+    idx, u0, u1 = np.array(idx), np.array(u0), np.array(u1)
+    out = tp.subset(idx)
+    out.start = tp.points(idx, u0)
+    out.end = tp.points(idx, u1)
+    out.feed_mm_min = np.array(feed, float)
+    arc = out.kind >= ARC_CW
+    if arc.any():
+        _, _, _, sweep, _, _ = tp.subset(idx[arc])._arc_params()
+        sw = np.abs(sweep) * (u1[arc] - u0[arc])
+        full = np.floor(sw / (2 * np.pi) + 1e-9)
+        rem = sw - 2 * np.pi * full
+        out.turns = out.turns.copy()
+        out.turns[arc] = np.where(rem < 1e-9, full - 1, full).astype(np.int32)
+        # the normal-axis component of a centre equals its move's start
+        ax = np.array(PLANE_AXES)[out.plane[arc].astype(int)][:, 2]
+        c = out.center[arc].copy()
+        c[np.arange(len(c)), ax] = out.start[arc][np.arange(len(c)), ax]
+        out.center = out.center.copy()
+        out.center[arc] = c
+    return out
+
+
+CONTROLLER_ENFORCED = ("axis_velocity", "axis_acceleration", "junction", "jerk")
+
+
+def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
+                   controller_enforced: tuple[str, ...] = CONTROLLER_ENFORCED) -> np.ndarray:
+    """Per-sample feed limit (mm/s) for `piecewise_feeds`: the schedule's speed where a limit the
+    controller does not know binds (current, loads, chip load...), and the speed caps of the limits
+    it does not enforce itself where only its own dynamics (named in controller_enforced) bind —
+    the controller ramps there on its own, and programming the ramp as F words would only slow it.
+    nan on rapids."""
+    grid = PathGrid.from_samples(samples)
+    caps = [blk for blk in path_blocks(grid, limits)
+            if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
+    out = np.full(len(samples), np.nan)
+    for lo, hi, sch in schedule.segments:
+        _, b_hi = merged_bounds([c.window(lo, hi) for c in caps], hi - lo)
+        own = np.isin(sch.binding.astype(str), controller_enforced)
+        out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
+    return out

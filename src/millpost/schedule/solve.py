@@ -1,0 +1,308 @@
+"""Time-optimal feed along a path segment: monolithic or windowed SOCP, with an O(N) fallback.
+
+Long segments are solved as receding windows (W samples, overlap O): each window starts from the
+committed b (two samples when StepRows need a fixed a) and ends inside the controllable set
+b ≤ K_hi of the reachability pass, which keeps every later window feasible (notes/SCHEDULE-PROTOTYPE
+§4.8). With several processes the segment is first cut at cruise anchors (samples where the greedy
+profile sits on the speed cap over ±3 samples, so the optimum does too) and the chunks are solved
+independently with b fixed at the anchors.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import multiprocessing
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from millpost.schedule.assemble import build, linear_rows, merged_bounds, soft_floor
+from millpost.schedule.problem import SolverOptions, Status
+from millpost.schedule.reach import Reach, reach, traversal_time
+from millpost.schedule.rows import Block, LocalRows, PathGrid, StepRows
+from millpost.toolpath import RAPID, Samples
+
+
+@dataclass
+class ScheduleOptions:
+    """window/overlap in samples; segments up to `monolithic_max` samples are solved in one piece.
+    `relinearize`: extra solves re-taking the tangent of non-convex √b terms at the last solution.
+    `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length).
+    Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
+    normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it."""
+
+    window: int = 2000
+    overlap: int = 100
+    monolithic_max: int = 4000
+    processes: int = 1
+    relinearize: int = 1
+    floor_penalty: float = 10.0
+    max_residual: float = 1e-6
+    solver: SolverOptions = field(default_factory=lambda: SolverOptions(iterative_refinement=False))
+
+
+@dataclass
+class Schedule:
+    """b (N,) mm²/s² and a (N−1,) mm/s² along the segment; feed_mm_s = √b.
+
+    status: Status (FALLBACK when the reachability profile replaced a failed solve, INFEASIBLE when
+    not even that exists, then b is zero and `message` says why). floor_unmet: samples where a soft
+    floor could not be met. excess: {block name: worst (value − bound)/bound over the samples}.
+    binding: per sample the name of the tightest limit ('' when none within 1e-3).
+    """
+
+    b: np.ndarray
+    a: np.ndarray
+    status: Status
+    time_s: float
+    message: str = ""
+    floor_unmet: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    excess: dict = field(default_factory=dict)
+    binding: np.ndarray = field(default_factory=lambda: np.zeros(0, object))
+    solver_s: float = 0.0
+    windows: int = 0
+
+    @property
+    def feed_mm_s(self) -> np.ndarray:
+        return np.sqrt(np.maximum(self.b, 0.0))
+
+
+def _window_blocks(blocks: list[Block], lo: int, hi: int) -> list[Block]:
+    return [blk.window(lo, hi) for blk in blocks]
+
+
+def _solve_window(grid: PathGrid, blocks: list[Block], v0: np.ndarray, vref: float, aref: float,
+                  opts: ScheduleOptions, b_fixed_start: np.ndarray, b_end: tuple[float, float],
+                  b_fixed_end: np.ndarray | None = None):
+    prob, lay = build(grid, blocks, b_fixed_start=b_fixed_start, b_end=b_end, v0=v0, vref=vref, aref=aref,
+                      floor_penalty=opts.floor_penalty, b_fixed_end=b_fixed_end)
+    sol = prob.solve(opts.solver)
+    if sol.status.ok and sol.primal_residual > opts.max_residual and not opts.solver.iterative_refinement:
+        sol = prob.solve(dataclasses.replace(opts.solver, iterative_refinement=True))
+    if not sol.status.ok:
+        return None, None, sol
+    return lay.b(sol.x), lay.slack(sol.x), sol
+
+
+def _solve_chunk(args) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
+    """Receding windows over one chunk. Returns (b, slack, solver seconds, windows, error message)."""
+    grid, blocks, v0, vref, aref, opts, k_lo, k_hi, b_first, b_last, nfix = args
+    n = len(grid)
+    b = np.full(n, np.nan)
+    slack = np.zeros(n)
+    b[:len(b_first)] = b_first
+    W, O = max(opts.window, 4 * nfix + 2), min(opts.overlap, opts.window // 2)
+    pos = len(b_first) - 1  # last committed sample
+    secs, count = 0.0, 0
+    while True:
+        s0 = max(0, pos - nfix + 1)
+        end = s0 + W if n - (s0 + W) > W // 4 else n  # no short leftover window
+        last = end == n
+        sl = slice(s0, end)
+        bl = _window_blocks(blocks, s0, end)
+        fixed_end = b_last if last else None
+        bend = (k_lo[end - 1], k_hi[end - 1])
+        bw, sw, sol = _solve_window(grid.window(s0, end), bl, v0[sl], vref, aref, opts,
+                                    b[s0:pos + 1], bend, fixed_end)
+        secs += sol.solve_s
+        count += 1
+        if bw is None:
+            return None, slack, secs, count, f"window [{s0}, {end}) {sol.raw_status}"
+        commit = end if last else max(end - O, pos + 2)
+        b[pos + 1:commit] = bw[pos + 1 - s0:commit - s0]
+        slack[pos + 1:commit] = sw[pos + 1 - s0:commit - s0]
+        if last:
+            return b, slack, secs, count, ""
+        pos = commit - 1
+
+
+def _anchors(rc: Reach, b_hi: np.ndarray, parts: int, margin: int) -> list[int]:
+    """Cruise anchors near equally spaced positions: greedy b on the cap over ±3 samples."""
+    n = len(b_hi)
+    on_cap = np.isfinite(b_hi) & (rc.b >= b_hi * (1 - 1e-9)) & (b_hi > 0)
+    flat = on_cap.copy()
+    for k in range(1, 4):
+        flat[k:] &= on_cap[:-k]
+        flat[:-k] &= on_cap[k:]
+    cand = np.flatnonzero(flat)
+    cand = cand[(cand > margin) & (cand < n - 1 - margin)]
+    out: list[int] = []
+    for p in range(1, parts):
+        if not len(cand):
+            break
+        j = int(cand[np.argmin(np.abs(cand - p * n // parts))])
+        if not out or j > out[-1] + margin:
+            out.append(j)
+    return out
+
+
+def _excess(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray) -> dict:
+    """Worst relative excess per named limit, evaluated exactly (√b, not the linearisation)."""
+    out: dict[str, float] = {}
+    for blk in blocks:
+        if isinstance(blk, LocalRows):
+            val = float(blk.excess(b, a).max()) if len(b) else 0.0
+        elif isinstance(blk, StepRows):
+            val = float(blk.excess(grid, b, a).max()) if len(b) > 2 else 0.0
+        elif hasattr(blk, "b_hi"):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = np.sqrt(np.maximum(b, 0)) / np.sqrt(blk.b_hi) - 1
+            val = float(np.nanmax(np.where(blk.b_hi > 0, r, np.where(b > 0, np.inf, -1.0))))
+        else:
+            continue
+        out[blk.name] = max(out.get(blk.name, -np.inf), val)
+    return out
+
+
+def _binding(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray, tol: float = 1e-3) -> np.ndarray:
+    """Name of the limit with the smallest slack per sample (within tol of its bound), else ''."""
+    n = len(b)
+    best = np.full(n, -np.inf)
+    name = np.full(n, "", dtype=object)
+    for blk in blocks:
+        if isinstance(blk, LocalRows):
+            e = blk.excess(b, a)
+        elif hasattr(blk, "b_hi"):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e = np.where(blk.b_hi > 0, np.sqrt(np.maximum(b, 0) / blk.b_hi) - 1, -np.inf)
+        else:
+            continue
+        upd = (e > best) & (e > -tol)
+        best = np.where(upd, e, best)
+        name[upd] = blk.name
+    return name
+
+
+def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | None = None, *,
+               b_start: float = 0.0, b_end: float = 0.0) -> Schedule:
+    """Minimum-time b(s) on one segment under the blocks, rest to rest by default."""
+    opts = options or ScheduleOptions()
+    n = len(grid)
+    if n < 2:
+        return Schedule(np.zeros(n), np.zeros(0), Status.SOLVED, 0.0)
+    ds = grid.ds
+    b_lo, b_hi = merged_bounds(blocks, n)
+    if not np.isfinite(b_hi).all():
+        raise ValueError("every sample needs a finite speed cap (add a FeedLimit)")
+    vref = float(np.sqrt(b_hi.max())) or 1.0
+    has_steps = any(isinstance(blk, StepRows) for blk in blocks)
+    nfix = 2 if has_steps else 1
+    nonconvex = any(isinstance(blk, LocalRows) and (blk.g > 0).any() for blk in blocks)
+    v0 = np.sqrt(np.maximum(b_hi, 1e-12))
+    t0 = time.perf_counter()
+    secs, windows = 0.0, 0
+    result_b = None
+    message = ""
+    for it in range(1 + (opts.relinearize if nonconvex else 0)):
+        U, Wm, _, H = linear_rows(blocks, b_hi, v0, convex_exact=False)
+        rc = reach(ds, b_lo, b_hi, U, Wm, H, b_start=b_start, b_end_max=b_end, b_end_min=b_end)
+        if not rc.feasible:
+            if result_b is not None:
+                break
+            return Schedule(np.zeros(n), np.zeros(n - 1), Status.INFEASIBLE, float("inf"),
+                            "no speed profile satisfies the limits (empty controllable set at the start)",
+                            solver_s=time.perf_counter() - t0)
+        aref = float(max(np.abs(rc.a).max(), 1e-6 * vref**2 / grid.length_mm))
+        if n <= opts.monolithic_max:
+            bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, np.array([b_start]), (b_end, b_end))
+            secs += sol.solve_s
+            windows += 1
+            chunks_b = [bw] if bw is not None else None
+            slack = sw if bw is not None else np.zeros(n)
+            if bw is None:
+                message = f"conic solve: {sol.raw_status}"
+        else:
+            anchors = _anchors(rc, b_hi, max(1, 2 * opts.processes) if opts.processes > 1 else 1,
+                               margin=opts.window // 4 + nfix)
+            cuts = [0, *anchors, n - 1]
+            jobs = []
+            for k in range(len(cuts) - 1):
+                lo, hi = cuts[k], cuts[k + 1] + 1
+                first = rc.b[lo:lo + nfix] if k > 0 else np.array([b_start])
+                last = rc.b[hi - nfix:hi] if k < len(cuts) - 2 else np.full(1, b_end)
+                jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
+                             rc.k_lo[lo:hi], rc.k_hi[lo:hi], first, last, nfix))
+            if opts.processes > 1 and len(jobs) > 1:
+                ctx = multiprocessing.get_context("fork")
+                with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
+                    outs = list(ex.map(_solve_chunk, jobs))
+            else:
+                outs = [_solve_chunk(j) for j in jobs]
+            chunks_b, slack = [], np.zeros(n)
+            for k, (bb, sw, sec, cnt, msg) in enumerate(outs):
+                secs += sec
+                windows += cnt
+                if bb is None:
+                    chunks_b, message = None, msg
+                    break
+                lo = cuts[k]
+                chunks_b.append(bb if k == 0 else bb[1:])
+                slack[lo + (k > 0): cuts[k + 1] + 1] = sw if k == 0 else sw[1:]
+        if chunks_b is None:
+            break
+        result_b = np.concatenate(chunks_b)
+        result_slack = slack
+        if it < (opts.relinearize if nonconvex else 0):
+            v0 = np.maximum(np.sqrt(result_b), 1e-3 * vref)
+    if result_b is None:
+        b, status = rc.b, Status.FALLBACK
+        floor_unmet = soft_floor(blocks, n) > b * (1 + 1e-6) + 1e-9
+        message = message or "conic solve failed"
+    else:
+        b = np.clip(result_b, 0.0, b_hi)
+        status = Status.SOLVED
+        floor = soft_floor(blocks, n)
+        floor_unmet = (floor > 0) & (result_slack > 1e-6 * np.maximum(floor, 1e-12)) & (b < floor * (1 - 1e-6))
+    a = np.diff(b) / (2 * ds)
+    return Schedule(b, a, status, traversal_time(ds, b), message, floor_unmet, _excess(grid, blocks, b, a),
+                    _binding(grid, blocks, b, a), secs, windows)
+
+
+def cutting_segments(samples: Samples) -> list[tuple[int, int]]:
+    """Sample ranges [lo, hi) of contiguous cutting motion (rapids excluded). A range starts at the
+    sample where the first cutting move begins (the preceding sample, unless the path jumps there)."""
+    cut = samples.kind != RAPID
+    out: list[tuple[int, int]] = []
+    k, n = 1, len(samples)
+    while k < n:
+        if not cut[k]:
+            k += 1
+            continue
+        lo = k if samples.segment_start[k] else k - 1
+        k += 1
+        while k < n and cut[k] and not samples.segment_start[k]:
+            k += 1
+        out.append((lo, k))
+    return out
+
+
+@dataclass
+class ProgramSchedule:
+    """Per sample of a resampled program: feed_mm_s (nan on rapids), and the segment schedules."""
+
+    feed_mm_s: np.ndarray
+    segments: list[tuple[int, int, Schedule]]
+
+    @property
+    def time_s(self) -> float:
+        return float(sum(s.time_s for _, _, s in self.segments))
+
+    @property
+    def ok(self) -> bool:
+        return all(s.status.ok for _, _, s in self.segments)
+
+
+def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | None = None) -> ProgramSchedule:
+    """Schedule every cutting segment of `samples` rest to rest. `limits` are constraint objects
+    whose per-sample arrays span all samples."""
+    grid = PathGrid.from_samples(samples)
+    blocks = [blk for lim in limits for blk in lim.blocks(grid)]
+    feed = np.full(len(samples), np.nan)
+    segs = []
+    for lo, hi in cutting_segments(samples):
+        sch = solve_path(grid.window(lo, hi), _window_blocks(blocks, lo, hi), options)
+        feed[lo:hi] = sch.feed_mm_s
+        segs.append((lo, hi, sch))
+    return ProgramSchedule(feed, segs)

@@ -1,0 +1,137 @@
+"""The emitter: bytes kept where nothing changes, feeds as planned, split moves on the same path.
+Checked by reading the output back with the interpreter (and with LinuxCNC's rs274 when installed)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rs274_oracle
+from conftest import SHARED_DATA
+from millpost.emit import FeedPlan, write_atomic, write_feeds
+from millpost.errors import ParseError
+from millpost.gcode import ReaderOptions, read_program, read_text
+from millpost.toolpath import RAPID
+
+EXT = {".ngc", ".nc", ".gcode", ".tap"}
+
+
+def corpus_programs():
+    if not SHARED_DATA.exists():
+        return []
+    out = []
+    for p in sorted(SHARED_DATA.rglob("*")):
+        if p.suffix.lower() in EXT:
+            try:
+                out.append(read_program(p, ReaderOptions.linuxcnc()))
+            except ParseError:
+                pass
+    return out
+
+
+PROGRAMS = corpus_programs()
+needs_corpus = pytest.mark.skipif(not PROGRAMS, reason="../shared/data is absent (third-party corpus)")
+
+
+@needs_corpus
+def test_programmed_feeds_give_the_same_bytes():
+    for program in PROGRAMS:
+        assert write_feeds(program, FeedPlan.programmed(program)) == program.text, program.path
+
+
+def _same_path(a, b, tol=1e-3):
+    """Same swept path: cutting lengths, bounding box and end points of a's moves all found in b."""
+    la, lb = a.toolpath.lengths(), b.toolpath.lengths()
+    assert abs(la.sum() - lb.sum()) <= tol * max(1.0, len(la))
+    np.testing.assert_allclose(a.toolpath.bbox(), b.toolpath.bbox(), atol=tol)
+
+
+@needs_corpus
+def test_scaled_feeds_are_written_and_read_back():
+    for program in PROGRAMS[:40]:
+        tp = program.toolpath
+        plan = FeedPlan.programmed(program)
+        rng = np.random.default_rng(len(tp))
+        cut = tp.kind != RAPID
+        plan.feed_mm_min[cut] = np.round(tp.feed_mm_min[cut] * rng.uniform(0.3, 1.0, cut.sum()), 1)
+        text = write_feeds(program, plan)
+        back = read_text(text, program.path, ReaderOptions.linuxcnc())
+        assert len(back.toolpath) == len(tp), program.path
+        np.testing.assert_allclose(back.toolpath.end, tp.end, atol=1e-9)
+        # multi-move blocks (canned cycles) take the lowest planned feed of the block: never faster
+        got = back.toolpath.feed_mm_min[cut]
+        want = plan.feed_mm_min[cut]
+        assert np.all(got <= want * (1 + 1e-3) + 1e-3), program.path
+        single = np.array([np.sum(tp.line == tp.line[i]) == 1 for i in np.flatnonzero(cut)], bool)
+        np.testing.assert_allclose(got[single], want[single], rtol=2e-3, atol=0.26)  # 0.01 in/min
+
+
+@needs_corpus
+def test_split_moves_keep_the_path_and_take_each_feed():
+    for program in PROGRAMS[:40]:
+        tp = program.toolpath
+        plan = FeedPlan.programmed(program)
+        single = [i for i in np.flatnonzero(tp.kind != RAPID)
+                  if np.sum(tp.line == tp.line[i]) == 1 and tp.lengths()[i] > 0.5 and program.feed_mode[i] == 940]
+        for i in single[:60]:
+            f = tp.feed_mm_min[i]
+            plan.fragments[int(i)] = [(0.25, round(f * 0.5, 1)), (0.6, round(f * 0.8, 1)), (1.0, round(f, 1))]
+        text = write_feeds(program, plan)
+        back = read_text(text, program.path, ReaderOptions.linuxcnc())
+        assert len(back.toolpath) == len(tp) + 2 * len(single[:60]), program.path
+        _same_path(program, back)
+        if rs274_oracle.RS274 and single:
+            out = Path(program.path).parent / ".millpost-emit-test.ngc"
+            try:
+                out.write_text(text)
+            except OSError:
+                continue
+            try:
+                trace = rs274_oracle.run(out)
+                assert not rs274_oracle.mismatches(back, trace, prefix=trace.error is not None)
+            finally:
+                out.unlink()
+
+
+def test_split_arc_keeps_r_and_ijk_styles():
+    for arc in ("G2 X10 Y0 I5 J0", "G2 X10 Y0 R5", "G3 X0 Y10 R-10"):
+        text = f"G21 G90 G17\nG0 X0 Y0 Z0\nG1 Z-1 F100\n{arc}\nM2\n"
+        prog = read_text(text)
+        plan = FeedPlan.programmed(prog)
+        plan.fragments[2] = [(0.5, 50.0), (1.0, 80.0)]
+        out = write_feeds(prog, plan)
+        back = read_text(out)
+        assert ("R" in arc) == ("R" in out.splitlines()[3])
+        assert back.toolpath.lengths()[2:].sum() == pytest.approx(prog.toolpath.lengths()[2], abs=2e-3)
+        assert list(back.toolpath.feed_mm_min[2:4]) == [50.0, 80.0]
+        np.testing.assert_allclose(back.toolpath.end[3], prog.toolpath.end[2], atol=1e-9)
+
+
+def test_untouched_lines_keep_their_bytes_and_f_is_added_where_needed():
+    text = "%\r\nO1234 (part)\r\nN10 G21 G90\r\nN20 G0 X0 Y0 Z5\r\nN30 G1 Z-1 F200. (plunge)\r\nN40 X10.\r\nN50 Y10.\r\nM30\r\n%\r\n"
+    prog = read_text(text, options=ReaderOptions(dialect="fanuc"))
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[2] = 350.0
+    out = write_feeds(prog, plan)
+    lines = out.split("\r\n")
+    assert lines[:5] == text.split("\r\n")[:5]
+    assert lines[5] == "N40 X10. F350."
+    assert lines[6] == "N50 Y10. F200."
+    assert read_text(out).toolpath.feed_mm_min.tolist()[1:] == [200.0, 350.0, 200.0]
+
+
+def test_write_atomic_leaves_no_partial_file(tmp_path):
+    target = tmp_path / "out.nc"
+    target.write_text("old")
+
+    class Boom(str):
+        pass
+
+    with pytest.raises(TypeError):
+        write_atomic(target, 123)  # type: ignore[arg-type]
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]
+    write_atomic(target, "new")
+    assert target.read_text() == "new"

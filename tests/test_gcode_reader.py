@@ -1,0 +1,135 @@
+"""The reader on hand-written programs: arcs against closed forms in every plane and style, modal
+rules, units, offsets, and clear refusals; plus a fuzz test (hypothesis): no input gives a traceback."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from millpost.cli import main
+from millpost.errors import ParseError
+from millpost.gcode import ReaderOptions, read_text
+from millpost.gcode.summary import summary
+
+
+def moves(text: str, **kw):
+    return read_text(text, "t.nc", ReaderOptions(**kw)).toolpath
+
+
+@pytest.mark.parametrize("plane,axes", [("G17", (0, 1, 2)), ("G18", (2, 0, 1)), ("G19", (1, 2, 0))])
+@pytest.mark.parametrize("g", ["G2", "G3"])
+@pytest.mark.parametrize("style", ["ijk", "r", "r_neg"])
+def test_half_and_three_quarter_arcs_each_plane(plane, axes, g, style):
+    a, b, n = axes
+    L = "XYZ"
+    ijk = "IJK"
+    r = 5.0
+    # start at first-axis = +r (around the origin), end at second-axis = ±r: a quarter or three quarters
+    start = {L[a]: r, L[b]: 0.0, L[n]: 0.0}
+    ccw = g == "G3"
+    end_b = r if (style != "r_neg") == ccw else -r
+    end = {L[a]: 0.0, L[b]: end_b, L[n]: 2.0}
+    if style == "ijk":
+        centre = f"{ijk[a]}{-r} {ijk[b]}0"
+    else:
+        centre = f"R{r if style == 'r' else -r}"
+    text = (f"G21 G90 {plane}\nG0 " + " ".join(f"{k}{v}" for k, v in start.items()) + "\n"
+            f"{g} " + " ".join(f"{k}{v}" for k, v in end.items()) + f" {centre} F100\nM2\n")
+    tp = moves(text)
+    quarter = (style != "r_neg") == (end_b * (1 if ccw else -1) > 0) if style != "ijk" else True
+    sweep = math.pi / 2 if (style != "r_neg") else 3 * math.pi / 2
+    if style == "ijk":
+        sweep = math.pi / 2 if (ccw == (end_b > 0)) else 3 * math.pi / 2
+    assert quarter or style == "r_neg"
+    assert tp.lengths()[1] == pytest.approx(math.hypot(r * sweep, 2.0), rel=1e-12)
+    np.testing.assert_allclose(tp.center[1][[a, b]], [0, 0], atol=1e-12)
+
+
+def test_full_circle_helix_inch_and_turns():
+    tp = moves("G20 G90 G17\nG0 X1 Y0 Z0\nG3 X1 Y0 Z-0.1 I-1 J0 P3 F10\nM2\n")
+    r, pitch = 25.4, 2.54
+    assert tp.lengths()[1] == pytest.approx(math.hypot(3 * 2 * math.pi * r, pitch), rel=1e-12)
+    np.testing.assert_allclose(tp.bbox(), [[-r, -r, -pitch], [r, r, 0]], atol=1e-9)
+    assert tp.feed_mm_min[1] == pytest.approx(254.0)
+
+
+def test_units_switch_mid_program_and_incremental():
+    tp = moves("G21 G90\nG0 X10 Y0 Z0\nG20 G91 G1 X1 F10\nG21 G90 G1 X0\nM2\n")
+    np.testing.assert_allclose(tp.end[:, 0], [10, 35.4, 0])
+    np.testing.assert_allclose(tp.feed_mm_min[1:], [254.0, 254.0])
+
+
+def test_g92_g52_offsets_and_work_offsets():
+    tp = moves("G21 G90\nG0 X10 Y10 Z5\nG92 X0 Y0\nG1 X5 F100\nG92.1\nG1 X0\nM2\n", work_offsets_mm={})
+    np.testing.assert_allclose(tp.end[:, 0], [10, 5, 0])
+
+
+def test_fusion_and_haas_z_retracts_go_to_safe_height_and_say_so():
+    prog = read_text("G21 G90\nG0 X0 Y0 Z15\nG1 Z-2 F300\nG28 G91 Z0.\nG90\nG53 G0 Z0.\nM30\n", "f.nc")
+    assert prog.toolpath.end[3:, 2].tolist() == [15.0, 15.0]  # after G28's intermediate point
+    assert any("G28" in n and "assumed" in n for n in prog.notes)
+    assert any("G53" in n and "assumed" in n for n in prog.notes)
+
+
+def test_inverse_time_and_per_rev_feeds():
+    tp = moves("G21 G90\nG0 X0 Y0 Z0\nG93 G1 X10 F6\nG94 S1000 M3\nG95 G1 X20 F0.1\nM2\n")
+    assert tp.feed_mm_min[1] == pytest.approx(60.0)  # 10 mm in 1/6 min
+    assert tp.feed_mm_min[2] == pytest.approx(100.0)  # 0.1 mm/rev at 1000 rpm
+
+
+@pytest.mark.parametrize("text,line,word,what", [
+    ("G21\nG1 X10 F100 G41 D1\n", 2, "G41", "cutter radius compensation"),
+    ("G21\nG0 A90\n", 2, "A90", "A axis motion"),
+    ("G21\nG68.2 X0 Y0 Z0 I0 J45 K0\n", 2, "G68.2", "tilted work plane"),
+    ("G21\nG43.4 H1\n", 2, "G43.4", "tool centre point"),
+    ("G21\nG1 X10\n", 2, "", "no feed rate"),
+    ("G21 G1 X1 F10\nG2 X5 Y5 I1 J0\n", 2, "I1", "radius to end of arc"),
+    ("G21\nG0 G1 X1\n", 2, "G1", "two G codes"),
+    ("G21\nG1 X1 X2 F1\n", 2, "X2", "appears twice"),
+    ("G21\nG1 X1 F10 $\n", 2, "$", "unexpected character"),
+])
+def test_refusals_name_line_word_and_expectation(text, line, word, what):
+    with pytest.raises(ParseError) as info:
+        read_text(text, "job.nc")
+    err = info.value
+    assert err.file == "job.nc" and err.line == line and what in str(err) and err.expected
+    if word:
+        assert err.word.upper() == word.upper()
+
+
+def test_cli_exit_code_and_message(tmp_path, capsys):
+    bad = tmp_path / "bad.nc"
+    bad.write_text("G21\nG1 X1 F10 G42\n")
+    assert main(["inspect", str(bad)]) == 2
+    assert f"{bad}:2:" in capsys.readouterr().err
+
+
+def test_inspect_summary_numbers():
+    prog = read_text("G21 G90 G17\nT3 M6\nS8000 M3\nG0 X0 Y0 Z5\nG1 Z0 F100\nG2 X10 Y0 I5 J0 F200\nG0 Z5\nM30\n")
+    s = summary(prog)
+    assert s["moves"] == {"rapid": 2, "feed": 1, "arc": 1}
+    assert s["feed_length_mm"] == pytest.approx(5 + 5 * math.pi)
+    np.testing.assert_allclose(s["bbox_mm"], [[0, 0, 0], [10, 5, 5]], atol=1e-12)
+    assert s["tools"] == [3] and s["spindle_rpm"] == [8000.0]
+    assert s["time_at_programmed_feed_s"] == pytest.approx(5 / 100 * 60 + 5 * math.pi / 200 * 60)
+
+
+_word = st.one_of(
+    st.tuples(st.sampled_from("GMXYZIJKRFSPQTLN"), st.floats(-1e4, 1e4, allow_nan=False)).map(
+        lambda t: f"{t[0]}{t[1]:.4g}"),
+    st.sampled_from(["(c)", ";x", "%", "/", "*12", "#1=2", "[1+2]", "#<a>", "o100 sub", "G91.1", "G90.1",
+                     "G83", "G81", "G80", "G17", "G18", "G19", "G20", "G21", "G92", "G28", "G53", "A0", "@1", "^30"]),
+    st.text(max_size=4))
+
+
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.lists(_word, max_size=6).map(" ".join), max_size=8))
+def test_fuzz_never_crashes(lines):
+    try:
+        read_text("\n".join(lines), "fuzz.nc")
+    except ParseError as err:
+        assert err.line >= 1

@@ -1,0 +1,99 @@
+"""Piecewise-constant feeds from a schedule: never above it, fragment and change bounds, and the
+split program replayed through the controller model exceeds no limit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_schedule import AMAX, VMAX, make_toolpath, pocket_toolpath
+
+from millpost.controller import ControllerModel, execute
+from millpost.schedule import (AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, path_blocks,
+                               schedule_samples)
+from millpost.schedule.feeds import emission_limit, piecewise_feeds, split_toolpath
+from millpost.schedule.rows import PathGrid
+
+
+def fragment_feed_at_samples(samples, fragments, tp):
+    """Programmed feed (mm/s) in force at every sample, found independently by arc-length position."""
+    L = tp.lengths()
+    out = np.full(len(samples), np.nan)
+    s0 = {}
+    for k in range(len(samples)):
+        m = samples.move[k]
+        s0.setdefault(m, samples.s_mm[k - 1] if k > 0 and not samples.segment_start[k] else samples.s_mm[k])
+    for k in range(len(samples)):
+        m = samples.move[k]
+        u = (samples.s_mm[k] - s0[m]) / L[m]
+        for f in fragments:
+            if f.move == m and f.u_start - 1e-9 <= u <= f.u_end + 1e-9:
+                out[k] = np.nanmin([out[k], f.feed_mm_min / 60.0])
+    return out
+
+
+def test_fragments_bound_the_limit_and_respect_length_and_count():
+    tp = make_toolpath((0, 0, 0), [("line", (40, 0, 0)), ("arc", (40, 20, 0), (40, 10, 0), True),
+                                   ("line", (35, 20, 0))])
+    smp = tp.resample(0.05)
+    rng = np.random.default_rng(5)
+    lim = 50 + 30 * np.sin(smp.s_mm / 3.0) + 5 * rng.random(len(smp))
+    frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, resolution_mm_min=1.0)
+    fed = fragment_feed_at_samples(smp, frs, tp)
+    assert np.all(fed <= lim + 1e-12)
+    L = tp.lengths()
+    for m in range(len(tp)):
+        mine = [f for f in frs if f.move == m]
+        assert len(mine) <= 1 + int(L[m] * 0.2)
+        lengths = [(f.u_end - f.u_start) * L[m] for f in mine]
+        assert min(lengths) >= min(2.0, L[m]) - 1e-9
+        assert sum(lengths) == pytest.approx(L[m])
+    # more freedom → closer to the limit: time Σ l/F approaches ∫ ds/limit
+    fine = piecewise_feeds(smp, lim, min_fragment_mm=0.05, max_changes_per_mm=100, resolution_mm_min=0.001)
+    t_fine = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in fine)
+    t_coarse = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in frs)
+    ideal = np.sum(np.diff(smp.s_mm) / np.minimum(lim[1:], lim[:-1]))
+    assert ideal * (1 - 1e-3) <= t_fine <= ideal * 1.02 < t_coarse
+
+
+def test_split_toolpath_keeps_geometry():
+    tp = make_toolpath((4, 0, 0), [("arc", (4, 0, -3), (0, 0, 0), True, 2), ("line", (10, 0, -3))])
+    smp = tp.resample(0.05)
+    lim = 40 + 20 * np.cos(smp.s_mm / 4.0)
+    frs = piecewise_feeds(smp, lim, min_fragment_mm=3.0, max_changes_per_mm=0.5)
+    sp = split_toolpath(tp, frs)
+    assert len(sp) == len(frs) > 2
+    assert sp.lengths().sum() == pytest.approx(tp.lengths().sum(), rel=1e-9)
+    np.testing.assert_allclose(sp.start[1:], sp.end[:-1], atol=1e-9)
+    assert set(sp.line) == set(tp.line)
+    # points of the split arcs stay on the helix radius
+    r = np.hypot(*sp.points(np.arange(len(sp)), np.full(len(sp), 0.5))[:, :2].T)
+    np.testing.assert_allclose(r[sp.kind >= 2], 4.0, rtol=1e-9)
+
+
+def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
+    tp = pocket_toolpath()
+    smp = tp.resample(0.05)
+    grid = PathGrid.from_samples(smp)
+    n = len(grid)
+    alpha = 1.0 + 0.8 * np.sin(grid.s_mm / 7.0) ** 2
+    force_cap = 160.0
+    limits = [FeedLimit(150.0), AxisVelocity(VMAX), AxisAcceleration(AMAX), Junction(AMAX, 0.01),
+              SpeedLoad(alpha, np.full(n, 5.0), force_cap, "force")]
+    ps = schedule_samples(smp, limits)
+    assert ps.ok
+    lim = emission_limit(smp, limits, ps)
+    assert np.all(lim[np.isfinite(lim)] >= ps.feed_mm_s[np.isfinite(lim)] - 1e-9)
+    frs = piecewise_feeds(smp, lim, min_fragment_mm=1.0, max_changes_per_mm=0.5)
+    sp = split_toolpath(tp, frs)
+    ctl = ControllerModel(VMAX, AMAX, junction_deviation_mm=0.01, lookahead_blocks=32)
+    ex = execute(sp, ctl)
+    v = ex.speed_at_samples(sp.resample(0.05))
+    # same sampling of the same geometry: compare loads at the controller's actual speed
+    v_on_orig = np.interp(smp.s_mm, sp.resample(0.05).s_mm, v)
+    force = alpha * v_on_orig + 5.0
+    assert force.max() <= force_cap * 1.005
+    assert v_on_orig.max() <= 150.0 * 1.005
+    # and the optimised program is faster than the best single constant feed meeting the force cap
+    best_const = (force_cap - 5.0) / alpha.max() * 60
+    base = execute(tp, ctl, np.full(len(tp), best_const))
+    assert ex.time_s < base.time_s
