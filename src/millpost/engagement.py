@@ -168,7 +168,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     reported engagement is thus the one the tool meets that distance later.
     smooth_steps: σ (in samples) of the zero-phase Gaussian low-pass applied to area and ae, which
     damps the cell-quantisation noise at a bandwidth tied to the step.
-    Rapids that would remove material raise MillpostError naming the source line.
+    Rapids that would remove material raise MillpostError naming the source line, except the
+    leading rapids before the first feed move, which start from an unknown position and are skipped.
     """
     n = len(samples)
     if slices < 1 or ring_samples < 4:
@@ -182,6 +183,11 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         fresh[0] = True
         fresh[1:] |= tool_no[1:] != tool_no[:-1]
     rapid = np.asarray(samples.kind) == RAPID
+    # the leading rapids start wherever the machine stands (the reader assumes a start point for the
+    # axes not yet programmed): they are neither cut nor checked; the path starts after them
+    skip = (int(np.argmax(~rapid)) if not rapid.all() else n) if n else 0
+    if skip < n:
+        fresh[skip] = True
     K, M = int(slices), int(ring_samples)
     nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
     s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
@@ -195,7 +201,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     show = sys.stderr.isatty() if progress is None else progress
     chunk = 50_000
     # runs of one tool, cut into chunks for the progress display
-    bounds = [0] + [int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1] + [n] if n else [0, 0]
+    bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
     runs = []
     for a, b in zip(bounds[:-1], bounds[1:]):
         t = tools.get(int(tool_no[a])) if tools is not None else tool

@@ -72,29 +72,22 @@ def _is_multi(c, has_multi, bits):
 
 
 @njit(cache=True)
-def _cut(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi):
-    """Cut column c down to zc; returns the removed length (mm)."""
-    t = top[c]
-    if zc >= t:
-        return 0.0
-    if _is_multi(c, has_multi, bits):
-        m = np.searchsorted(ids, c)
-        rem = 0.0
-        newtop = zf
-        found = False
-        for k in range(ptr[m], ptr[m + 1]):
-            if zc < hi[k]:
-                nh = max(zc, lo[k])
-                rem += hi[k] - nh
-                hi[k] = nh
-            if not found and hi[k] > lo[k]:
-                newtop = hi[k]
-                found = True
-        top[c] = newtop
-        return rem
-    nz = max(zc, zf)
-    top[c] = nz
-    return t - top[c]
+def _cut_multi(c, zc, top, zf, ids, ptr, lo, hi):
+    """Cut multi column c down to zc (shortening or emptying intervals); returns the removed length."""
+    m = np.searchsorted(ids, c)
+    rem = 0.0
+    newtop = zf
+    found = False
+    for k in range(ptr[m], ptr[m + 1]):
+        if zc < hi[k]:
+            nh = max(zc, lo[k])
+            rem += hi[k] - nh
+            hi[k] = nh
+        if not found and hi[k] > lo[k]:
+            newtop = hi[k]
+            found = True
+    top[c] = newtop
+    return rem
 
 
 @njit(cache=True)
@@ -186,7 +179,11 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
                 if zc >= t:
                     continue
                 if cut:
-                    r = _cut(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi)
+                    if _is_multi(c, has_multi, bits):
+                        r = _cut_multi(c, zc, top, zf, ids, ptr, lo, hi)
+                    else:
+                        top[c] = max(zc, zf)
+                        r = t - top[c]
                     if r > 0.0:
                         rem += r
                         ap = max(ap, t - pz)
@@ -196,15 +193,19 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
 
 
 @njit(cache=True)
-def _ring_cells(cx, cy, fx, fy, r, M, dphi, x0, y0, h, nx, ny, bilinear, cells, wts):
-    """Columns (and bilinear weights) under M + 1 ring points at immersion φ_i = i·dphi."""
+def _ring_cells(cx, cy, fx, fy, r, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts):
+    """Columns (and bilinear weights) under M + 1 ring points at immersion φ_i (sin/cos tables)."""
     for i in range(M + 1):
-        _point_cells(cx, cy, fx, fy, r, i * dphi, x0, y0, h, nx, ny, bilinear, cells, wts, i)
+        _point_cells_sc(cx, cy, fx, fy, r, sin_t[i], cos_t[i], x0, y0, h, nx, ny, bilinear, cells, wts, i)
 
 
 @njit(cache=True, inline="always")
 def _point_cells(cx, cy, fx, fy, r, phi, x0, y0, h, nx, ny, bilinear, cells, wts, i):
-    s, c = math.sin(phi), math.cos(phi)
+    _point_cells_sc(cx, cy, fx, fy, r, math.sin(phi), math.cos(phi), x0, y0, h, nx, ny, bilinear, cells, wts, i)
+
+
+@njit(cache=True, inline="always")
+def _point_cells_sc(cx, cy, fx, fy, r, s, c, x0, y0, h, nx, ny, bilinear, cells, wts, i):
     # x = feed (fx, fy), y = left normal (-fy, fx); point = centre + r (sin φ x + cos φ y)
     px = cx + r * (s * fx - c * fy)
     py = cy + r * (s * fy + c * fx)
@@ -230,6 +231,14 @@ def _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, id
     if not bilinear:
         return _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
     wx, wy = wts[i, 0], wts[i, 1]
+    if not has_multi:  # bilinear height field, then the slice's share of [z_floor, H]
+        c0, c1, c2, c3 = cells[i, 0], cells[i, 1], cells[i, 2], cells[i, 3]
+        v0 = top[c0] if c0 >= 0 else zf
+        v1 = top[c1] if c1 >= 0 else zf
+        v2 = top[c2] if c2 >= 0 else zf
+        v3 = top[c3] if c3 >= 0 else zf
+        H = (1 - wy) * ((1 - wx) * v0 + wx * v1) + wy * ((1 - wx) * v2 + wx * v3)
+        return max(min(H, zb) - max(zf, za), 0.0)
     m00 = _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
     m10 = _material(cells[i, 1], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
     m01 = _material(cells[i, 2], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
@@ -252,6 +261,232 @@ def _bisect(a, b, a_on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bili
     return 0.5 * (a + b)
 
 
+@njit(cache=True, inline="always")
+def _clip(lo, hi, a, b):
+    """Narrow [lo, hi] to the x with a·x + b >= 0."""
+    if a > 1e-15:
+        return max(lo, -b / a), hi
+    if a < -1e-15:
+        return lo, min(hi, -b / a)
+    if b < 0.0:
+        return 1.0, 0.0
+    return lo, hi
+
+
+BAND, WEDGE, CAP = 0, 1, 2
+
+
+@njit(cache=True)
+def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
+            has_multi, bits, ids, ptr, lo, hi, tol):
+    """Cut (or check) the part of a level tool sweep at height pz (tip) that one step adds.
+
+    BAND: the straight sweep from q along unit f for Ls mm, columns whose foot on the segment lies
+    inside it, cut to the tool surface at their lateral distance (exact for a level move).
+    WEDGE: at a joint q between a previous direction e and the new f, the columns within R of q
+    beyond the previous sweep's end and before the new one's start.
+    CAP: the front half disk at q (f forward), where a run of level steps ends.
+    Returns (removed length sum, deepest cut below the old top, crash) in mm.
+    """
+    rem = 0.0
+    ap = 0.0
+    ylo = qy - R
+    yhi = qy + R
+    if kind == BAND:
+        ylo = min(qy, qy + Ls * fy) - R
+        yhi = max(qy, qy + Ls * fy) + R
+    j0 = max(0, int(math.ceil((ylo - y0) / h - 0.5)))
+    j1 = min(ny - 1, int(math.floor((yhi - y0) / h - 0.5)))
+    for j in range(j0, j1 + 1):
+        yc = y0 + (j + 0.5) * h
+        dy = yc - qy
+        xl, xh = -1e300, 1e300
+        if kind == BAND:
+            # 0 <= (c - q)·f <= Ls and -R <= (c - q)×f <= R
+            xl, xh = _clip(xl, xh, fx, dy * fy - qx * fx)
+            xl, xh = _clip(xl, xh, -fx, Ls - dy * fy + qx * fx)
+            xl, xh = _clip(xl, xh, -fy, R + dy * fx + qx * fy)
+            xl, xh = _clip(xl, xh, fy, R - dy * fx - qx * fy)
+        else:
+            w2 = R * R - dy * dy
+            if w2 < 0.0:
+                continue
+            w = math.sqrt(w2)
+            xl, xh = qx - w, qx + w
+            if kind == WEDGE:
+                xl, xh = _clip(xl, xh, ex, dy * ey - qx * ex)  # (c - q)·e >= 0
+                xl, xh = _clip(xl, xh, -fx, -dy * fy + qx * fx)  # (c - q)·f <= 0
+            else:
+                xl, xh = _clip(xl, xh, fx, dy * fy - qx * fx)
+        if xl > xh:
+            continue
+        i0 = max(0, int(math.ceil((xl - x0) / h - 0.5)))
+        i1 = min(nx - 1, int(math.floor((xh - x0) / h - 0.5)))
+        row = j * nx
+        for i in range(i0, i1 + 1):
+            dx = x0 + (i + 0.5) * h - qx
+            if kind == BAND:
+                d = abs(dy * fx - dx * fy)
+            else:
+                d = math.sqrt(dx * dx + dy * dy)
+            if d > R:
+                continue
+            zc = pz + surface_height(d, shape, R, rc, r_tip, tan_half)
+            c = row + i
+            t = top[c]
+            if zc >= t:
+                continue
+            if cut:
+                if _is_multi(c, has_multi, bits):
+                    r = _cut_multi(c, zc, top, zf, ids, ptr, lo, hi)
+                else:
+                    top[c] = max(zc, zf)
+                    r = t - top[c]
+                if r > 0.0:
+                    rem += r
+                    ap = max(ap, t - pz)
+            elif _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi) > tol:
+                return rem, ap, True
+    return rem, ap, False
+
+
+@njit(cache=True)
+def _level_step(k, n, xyz, fresh, shape):
+    """Step k is a level, horizontal move of a non-flat tool (swept as bands, wedges and caps)."""
+    if k < 1 or k >= n or fresh[k] or shape == FLAT:
+        return False
+    dx, dy = xyz[k, 0] - xyz[k - 1, 0], xyz[k, 1] - xyz[k - 1, 1]
+    return abs(xyz[k, 2] - xyz[k - 1, 2]) <= 1e-9 and dx * dx + dy * dy > 1e-24
+
+
+@njit(cache=True)
+def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, cells, wts, pc, pw, mat, g,
+                bilinear, grid, phi_st, phi_ex, dz, arc):
+    """One axial slice with its own ring (cells already placed): outermost engaged arc refined by
+    bisection, engaged measure, and its swept cross-section ∫ sin φ g(φ) dφ, g = r·(material in the
+    slice) on a vertical flank, else the slice's ∫ r dz where engaged (the column at the mid radius
+    does not measure material at the other heights of a sloped edge). Returns (area, ae)."""
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
+    zb = za + dzs
+    half = 0.5 * dzs
+    dphi = math.pi / M
+    area = 0.0
+    i_s, i_e, n_on = -1, -1, 0
+    mmax = 0.0
+    for i in range(M + 1):
+        m = _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi)
+        on = m > half
+        mat[i] = m
+        g[i] = r * m if flank else (rint if on else 0.0)
+        if i > 0:
+            area += 0.5 * dphi * (sin_t[i - 1] * g[i - 1] + sin_t[i] * g[i])
+        if on:
+            n_on += 1
+            mmax = max(mmax, m)
+            if i_s < 0:
+                i_s = i
+            i_e = i
+    if i_s < 0:
+        return area, 0.0
+    st, ex = _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid)
+    area += _split(i_s, i_e, M, st, ex, g, sin_t, cos_t)
+    phi_st[k, s] = st
+    phi_ex[k, s] = ex
+    dz[k, s] = mmax
+    arc[k, s] = ex - st - dphi * ((i_e - i_s + 1) - n_on)
+    return area, r * (math.cos(st) - math.cos(ex))
+
+
+@njit(cache=True)
+def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs,
+                bilinear, grid, phi_st, phi_ex, dz, arc):
+    """Slices s0..K-1 on the vertical flank (radius R) of single-interval stock, from one ring of
+    column tops H(φ): slice s is engaged where H > its mid-height, so the engaged sets are nested
+    and one pass finds every slice's coarse ends. Returns (area, ae)."""
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
+    dphi = math.pi / M
+    zbase = pz + s0 * dzs
+    nk = K - s0
+    T = nk * dzs
+    area = 0.0
+    hmax = -1e300
+    for i in range(M + 1):
+        if bilinear:
+            wx, wy = wts[i, 0], wts[i, 1]
+            c0, c1, c2, c3 = cells[i, 0], cells[i, 1], cells[i, 2], cells[i, 3]
+            v0 = top[c0] if c0 >= 0 else zf
+            v1 = top[c1] if c1 >= 0 else zf
+            v2 = top[c2] if c2 >= 0 else zf
+            v3 = top[c3] if c3 >= 0 else zf
+            Hi = (1 - wy) * ((1 - wx) * v0 + wx * v1) + wy * ((1 - wx) * v2 + wx * v3)
+        else:
+            c = cells[i, 0]
+            Hi = top[c] if c >= 0 else zf
+        H[i] = Hi
+        hmax = max(hmax, Hi)
+        cnt[i] = min(max(int(math.floor((Hi - zbase) / dzs + 0.5)), 0), nk)
+        m = min(max(Hi - max(zbase, zf), 0.0), T)
+        if i > 0:
+            area += 0.5 * dphi * R * (sin_t[i - 1] * min(max(H[i - 1] - max(zbase, zf), 0.0), T) + sin_t[i] * m)
+    first, last = 0, M
+    ae = 0.0
+    for j in range(nk):
+        while first <= last and cnt[first] <= j:
+            first += 1
+        while last >= first and cnt[last] <= j:
+            last -= 1
+        if first > last:
+            break
+        s = s0 + j
+        za = zbase + j * dzs
+        zb = za + dzs
+        st, ex = _ends(first, last, M, cx, cy, fx, fy, R, za, zb, 0.5 * dzs, pc, pw, bilinear, grid)
+        # this slice's share of the trapezoid in the two end intervals, replaced by the exact split
+        for i in (first - 1, first, last, last + 1):
+            if 0 <= i <= M:
+                gs[i] = R * min(max(H[i] - max(za, zf), 0.0), dzs)
+        area += _split(first, last, M, st, ex, gs, sin_t, cos_t)
+        off = 0
+        for i in range(first, last + 1):
+            off += cnt[i] <= j
+        phi_st[k, s] = st
+        phi_ex[k, s] = ex
+        dz[k, s] = min(max(hmax - za, 0.0), dzs)
+        arc[k, s] = ex - st - dphi * off
+        ae = max(ae, R * (math.cos(st) - math.cos(ex)))
+    return area, ae
+
+
+@njit(cache=True)
+def _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid):
+    """Outer ends of the engaged arc from the first/last engaged coarse samples, by bisection."""
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
+    dphi = math.pi / M
+    st = 0.0 if i_s == 0 else _bisect((i_s - 1) * dphi, i_s * dphi, False, cx, cy, fx, fy, r, za, zb, half, x0,
+                                      y0, h, nx, ny, bilinear, pc, pw, top, zf, has_multi, bits, ids, ptr, lo, hi)
+    ex = math.pi if i_e == M else _bisect(i_e * dphi, (i_e + 1) * dphi, True, cx, cy, fx, fy, r, za, zb, half,
+                                          x0, y0, h, nx, ny, bilinear, pc, pw, top, zf, has_multi, bits, ids,
+                                          ptr, lo, hi)
+    return st, ex
+
+
+@njit(cache=True)
+def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
+    """Area correction for the two end intervals: the trapezoid of g·sin φ there is replaced by g
+    of the off sample before st / after ex and of the on sample inside, integrated exactly."""
+    dphi = math.pi / M
+    d = 0.0
+    if i_s > 0:
+        i = i_s - 1
+        d += (g[i] * (cos_t[i] - math.cos(st)) + g[i + 1] * (math.cos(st) - cos_t[i + 1])
+              - 0.5 * dphi * (sin_t[i] * g[i] + sin_t[i + 1] * g[i + 1]))
+    if i_e < M:
+        i = i_e
+        d += (g[i] * (cos_t[i] - math.cos(ex)) + g[i + 1] * (math.cos(ex) - cos_t[i + 1])
+              - 0.5 * dphi * (sin_t[i] * g[i] + sin_t[i + 1] * g[i + 1]))
+    return d
+
+
 @njit(cache=True)
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
@@ -261,12 +496,15 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
     of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place)."""
     dphi = math.pi / M
+    sin_t = np.sin(np.arange(M + 1) * dphi)
+    cos_t = np.cos(np.arange(M + 1) * dphi)
     cells = np.empty((M + 1, 4), np.int64)
     wts = np.empty((M + 1, 2), np.float64)
     pc = np.empty((1, 4), np.int64)
     pw = np.empty((1, 2), np.float64)
     mat = np.empty(M + 1, np.float64)
     g = np.empty(M + 1, np.float64)
+    cnt = np.empty(M + 1, np.int64)
     fx, fy = prev_f[0], prev_f[1]
     for k in range(k0, k1):
         px, py, pz = xyz[k, 0], xyz[k, 1], xyz[k, 2]
@@ -289,8 +527,26 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         gx, gy = ring_at[k, 2], ring_at[k, 3]
         feed_o[k, 0], feed_o[k, 1] = gx, gy
         desc_o[k] = descending
-        rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
-                                    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
+        n = xyz.shape[0]
+        if _level_step(k, n, xyz, fresh, shape):
+            # the level sweep of this step: its band, the wedge at its start (when the previous
+            # step was a band of the same kind), and its front cap when no such band follows
+            args = (R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
+                    crash_tol)
+            rem, ap, crash = _region(BAND, qx, qy, pz, 0.0, 0.0, fx, fy, dxy, not rapid[k], *args)
+            if not crash and _level_step(k - 1, n, xyz, fresh, shape) and rapid[k - 1] == rapid[k]:
+                ex, ey = xyz[k - 1, 0] - xyz[k - 2, 0], xyz[k - 1, 1] - xyz[k - 2, 1]
+                le = math.sqrt(ex * ex + ey * ey)
+                r2, a2, crash = _region(WEDGE, qx, qy, pz, ex / le, ey / le, fx, fy, 0.0, not rapid[k], *args)
+                rem += r2
+                ap = max(ap, a2)
+            if not crash and not (_level_step(k + 1, n, xyz, fresh, shape) and rapid[k + 1] == rapid[k]):
+                r2, a2, crash = _region(CAP, px, py, pz, 0.0, 0.0, fx, fy, 0.0, not rapid[k], *args)
+                rem += r2
+                ap = max(ap, a2)
+        else:
+            rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
+                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
         if crash:
             prev_f[0], prev_f[1] = fx, fy
             return k
@@ -304,65 +560,29 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         cx, cy = ring_at[k, 0], ring_at[k, 1]
         area = 0.0
         ae = 0.0
-        r_prev = -1.0
+        # slices on the vertical flank (r = R) share one ring; below it each slice has its own
+        s0 = K
+        while s0 > 0 and profile_radius((s0 - 1) * dzs, shape, R, rc, r_tip, tan_half) == R:
+            s0 -= 1
         for s in range(K):
-            zm = (s + 0.5) * dzs
-            r = profile_radius(zm, shape, R, rc, r_tip, tan_half)
-            zmid[k, s] = zm
-            rad[k, s] = r
-            if r != r_prev:
-                _ring_cells(cx, cy, gx, gy, r, M, dphi, x0, y0, h, nx, ny, bilinear, cells, wts)
-                r_prev = r
-            za, zb = pz + s * dzs, pz + (s + 1) * dzs
-            half = 0.5 * dzs
-            # swept cross-section weight g(φ): on a vertical flank r·(material in the slice); on a
-            # curved flank the slice's ∫ r dz where the slice is engaged (the column at the mid
-            # radius does not measure material at the other heights of a sloped edge)
-            flank = profile_radius(s * dzs, shape, R, rc, r_tip, tan_half) == R
-            rint = _profile_integral(s * dzs, (s + 1) * dzs, shape, R, rc, r_tip, tan_half)
-            mmax = 0.0
-            for i in range(M + 1):
-                mat[i] = _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi)
-                if flank:
-                    g[i] = r * mat[i]
-                else:
-                    g[i] = rint if mat[i] > half else 0.0
-            st = np.nan
-            ex = np.nan
-            a_s = 0.0
-            for i in range(M + 1):
-                on = mat[i] > half
-                if on:
-                    mmax = max(mmax, mat[i])
-                    if i == 0:
-                        st = 0.0
-                    if i == M:
-                        ex = math.pi
-                if i == M:
-                    break
-                a, b = i * dphi, (i + 1) * dphi
-                on_b = mat[i + 1] > half
-                if on == on_b:
-                    area += 0.5 * dphi * (math.sin(a) * g[i] + math.sin(b) * g[i + 1])
-                    if on:
-                        a_s += dphi
-                    continue
-                t = _bisect(a, b, on, cx, cy, gx, gy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
-                            top, zf, has_multi, bits, ids, ptr, lo, hi)
-                area += g[i] * (math.cos(a) - math.cos(t)) + g[i + 1] * (math.cos(t) - math.cos(b))
-                if on:
-                    a_s += t - a
-                    ex = t
-                else:
-                    a_s += b - t
-                    if math.isnan(st):
-                        st = t
-            if not math.isnan(st):
-                phi_st[k, s] = st
-                phi_ex[k, s] = ex
-                dz[k, s] = mmax
-                arc[k, s] = a_s
-                ae = max(ae, r * (math.cos(st) - math.cos(ex)))
+            zmid[k, s] = (s + 0.5) * dzs
+            rad[k, s] = profile_radius((s + 0.5) * dzs, shape, R, rc, r_tip, tan_half)
+        grid = (top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi)
+        for s in range(s0 if not has_multi else K):
+            r = rad[k, s]
+            _ring_cells(cx, cy, gx, gy, r, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
+            flank = s >= s0
+            rint = r * dzs if flank else _profile_integral(s * dzs, (s + 1) * dzs, shape, R, rc, r_tip, tan_half)
+            da, de = _ring_slice(k, s, cx, cy, gx, gy, r, pz + s * dzs, dzs, flank, rint, M, sin_t, cos_t,
+                                 cells, wts, pc, pw, mat, g, bilinear, grid, phi_st, phi_ex, dz, arc)
+            area += da
+            ae = max(ae, de)
+        if s0 < K and not has_multi:
+            _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
+            da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw,
+                                 mat, cnt, g, bilinear, grid, phi_st, phi_ex, dz, arc)
+            area += da
+            ae = max(ae, de)
         ae_o[k] = ae
         if descending:
             area_o[k] = vol_o[k] / step
