@@ -237,18 +237,19 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
             rr, cc, vv, h = remap[rr[keep]], cc[keep], vv[keep], h[sel]
         _add_normalised_le(prob, rr, cc, vv, h)
 
-    # step rows: |e_{i+1} − e_i| ≤ bound_i
+    # step rows: ±(e_{i+1} − e_i) + kb·b_{i+1} ≤ rhs (tangent of the rate bound at v0)
     for blk in steps:
-        bound = blk.bound(grid, b_hi)  # (M, n−2)
-        M = blk.u.shape[0]
         if n < 3:
             continue
+        kb, rhs = blk.linearised(grid, v0)  # (M, n−2)
+        M = blk.u.shape[0]
         i = np.tile(np.arange(n - 2), M)
         mrow = np.repeat(np.arange(M), n - 2)
         r1, c1, v1 = _expr(lay, ds, i + 1, blk.u[mrow, i + 1], blk.w[mrow, i + 1])
         r0, c0_, v0_ = _expr(lay, ds, i, blk.u[mrow, i], blk.w[mrow, i])
+        rb, cb, vb = _expr(lay, ds, i + 1, np.zeros(len(i)), kb.ravel())
         rr, cc, vv = np.r_[r1, r0], np.r_[c1, c0_], np.r_[v1, -v0_]
-        h = bound.ravel()
-        _add_normalised_le(prob, rr, cc, vv, h)
-        _add_normalised_le(prob, rr, cc, -vv, h)
+        h = rhs.ravel()
+        _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[vv, vb], h)
+        _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[-vv, vb], h)
     return prob, lay

@@ -21,14 +21,15 @@ import numpy as np
 from millpost.schedule.assemble import build, linear_rows, merged_bounds, soft_floor
 from millpost.schedule.problem import SolverOptions, Status
 from millpost.schedule.reach import Reach, reach, traversal_time
-from millpost.schedule.rows import Block, LocalRows, PathGrid, StepRows
+from millpost.schedule.rows import Block, LocalRows, PathGrid, SpeedBounds, StepRows
 from millpost.toolpath import RAPID, Samples
 
 
 @dataclass
 class ScheduleOptions:
     """window/overlap in samples; segments up to `monolithic_max` samples are solved in one piece.
-    `relinearize`: extra solves re-taking the tangent of non-convex √b terms at the last solution.
+    `relinearize`: extra solves re-taking the tangents (√b terms of LocalRows, 1/√b of StepRows)
+    at the last solution (speeds below 5 % of the top speed keep the tangent there).
     `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length).
     Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
     normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it."""
@@ -146,7 +147,7 @@ def _excess(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray) -
             val = float(blk.excess(b, a).max()) if len(b) else 0.0
         elif isinstance(blk, StepRows):
             val = float(blk.excess(grid, b, a).max()) if len(b) > 2 else 0.0
-        elif hasattr(blk, "b_hi"):
+        elif isinstance(blk, SpeedBounds):
             with np.errstate(divide="ignore", invalid="ignore"):
                 r = np.sqrt(np.maximum(b, 0)) / np.sqrt(blk.b_hi) - 1
             val = float(np.nanmax(np.where(blk.b_hi > 0, r, np.where(b > 0, np.inf, -1.0))))
@@ -164,7 +165,7 @@ def _binding(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray, 
     for blk in blocks:
         if isinstance(blk, LocalRows):
             e = blk.excess(b, a)
-        elif hasattr(blk, "b_hi"):
+        elif isinstance(blk, SpeedBounds):
             with np.errstate(divide="ignore", invalid="ignore"):
                 e = np.where(blk.b_hi > 0, np.sqrt(np.maximum(b, 0) / blk.b_hi) - 1, -np.inf)
         else:
@@ -189,7 +190,7 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
     vref = float(np.sqrt(b_hi.max())) or 1.0
     has_steps = any(isinstance(blk, StepRows) for blk in blocks)
     nfix = 2 if has_steps else 1
-    nonconvex = any(isinstance(blk, LocalRows) and (blk.g > 0).any() for blk in blocks)
+    nonconvex = has_steps or any(isinstance(blk, LocalRows) and (blk.g > 0).any() for blk in blocks)
     v0 = np.sqrt(np.maximum(b_hi, 1e-12))
     t0 = time.perf_counter()
     secs, windows = 0.0, 0
@@ -245,7 +246,7 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
         result_b = np.concatenate(chunks_b)
         result_slack = slack
         if it < (opts.relinearize if nonconvex else 0):
-            v0 = np.maximum(np.sqrt(result_b), 1e-3 * vref)
+            v0 = np.maximum(np.sqrt(result_b), 0.05 * vref)
     if result_b is None:
         b, status = rc.b, Status.FALLBACK
         floor_unmet = soft_floor(blocks, n) > b * (1 + 1e-6) + 1e-9
