@@ -446,3 +446,29 @@ def test_jerk_limited_line_matches_closed_form():
     assert sch.status == Status.SOLVED
     assert sch.time_s == pytest.approx(expect, rel=2e-5)
     assert sch.excess["jerk"] <= 1e-6
+
+
+def test_certified_reach_profile_is_bracketed_by_the_socp_optimum():
+    """Where the O(N) profile is accepted, its proven gap must hold against the SOCP optimum."""
+    from millpost.schedule.certify import certified_reach
+    from millpost.schedule.reach import traversal_time
+    rng = np.random.default_rng(99)
+    checked = exact = 0
+    for _ in range(200):
+        smp, grid, limits, kw = random_case(rng)
+        blocks = path_blocks(grid, limits)
+        cert = certified_reach(grid, blocks)
+        if cert is None:
+            continue
+        b, gap = cert
+        socp = solve_path(grid, blocks, ScheduleOptions(certify_gap=0, solver=SolverOptions(tol=1e-9)))
+        assert socp.status.ok
+        t = traversal_time(grid.ds, b)
+        # 1e-5: time recomputed from the SOCP's b (b_0 ≈ 1e-8, not 0) is that accurate
+        assert t >= socp.time_s * (1 - 1e-5)
+        assert t <= socp.time_s * (1 + gap) * (1 + 1e-5)
+        r = check_limits(grid.tangent, grid.curvature, grid.s_mm, b, **kw)
+        assert max(r.values()) <= 1 + 1e-9
+        checked += 1
+        exact += gap == 0
+    assert checked > 50 and exact > 10

@@ -45,8 +45,10 @@ def linear_rows(blocks: list[Block], b_hi: np.ndarray, v0: np.ndarray, *, convex
         z = np.zeros((0, len(b_hi)))
         return z, z, z, z
     U = np.concatenate([r.u for r in rows])
-    U = np.where(np.abs(U) < 1e-12 * np.abs(U).max(initial=0.0), 0.0, U)  # round-off of unit tangents
     W = np.concatenate([r.w for r in rows]).astype(float, copy=True)
+    # round-off of unit tangents (cos 90° = 6e-17) would give rows with absurd right-hand sides
+    U = np.where(np.abs(U) < 1e-12 * np.abs(U).max(initial=0.0), 0.0, U)
+    W = np.where(np.abs(W) < 1e-12 * np.abs(W).max(initial=0.0), 0.0, W)
     G = np.concatenate([r.g for r in rows]).astype(float, copy=True)
     H = np.concatenate([r.h for r in rows]).astype(float, copy=True)
     pos = G > 0
@@ -123,12 +125,13 @@ def _expr(lay: Layout, ds: np.ndarray, idx: np.ndarray, u: np.ndarray, w: np.nda
 
 
 def _add_normalised_le(prob: ConicProblem, rows, cols, vals, h: np.ndarray) -> None:
-    """Append A x ≤ h after dividing each row by its largest |coefficient| (drops all-zero rows
-    whose bound holds)."""
+    """Append A x ≤ h after dividing each row by its largest |coefficient|. Drops rows that cannot
+    bind: all-zero rows whose bound holds, and rows whose normalised bound exceeds 1e6 (the scaled
+    variables are O(1))."""
     A = sp.csr_matrix((vals, (rows, cols)), shape=(len(h), prob.n))
-    scale = np.asarray(abs(A).max(axis=1).todense()).ravel()
-    keep = (scale > 0) | (h < 0)
-    scale = np.where(scale > 0, scale, 1.0)
+    rowmax = np.asarray(abs(A).max(axis=1).todense()).ravel()
+    scale = np.where(rowmax > 0, rowmax, 1.0)
+    keep = (h / scale < 1e6) & ((rowmax > 0) | (h < 0))
     D = sp.diags(1.0 / scale)
     prob.add_le((D @ A)[keep], (h / scale)[keep])
 

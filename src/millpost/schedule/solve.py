@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from millpost.schedule.assemble import build, linear_rows, merged_bounds, soft_floor
+from millpost.schedule.certify import certified_reach
 from millpost.schedule.problem import SolverOptions, Status
 from millpost.schedule.reach import Reach, reach, traversal_time
 from millpost.schedule.rows import Block, LocalRows, PathGrid, SpeedBounds, StepRows
@@ -31,6 +32,8 @@ class ScheduleOptions:
     `relinearize`: extra solves re-taking the tangents (√b terms of LocalRows, 1/√b of StepRows)
     at the last solution (speeds below 5 % of the top speed keep the tangent there).
     `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length).
+    `certify_gap`: accept the O(N) reachability profile without a conic solve when it is provably
+    within this relative time of the optimum (certify.py; 0 always solves the SOCP).
     Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
     normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it."""
 
@@ -41,6 +44,7 @@ class ScheduleOptions:
     relinearize: int = 1
     floor_penalty: float = 10.0
     max_residual: float = 1e-6
+    certify_gap: float = 1e-6
     solver: SolverOptions = field(default_factory=lambda: SolverOptions(iterative_refinement=False))
 
 
@@ -52,6 +56,7 @@ class Schedule:
     not even that exists, then b is zero and `message` says why). floor_unmet: samples where a soft
     floor could not be met. excess: {block name: worst (value − bound)/bound over the samples}.
     binding: per sample the name of the tightest limit ('' when none within 1e-3).
+    method/gap_bound: how it was solved and, for the reachability profile, the proven gap.
     """
 
     b: np.ndarray
@@ -64,6 +69,8 @@ class Schedule:
     binding: np.ndarray = field(default_factory=lambda: np.zeros(0, object))
     solver_s: float = 0.0
     windows: int = 0
+    method: str = "socp"  # or "reach": the certified O(N) profile
+    gap_bound: float = float("nan")  # proven bound on (time − optimum)/optimum when method is reach
 
     @property
     def feed_mm_s(self) -> np.ndarray:
@@ -79,10 +86,19 @@ def _solve_window(grid: PathGrid, blocks: list[Block], v0: np.ndarray, vref: flo
                   b_fixed_end: np.ndarray | None = None):
     prob, lay = build(grid, blocks, b_fixed_start=b_fixed_start, b_end=b_end, v0=v0, vref=vref, aref=aref,
                       floor_penalty=opts.floor_penalty, b_fixed_end=b_fixed_end)
-    sol = prob.solve(opts.solver)
-    if sol.status.ok and sol.primal_residual > opts.max_residual and not opts.solver.iterative_refinement:
-        sol = prob.solve(dataclasses.replace(opts.solver, iterative_refinement=True))
-    if not sol.status.ok:
+    # retries: iterative refinement on, then a 10× looser tolerance (Clarabel occasionally stops with
+    # InsufficientProgress on long windows; notes/SCHEDULE-PROTOTYPE.md pitfall 2)
+    attempts = [opts.solver, dataclasses.replace(opts.solver, iterative_refinement=True),
+                dataclasses.replace(opts.solver, iterative_refinement=True, tol=opts.solver.tol * 10,
+                                    tol_ktratio=opts.solver.tol_ktratio * 10)]
+    secs = 0.0
+    for settings in attempts:
+        sol = prob.solve(settings)
+        secs += sol.solve_s
+        if sol.status == Status.INFEASIBLE or (sol.status.ok and sol.primal_residual <= opts.max_residual):
+            break
+    sol.solve_s = secs
+    if not sol.status.ok or sol.primal_residual > opts.max_residual:
         return None, None, sol
     return lay.b(sol.x), lay.slack(sol.x), sol
 
@@ -187,6 +203,15 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
     b_lo, b_hi = merged_bounds(blocks, n)
     if not np.isfinite(b_hi).all():
         raise ValueError("every sample needs a finite speed cap (add a FeedLimit)")
+    if opts.certify_gap > 0 and b_start == 0 and b_end == 0:
+        t0 = time.perf_counter()
+        cert = certified_reach(grid, blocks)
+        if cert is not None and cert[1] <= opts.certify_gap:
+            b = cert[0]
+            a = np.diff(b) / (2 * ds)
+            return Schedule(b, a, Status.SOLVED, traversal_time(ds, b), "", np.zeros(n, bool),
+                            _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), time.perf_counter() - t0, 0,
+                            "reach", cert[1])
     vref = float(np.sqrt(b_hi.max())) or 1.0
     has_steps = any(isinstance(blk, StepRows) for blk in blocks)
     nfix = 2 if has_steps else 1
@@ -223,8 +248,11 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
                 lo, hi = cuts[k], cuts[k + 1] + 1
                 first = rc.b[lo:lo + nfix] if k > 0 else np.array([b_start])
                 last = rc.b[hi - nfix:hi] if k < len(cuts) - 2 else np.full(1, b_end)
+                # controllable sets toward this chunk's own end (b fixed at an anchor, not free ≤ K)
+                rk = reach(ds[lo:hi - 1], b_lo[lo:hi], b_hi[lo:hi], U[:, lo:hi], Wm[:, lo:hi], H[:, lo:hi],
+                           b_start=float(first[-1]), b_end_max=float(last[-1]), b_end_min=float(last[-1]))
                 jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
-                             rc.k_lo[lo:hi], rc.k_hi[lo:hi], first, last, nfix))
+                             rk.k_lo, rk.k_hi, first, last, nfix))
             if opts.processes > 1 and len(jobs) > 1:
                 ctx = multiprocessing.get_context("fork")
                 with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
