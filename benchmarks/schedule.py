@@ -7,11 +7,13 @@ and an engagement-like force load capping the feed between ~85 and 150 mm/s.
 
 Per size: `seconds` and `peak_rss_mb` of the production solve (windows of 2000 samples, overlap
 200, 2 processes, chunks cut at cruise anchors); `gap_vs_monolithic` = T_windowed/T_monolithic − 1
-(monolithic only up to --mono-max samples); `time_ratio_vs_toppra` = our traversal time / toppra's
+(monolithic only up to --mono-max samples, default 150 000); `time_ratio_vs_toppra` = our traversal time / toppra's
 (velocity + acceleration limits only, same grid, collocation); `time_ratio_vs_grbl_planner` = our
 time / the grbl-like controller model's time for the program at the max feed with the same axis
 limits and junction deviation (velocity + acceleration + junction only, so both know the same
-limits; the controller model is not itself constrained by the discrete axis-acceleration model).
+limits; the controller model is not itself constrained by the discrete axis-acceleration model:
+grbl-style junction deviation on arc chords has no centripetal limit, so > 1 is expected).
+`certified_reach_*`: the O(N) reachability profile with its proven gap bound (certify.py).
 
 Usage: python benchmarks/schedule.py [--sizes 10000 100000 1000000] [--mono-max 100000]
 """
@@ -94,6 +96,8 @@ def one(size: int, mono_max: int) -> dict:
 
     from millpost.controller import ControllerModel, execute
     from millpost.schedule import PathGrid, ScheduleOptions, path_blocks, solve_path
+    from millpost.schedule.certify import certified_reach
+    from millpost.schedule.reach import traversal_time
 
     tp, smp = program(size)
     grid = PathGrid.from_samples(smp)
@@ -104,8 +108,15 @@ def one(size: int, mono_max: int) -> dict:
     sch = solve_path(grid, blocks, opts)
     seconds = time.perf_counter() - t0
     row = {"samples": len(grid), "ds_mm": float(np.mean(grid.ds)), "seconds": round(seconds, 3),
-           "peak_rss_mb": round(rss_mb(), 1), "status": sch.status.value, "windows": sch.windows,
-           "time_s": sch.time_s, "max_excess": max(sch.excess.values())}
+           "peak_rss_mb": round(rss_mb(), 1), "status": sch.status.value, "method": sch.method,
+           "windows": sch.windows, "time_s": sch.time_s, "max_excess": max(sch.excess.values())}
+    # the O(N) profile with its proven optimality gap (certify.py), for comparison
+    t0 = time.perf_counter()
+    cert = certified_reach(grid, blocks)
+    row["certified_reach_seconds"] = round(time.perf_counter() - t0, 3)
+    if cert is not None:
+        row["certified_reach_gap_bound"] = cert[1]
+        row["certified_reach_gap_vs_socp"] = traversal_time(grid.ds, cert[0]) / sch.time_s - 1
     if len(grid) <= mono_max:
         t0 = time.perf_counter()
         mono = solve_path(grid, blocks, ScheduleOptions(monolithic_max=10**9))
@@ -153,7 +164,7 @@ def one(size: int, mono_max: int) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
-    ap.add_argument("--mono-max", type=int, default=100_000)
+    ap.add_argument("--mono-max", type=int, default=150_000)
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
