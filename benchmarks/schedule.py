@@ -109,8 +109,9 @@ def one(size: int, mono_max: int) -> dict:
     t0 = time.perf_counter()
     sch = solve_path(grid, blocks, opts)  # production default: certified O(N) profile or windowed SOCP
     seconds = time.perf_counter() - t0
+    gap = sch.gap_bound if np.isfinite(sch.gap_bound) else None
     row = {"samples": len(grid), "ds_mm": float(np.mean(grid.ds)), "seconds": round(seconds, 3),
-           "peak_rss_mb": round(rss_mb(), 1), "method": sch.method, "gap_bound": sch.gap_bound if np.isfinite(sch.gap_bound) else None,
+           "peak_rss_mb": round(rss_mb(), 1), "method": sch.method, "gap_bound": gap,
            "status": sch.status.value, "time_s": sch.time_s, "max_excess": max(sch.excess.values())}
     t0 = time.perf_counter()
     soc = solve_path(grid, blocks, socp_opts)

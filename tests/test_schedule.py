@@ -9,9 +9,9 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from millpost.schedule import (AxisAcceleration, AxisVelocity, ChipLoad, FeedLimit, Junction, MotorCurrent, PathGrid, PathJerk,
-                               ScheduleOptions, SolverOptions, SpeedLoad, SpeedLoadNorm, Status, path_blocks,
-                               schedule_samples, solve_path)
+from millpost.schedule import (AxisAcceleration, AxisVelocity, ChipLoad, FeedLimit, Junction, MotorCurrent,
+                               PathGrid, PathJerk, ScheduleOptions, SolverOptions, SpeedLoad, SpeedLoadNorm, Status,
+                               path_blocks, schedule_samples, solve_path)
 from millpost.schedule.assemble import build, merged_bounds
 from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID, Toolpath
 

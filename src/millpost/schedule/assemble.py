@@ -215,8 +215,8 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
     # explicit a: β_{i+1} − β_i − (2 ds aref/vref²) α_i = 0
     if explicit:
         i = np.arange(m)
-        A = sp.csr_matrix((np.r_[np.ones(m), -np.ones(m), -2 * ds * aref / v2], (np.r_[i, i, i], np.r_[i + 1, i, n + i])),
-                          shape=(m, lay.nvar))
+        vals = np.r_[np.ones(m), -np.ones(m), -2 * ds * aref / v2]
+        A = sp.csr_matrix((vals, (np.r_[i, i, i], np.r_[i + 1, i, n + i])), shape=(m, lay.nvar))
         prob.add_eq(A, np.zeros(m))
 
     # local rows

@@ -209,7 +209,8 @@ class ChipLoad:
 @dataclass(frozen=True)
 class MotorCurrent:
     """|i_k| ≤ current_limit_A per axis with
-        i_k·kf_k = m_k·1e-3·(t_k·a + κ_k·b) + (cut_alpha_k + viscous_k·t_k)·v + cut_beta_k + friction_k·sgn(t_k)
+        i_k·kf_k = m_k·1e-3·(t_k·a + κ_k·b) + (cut_alpha_k + viscous_k·t_k)·v
+                   + cut_beta_k + friction_k·sgn(t_k)
     kf = force per amp at the carriage (N/A, = K_t·2π·η/lead), m = moving mass plus reflected rotor
     and screw inertia (kg), cut_alpha/cut_beta (N, 3): cutting force on the axis, linear in v
     (N per mm/s, N), friction (N), viscous (N per mm/s). The √b term is convex on one side (cone row)
