@@ -5,13 +5,17 @@ side and joined by cutting moves until the resampled path (ds = 0.02 mm) has the
 of samples. Limits: max feed 150 mm/s, axis velocity and acceleration, junction deviation 0.01 mm
 and an engagement-like force load capping the feed between ~85 and 150 mm/s.
 
-Per size: `seconds` and `peak_rss_mb` of the production solve (windows of 2000 samples, overlap
-200, 2 processes, chunks cut at cruise anchors); `gap_vs_monolithic` = T_windowed/T_monolithic − 1
-(monolithic only up to --mono-max samples); `time_ratio_vs_toppra` = our traversal time / toppra's
-(velocity + acceleration limits only, same grid, collocation); `time_ratio_vs_grbl_planner` = our
-time / the grbl-like controller model's time for the program at the max feed with the same axis
-limits and junction deviation (velocity + acceleration + junction only, so both know the same
-limits; the controller model is not itself constrained by the discrete axis-acceleration model).
+Per size: `seconds` and `peak_rss_mb` of the production default (`method` "reach": the O(N)
+reachability profile accepted with a proven optimality `gap_bound` ≤ 0.1 %, certify.py; otherwise
+"socp"); `socp_*` the windowed SOCP forced (windows of 2000 samples, overlap 200, 2 processes,
+chunks cut at cruise anchors); `gap_vs_monolithic` = T/T_monolithic − 1 of the production result
+(monolithic SOCP only up to --mono-max samples, default 150 000), `socp_windowed_gap_vs_monolithic`
+the same for the windowed SOCP; `time_ratio_vs_toppra` = SOCP traversal time / toppra's (velocity +
+acceleration limits only, same grid, collocation); `time_ratio_vs_grbl_planner` = SOCP time / the
+grbl-like controller model's time for the program at the max feed with the same axis limits and
+junction deviation (velocity + acceleration + junction only, so both know the same limits;
+grbl-style junction deviation on arc chords has no centripetal limit, so > 1 is expected: the
+planner's own arcs exceed the axis acceleration model).
 
 Usage: python benchmarks/schedule.py [--sizes 10000 100000 1000000] [--mono-max 100000]
 """
@@ -19,6 +23,7 @@ Usage: python benchmarks/schedule.py [--sizes 10000 100000 1000000] [--mono-max 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import resource
 import subprocess
@@ -99,25 +104,34 @@ def one(size: int, mono_max: int) -> dict:
     grid = PathGrid.from_samples(smp)
     blocks = path_blocks(grid, limits(grid, True))
     opts = ScheduleOptions(window=2000, overlap=200, processes=2, monolithic_max=4000)
-    solve_path(grid.window(0, 3000), [b.window(0, 3000) for b in blocks], opts)  # warm numba
+    socp_opts = dataclasses.replace(opts, certify_gap=0.0)
+    solve_path(grid.window(0, 3000), [b.window(0, 3000) for b in blocks], socp_opts)  # warm numba
     t0 = time.perf_counter()
-    sch = solve_path(grid, blocks, opts)
+    sch = solve_path(grid, blocks, opts)  # production default: certified O(N) profile or windowed SOCP
     seconds = time.perf_counter() - t0
+    gap = sch.gap_bound if np.isfinite(sch.gap_bound) else None
     row = {"samples": len(grid), "ds_mm": float(np.mean(grid.ds)), "seconds": round(seconds, 3),
-           "peak_rss_mb": round(rss_mb(), 1), "status": sch.status.value, "windows": sch.windows,
-           "time_s": sch.time_s, "max_excess": max(sch.excess.values())}
+           "peak_rss_mb": round(rss_mb(), 1), "method": sch.method, "gap_bound": gap,
+           "status": sch.status.value, "time_s": sch.time_s, "max_excess": max(sch.excess.values())}
+    t0 = time.perf_counter()
+    soc = solve_path(grid, blocks, socp_opts)
+    row.update(socp_seconds=round(time.perf_counter() - t0, 3), socp_peak_rss_mb=round(rss_mb(), 1),
+               socp_windows=soc.windows, socp_status=soc.status.value, socp_time_s=soc.time_s,
+               socp_max_excess=max(soc.excess.values()))
+    row["gap_vs_socp_windowed"] = sch.time_s / soc.time_s - 1
     if len(grid) <= mono_max:
         t0 = time.perf_counter()
-        mono = solve_path(grid, blocks, ScheduleOptions(monolithic_max=10**9))
+        mono = solve_path(grid, blocks, ScheduleOptions(monolithic_max=10**9, certify_gap=0.0))
         row["monolithic_seconds"] = round(time.perf_counter() - t0, 3)
         row["gap_vs_monolithic"] = sch.time_s / mono.time_s - 1 if mono.status.ok else None
+        row["socp_windowed_gap_vs_monolithic"] = soc.time_s / mono.time_s - 1 if mono.status.ok else None
     else:
         row["gap_vs_monolithic"] = None
 
     # velocity + acceleration only, against toppra on the same grid
     from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit
     va = path_blocks(grid, [FeedLimit(1e4), AxisVelocity(VMAX), AxisAcceleration(AMAX)])  # toppra has no feed cap
-    ours_va = solve_path(grid, va, opts)
+    ours_va = solve_path(grid, va, socp_opts)
 
     class Path(AbstractGeometricPath):
         def __call__(self, ss, order=0):
@@ -142,7 +156,7 @@ def one(size: int, mono_max: int) -> dict:
 
     # kinematics + junction, against the grbl-like planner at the max feed
     kin = path_blocks(grid, limits(grid, False))
-    ours_kin = solve_path(grid, kin, opts)
+    ours_kin = solve_path(grid, kin, socp_opts)
     ex = execute(tp, ControllerModel(VMAX, AMAX, junction_deviation_mm=0.01, lookahead_blocks=16))
     row["time_ratio_vs_grbl_planner"] = ours_kin.time_s / ex.time_s
     row["time_s_full_limits"] = sch.time_s
@@ -153,7 +167,7 @@ def one(size: int, mono_max: int) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
-    ap.add_argument("--mono-max", type=int, default=100_000)
+    ap.add_argument("--mono-max", type=int, default=150_000)
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:

@@ -9,9 +9,9 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from millpost.schedule import (AxisAcceleration, AxisVelocity, ChipLoad, FeedLimit, Junction, MotorCurrent, PathGrid, PathJerk,
-                               ScheduleOptions, SolverOptions, SpeedLoad, SpeedLoadNorm, Status, path_blocks,
-                               schedule_samples, solve_path)
+from millpost.schedule import (AxisAcceleration, AxisVelocity, ChipLoad, FeedLimit, Junction, MotorCurrent,
+                               PathGrid, PathJerk, ScheduleOptions, SolverOptions, SpeedLoad, SpeedLoadNorm, Status,
+                               path_blocks, schedule_samples, solve_path)
 from millpost.schedule.assemble import build, merged_bounds
 from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID, Toolpath
 
@@ -388,3 +388,87 @@ def test_program_segments_skip_rapids():
     # each straight cutting move: rest-to-rest trapezoids (the 90° corner stops)
     expect = 2 * (10 / 50 + 50 / 500) + (10 / 50 + 50 / 500)
     assert ps.time_s == pytest.approx(expect, rel=1e-3)
+
+
+def test_junction_corner_speed_is_grbl_junction_deviation():
+    delta = 0.05
+    smp = make_toolpath((0, 0, 0), [("line", (20, 0, 0)), ("line", (20, 20, 0))]).resample(0.02)
+    grid = PathGrid.from_samples(smp)
+    sch = solve_path(grid, path_blocks(grid, [FeedLimit(50.0), AxisAcceleration((500.0,) * 3),
+                                              Junction((500.0,) * 3, delta)]))
+    s = math.sin(math.pi / 4)
+    vj = math.sqrt(math.sqrt(2) * 500.0 * delta * s / (1 - s))
+    corner = int(np.argmin(np.abs(grid.s_mm - 20.0)))
+    assert sch.feed_mm_s[corner] == pytest.approx(vj, rel=1e-5)
+    # two trapezoids through the corner speed (grid-exact up to the ramp end points)
+    def trap(L, vin, vout, vmax, a):
+        vp = min(math.sqrt((2 * a * L + vin**2 + vout**2) / 2), vmax)
+        return (vp - vin) / a + (vp - vout) / a + (L - (2 * vp**2 - vin**2 - vout**2) / (2 * a)) / vp
+    assert sch.time_s == pytest.approx(2 * trap(20, 0, vj, 50, 500), rel=2e-4)
+
+
+def test_current_slew_bounds_the_inertial_current_rate():
+    from millpost.schedule import CurrentSlew
+    smp = pocket_toolpath().resample(0.1)
+    grid = PathGrid.from_samples(smp)
+    m, kf, R, Lh, ke, V, imax, rad = (60.0, 40.0, 20.0), (800.0,) * 3, (1.0,) * 3, (0.01,) * 3, (0.3,) * 3, 48.0, \
+        (5.0,) * 3, (2 * np.pi / 5,) * 3
+    lim = [FeedLimit(120.0), AxisVelocity(VMAX), AxisAcceleration(AMAX),
+           CurrentSlew(m, kf, imax, R, Lh, ke, V, rad)]
+    base = solve_path(grid, path_blocks(grid, lim[:3]))
+    sch = solve_path(grid, path_blocks(grid, lim))
+    assert sch.status == Status.SOLVED and sch.time_s > base.time_s
+    # independent check: i = m·acc/kf at each collocation point; di/dt over the time between them
+    b, s = sch.b, grid.s_mm
+    v, ds = np.sqrt(b), np.diff(s)
+    a = np.diff(b) / (2 * ds)
+    acc = grid.tangent[:-1] * a[:, None] + grid.curvature[:-1] * b[:-1, None]
+    i = np.asarray(m) * 1e-3 * acc / np.asarray(kf)
+    dt = 0.5 * (ds[:-1] + ds[1:]) / np.maximum(v[1:-1], 1e-300)
+    didt = np.abs(np.diff(i, axis=0)) / dt[:, None]
+    omega = np.asarray(rad) * np.abs(grid.tangent[1:-1]) * v[1:-1, None]
+    bound = (V - np.asarray(R) * np.asarray(imax) - np.asarray(ke) * omega) / np.asarray(Lh)
+    assert (didt <= bound * 1.005).all()
+    assert (didt / bound).max() > 0.9  # it binds somewhere
+
+
+def test_jerk_limited_line_matches_closed_form():
+    """Rest to rest with |da/dt| ≤ J: the collocation leaves the jump of a at the very start and end
+    free (no earlier a to compare with), so each phase is a = A then a ramp A → 0 over A/J."""
+    L, V, A, J = 100.0, 50.0, 500.0, 1e4
+    grid = PathGrid(np.linspace(0, L, 1601), np.tile([1.0, 0, 0], (1601, 1)), np.zeros((1601, 3)))
+    sch = solve_path(grid, path_blocks(grid, [FeedLimit(V), AxisAcceleration((A,) * 3), PathJerk(J)]))
+    tau = A / J
+    t1 = V / A - tau / 2
+    v1 = A * t1
+    d = A * t1**2 / 2 + v1 * tau + A * tau**2 / 2 - J * tau**3 / 6
+    expect = L / V + 2 * (t1 + tau - d / V)
+    assert sch.status == Status.SOLVED
+    assert sch.time_s == pytest.approx(expect, rel=2e-5)
+    assert sch.excess["jerk"] <= 1e-6
+
+
+def test_certified_reach_profile_is_bracketed_by_the_socp_optimum():
+    """Where the O(N) profile is accepted, its proven gap must hold against the SOCP optimum."""
+    from millpost.schedule.certify import certified_reach
+    from millpost.schedule.reach import traversal_time
+    rng = np.random.default_rng(99)
+    checked = exact = 0
+    for _ in range(200):
+        smp, grid, limits, kw = random_case(rng)
+        blocks = path_blocks(grid, limits)
+        cert = certified_reach(grid, blocks)
+        if cert is None:
+            continue
+        b, gap = cert
+        socp = solve_path(grid, blocks, ScheduleOptions(certify_gap=0, solver=SolverOptions(tol=1e-9)))
+        assert socp.status.ok
+        t = traversal_time(grid.ds, b)
+        # 1e-5: time recomputed from the SOCP's b (b_0 ≈ 1e-8, not 0) is that accurate
+        assert t >= socp.time_s * (1 - 1e-5)
+        assert t <= socp.time_s * (1 + gap) * (1 + 1e-5)
+        r = check_limits(grid.tangent, grid.curvature, grid.s_mm, b, **kw)
+        assert max(r.values()) <= 1 + 1e-9
+        checked += 1
+        exact += gap == 0
+    assert checked > 50 and exact > 10

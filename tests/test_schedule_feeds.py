@@ -8,8 +8,7 @@ import pytest
 from test_schedule import AMAX, VMAX, make_toolpath, pocket_toolpath
 
 from millpost.controller import ControllerModel, execute
-from millpost.schedule import (AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, path_blocks,
-                               schedule_samples)
+from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, schedule_samples
 from millpost.schedule.feeds import emission_limit, piecewise_feeds, split_toolpath
 from millpost.schedule.rows import PathGrid
 

@@ -26,9 +26,10 @@ def long_case():
 def test_windowed_and_two_process_chunks_match_monolithic(long_case):
     grid, blocks, alpha = long_case
     assert len(grid) > 6000
-    mono = solve_path(grid, blocks, ScheduleOptions(monolithic_max=10**9))
-    win = solve_path(grid, blocks, ScheduleOptions(monolithic_max=1000, window=1000, overlap=100))
-    par = solve_path(grid, blocks, ScheduleOptions(monolithic_max=1000, window=1000, overlap=100, processes=2))
+    kw = dict(certify_gap=0.0)  # always the conic solve (the O(N) certified profile is tested elsewhere)
+    mono = solve_path(grid, blocks, ScheduleOptions(monolithic_max=10**9, **kw))
+    win = solve_path(grid, blocks, ScheduleOptions(monolithic_max=1000, window=1000, overlap=100, **kw))
+    par = solve_path(grid, blocks, ScheduleOptions(monolithic_max=1000, window=1000, overlap=100, processes=2, **kw))
     assert mono.status == win.status == par.status == Status.SOLVED
     assert win.windows > 5 and par.windows > 5
     for s in (win, par):
@@ -37,3 +38,17 @@ def test_windowed_and_two_process_chunks_match_monolithic(long_case):
         r = check_limits(grid.tangent, grid.curvature, grid.s_mm, s.b, vmax=VMAX, amax=AMAX, feed=150.0,
                          loads=[(alpha, np.full(len(grid), 5.0), 160.0)])
         assert max(r.values()) <= 1.001, r
+
+
+def test_jerk_limited_windows_match_monolithic():
+    """Jerk rows couple neighbouring a: windows fix two samples at their start and overlap more."""
+    from millpost.schedule import PathJerk
+    smp = pocket_toolpath().resample(0.05)
+    grid = PathGrid.from_samples(smp)
+    blocks = path_blocks(grid, [FeedLimit(150.0), AxisVelocity(VMAX), AxisAcceleration(AMAX), Junction(AMAX, 0.02),
+                                PathJerk(5e4)])
+    mono = solve_path(grid, blocks, ScheduleOptions(monolithic_max=10**9))
+    win = solve_path(grid, blocks, ScheduleOptions(monolithic_max=1000, window=1000, overlap=300))
+    assert mono.status == win.status == Status.SOLVED and win.windows > 3
+    assert mono.time_s * (1 - 1e-6) <= win.time_s <= mono.time_s * 1.001
+    assert max(win.excess.values()) <= 1e-5  # jerk evaluated exactly (actual speeds), not linearised

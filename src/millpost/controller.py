@@ -4,8 +4,9 @@ Moves become blocks (arcs are cut into chords within `arc_tolerance_mm`, as grbl
 runs a trapezoidal velocity profile (constant acceleration, no jerk limit) at the smallest axis
 acceleration along its direction, at most the programmed feed (rapids: the axis rates) and the axis
 rate limits. Junction speeds follow grbl's junction deviation δ (a virtual blend arc of deviation δ
-run at the centripetal acceleration the axes allow along the direction change); with `exact_stop`
-(G61) every junction stops. The planner only sees `lookahead_blocks` blocks ahead and must be able
+run at the centripetal acceleration the axes allow along the direction change); a G64 P<tol>
+blend (LinuxCNC) is the same geometry with δ = tol; with `exact_stop` (G61) every junction stops.
+The planner only sees `lookahead_blocks` blocks ahead and must be able
 to stop at the end of the last one; a controller that processes at most `block_rate_hz` blocks per
 second cannot finish a block of length L faster than 1/rate, so its speed is at most L·rate.
 Returns the executed time and the actual speed at any sample of the path.

@@ -45,8 +45,10 @@ def linear_rows(blocks: list[Block], b_hi: np.ndarray, v0: np.ndarray, *, convex
         z = np.zeros((0, len(b_hi)))
         return z, z, z, z
     U = np.concatenate([r.u for r in rows])
-    U = np.where(np.abs(U) < 1e-12 * np.abs(U).max(initial=0.0), 0.0, U)  # round-off of unit tangents
     W = np.concatenate([r.w for r in rows]).astype(float, copy=True)
+    # round-off of unit tangents (cos 90° = 6e-17) would give rows with absurd right-hand sides
+    U = np.where(np.abs(U) < 1e-12 * np.abs(U).max(initial=0.0), 0.0, U)
+    W = np.where(np.abs(W) < 1e-12 * np.abs(W).max(initial=0.0), 0.0, W)
     G = np.concatenate([r.g for r in rows]).astype(float, copy=True)
     H = np.concatenate([r.h for r in rows]).astype(float, copy=True)
     pos = G > 0
@@ -123,12 +125,13 @@ def _expr(lay: Layout, ds: np.ndarray, idx: np.ndarray, u: np.ndarray, w: np.nda
 
 
 def _add_normalised_le(prob: ConicProblem, rows, cols, vals, h: np.ndarray) -> None:
-    """Append A x ≤ h after dividing each row by its largest |coefficient| (drops all-zero rows
-    whose bound holds)."""
+    """Append A x ≤ h after dividing each row by its largest |coefficient|. Drops rows that cannot
+    bind: all-zero rows whose bound holds, and rows whose normalised bound exceeds 1e6 (the scaled
+    variables are O(1))."""
     A = sp.csr_matrix((vals, (rows, cols)), shape=(len(h), prob.n))
-    scale = np.asarray(abs(A).max(axis=1).todense()).ravel()
-    keep = (scale > 0) | (h < 0)
-    scale = np.where(scale > 0, scale, 1.0)
+    rowmax = np.asarray(abs(A).max(axis=1).todense()).ravel()
+    scale = np.where(rowmax > 0, rowmax, 1.0)
+    keep = (h / scale < 1e6) & ((rowmax > 0) | (h < 0))
     D = sp.diags(1.0 / scale)
     prob.add_le((D @ A)[keep], (h / scale)[keep])
 
@@ -212,8 +215,8 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
     # explicit a: β_{i+1} − β_i − (2 ds aref/vref²) α_i = 0
     if explicit:
         i = np.arange(m)
-        A = sp.csr_matrix((np.r_[np.ones(m), -np.ones(m), -2 * ds * aref / v2], (np.r_[i, i, i], np.r_[i + 1, i, n + i])),
-                          shape=(m, lay.nvar))
+        vals = np.r_[np.ones(m), -np.ones(m), -2 * ds * aref / v2]
+        A = sp.csr_matrix((vals, (np.r_[i, i, i], np.r_[i + 1, i, n + i])), shape=(m, lay.nvar))
         prob.add_eq(A, np.zeros(m))
 
     # local rows
@@ -237,18 +240,19 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
             rr, cc, vv, h = remap[rr[keep]], cc[keep], vv[keep], h[sel]
         _add_normalised_le(prob, rr, cc, vv, h)
 
-    # step rows: |e_{i+1} − e_i| ≤ bound_i
+    # step rows: ±(e_{i+1} − e_i) + kb·b_{i+1} ≤ rhs (tangent of the rate bound at v0)
     for blk in steps:
-        bound = blk.bound(grid, b_hi)  # (M, n−2)
-        M = blk.u.shape[0]
         if n < 3:
             continue
+        kb, rhs = blk.linearised(grid, v0)  # (M, n−2)
+        M = blk.u.shape[0]
         i = np.tile(np.arange(n - 2), M)
         mrow = np.repeat(np.arange(M), n - 2)
         r1, c1, v1 = _expr(lay, ds, i + 1, blk.u[mrow, i + 1], blk.w[mrow, i + 1])
         r0, c0_, v0_ = _expr(lay, ds, i, blk.u[mrow, i], blk.w[mrow, i])
+        rb, cb, vb = _expr(lay, ds, i + 1, np.zeros(len(i)), kb.ravel())
         rr, cc, vv = np.r_[r1, r0], np.r_[c1, c0_], np.r_[v1, -v0_]
-        h = bound.ravel()
-        _add_normalised_le(prob, rr, cc, vv, h)
-        _add_normalised_le(prob, rr, cc, -vv, h)
+        h = rhs.ravel()
+        _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[vv, vb], h)
+        _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[-vv, vb], h)
     return prob, lay

@@ -102,9 +102,8 @@ class Junction:
 
 @dataclass(frozen=True)
 class PathJerk:
-    """Bounded change of path acceleration: |da/dt| ≤ jerk_mm_s3 (mm/s³), written as
-    |a_{i+1} − a_i| ≤ J·Δs/vcap (sufficient since the time between the two collocation points is at
-    least Δs/vcap). Makes a an explicit variable."""
+    """Bounded change of path acceleration: |da/dt| ≤ jerk_mm_s3 (mm/s³) between collocation points,
+    |a_{i+1} − a_i| ≤ J·Δs/v (Δt = Δs/v). Makes a an explicit variable."""
 
     jerk_mm_s3: float
     name: str = "jerk"
@@ -210,7 +209,8 @@ class ChipLoad:
 @dataclass(frozen=True)
 class MotorCurrent:
     """|i_k| ≤ current_limit_A per axis with
-        i_k·kf_k = m_k·1e-3·(t_k·a + κ_k·b) + (cut_alpha_k + viscous_k·t_k)·v + cut_beta_k + friction_k·sgn(t_k)
+        i_k·kf_k = m_k·1e-3·(t_k·a + κ_k·b) + (cut_alpha_k + viscous_k·t_k)·v
+                   + cut_beta_k + friction_k·sgn(t_k)
     kf = force per amp at the carriage (N/A, = K_t·2π·η/lead), m = moving mass plus reflected rotor
     and screw inertia (kg), cut_alpha/cut_beta (N, 3): cutting force on the axis, linear in v
     (N per mm/s, N), friction (N), viscous (N per mm/s). The √b term is convex on one side (cone row)
@@ -243,7 +243,8 @@ class MotorCurrent:
 @dataclass(frozen=True)
 class CurrentSlew:
     """di/dt of the inertial current ≤ (V_bus − R·I_max − K_e·ω)/L per axis, ω = rad_per_mm·|t_k|·v
-    the motor speed (back-EMF grows with feed). i_k = m_k·1e-3·(t_k·a + κ_k·b)/kf_k; the cutting
+    the motor speed (back-EMF grows with feed), and the voltage limit where that reaches zero:
+    |t_k|·v ≤ (V_bus − R·I_max)/(K_e·rad_per_mm). i_k = m_k·1e-3·(t_k·a + κ_k·b)/kf_k; the cutting
     share of the current is taken as slowly varying and not included."""
 
     mass_kg: tuple[float, float, float]
@@ -264,7 +265,10 @@ class CurrentSlew:
         h0 = (self.bus_V - f(self.resistance_ohm) * f(self.current_limit_A)) / f(self.inductance_H) * np.ones((1, n))
         h1 = f(self.ke_V_s_rad) * f(self.rad_per_mm) * np.abs(t) / f(self.inductance_H)
         keep = np.abs(t).max(axis=1) > 0
-        return [StepRows(self.name, (g * t)[keep], (g * k)[keep], h0[keep], h1[keep])]
+        with np.errstate(divide="ignore"):
+            vmax = np.min(np.where(h1 > 0, h0 / h1, np.inf), axis=0)
+        return [StepRows(self.name, (g * t)[keep], (g * k)[keep], h0[keep], h1[keep]),
+                SpeedBounds(self.name + "_voltage", np.zeros(n), vmax**2)]
 
 
 def path_blocks(grid: PathGrid, limits: list) -> list[Block]:

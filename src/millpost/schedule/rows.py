@@ -9,10 +9,11 @@ belongs to sample i and the last sample has none). Every limit in millpost is on
 - `LocalRows`    u·a_i + w·b_i + g·√b_i ≤ h per sample. g ≤ 0 is convex (a cone row through the
                  objective's c ≤ √b); g > 0 is not and is replaced by its tangent upper bound
                  √b ≤ (b + v0²)/(2·v0) at a reference speed v0 (conservative, re-linearised).
-- `StepRows`     |e_{i+1} − e_i| ≤ (h0_i − h1_i·vcap)·dsm_i / vcap, with e_i = u_i·a_i + w_i·b_i,
-                 dsm_i = (ds_i + ds_{i+1})/2 the distance between the two collocation points and
-                 vcap the speed cap at sample i+1: a bounded rate of change per unit time
-                 (de/dt ≤ h0 − h1·v) made sufficient by Δt ≥ dsm/vcap. Couples neighbouring a.
+- `StepRows`     |e_{i+1} − e_i| ≤ (h0/v − h1)·dsm_i, e_i = u_i·a_i + w_i·b_i, v the speed at sample
+                 i+1 and dsm_i = (ds_i + ds_{i+1})/2 the distance between the two collocation
+                 points (Δt = dsm/v): a bounded rate of change per unit time de/dt ≤ h0 − h1·v.
+                 h0/v = h0/√b is convex in b, so its tangent at v0 bounds it from below and gives
+                 a conservative linear row (re-linearised at the solution). Couples neighbouring a.
 
 All arrays are per sample (length N) so any block can be cut to a window of samples.
 """
@@ -103,8 +104,8 @@ class LocalRows:
 
 @dataclass(frozen=True)
 class StepRows:
-    """M rows: |e_{i+1} − e_i| ≤ (h0 − h1·vcap_{i+1})·dsm_i/vcap_{i+1}, e = u·a + w·b; arrays (M, N),
-    h0, h1 indexed by i+1 (the sample where the change happens)."""
+    """M rows: |e_{i+1} − e_i| ≤ (h0/v_{i+1} − h1)·dsm_i, e = u·a + w·b; arrays (M, N), h0 and h1
+    indexed by the sample where the change happens."""
 
     name: str
     u: np.ndarray
@@ -115,12 +116,14 @@ class StepRows:
     def window(self, lo: int, hi: int) -> "StepRows":
         return replace(self, **{k: _cut(getattr(self, k), lo, hi) for k in ("u", "w", "h0", "h1")})
 
-    def bound(self, grid: PathGrid, b_cap: np.ndarray) -> np.ndarray:
-        """Right-hand side (M, N−2) of the change between collocation points i and i+1."""
+    def linearised(self, grid: PathGrid, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tangent of the bound at v0: |Δe_i| + kb_i·b_{i+1} ≤ rhs_i, both (M, N−2), from
+        h0/v ≥ 3·h0/(2·v0) − h0·b/(2·v0³)."""
         ds = grid.ds
         dsm = 0.5 * (ds[:-1] + ds[1:])
-        vcap = np.sqrt(np.maximum(b_cap[1:-1], 1e-300))
-        return (self.h0[:, 1:-1] - self.h1[:, 1:-1] * vcap) * dsm / vcap
+        v = np.maximum(v0[1:-1], 1e-300)
+        h0, h1 = self.h0[:, 1:-1], self.h1[:, 1:-1]
+        return dsm * h0 / (2 * v**3), dsm * (1.5 * h0 / v - h1)
 
     def excess(self, grid: PathGrid, b: np.ndarray, a: np.ndarray) -> np.ndarray:
         """Rate of change per unit time minus its bound, as a fraction of h0, per change (N−2,)."""

@@ -19,17 +19,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from millpost.schedule.assemble import build, linear_rows, merged_bounds, soft_floor
+from millpost.schedule.certify import certified_reach
 from millpost.schedule.problem import SolverOptions, Status
 from millpost.schedule.reach import Reach, reach, traversal_time
-from millpost.schedule.rows import Block, LocalRows, PathGrid, StepRows
+from millpost.schedule.rows import Block, LocalRows, PathGrid, SpeedBounds, StepRows
 from millpost.toolpath import RAPID, Samples
 
 
 @dataclass
 class ScheduleOptions:
     """window/overlap in samples; segments up to `monolithic_max` samples are solved in one piece.
-    `relinearize`: extra solves re-taking the tangent of non-convex √b terms at the last solution.
+    `relinearize`: extra solves re-taking the tangents (√b terms of LocalRows, 1/√b of StepRows)
+    at the last solution (speeds below 5 % of the top speed keep the tangent there).
     `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length).
+    `certify_gap`: accept the O(N) reachability profile without a conic solve when it is provably
+    within this relative time of the optimum (certify.py; 0 always solves the SOCP). The default
+    0.1 % is the optimality budget of issue 5; measured loss is about a quarter of the bound.
     Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
     normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it."""
 
@@ -40,6 +45,7 @@ class ScheduleOptions:
     relinearize: int = 1
     floor_penalty: float = 10.0
     max_residual: float = 1e-6
+    certify_gap: float = 1e-3
     solver: SolverOptions = field(default_factory=lambda: SolverOptions(iterative_refinement=False))
 
 
@@ -51,6 +57,7 @@ class Schedule:
     not even that exists, then b is zero and `message` says why). floor_unmet: samples where a soft
     floor could not be met. excess: {block name: worst (value − bound)/bound over the samples}.
     binding: per sample the name of the tightest limit ('' when none within 1e-3).
+    method/gap_bound: how it was solved and, for the reachability profile, the proven gap.
     """
 
     b: np.ndarray
@@ -63,6 +70,8 @@ class Schedule:
     binding: np.ndarray = field(default_factory=lambda: np.zeros(0, object))
     solver_s: float = 0.0
     windows: int = 0
+    method: str = "socp"  # or "reach": the certified O(N) profile
+    gap_bound: float = float("nan")  # proven bound on (time − optimum)/optimum when method is reach
 
     @property
     def feed_mm_s(self) -> np.ndarray:
@@ -78,10 +87,19 @@ def _solve_window(grid: PathGrid, blocks: list[Block], v0: np.ndarray, vref: flo
                   b_fixed_end: np.ndarray | None = None):
     prob, lay = build(grid, blocks, b_fixed_start=b_fixed_start, b_end=b_end, v0=v0, vref=vref, aref=aref,
                       floor_penalty=opts.floor_penalty, b_fixed_end=b_fixed_end)
-    sol = prob.solve(opts.solver)
-    if sol.status.ok and sol.primal_residual > opts.max_residual and not opts.solver.iterative_refinement:
-        sol = prob.solve(dataclasses.replace(opts.solver, iterative_refinement=True))
-    if not sol.status.ok:
+    # retries: iterative refinement on, then a 10× looser tolerance (Clarabel occasionally stops with
+    # InsufficientProgress on long windows; notes/SCHEDULE-PROTOTYPE.md pitfall 2)
+    attempts = [opts.solver, dataclasses.replace(opts.solver, iterative_refinement=True),
+                dataclasses.replace(opts.solver, iterative_refinement=True, tol=opts.solver.tol * 10,
+                                    tol_ktratio=opts.solver.tol_ktratio * 10)]
+    secs = 0.0
+    for settings in attempts:
+        sol = prob.solve(settings)
+        secs += sol.solve_s
+        if sol.status == Status.INFEASIBLE or (sol.status.ok and sol.primal_residual <= opts.max_residual):
+            break
+    sol.solve_s = secs
+    if not sol.status.ok or sol.primal_residual > opts.max_residual:
         return None, None, sol
     return lay.b(sol.x), lay.slack(sol.x), sol
 
@@ -146,7 +164,7 @@ def _excess(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray) -
             val = float(blk.excess(b, a).max()) if len(b) else 0.0
         elif isinstance(blk, StepRows):
             val = float(blk.excess(grid, b, a).max()) if len(b) > 2 else 0.0
-        elif hasattr(blk, "b_hi"):
+        elif isinstance(blk, SpeedBounds):
             with np.errstate(divide="ignore", invalid="ignore"):
                 r = np.sqrt(np.maximum(b, 0)) / np.sqrt(blk.b_hi) - 1
             val = float(np.nanmax(np.where(blk.b_hi > 0, r, np.where(b > 0, np.inf, -1.0))))
@@ -164,7 +182,7 @@ def _binding(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray, 
     for blk in blocks:
         if isinstance(blk, LocalRows):
             e = blk.excess(b, a)
-        elif hasattr(blk, "b_hi"):
+        elif isinstance(blk, SpeedBounds):
             with np.errstate(divide="ignore", invalid="ignore"):
                 e = np.where(blk.b_hi > 0, np.sqrt(np.maximum(b, 0) / blk.b_hi) - 1, -np.inf)
         else:
@@ -186,15 +204,22 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
     b_lo, b_hi = merged_bounds(blocks, n)
     if not np.isfinite(b_hi).all():
         raise ValueError("every sample needs a finite speed cap (add a FeedLimit)")
+    if opts.certify_gap > 0 and b_start == 0 and b_end == 0:
+        t0 = time.perf_counter()
+        cert = certified_reach(grid, blocks)
+        if cert is not None and cert[1] <= opts.certify_gap:
+            b = cert[0]
+            a = np.diff(b) / (2 * ds)
+            return Schedule(b, a, Status.SOLVED, traversal_time(ds, b), "", np.zeros(n, bool),
+                            _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), time.perf_counter() - t0, 0,
+                            "reach", cert[1])
     vref = float(np.sqrt(b_hi.max())) or 1.0
     has_steps = any(isinstance(blk, StepRows) for blk in blocks)
-    nfix = 2 if has_steps else 1
-    nonconvex = any(isinstance(blk, LocalRows) and (blk.g > 0).any() for blk in blocks)
+    nonconvex = has_steps or any(isinstance(blk, LocalRows) and (blk.g > 0).any() for blk in blocks)
     v0 = np.sqrt(np.maximum(b_hi, 1e-12))
     t0 = time.perf_counter()
     secs, windows = 0.0, 0
-    result_b = None
-    message = ""
+    result_b, result_slack, message = None, None, ""
     for it in range(1 + (opts.relinearize if nonconvex else 0)):
         U, Wm, _, H = linear_rows(blocks, b_hi, v0, convex_exact=False)
         rc = reach(ds, b_lo, b_hi, U, Wm, H, b_start=b_start, b_end_max=b_end, b_end_min=b_end)
@@ -204,60 +229,66 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
             return Schedule(np.zeros(n), np.zeros(n - 1), Status.INFEASIBLE, float("inf"),
                             "no speed profile satisfies the limits (empty controllable set at the start)",
                             solver_s=time.perf_counter() - t0)
-        aref = float(max(np.abs(rc.a).max(), 1e-6 * vref**2 / grid.length_mm))
-        if n <= opts.monolithic_max:
-            bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, np.array([b_start]), (b_end, b_end))
-            secs += sol.solve_s
-            windows += 1
-            chunks_b = [bw] if bw is not None else None
-            slack = sw if bw is not None else np.zeros(n)
-            if bw is None:
-                message = f"conic solve: {sol.raw_status}"
-        else:
-            anchors = _anchors(rc, b_hi, max(1, 2 * opts.processes) if opts.processes > 1 else 1,
-                               margin=opts.window // 4 + nfix)
-            cuts = [0, *anchors, n - 1]
-            jobs = []
-            for k in range(len(cuts) - 1):
-                lo, hi = cuts[k], cuts[k + 1] + 1
-                first = rc.b[lo:lo + nfix] if k > 0 else np.array([b_start])
-                last = rc.b[hi - nfix:hi] if k < len(cuts) - 2 else np.full(1, b_end)
-                jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
-                             rc.k_lo[lo:hi], rc.k_hi[lo:hi], first, last, nfix))
-            if opts.processes > 1 and len(jobs) > 1:
-                ctx = multiprocessing.get_context("fork")
-                with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
-                    outs = list(ex.map(_solve_chunk, jobs))
-            else:
-                outs = [_solve_chunk(j) for j in jobs]
-            chunks_b, slack = [], np.zeros(n)
-            for k, (bb, sw, sec, cnt, msg) in enumerate(outs):
-                secs += sec
-                windows += cnt
-                if bb is None:
-                    chunks_b, message = None, msg
-                    break
-                lo = cuts[k]
-                chunks_b.append(bb if k == 0 else bb[1:])
-                slack[lo + (k > 0): cuts[k + 1] + 1] = sw if k == 0 else sw[1:]
-        if chunks_b is None:
+        b_new, slack, sec, cnt, message = _solve_linearised(grid, blocks, opts, v0, vref, rc, (U, Wm, H),
+                                                            b_lo, b_hi, b_start, b_end, 2 if has_steps else 1)
+        secs += sec
+        windows += cnt
+        if b_new is None:
             break
-        result_b = np.concatenate(chunks_b)
-        result_slack = slack
-        if it < (opts.relinearize if nonconvex else 0):
-            v0 = np.maximum(np.sqrt(result_b), 1e-3 * vref)
+        result_b, result_slack = b_new, slack
+        v0 = np.maximum(np.sqrt(result_b), 0.05 * vref)  # tangent point of the next linearisation
+    floor = soft_floor(blocks, n)
     if result_b is None:
         b, status = rc.b, Status.FALLBACK
-        floor_unmet = soft_floor(blocks, n) > b * (1 + 1e-6) + 1e-9
+        floor_unmet = floor > b * (1 + 1e-6) + 1e-9
         message = message or "conic solve failed"
     else:
-        b = np.clip(result_b, 0.0, b_hi)
-        status = Status.SOLVED
-        floor = soft_floor(blocks, n)
+        b, status, message = np.clip(result_b, 0.0, b_hi), Status.SOLVED, ""
         floor_unmet = (floor > 0) & (result_slack > 1e-6 * np.maximum(floor, 1e-12)) & (b < floor * (1 - 1e-6))
     a = np.diff(b) / (2 * ds)
     return Schedule(b, a, status, traversal_time(ds, b), message, floor_unmet, _excess(grid, blocks, b, a),
                     _binding(grid, blocks, b, a), secs, windows)
+
+
+def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, v0: np.ndarray, vref: float,
+                      rc: Reach, rows: tuple, b_lo: np.ndarray, b_hi: np.ndarray, b_start: float, b_end: float,
+                      nfix: int) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
+    """One SOCP solve at fixed tangent points: monolithic, or chunks of receding windows.
+    Returns (b or None, floor slack, solver seconds, windows, failure message)."""
+    n, ds = len(grid), grid.ds
+    U, Wm, H = rows
+    aref = float(max(np.abs(rc.a).max(), 1e-6 * vref**2 / grid.length_mm))
+    if n <= opts.monolithic_max:
+        bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, np.array([b_start]), (b_end, b_end))
+        return bw, sw, sol.solve_s, 1, "" if bw is not None else f"conic solve: {sol.raw_status}"
+    parts = 2 * opts.processes if opts.processes > 1 else 1
+    cuts = [0, *_anchors(rc, b_hi, parts, margin=opts.window // 4 + nfix), n - 1]
+    jobs = []
+    for k in range(len(cuts) - 1):
+        lo, hi = cuts[k], cuts[k + 1] + 1
+        first = rc.b[lo:lo + nfix] if k > 0 else np.array([b_start])
+        last = rc.b[hi - nfix:hi] if k < len(cuts) - 2 else np.full(1, b_end)
+        # controllable sets toward this chunk's own end (b fixed at an anchor, not free ≤ K)
+        rk = reach(ds[lo:hi - 1], b_lo[lo:hi], b_hi[lo:hi], U[:, lo:hi], Wm[:, lo:hi], H[:, lo:hi],
+                   b_start=float(first[-1]), b_end_max=float(last[-1]), b_end_min=float(last[-1]))
+        jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
+                     rk.k_lo, rk.k_hi, first, last, nfix))
+    if opts.processes > 1 and len(jobs) > 1:
+        ctx = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
+            outs = list(ex.map(_solve_chunk, jobs))
+    else:
+        outs = [_solve_chunk(j) for j in jobs]
+    b, slack = np.zeros(n), np.zeros(n)
+    secs, count = 0.0, 0
+    for k, (bb, sw, sec, cnt, msg) in enumerate(outs):
+        secs += sec
+        count += cnt
+        if bb is None:
+            return None, slack, secs, count, msg
+        b[cuts[k]:cuts[k + 1] + 1] = bb
+        slack[cuts[k]:cuts[k + 1] + 1] = sw
+    return b, slack, secs, count, ""
 
 
 def cutting_segments(samples: Samples) -> list[tuple[int, int]]:
