@@ -8,7 +8,8 @@ machine, tool and material:
 - cutting_force: the peak in-plane force per revolution under the tool's breaking force divided by
   its safety factor (tool beam, load at the tip: the weakest case);
 - deflection: (tool compliance at the tip + the softer of the X/Y axes) × peak force ≤ limit;
-- power and torque: the spindle's curve at the programmed rpm;
+- power and torque: the spindle's curve at the programmed rpm (clamped to the spindle's range, as
+  controllers do, and reported);
 - chip_load: the maximum chip thickness h_max = f_z·max sin φ·sin κ of the engaged arc between the
   material's minimum chip (edge radius: no rubbing; a soft floor) and its maximum chip load;
 - current: per axis, inertia (moving mass and reflected rotor inertia) plus cutting force plus
@@ -36,15 +37,18 @@ from .job import Job
 from .schedule import (AxisAcceleration, AxisVelocity, ChipLoad, CurrentSlew, FeedLimit, Junction, MotorCurrent,
                        PathGrid, PathJerk, ScheduleOptions, SpeedLoad, schedule_samples)
 from .schedule.assemble import merged_bounds
-from .schedule.feeds import emission_limit, piecewise_feeds, split_toolpath
+from .schedule.feeds import SLOWEST_FEED_MM_MIN, emission_limit, piecewise_feeds, split_toolpath
 from .schedule.rows import SpeedBounds
 from .toolpath import RAPID, Samples
 from .tools.beam import ToolBeam
 
+V_SLOWEST = SLOWEST_FEED_MM_MIN / 60.0  # mm/s: the slowest feed the emitted program states
+
 # which limit names count as which physical effect in the summary's "binding"
 EFFECTS = {"axis_velocity": "inertia", "axis_acceleration": "inertia", "junction": "inertia", "jerk": "inertia",
            "feed": "feed", "cutting_force": "cutting force", "deflection": "deflection", "power": "power",
-           "torque": "power", "current": "current", "current_slew": "current", "chip_load_max": "chip load",
+           "torque": "power", "current": "current", "cutting_current": "current", "current_slew": "current",
+           "chip_load_max": "chip load",
            "chip_load_min": "chip-load floor"}
 
 
@@ -75,6 +79,11 @@ def _max_sin(eng) -> np.ndarray:
     return np.where(cuts, s * np.sin(eng.kappa), 0.0).max(axis=1, initial=0.0)
 
 
+def spindle_rpm(job: Job, programmed_rpm: np.ndarray) -> np.ndarray:
+    """The speed the spindle turns at (rpm): the programmed S clamped to the machine's range."""
+    return np.clip(programmed_rpm, job.machine.spindle.rpm_min, job.machine.spindle.rpm_max)
+
+
 def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
     """Constraint objects for the whole resampled program, and the per-sample loads they came from
     (force/power/torque as affine functions of the path speed in mm/s)."""
@@ -98,7 +107,7 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
         raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
-    rpm = np.where(spin, samples.rpm, 1.0)
+    rpm = np.where(spin, spindle_rpm(job, samples.rpm), 1.0)
     k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
     peak_limit, defl_per_N = np.full(n, np.inf), np.zeros(n)
     fz_hi, fz_lo = np.full(n, np.inf), np.zeros(n)
@@ -132,23 +141,37 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
              np.full(n, float(job.limits["deflection_mm"]))),
             ("power", loads["power_a"], loads["power_b"], np.where(spin, m.spindle.power_available_W(rpm), np.inf)),
             ("torque", loads["torque_a"], loads["torque_b"], np.where(spin, m.spindle.torque_Nm(rpm), np.inf))):
-        # Where the cut exceeds the bound at any feed (its edge forces alone: the depth or width of cut,
-        # not the feed, is at fault), feeding slower cannot help: never feed faster than programmed
-        # there, and report those samples rather than crawl.
-        over = b > bound
+        # Where the cut exceeds the bound at any feed a program can state (its edge forces alone: the
+        # depth or width of cut, not the feed, is at fault), feeding slower cannot help: never feed
+        # faster than programmed there, and report those samples rather than crawl.
+        over = a * V_SLOWEST + b > bound
         loads["unavoidable"][name] = over
         limits.append(SpeedLoad(a, b, np.where(over, a * v_hold + b, bound), name=name))
     rho = np.array([a.rho_m_per_rad for a in ax])
     mass = tuple(a.moving_mass_kg + a.motor.rotor_inertia_kgm2 / r**2 for a, r in zip(ax, rho))
     kf = tuple(a.motor.kt_Nm_per_A * a.efficiency / r for a, r in zip(ax, rho))
     current = tuple(a.motor.current_limit_A for a in ax)
+    friction = np.array([a.friction_coulomb_N for a in ax])
+    viscous = np.array([a.friction_viscous_N_s_per_mm for a in ax])
+    # Cutting force, friction and drag must leave the drive the current for the controller's own
+    # acceleration (it ramps at a_max whatever the F words say): per axis
+    # |F_b| + f_c + (|F_a| + c_v·|t|)·v ≤ k_f·I_max − m·a_max (N at the carriage), a conservative
+    # speed cap; where no programmable feed meets it the cut is unavoidable as above.
+    capacity = np.asarray(kf) * np.asarray(current) - np.asarray(mass) * np.asarray(amax) * 1e-3
+    static = np.abs(loads["force_b"]) + friction
+    slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
+    stalled = (static + slope * V_SLOWEST >= capacity).any(axis=1) & engaged
+    loads["unavoidable"]["cutting_current"] = stalled
+    for k in range(3):
+        limits.append(SpeedLoad(slope[:, k], static[:, k], np.where(stalled, slope[:, k] * v_hold + static[:, k],
+                                                                    capacity[k]), name="cutting_current"))
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
     v_cap = np.minimum(_static_caps(samples, limits), feed_max / 60.0)
     at_cap = loads["force_a"] * v_cap[:, None] + loads["force_b"]
     drive_force = -np.where(np.abs(at_cap) > np.abs(loads["force_b"]), at_cap, loads["force_b"])
-    limits.append(MotorCurrent(mass, kf, current, tuple(a.friction_coulomb_N for a in ax),
-                               tuple(a.friction_viscous_N_s_per_mm for a in ax), cut_beta=drive_force))
+    drive_force[stalled] = 0.0  # inertia only there: no feed satisfies the cutting share (reported)
+    limits.append(MotorCurrent(mass, kf, current, tuple(friction), tuple(viscous), cut_beta=drive_force))
     limits.append(CurrentSlew(mass, kf, current, tuple(a.motor.resistance_ohm for a in ax),
                               tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                               min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)))
@@ -202,7 +225,8 @@ def replay(samples: Samples, limits: list, loads: dict, v_mm_s: np.ndarray, job:
     for lim in limits:
         if isinstance(lim, SpeedLoad):
             value = lim.alpha * v + lim.beta
-            ratio = value / np.broadcast_to(np.asarray(lim.limit, float), value.shape)
+            with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked below
+                ratio = value / np.broadcast_to(np.asarray(lim.limit, float), value.shape)
             keep = cut & ~loads["unavoidable"].get(lim.name, np.zeros(len(v), bool))
             out[lim.name] = max(out.get(lim.name, 0.0), float(np.nanmax(np.where(keep, ratio, 0.0), initial=0)))
         elif isinstance(lim, (FeedLimit, AxisVelocity, ChipLoad)):
@@ -221,7 +245,8 @@ def replay(samples: Samples, limits: list, loads: dict, v_mm_s: np.ndarray, job:
         acc = samples.tangent[:, k] * a_path + samples.curvature[:, k] * v**2
         cut_force = -(loads["force_a"][:, k] * v + loads["force_b"][:, k])
         d = axis.demand(vel, acc, cut_force_N=cut_force)
-        worst = max(worst, float(np.max(np.abs(d.current_A[cut]), initial=0.0)) / axis.motor.current_limit_A)
+        keep = cut & ~loads["unavoidable"]["cutting_current"]
+        worst = max(worst, float(np.max(np.abs(d.current_A[keep]), initial=0.0)) / axis.motor.current_limit_A)
     out["current"] = worst
     return out
 
@@ -285,7 +310,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         "binding": binding,
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "unavoidable_samples": {k: int(np.sum(v & cut)) for k, v in loads["unavoidable"].items() if np.any(v & cut)},
-        "notes": program.notes,
+        "notes": program.notes + _rpm_notes(job, program),
     }
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
@@ -293,7 +318,23 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
              "feed_schedule_mm_min": sched.feed_mm_s * 60.0, "feed_executed_mm_min": executed * 60.0,
              "peak_force_N": np.where(cut, loads["peak_a"] * executed + loads["peak_b"], 0.0),
              "power_W": np.where(cut, loads["power_a"] * executed + loads["power_b"], 0.0)}
+    # 1 where the cut exceeds that limit at any feed (held at the programmed feed and reported)
+    trace.update({f"unavoidable_{k}": v.astype(np.int8) for k, v in sorted(loads["unavoidable"].items())})
     return Result(text, summary, samples, trace)
+
+
+def _rpm_notes(job: Job, program: Program) -> list[str]:
+    tp = program.toolpath
+    on = (tp.rpm > 0) & (tp.kind != RAPID)
+    out = []
+    for rpm in np.unique(tp.rpm[on]):
+        used = float(spindle_rpm(job, rpm))
+        if used != rpm:
+            line = int(tp.line[np.flatnonzero(on & (tp.rpm == rpm))[0]])
+            out.append(f"{job.program}:{line}: S{rpm:g} is outside the spindle's range "
+                       f"{job.machine.spindle.rpm_min:g}–{job.machine.spindle.rpm_max:g} rpm; "
+                       f"the controller runs it at {used:g} rpm and the loads are computed there")
+    return out
 
 
 def _speed_profile(tp, execution, ds: float) -> tuple[np.ndarray, np.ndarray]:

@@ -111,6 +111,13 @@ def simulate(st, ex, b, z, dz, r, kappa, *, kc, ke, p: float, flutes: int, helix
     periods = flutes if has_runout else 1
     steps = max(8, int(math.ceil(steps_per_rev * periods / flutes)))
     fz = np.broadcast_to(np.asarray(fz_mm, float), (n,)).astype(float)
-    f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
-    return _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), f(kc), f(ke), float(p), int(flutes),
-                     math.tan(math.radians(helix_deg)), float(radius_mm), ro, has_runout, fz, steps, periods)
+    # identical samples (a cut that does not change along a move) are simulated once
+    key = np.column_stack([np.asarray(a, float).reshape(n, st.shape[1]) for a in (st, ex, b, z, dz, r, kappa)] + [fz])
+    key = np.nan_to_num(key, nan=-1e300)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first])  # noqa: E731
+    peaks, mean = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
+                            np.asarray(ke, float), float(p), int(flutes), math.tan(math.radians(helix_deg)),
+                            float(radius_mm), ro, has_runout, f(fz), steps, periods)
+    inverse = inverse.reshape(-1)
+    return peaks[inverse], mean[inverse]

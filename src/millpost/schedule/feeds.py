@@ -56,10 +56,15 @@ def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarra
     return L, V
 
 
+SLOWEST_FEED_MM_MIN = 1.0  # feed resolution of the emitted F words, and the slowest one written
+
+
 def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm: float = 2.0,
-                    max_changes_per_mm: float = 0.2, resolution_mm_min: float = 1.0) -> list[Fragment]:
-    """Fragments of every cutting move whose samples carry a finite limit (mm/s)."""
-    lim = np.where(np.asarray(limit_mm_s, float) > 0, limit_mm_s, np.inf)
+                    max_changes_per_mm: float = 0.2, resolution_mm_min: float = SLOWEST_FEED_MM_MIN) -> list[Fragment]:
+    """Fragments of every cutting move whose samples carry a finite limit (mm/s). Feeds are rounded
+    down to `resolution_mm_min`, and never below it: a limit under the slowest feed a program can
+    state gets that feed (F0 would be no feed at all)."""
+    lim = np.asarray(limit_mm_s, float)
     out: list[Fragment] = []
     mv = samples.move
     starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
@@ -81,8 +86,7 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
         hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
         cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
         cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
-        q = np.floor(cell_v * 60.0 / resolution_mm_min) * resolution_mm_min
-        q = np.where(q > 0, q, cell_v * 60.0) / 60.0
+        q = np.maximum(np.floor(cell_v * 60.0 / resolution_mm_min), 1.0) * resolution_mm_min / 60.0
         Lf, Vf = _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
         u = np.r_[0.0, np.cumsum(Lf) / L]
         u[-1] = 1.0
@@ -127,23 +131,28 @@ def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
 
 
 CONTROLLER_ENFORCED = ("axis_velocity", "axis_acceleration", "junction", "jerk")
+# limits on the drives' current: while the schedule ramps, what binds is the acceleration, which the
+# controller plans itself (F words cannot shape a ramp; a ladder of them only ends in F≈0 at a stop)
+RAMP_OWNED = ("current", "current_slew")
 
 
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
                    controller_enforced: tuple[str, ...] = CONTROLLER_ENFORCED) -> np.ndarray:
     """Per-sample feed limit (mm/s) for `piecewise_feeds`: the schedule's speed where a limit the
-    controller does not know binds (current, loads, chip load...), and the speed caps of the limits
-    it does not enforce itself where only its own dynamics (named in controller_enforced) bind —
-    the controller ramps there on its own, and programming the ramp as F words would only slow it.
-    nan on rapids."""
+    controller does not know binds (loads, chip load, current at steady speed...), and the speed caps
+    of the limits it does not enforce itself where only its own dynamics (named in
+    controller_enforced, and the current limits while ramping) bind — the controller ramps there on
+    its own, and programming the ramp as F words would only slow it. nan on rapids."""
     grid = PathGrid.from_samples(samples)
     caps = [blk for blk in path_blocks(grid, limits)
             if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
     out = np.full(len(samples), np.nan)
     for lo, hi, sch in schedule.segments:
         _, b_hi = merged_bounds([c.window(lo, hi) for c in caps], hi - lo)
-        # where nothing binds (ramping from rest) or only the controller's own dynamics bind, the
-        # controller ramps by itself: program the caps there
-        own = np.isin(sch.binding.astype(str), controller_enforced + ("",))
+        binding = sch.binding.astype(str)
+        a = np.abs(sch.a)
+        a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)
+        ramping = np.r_[a > a_ref, False] | np.r_[False, a > a_ref]
+        own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, RAMP_OWNED) & ramping)
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
     return out

@@ -1,0 +1,92 @@
+"""Seeded random jobs end to end (issue 5): every emitted program, replayed through the controller
+model and the force model, exceeds no limit by more than 0.5 %. Jobs come from `random_jobs.py`
+(random programs, tools, built-in materials and machines, user limits and cuts).
+
+Two checks: the pipeline's own replay (`summary["limits"]`, every job), and an independent one on
+every tenth job, which re-evaluates the force model's nonlinear law (Kienzle's f_z^(1−mc), not the
+linear bound the scheduler used) in the time domain at the feed per tooth the controller actually
+runs, against the tool's breaking force, the deflection limit and the spindle curve."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+
+import numpy as np
+import pytest
+
+from millpost.gcode import read_text
+from millpost.optimize import spindle_rpm
+from millpost.toolpath import RAPID
+from millpost.tools.beam import ToolBeam
+from random_jobs import run_job
+
+COUNT = 1000
+TOL = 1.005
+
+
+def _check(seed: int) -> dict:
+    job, eng, result = run_job(seed)
+    s = result.summary
+    out = {"seed": seed, "status": s["status"], "limits": s["limits"], "unavoidable": s["unavoidable_samples"]}
+    emitted = read_text(result.text, "emitted.nc").toolpath
+    feeds = emitted.feed_mm_min[emitted.kind != RAPID]
+    out["feed_over"] = float(np.nanmax(feeds, initial=0.0)) / min(job.machine.feed_max_mm_min,
+                                                                   job.limits["feed_max_mm_min"] or np.inf)
+    if seed % 10 == 0 and s["status"] == "solved":
+        out["independent"] = _independent(job, eng, result)
+    return out
+
+
+def _independent(job, eng, result) -> dict:
+    """Ratios to bound of peak force, deflection and power from `model.predict` at the executed feed."""
+    tool = job.tools[1]
+    tr = result.trace
+    smp = result.samples
+    cut = (smp.kind != RAPID) & (eng.ap_mm > 0) & (smp.rpm > 0)
+    rpm = spindle_rpm(job, np.where(smp.rpm > 0, smp.rpm, 1.0))
+    fz = tr["feed_executed_mm_min"] / (tool.flutes * rpm)
+    loads = job.material.force_model(job.limits["model"]).predict(eng, fz, rpm, tool)
+    beam = ToolBeam.of(tool)
+    k_xy = min(job.machine.axes["x"].stiffness_N_per_mm, job.machine.axes["y"].stiffness_N_per_mm)
+    ratios = {
+        "cutting_force": loads.peak_force_xy_N / beam.breaking_force_N(eng.ap_mm),
+        "deflection": loads.peak_force_xy_N * (beam.compliance_mm_per_N(eng.ap_mm, at_tip=True) + 1 / k_xy)
+        / job.limits["deflection_mm"],
+        "power": loads.power_W / np.maximum(job.machine.spindle.power_available_W(rpm), 1e-9),
+    }
+    out = {}
+    for name, r in ratios.items():
+        # where the edge forces alone exceed the bound the pipeline holds the feed and reports it
+        keep = cut & (tr[f"unavoidable_{name}"] == 0)
+        out[name] = float(np.max(r[keep], initial=0.0))
+    return out
+
+
+@pytest.fixture(scope="module")
+def outcomes():
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(max(1, min(4, os.cpu_count() or 1))) as pool:
+        return pool.map(_check, range(COUNT), chunksize=10)
+
+
+def test_emitted_programs_exceed_no_limit(outcomes):
+    bad = [(o["seed"], {k: v for k, v in o["limits"].items() if v > TOL}) for o in outcomes
+           if max(o["limits"].values(), default=0.0) > TOL]
+    assert not bad, f"{len(bad)} of {COUNT} jobs exceed a limit on replay: {bad[:5]}"
+
+
+def test_emitted_feeds_within_machine_and_user_limits(outcomes):
+    assert max(o["feed_over"] for o in outcomes) <= 1.0 + 1e-9
+
+
+def test_solver_does_not_fall_back(outcomes):
+    failed = [o["seed"] for o in outcomes if o["status"] != "solved"]
+    assert len(failed) <= 0.01 * COUNT, failed[:10]
+
+
+def test_independent_force_evaluation_exceeds_no_limit(outcomes):
+    checked = [o for o in outcomes if "independent" in o]
+    assert len(checked) >= 0.09 * COUNT
+    worst = {k: max(o["independent"][k] for o in checked) for k in checked[0]["independent"]}
+    assert all(v <= TOL for v in worst.values()), worst
