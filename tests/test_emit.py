@@ -10,7 +10,8 @@ import pytest
 
 import rs274_oracle
 from conftest import SHARED_DATA
-from millpost.emit import FeedPlan, write_atomic, write_feeds
+from millpost.emit import FeedPlan, write_feeds
+from millpost.files import write_atomic
 from millpost.errors import ParseError
 from millpost.gcode import ReaderOptions, read_program, read_text
 from millpost.toolpath import RAPID

@@ -38,6 +38,30 @@ def test_slot_trace_and_final_stock(tmp_path, capsys):
     assert m.is_watertight and m.volume == pytest.approx(20 * 20 * 10 - 180, rel=2e-2)
 
 
+def test_job_with_two_tools(tmp_path, capsys):
+    """A job file gives program, stock and tools by number: two slots cut by T1 (D6, 1 mm deep) and
+    T2 (D3, 2 mm deep) through a 30 mm block remove 30·6·1 + 30·3·2 = 360 mm³, each at area 6 mm²."""
+    (tmp_path / "p.nc").write_text(
+        "G21 G90 G17\nT1 M6\nS10000 M3\nG0 X-5 Y5 Z5\nG1 Z-1 F300\nG1 X35 F600\nG0 Z5\n"
+        "T2 M6\nS12000 M3\nG0 X-5 Y15\nG1 Z-2 F200\nG1 X35 F400\nG0 Z5\nM30\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0, 0, -10], [30, 20, 0]]\n'
+        'cell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\nflutes = 3\n[tools.2]\ndiameter_mm = 3\nflutes = 2\n'
+        '[limits]\nds_mm = 0.2\n')
+    trace = tmp_path / "t.csv"
+    assert main(["simulate", str(tmp_path), "--trace", str(trace), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["removed_mm3"] == pytest.approx(360.0, rel=5e-3)
+    rows = list(csv.DictReader(trace.open()))
+    assert np.median(np.diff([float(r["s_mm"]) for r in rows])) == pytest.approx(0.2, rel=0.05)  # the job's ds_mm
+    for tool, line in (("1", "6"), ("2", "12")):
+        mid = [float(r["area_mm2"]) for r in rows if r["tool"] == tool and r["line"] == line and 8 < float(r["x_mm"]) < 22]
+        assert mid and np.mean(mid) == pytest.approx(6.0, rel=5e-3)
+    # flags that the job already gives are refused, not silently ignored
+    assert main(["simulate", str(tmp_path), "--stock-box", "0,0,-1,1,1,0", "--trace", str(trace)]) == 2
+    assert "stock-box" in capsys.readouterr().err
+
+
 def test_npz_trace_keeps_slices(tmp_path):
     nc = tmp_path / "ball.nc"
     nc.write_text("G21 G90\nG0 X-5 Y10 Z5\nG1 Z-2 F300\nG1 X25 F600\nM30\n")

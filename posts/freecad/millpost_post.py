@@ -203,7 +203,7 @@ def job_toml(stock: tuple[Sequence[float], Sequence[float]] | str, tools: Iterab
 
     `stock` is a box ((xmin, ymin, zmin), (xmax, ymax, zmax)) or the name of a stock file.
     """
-    lines = [f"# written by the millpost FreeCAD post", f"program = {_toml_str(program)}"]
+    lines = ["# written by the millpost FreeCAD post", f"program = {_toml_str(program)}"]
     if output is not None:
         lines.append(f"output = {_toml_str(output)}")
     lines += ['dialect = "linuxcnc"', f"material = {_toml_str(material)}", f"machine = {_toml_str(machine)}",

@@ -11,11 +11,8 @@ cycles, G28) get the lowest feed any of their moves wants: never faster than the
 from __future__ import annotations
 
 import math
-import os
 import re
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -39,21 +36,6 @@ class FeedPlan:
     @classmethod
     def programmed(cls, program: Program) -> "FeedPlan":
         return cls(program.toolpath.feed_mm_min.copy(), {})
-
-
-def write_atomic(path: str | Path, text: str) -> None:
-    """Write text to `path` through a temporary file in the same folder, then rename: a reader never
-    sees a half-written file, and a failure leaves any old file untouched."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".millpost-tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _decimals(block: Block, default: int) -> int:

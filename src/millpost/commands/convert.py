@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..emit import write_atomic
+from ..files import write_atomic
 from ..errors import MillpostError
 from ..gcode import ReaderOptions, dialects, read_program, read_text
 from ..gcode.convert import convert, same_path

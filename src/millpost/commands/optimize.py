@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..emit import write_atomic
+from ..files import write_atomic
 from ..job import load_job
 from ..optimize import optimize
 

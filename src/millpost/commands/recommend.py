@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from dataclasses import asdict
-from pathlib import Path
 
+from ..files import atomic_path
 from ..heuristics import Limits, Recommendation, recommend, sweep_ae
 from ..machine import Machine
 from ..materials import Material
@@ -102,16 +100,11 @@ def _write_plot(path: str, recs: list[Recommendation], chosen: Recommendation, t
     ax.set_ylabel("removal rate (cm³/min)")
     ax.set_title(title)
     ax.legend()
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=target.parent or ".")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight")
-        os.replace(tmp, target)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=120, bbox_inches="tight")
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def run(args: argparse.Namespace) -> int:

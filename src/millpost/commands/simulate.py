@@ -1,40 +1,43 @@
-"""`millpost simulate PROGRAM`: step a tool through the stock along a G-code program and write the
-per-sample engagement trace (CSV, or NPZ with every axial slice) and optionally the final stock
-as STL. Stock and tool come from flags until job files carry them."""
+"""`millpost simulate JOB|PROGRAM`: step the tools through the stock along a G-code program and write
+the per-sample engagement trace (CSV, or NPZ with every axial slice) and optionally the final stock
+as STL. JOB is a job folder or job.toml (program, stock and tools from it, see the README); a bare
+PROGRAM takes stock and tool from the flags."""
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError, MillpostError
+from ..files import atomic_path
 
-TRACE_COLUMNS = ("sample", "s_mm", "x_mm", "y_mm", "z_mm", "move", "line", "kind", "feed_mm_min", "volume_mm3",
-                 "area_mm2", "ap_mm", "ae_mm", "phi_st_deg", "phi_ex_deg", "engaged_deg", "descending")
+TRACE_COLUMNS = ("sample", "s_mm", "x_mm", "y_mm", "z_mm", "move", "line", "kind", "tool", "feed_mm_min",
+                 "volume_mm3", "area_mm2", "ap_mm", "ae_mm", "phi_st_deg", "phi_ex_deg", "engaged_deg", "descending")
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("simulate", help="engagement of a tool along a program through the stock",
+    p = subparsers.add_parser("simulate", help="engagement of the tools along a program through the stock",
                               description=__doc__)
-    p.add_argument("program", help="G-code file")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--stock-box", metavar="X0,Y0,Z0,X1,Y1,Z1", help="block stock corners (mm)")
-    src.add_argument("--stock", metavar="FILE", help="stock solid: .stl, .step/.stp, or .py defining `stock`")
-    p.add_argument("--cell", type=float, default=None, help="stock cell size in mm (default 0.025 where memory allows)")
-    p.add_argument("--tool-diameter", type=float, required=True, help="cutter diameter (mm)")
+    p.add_argument("target", metavar="JOB|PROGRAM", help="job folder or job.toml, or a G-code file")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--stock-box", metavar="X0,Y0,Z0,X1,Y1,Z1", help="block stock corners (mm; PROGRAM only)")
+    src.add_argument("--stock", metavar="FILE", help="stock solid: .stl, .step/.stp, or .py defining `stock` "
+                                                     "(PROGRAM only)")
+    p.add_argument("--cell", type=float, default=None, help="stock cell size in mm (default: the job's, else "
+                                                            "0.025 where memory allows)")
+    p.add_argument("--tool-diameter", type=float, help="cutter diameter (mm; PROGRAM only: one tool for all)")
     p.add_argument("--shape", default="flat", choices=("flat", "ball", "bull", "chamfer"))
     p.add_argument("--corner-radius", type=float, default=0.0, help="bull nose corner radius (mm)")
     p.add_argument("--tip-angle", type=float, default=90.0, help="chamfer/V included angle (degrees)")
     p.add_argument("--tip-diameter", type=float, default=0.0, help="chamfer flat tip diameter (mm)")
     p.add_argument("--flute-length", type=float, default=None, help="cutting length (mm)")
-    p.add_argument("--step", type=float, default=0.1, help="sample spacing along the path (mm)")
+    p.add_argument("--step", type=float, default=None, help="sample spacing along the path (mm; default: the "
+                                                            "job's ds_mm, else 0.1)")
     p.add_argument("--slices", type=int, default=8, help="axial slices per sample")
     p.add_argument("--trace", required=True, help="output trace: .csv (per sample) or .npz (all arrays)")
     p.add_argument("--stock-stl", help="write the final stock as STL")
@@ -52,18 +55,36 @@ def _box(text: str) -> tuple[list[float], list[float]]:
     return v[:3], v[3:]
 
 
-def _atomic(path: str, write) -> None:
-    """Write through a temporary file in the target directory, then rename it into place."""
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=d, suffix=".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+def _inputs(args: argparse.Namespace):
+    """(program path, stock, tools by number or one tool, step mm, dialect) from a job or the flags."""
+    from .. import stock as stk
+    from ..job import load_job
+    from ..tools import Tool
+
+    target = Path(args.target)
+    if target.is_dir() or target.suffix == ".toml":
+        for flag in ("stock_box", "stock", "tool_diameter"):
+            if getattr(args, flag) is not None:
+                raise ConfigError(flag.replace("_", "-"), getattr(args, flag),
+                                  "comes from the job file; give it only with a bare PROGRAM")
+        job = load_job(target)
+        if args.cell is not None:
+            job.cell_mm = args.cell
+        step = args.step if args.step is not None else float(job.limits["ds_mm"])
+        return job.program, job.stock(), dict(job.tools), step, job.dialect
+    if args.stock_box is None and args.stock is None:
+        raise ConfigError("stock", None, "a bare PROGRAM needs --stock-box or --stock (or give a job)")
+    if args.tool_diameter is None:
+        raise ConfigError("tool-diameter", None, "a bare PROGRAM needs the tool (or give a job)")
+    tool = Tool(args.tool_diameter, shape=args.shape, corner_radius_mm=args.corner_radius,
+                tip_angle_deg=args.tip_angle, tip_diameter_mm=args.tip_diameter, flute_length_mm=args.flute_length)
+    if args.stock_box:
+        stock = stk.box(*_box(args.stock_box), args.cell)
+    else:
+        if not Path(args.stock).is_file():
+            raise MillpostError(f"{args.stock}: no such stock file")
+        stock = stk.load(args.stock, args.cell)
+    return target, stock, tool, args.step if args.step is not None else 0.1, None
 
 
 def write_trace(path: str, samples, eng) -> None:
@@ -71,13 +92,11 @@ def write_trace(path: str, samples, eng) -> None:
     NPZ: every Engagement array (per slice too) plus the sample positions."""
     if path.endswith(".npz"):
         arrays = {k: v for k, v in vars(eng).items() if isinstance(v, np.ndarray)}
-        arrays.update(s_mm=samples.s_mm, xyz_mm=samples.xyz_mm, kind=samples.kind, feed_mm_min=samples.feed_mm_min)
+        arrays.update(s_mm=samples.s_mm, xyz_mm=samples.xyz_mm, kind=samples.kind, tool=samples.tool,
+                      feed_mm_min=samples.feed_mm_min)
 
-        def npz(tmp: str) -> None:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **arrays)
-
-        _atomic(path, npz)
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
         return
     with np.errstate(all="ignore"):
         st = np.degrees(np.nanmin(np.where(np.isnan(eng.phi_st), np.inf, eng.phi_st), axis=1))
@@ -86,42 +105,33 @@ def write_trace(path: str, samples, eng) -> None:
     st[none], ex[none] = np.nan, np.nan
     engaged = np.degrees(eng.arc_rad.max(axis=1))
     cols = [np.arange(len(samples)), samples.s_mm, *samples.xyz_mm.T, eng.move, eng.line, samples.kind,
-            samples.feed_mm_min, eng.volume_mm3, eng.area_mm2, eng.ap_mm, eng.ae_mm, st, ex, engaged,
+            samples.tool, samples.feed_mm_min, eng.volume_mm3, eng.area_mm2, eng.ap_mm, eng.ae_mm, st, ex, engaged,
             eng.descending.astype(int)]
-    fmt = ["%d", "%.4f", "%.4f", "%.4f", "%.4f", "%d", "%d", "%d", "%.6g", "%.6g", "%.6g", "%.5g", "%.5g", "%.4f",
+    fmt = ["%d", "%.4f", "%.4f", "%.4f", "%.4f", "%d", "%d", "%d", "%d", "%.6g", "%.6g", "%.6g", "%.5g", "%.5g", "%.4f",
            "%.4f", "%.4f", "%d"]
     table = np.column_stack([np.asarray(c, float) for c in cols])
-    _atomic(path, lambda tmp: np.savetxt(tmp, table, fmt=fmt, delimiter=",", header=",".join(TRACE_COLUMNS),
-                                         comments=""))
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, table, fmt=fmt, delimiter=",", header=",".join(TRACE_COLUMNS), comments="")
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import stock as stk
     from ..engagement import simulate
-    from ..gcode import read_program
-    from ..tools import Tool
+    from ..gcode import ReaderOptions, read_program
 
-    if args.step <= 0:
+    if args.step is not None and args.step <= 0:
         raise ConfigError("step", args.step, "must be > 0 mm")
-    tool = Tool(args.tool_diameter, shape=args.shape, corner_radius_mm=args.corner_radius,
-                tip_angle_deg=args.tip_angle, tip_diameter_mm=args.tip_diameter, flute_length_mm=args.flute_length)
     t0 = time.perf_counter()
-    program = read_program(args.program)
-    if args.stock_box:
-        stock = stk.box(*_box(args.stock_box), args.cell)
-    else:
-        if not Path(args.stock).is_file():
-            raise MillpostError(f"{args.stock}: no such stock file")
-        stock = stk.load(args.stock, args.cell)
+    program_path, stock, tools, step, dialect = _inputs(args)
+    program = read_program(program_path, ReaderOptions(dialect=dialect))
     v0 = stock.volume_mm3()
-    samples = program.toolpath.resample(args.step)
-    eng = simulate(stock, tool, samples, slices=args.slices)
+    samples = program.toolpath.resample(step)
+    eng = simulate(stock, tools, samples, slices=args.slices)
     write_trace(args.trace, samples, eng)
     if args.stock_stl:
         stock.export_stl(args.stock_stl)
     cutting = eng.volume_mm3 > 0
     summary = {
-        "program": args.program, "samples": len(samples), "cell_mm": stock.cell_mm,
+        "program": str(program_path), "samples": len(samples), "cell_mm": stock.cell_mm,
         "removed_mm3": round(v0 - stock.volume_mm3(), 4),
         "cutting_samples": int(cutting.sum()),
         "max_ap_mm": round(float(eng.ap_mm.max(initial=0.0)), 4),

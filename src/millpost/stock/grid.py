@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import MillpostError
+from ..files import atomic_path
 
 DEFAULT_CELL_MM = 0.025
 BYTES_PER_CELL = 4 + 1  # float32 top + the builder's uint8 crossing count (the bitset is 1/8 more)
@@ -130,23 +130,16 @@ def _heightfield_triangles(z: np.ndarray, x0: float, y0: float, h: float, zf: fl
 
 
 def _write_binary_stl(path: str | os.PathLike, tris: np.ndarray) -> None:
-    """Binary STL written to a temporary file, then renamed into place."""
+    """Binary STL, written whole or not at all."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     ln = np.linalg.norm(n, axis=1, keepdims=True)
     n = np.divide(n, ln, out=np.zeros_like(n), where=ln > 0)
     rec = np.zeros(len(tris), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
     rec["n"], rec["v"] = n, tris
-    path = os.fspath(path)
-    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(os.path.abspath(path)), suffix=".stl.tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(b"millpost stock".ljust(80, b" "))
-            fh.write(np.uint32(len(tris)).tobytes())
-            fh.write(rec.tobytes())
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        fh.write(b"millpost stock".ljust(80, b" "))
+        fh.write(np.uint32(len(tris)).tobytes())
+        fh.write(rec.tobytes())
 
 
 def grid_shape(xy_min, xy_max, cell_mm: float) -> tuple[int, int]:
