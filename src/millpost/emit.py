@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import MillpostError
+from .gcode.flow import control_of
 from .gcode.interpret import INCH, Program
 from .gcode.lexer import Block, lex_line
 from .toolpath import ARC_CW, PLANE_AXES, RAPID
@@ -36,6 +37,13 @@ class FeedPlan:
     @classmethod
     def programmed(cls, program: Program) -> "FeedPlan":
         return cls(program.toolpath.feed_mm_min.copy(), {})
+
+
+class _Unknown(dict):
+    """Parameters whose values the text alone cannot give (0 for any missing one)."""
+
+    def __missing__(self, key) -> float:
+        return 0.0
 
 
 def _decimals(block: Block, default: int) -> int:
@@ -112,11 +120,20 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         by_line.setdefault(int(tp.line[i]), []).append(int(i))
     out: list[str] = []
     modal_f: float | None = None  # F in force in the output (program units)
-    params: dict = {}
+    # With O-word control flow a line may run several times, with other parameters and after other
+    # lines than the text shows: every line that feeds gets its own F (the lowest any run of it
+    # wants), no F is kept for its value, and parameters only locate the words.
+    flow = program.control_flow
+    if flow and not plan.fragments and np.array_equal(plan.feed_mm_min, tp.feed_mm_min, equal_nan=True):
+        return program.text
+    params: dict = _Unknown() if flow else {}
     for n, raw in enumerate(lines, start=1):
         body = raw.rstrip("\r\n")
         ending = raw[len(body):]
         moves = by_line.get(n)
+        if flow and control_of(body) is not None:
+            out.append(raw)
+            continue
         if moves is None:
             if "#" in body or "f" in body.lower():  # parameters to carry, or an F that sets the modal feed
                 try:
@@ -171,6 +188,12 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         value = f_value(k, plan.feed_mm_min[k], lengths[k])
         if program.feed_mode[k] == 930 and len(moves) > 1:
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
+        if flow:  # its own F, evaluated as it runs, still right on every run: keep it; else write one
+            if f_word is not None and all(plan.feed_mm_min[i] == tp.feed_mm_min[i] for i in moves):
+                out.append(raw)
+            else:
+                out.append(writer.replace({"F": f_text(value)}) + ending)
+            continue
         if f_word is not None and _same(f_word.value, value):
             out.append(raw)  # the program's own F still holds: keep its bytes
         elif f_word is None and modal_f is not None and _same(modal_f, value) and program.feed_mode[k] != 930:

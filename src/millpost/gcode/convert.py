@@ -48,11 +48,10 @@ def convert(program: Program, dialect: Dialect) -> str:
     feed = None
     g = lambda c: f"G{c:02d}" if dialect.trailing_point else f"G{c}"  # noqa: E731
     emit(f"{g(90)} {g(94)} {g(17)}")
-    events = sorted(program.events, key=lambda e: e.line)
+    events = program.events  # in the order they ran (a line in a loop or subroutine runs again)
     ev = 0
     for i in range(len(tp)):
-        line = int(tp.line[i])
-        while ev < len(events) and events[ev].line <= line:
+        while ev < len(events) and events[ev].move <= i:
             _event(events[ev], dialect, emit, comment, g)
             ev += 1
         move_inch = bool(program.move_inch[i])

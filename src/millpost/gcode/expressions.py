@@ -135,8 +135,10 @@ class _Scanner:
         return int(v)
 
     def params_get(self, key: int | str) -> float:
-        if key in self.params:
+        try:
             return self.params[key]
+        except KeyError:
+            pass
         if isinstance(key, int):
             return 0.0
         raise self.error(f"parameter #<{key}> is used before it is set", "a named parameter assigned earlier")
@@ -180,3 +182,16 @@ def scan_line(code: str, line: int, file: str, params: dict) -> tuple[list[tuple
             words.append((ch.upper(), sc.value(), start + 1, start, sc.pos))
             continue
         raise sc.error(f"unexpected character {ch!r}", "words (a letter and a value) or #parameter = value")
+
+
+def evaluate_all(code: str, start: int, line: int, file: str, params: dict) -> list[float]:
+    """Values ([expr], number or parameter) from column `start` to the end of a line whose comments
+    were already blanked out: the arguments of an O-word call or the condition of an if/while."""
+    sc = _Scanner(code, line, file, params)
+    sc.pos = start
+    out = []
+    while True:
+        sc.skip()
+        if sc.pos >= len(code):
+            return out
+        out.append(sc.value())

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import ParseError
 from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
+from .flow import MAX_EXECUTED_LINES, Flow, Source, control_of
 from .lexer import Block, Word, lex_line
 
 INCH = 25.4
@@ -94,6 +95,7 @@ class Event:
     line: int
     kind: str
     value: object = None
+    move: int = 0  # moves run before it: its place in the order of execution
 
 
 @dataclass
@@ -119,6 +121,7 @@ class Program:
     events: list[Event]
     notes: list[str]
     dwell_s: float
+    control_flow: bool = False  # O-word subroutines or loops: a line may run several times
 
     @property
     def tools(self) -> list[int]:
@@ -182,7 +185,7 @@ class Interpreter:
         self.m = _Moves()
         self.events: list[Event] = []
         self.notes: list[str] = []
-        self.params: dict = {}
+        self.params: dict = {"_value": 0.0, "_value_returned": 0.0}  # LinuxCNC's predefined return value
         self.units_seen: list[str] = []
         # modal state
         self.scale = 1.0  # mm per program unit
@@ -213,12 +216,16 @@ class Interpreter:
         self.block_index = 0
         self.ended = False
         self.safe_z_pending = False
+        self.control_flow = False  # O-word control flow ran: lines may run more than once
 
     # --- helpers ----------------------------------------------------------------------------
     def err(self, msg: str, block: Block, word: Word | None, expected: str) -> ParseError:
         col = word.column if word is not None else 1
         return ParseError(msg, file=self.file, line=block.line, column=col,
                           word=word.text if word is not None else "", expected=expected)
+
+    def event(self, line: int, kind: str, value: object = None) -> None:
+        self.events.append(Event(line, kind, value, len(self.m)))
 
     def pending_scale(self, b: Block) -> float:
         """mm per unit for words of this block: a G20/G21 in the same block applies first."""
@@ -257,19 +264,28 @@ class Interpreter:
     # --- blocks -----------------------------------------------------------------------------
     def run(self, text: str) -> None:
         percent_seen = 0
-        pos, size, line_no = 0, len(text), 0
-        while pos < size:  # one line at a time: no list of lines, no copy of the text
-            end = text.find("\n", pos)
-            end = size if end < 0 else end
-            raw = text[pos:end].rstrip("\r")
-            pos = end + 1
-            line_no += 1
+        source = Source(text)  # one line at a time: no list of lines, no copy of the text
+        flow: Flow | None = None  # created by the first O-word statement
+        while (raw := source.next()) is not None:
+            line_no = source.line
             if self.ended:
                 if raw.strip() and raw.strip() != "%":
                     self.notes.append(f"line {line_no}: after program end (M2/M30): not executed")
                     break
                 continue
+            if flow is not None:
+                flow.executed += 1
+                if flow.executed > MAX_EXECUTED_LINES:
+                    raise ParseError(f"more than {MAX_EXECUTED_LINES} lines executed", file=self.file, line=line_no,
+                                     column=1, word=raw.strip()[:40], expected="loops that end")
             if self.fast_line(raw, line_no):
+                continue
+            control = control_of(raw)
+            if control is not None:
+                if not (raw.lstrip().startswith("/") and self.opt.block_delete):
+                    flow = flow or Flow(source, self.file, self.params)
+                    flow.statement(raw, *control)
+                    self.control_flow = True
                 continue
             block = lex_line(raw, line_no, self.file, self.params)
             if block.percent:
@@ -285,7 +301,7 @@ class Interpreter:
                 self.block_index += 1
             for c in block.comments:
                 if c:
-                    self.events.append(Event(line_no, "comment", c))
+                    self.event(line_no, "comment", c)
             for key, value in block.assigns:
                 self.params[key] = value
 
@@ -423,22 +439,22 @@ class Interpreter:
                                "straight-line G-code as a CAM post writes it")
             if code not in (0, 1, 2, 30, 3, 4, 5, 6, 7, 8, 9, 29, 19, 48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65, 66,
                             67, 68, 70, 71, 72, 73) and not 100 <= code <= 199:
-                self.events.append(Event(b.line, "m_code", code))
+                self.event(b.line, "m_code", code)
                 self.notes.append(f"line {b.line}: M{code} passed through (no motion)")
         if 6 in mset:
             tool = self.selected if self.selected >= 0 else (int(val["T"].value) if "T" in val else -1)
             self.tool = tool
-            self.events.append(Event(b.line, "tool_change", tool))
+            self.event(b.line, "tool_change", tool)
         for code in (3, 4, 5):
             if code in mset:
                 self.spindle_on = code != 5
-                self.events.append(Event(b.line, "spindle", ("cw" if code == 3 else "ccw" if code == 4 else "off",
-                                                              self.s if code != 5 else 0.0)))
+                self.event(b.line, "spindle", ("cw" if code == 3 else "ccw" if code == 4 else "off",
+                                                              self.s if code != 5 else 0.0))
         if "S" in val and self.spindle_on and not mset & {3, 4, 5}:
-            self.events.append(Event(b.line, "spindle", ("speed", self.s)))
+            self.event(b.line, "spindle", ("speed", self.s))
         for code in (7, 8, 9):
             if code in mset:
-                self.events.append(Event(b.line, "coolant", {7: "mist", 8: "flood", 9: "off"}[code]))
+                self.event(b.line, "coolant", {7: "mist", 8: "flood", 9: "off"}[code])
         # dwell
         if 40 in gset:
             p = val.get("P") or val.get("X") or val.get("U")
@@ -447,7 +463,7 @@ class Interpreter:
                                groups.get("non-modal"), "G4 P<time>")
             secs = p.value / 1000.0 if (self.dialect == "fanuc" and p.letter == "P" and "." not in p.text) else p.value
             self.dwell_s += secs
-            self.events.append(Event(b.line, "dwell", secs))
+            self.event(b.line, "dwell", secs)
         # plane, units
         for code, plane in ((170, 0), (180, 1), (190, 2)):
             if code in gset:
@@ -463,7 +479,7 @@ class Interpreter:
         for code, idx in ((540, 1), (550, 2), (560, 3), (570, 4), (580, 5), (590, 6), (591, 7), (592, 8), (593, 9)):
             if code in gset:
                 self.set_offsets(lambda: setattr(self, "cs", idx))
-                self.events.append(Event(b.line, "work_offset", idx))
+                self.event(b.line, "work_offset", idx)
         for code in (900, 910):
             if code in gset:
                 self.absolute = code == 900
@@ -475,8 +491,8 @@ class Interpreter:
                 self.retract_old_z = code == 980
         for code, name in ((610, "exact path"), (611, "exact stop"), (640, "blend")):
             if code in gset:
-                self.events.append(Event(b.line, "path_mode", (name, val["P"].value if "P" in val and code == 640
-                                                               else None)))
+                self.event(b.line, "path_mode", (name, val["P"].value if "P" in val and code == 640
+                                                               else None))
         if "@" in val or "^" in val:
             block_motion = next((c for c in gset if c in _MOTION), self.motion)
             self.polar_words(b, val, block_motion in _CYCLES)
@@ -517,9 +533,9 @@ class Interpreter:
         # stops
         for code, w in mcodes:
             if code in (0, 1, 60):
-                self.events.append(Event(b.line, "stop", code))
+                self.event(b.line, "stop", code)
             elif code in (2, 30):
-                self.events.append(Event(b.line, "end", code))
+                self.event(b.line, "end", code)
                 self.ended = True
 
     def tool_length(self, gset: set, b: Block, val: dict) -> None:
@@ -539,7 +555,7 @@ class Interpreter:
                 self.notes.append(f"line {b.line}: tool length of H{h} unknown: Z is programmed tool-tip Z")
             new = (self.tlo if 432 in gset else 0.0) + (length or 0.0)
         self.set_offsets(lambda: setattr(self, "tlo", new))
-        self.events.append(Event(b.line, "tool_length", new))
+        self.event(b.line, "tool_length", new)
 
     def polar_words(self, b: Block, val: dict, cycle: bool) -> None:
         """LinuxCNC polar coordinates in G17: @ radius and ^ angle (degrees) about the origin, absolute
@@ -606,7 +622,7 @@ class Interpreter:
                 raise self.err("G10 without an L word", b, None, "G10 L1/L10/L11 (tool table) or L2/L20 (offsets)")
             lv = int(L.value)
             if lv in (1, 10, 11):
-                self.events.append(Event(b.line, "tool_table", lv))
+                self.event(b.line, "tool_table", lv)
                 return True
             if lv in (2, 20):
                 p = int(val["P"].value) if "P" in val else 0
@@ -878,9 +894,9 @@ class Interpreter:
         elif code == 860:
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
-            self.events.append(Event(b.line, "spindle", ("off", 0.0)))
+            self.event(b.line, "spindle", ("off", 0.0))
             self.to_depth(RAPID, clear, b)
-            self.events.append(Event(b.line, "spindle", ("cw", self.s)))
+            self.event(b.line, "spindle", ("cw", self.s))
         elif code == 890:
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
@@ -890,7 +906,7 @@ class Interpreter:
         elif code == 880:
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
-            self.events.append(Event(b.line, "stop", "G88 manual retract"))
+            self.event(b.line, "stop", "G88 manual retract")
             self.notes.append(f"line {b.line}: G88 stops for a manual retract; modelled as a rapid to the clear plane")
             self.to_depth(RAPID, clear, b)
         elif code == 760:  # Fanuc/Haas fine boring: feed in, orient, shift by Q, rapid out, shift back
@@ -927,7 +943,7 @@ class Interpreter:
     def add_dwell(self, b: Block, secs: float) -> None:
         if secs > 0:
             self.dwell_s += secs
-            self.events.append(Event(b.line, "dwell", secs))
+            self.event(b.line, "dwell", secs)
 
     # --- result -----------------------------------------------------------------------------
     def finish(self, path: str, text: str) -> Program:
@@ -945,4 +961,4 @@ class Interpreter:
             path=path, text=text, toolpath=tp, dialect=self.dialect, blocks=self.blocks,
             units=self.units_seen or ["mm"], move_inch=ints[:, 6].astype(bool), feed_mode=ints[:, 7].astype(np.int16),
             incremental=ints[:, 8].astype(bool), arc_absolute=ints[:, 9].astype(bool), events=self.events, notes=self.notes,
-            dwell_s=self.dwell_s)
+            dwell_s=self.dwell_s, control_flow=self.control_flow)

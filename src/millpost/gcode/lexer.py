@@ -97,7 +97,8 @@ def lex_line(text: str, line: int, file: str = "<string>", params: dict | None =
         if m is not None:
             code = code[:m.start()] + " " * (len(code) - m.start())
     if code[lead:].lstrip()[:1] in ("O", "o"):
-        # O word: a program number (Fanuc "O1001", LinuxCNC "o<name>") — but O-word control flow is refused
+        # O word: a program number (Fanuc "O1001", LinuxCNC "o<name>"); control statements never get
+        # here (the interpreter runs them, see flow.py), so anything after the label is unknown
         body = code[lead:].lstrip()
         col = len(code) - len(code.lstrip()) + 1
         m = re.fullmatch(r"[Oo][ \t]*(\d+|<[^>]*>)[ \t]*(.*)", body.rstrip())
@@ -105,9 +106,9 @@ def lex_line(text: str, line: int, file: str = "<string>", params: dict | None =
             raise ParseError("malformed O word", file=file, line=line, column=col, word=body.strip(),
                              expected="a program number such as O1001")
         if m.group(2).strip():
-            raise ParseError("O-word subroutines and control flow are not supported", file=file, line=line,
-                             column=col, word=body.strip(),
-                             expected="straight-line G-code as a CAM post writes it (no o-word sub/if/while/call)")
+            raise ParseError("unknown O-word statement", file=file, line=line, column=col, word=body.strip(),
+                             expected="a program number alone, or oN sub|endsub|return|call|if|elseif|else|endif|"
+                                      "while|endwhile|do|repeat|endrepeat|break|continue")
         block.program = m.group(1)
         return block
     if ("#" in code or "[" in code) and params is not None:

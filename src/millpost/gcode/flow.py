@@ -1,0 +1,268 @@
+"""O-word control flow as LinuxCNC runs it: ``oN sub``/``endsub``/``return``/``call`` with up to 30
+positional arguments (#1–#30, local to the call, as are named parameters without a leading ``_``),
+``if``/``elseif``/``else``/``endif``, ``while``/``endwhile``, ``do``/``while``, ``repeat``/``endrepeat``,
+``break`` and ``continue``; ``endsub``/``return`` may carry a value, stored in ``#<_value>``.
+
+`Source` walks a program's text one line at a time and can return to a line it has passed, so the
+interpreter reads a straight-line program in one pass and only remembers line offsets (8 bytes per
+line). `Flow` holds the call and loop stacks and moves the source where a statement sends it.
+Subroutines must be in the same file (LinuxCNC's search of other files is not modelled: such a call
+is an error that says so).
+"""
+
+from __future__ import annotations
+
+import re
+from array import array
+from dataclasses import dataclass, field
+
+from ..errors import ParseError
+from .expressions import evaluate_all
+
+# a control line: optional block delete and N number, then o<label>, oNNN or o#<param> (a call's
+# target from a parameter), then a keyword (spaces inside it ignored, as everywhere in RS-274)
+_LABEL = re.compile(r"[ \t]*(?:/[ \t]*)?(?:[Nn][ \t]*\d+(?:\.\d*)?[ \t]*)?[Oo][ \t]*"
+                    r"(\d+|<[^>]*>|#[ \t]*(?:<[^>]*>|\d+))")
+_COMMENT = re.compile(r"\([^()]*\)")
+KEYWORDS = {"sub", "endsub", "return", "call", "if", "elseif", "else", "endif", "while", "endwhile", "do",
+            "repeat", "endrepeat", "break", "continue"}
+MAX_EXECUTED_LINES = 20_000_000  # a guard against loops that never end
+
+
+def control_of(raw: str) -> tuple[str, str, int] | None:
+    """(label, keyword, offset just past the keyword) when the line is an O-word control statement.
+    Labels: a number as its integer text, <name> lower case without spaces, #… as written."""
+    if "o" not in raw and "O" not in raw:
+        return None
+    m = _LABEL.match(raw)
+    if m is None:
+        return None
+    i, letters = m.end(), []
+    while i < len(raw) and (raw[i].isalpha() or raw[i] in " \t"):
+        if raw[i].isalpha():
+            letters.append(raw[i].lower())
+        i += 1
+    keyword = "".join(letters)
+    if keyword not in KEYWORDS:
+        return None
+    label = "".join(m.group(1).split())
+    if label.startswith("<"):
+        label = label[1:-1].lower()
+    elif label.isdigit():
+        label = str(int(label))
+    return label, keyword, i
+
+
+class Source:
+    """Lines of a text by number (1-based), read forward and revisited by `seek`."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.pos = 0
+        self.line = 0  # number of the line last returned
+        self.starts = array("q", [0])  # offset of every line seen so far, and of the one after
+
+    def next(self) -> str | None:
+        if self.pos >= len(self.text):
+            return None
+        end = self.text.find("\n", self.pos)
+        end = len(self.text) if end < 0 else end
+        raw = self.text[self.pos:end].rstrip("\r")
+        self.pos = end + 1
+        self.line += 1
+        if self.line == len(self.starts):
+            self.starts.append(self.pos)
+        return raw
+
+    def seek(self, line: int) -> None:
+        """Make `line` (seen, or the one after the last seen) the next line returned."""
+        self.line = line - 1
+        self.pos = self.starts[line - 1]
+
+
+@dataclass
+class _Frame:
+    label: str
+    return_line: int
+    saved: dict  # the caller's local parameters
+    loops: int  # depth of the loop stack at the call
+
+
+@dataclass
+class _Loop:
+    label: str
+    kind: str  # while, do, repeat
+    line: int  # the loop's opening line
+    remaining: int = 0
+
+
+@dataclass
+class Flow:
+    """Call and loop stacks of a running program; `statement` executes one control line."""
+
+    source: Source
+    file: str
+    params: dict
+    subs: dict = field(default_factory=dict)  # label → line of its `sub`
+    frames: list = field(default_factory=list)
+    loops: list = field(default_factory=list)
+    executed: int = 0
+
+    def error(self, line: int, raw: str, message: str, expected: str) -> ParseError:
+        return ParseError(message, file=self.file, line=line, column=len(raw) - len(raw.lstrip()) + 1,
+                          word=raw.strip()[:40], expected=expected)
+
+    def _values(self, raw: str, at: int, line: int) -> list[float]:
+        """The values after the keyword ([expr] [expr] ...), comments blanked."""
+        code = _COMMENT.sub(lambda m: " " * len(m.group(0)), raw)
+        code = code.split(";", 1)[0]
+        return evaluate_all(code, at, line, self.file, self.params)
+
+    def _condition(self, raw: str, at: int, line: int) -> bool:
+        values = self._values(raw, at, line)
+        if len(values) != 1:
+            raise self.error(line, raw, "a condition needs one [expression]", "[expression] after the keyword")
+        return values[0] != 0.0
+
+    def statement(self, raw: str, label: str, keyword: str, at: int) -> None:
+        """Execute the control line just read (raw, with its parsed label and keyword)."""
+        line = self.source.line
+        if keyword == "sub":
+            self.subs[label] = line
+            self._skip_to(label, ("endsub",), line, raw)
+        elif keyword == "call":
+            self._call(label, raw, at, line)
+        elif keyword in ("endsub", "return"):
+            self._return(label, raw, at, line)
+        elif keyword == "if":
+            if not self._condition(raw, at, line):
+                self._next_branch(label, line, raw)
+        elif keyword in ("elseif", "else"):  # reached at the end of a branch that ran
+            self._skip_to(label, ("endif",), line, raw)
+        elif keyword == "endif":
+            pass
+        elif keyword == "do":
+            self.loops.append(_Loop(label, "do", line))
+        elif keyword == "while":
+            self._while(label, raw, at, line)
+        elif keyword == "endwhile":
+            loop = self._loop(label, line, raw, ("while",))
+            self.source.seek(loop.line)
+        elif keyword == "repeat":
+            top = self.loops[-1] if self.loops else None
+            if top is None or top.label != label or top.line != line:
+                count = self._values(raw, at, line)
+                if len(count) != 1:
+                    raise self.error(line, raw, "repeat needs one [count]", "oN repeat [count]")
+                top = _Loop(label, "repeat", line, int(count[0]))
+                self.loops.append(top)
+            if top.remaining <= 0:
+                self.loops.pop()
+                self._skip_to(label, ("endrepeat",), line, raw)
+        elif keyword == "endrepeat":
+            loop = self._loop(label, line, raw, ("repeat",))
+            loop.remaining -= 1
+            self.source.seek(loop.line)
+        elif keyword in ("break", "continue"):
+            loop = next((lp for lp in reversed(self.loops) if lp.label == label), None)
+            if loop is None:
+                raise self.error(line, raw, f"{keyword} outside the loop o{label}", f"{keyword} inside its loop")
+            while self.loops[-1] is not loop:
+                self.loops.pop()
+            if keyword == "continue":
+                self._continue(loop, line, raw)
+            else:
+                self.loops.pop()
+                end = {"while": ("endwhile",), "repeat": ("endrepeat",), "do": ("while",)}[loop.kind]
+                self._skip_to(label, end, line, raw)
+
+    # --- pieces ------------------------------------------------------------------------------
+    def _while(self, label: str, raw: str, at: int, line: int) -> None:
+        top = self.loops[-1] if self.loops else None
+        if top is not None and top.label == label and top.kind == "do":  # the end of do ... while
+            if self._condition(raw, at, line):
+                self.source.seek(top.line + 1)
+            else:
+                self.loops.pop()
+            return
+        if top is None or top.label != label or top.line != line:
+            top = _Loop(label, "while", line)
+            self.loops.append(top)
+        if not self._condition(raw, at, line):
+            self.loops.pop()
+            self._skip_to(label, ("endwhile",), line, raw)
+
+    def _continue(self, loop: _Loop, line: int, raw: str) -> None:
+        if loop.kind == "while":
+            self.source.seek(loop.line)
+        elif loop.kind == "repeat":
+            self._skip_to(loop.label, ("endrepeat",), line, raw)
+            loop.remaining -= 1
+            self.source.seek(loop.line)
+        else:  # do: LinuxCNC 2.9 jumps to the `while` line and reads it as the start of a while loop
+            self.loops.pop()
+            self._skip_to(loop.label, ("while",), line, raw)
+            self.source.seek(self.source.line)
+
+    def _loop(self, label: str, line: int, raw: str, kinds: tuple[str, ...]) -> _Loop:
+        if not self.loops or self.loops[-1].label != label or self.loops[-1].kind not in kinds:
+            raise self.error(line, raw, f"end of a loop o{label} that is not open", f"o{label} {kinds[0]} before")
+        return self.loops[-1]
+
+    def _call(self, label: str, raw: str, at: int, line: int) -> None:
+        if label.startswith("#"):  # o#<name> call: the subroutine number from a parameter
+            number = evaluate_all(label, 0, line, self.file, self.params)[0]
+            label = str(int(number)) if number == int(number) else label
+        args = self._values(raw, at, line)
+        if len(args) > 30:
+            raise self.error(line, raw, "more than 30 subroutine arguments", "at most 30 [arguments]")
+        if label not in self.subs:  # defined further on: find it
+            self._skip_to(label, ("sub",), line, raw, missing=f"subroutine o{label} is not in this file, and "
+                                                               "subroutine files are not supported")
+        if len(self.frames) >= 100:
+            raise self.error(line, raw, "subroutine calls nested more than 100 deep", "recursion that ends")
+        saved = {k: v for k, v in self.params.items() if (isinstance(k, int) and 1 <= k <= 30)
+                 or (isinstance(k, str) and not k.startswith("_"))}
+        for k in saved:
+            del self.params[k]
+        for i, v in enumerate(args, start=1):
+            self.params[i] = v
+        self.frames.append(_Frame(label, line + 1, saved, len(self.loops)))
+        self.source.seek(self.subs[label] + 1)
+
+    def _return(self, label: str, raw: str, at: int, line: int) -> None:
+        if not self.frames:  # (a return may carry the label of an if around it, as LinuxCNC allows)
+            raise self.error(line, raw, f"o{label} endsub/return outside a subroutine call", "a matching call")
+        values = self._values(raw, at, line)
+        self.params["_value"] = values[0] if values else 0.0
+        self.params["_value_returned"] = 1.0 if values else 0.0
+        frame = self.frames.pop()
+        for k in [k for k in self.params if (isinstance(k, int) and 1 <= k <= 30)
+                  or (isinstance(k, str) and not k.startswith("_"))]:
+            del self.params[k]
+        self.params.update(frame.saved)
+        del self.loops[frame.loops:]  # loops a return leaves
+        self.source.seek(frame.return_line)
+
+    def _next_branch(self, label: str, line: int, raw: str) -> None:
+        """After a false if/elseif: run the next elseif whose condition holds, an else, or go past endif."""
+        while True:
+            got = self._skip_to(label, ("elseif", "else", "endif"), line, raw)
+            keyword, text, at = got
+            if keyword != "elseif" or self._condition(text, at, self.source.line):
+                return
+
+    def _skip_to(self, label: str, keywords: tuple[str, ...], line: int, raw: str,
+                 missing: str | None = None) -> tuple[str, str, int]:
+        """Read on, without executing, to the line `o<label> <keyword>`; the next line read follows it."""
+        while True:
+            text = self.source.next()
+            if text is None:
+                raise self.error(line, raw, missing or f"o{label} {keywords[-1]} not found before the end of the file",
+                                 f"o{label} {keywords[-1]}" if missing is None else "the subroutine in this file")
+            c = control_of(text)
+            if c is not None:
+                if c[1] == "sub" and c[0] not in self.subs:
+                    self.subs[c[0]] = self.source.line
+                if c[0] == label and c[1] in keywords:
+                    return c[1], text, c[2]
