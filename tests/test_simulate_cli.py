@@ -86,6 +86,15 @@ def test_rapid_through_stock_is_an_error(tmp_path, capsys):
     assert not (tmp_path / "t.csv").exists()
 
 
+def test_rapid_through_a_cut_through_slot_is_not_a_crash(tmp_path):
+    """Cut a slot through a 1 mm plate (to Z-1.5), then rapid back along it at Z-1.2: below the
+    stock's bottom, where the cut-through columns hold no material."""
+    nc = tmp_path / "through.nc"
+    nc.write_text("G21 G90\nS10000 M3\nG0 X-5 Y10 Z5\nG1 Z-1.5 F300\nG1 X25 F600\nG0 Z-1.2\nG0 X-5\nG0 Z5\nM30\n")
+    assert main(["simulate", str(nc), "--stock-box", "0,0,-1,20,20,0", "--cell", "0.05", "--tool-diameter", "6",
+                 "--trace", str(tmp_path / "t.csv")]) == 0
+
+
 def test_bad_stock_box_is_a_config_error(tmp_path, capsys):
     nc = tmp_path / "a.nc"
     nc.write_text("G0 X0\n")

@@ -34,7 +34,7 @@ from .errors import MillpostError
 from .gcode import ReaderOptions, read_program
 from .gcode.interpret import Program
 from .job import Job
-from .schedule import (AxisAcceleration, AxisVelocity, ChipLoad, CurrentSlew, FeedLimit, Junction, MotorCurrent,
+from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, ChipLoad, CurrentSlew, FeedLimit, Junction, MotorCurrent,
                        PathGrid, PathJerk, ScheduleOptions, SpeedLoad, schedule_samples)
 from .schedule.assemble import merged_bounds
 from .schedule.feeds import SLOWEST_FEED_MM_MIN, emission_limit, piecewise_feeds, split_toolpath
@@ -45,7 +45,8 @@ from .tools.beam import ToolBeam
 V_SLOWEST = SLOWEST_FEED_MM_MIN / 60.0  # mm/s: the slowest feed the emitted program states
 
 # which limit names count as which physical effect in the summary's "binding"
-EFFECTS = {"axis_velocity": "inertia", "axis_acceleration": "inertia", "junction": "inertia", "jerk": "inertia",
+EFFECTS = {"axis_velocity": "inertia", "axis_acceleration": "inertia", "centripetal": "inertia", "junction": "inertia",
+           "jerk": "inertia",
            "feed": "feed", "cutting_force": "cutting force", "deflection": "deflection", "power": "power",
            "torque": "power", "current": "current", "cutting_current": "current", "current_slew": "current",
            "chip_load_max": "chip load",
@@ -95,7 +96,7 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
     if job.limits["feed_max_mm_min"]:
         feed_max = min(feed_max, float(job.limits["feed_max_mm_min"]))
     limits: list = [FeedLimit(feed_max / 60.0), AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)),
-                    AxisAcceleration(amax), Junction(amax, m.controller.junction_deviation_mm)]
+                    AxisAcceleration(amax), Centripetal(amax), Junction(amax, m.controller.junction_deviation_mm)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(PathJerk(float(job.limits["jerk_mm_s3"])))
     model = job.material.force_model(job.limits["model"])
@@ -194,10 +195,11 @@ def _plan_from_fragments(program: Program, fragments) -> FeedPlan:
 
 
 def _static_caps(samples: Samples, limits: list) -> np.ndarray:
-    """Per sample the highest speed (mm/s) that the speed-only limits allow (loads, chip, feed)."""
+    """Per sample the highest speed (mm/s) that the speed-only limits allow (loads, chip, feed; not the
+    controller's own axis rates, corners and arcs)."""
     grid = PathGrid.from_samples(samples)
     caps = [blk for lim in limits for blk in lim.blocks(grid) if isinstance(blk, SpeedBounds)
-            and blk.name not in ("axis_velocity", "junction")]
+            and blk.name not in ("axis_velocity", "junction", "centripetal")]
     return np.sqrt(merged_bounds(caps, len(samples))[1])
 
 

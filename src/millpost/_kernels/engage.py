@@ -91,10 +91,11 @@ def _cut_multi(c, zc, top, zf, ids, ptr, lo, hi):
 
 
 @njit(cache=True)
-def _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi):
-    """Length of material above zc in column c (mm), without cutting."""
+def _above(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi):
+    """Length of material above zc in column c (mm), without cutting (a column cut down to the
+    floor zf holds none)."""
     t = top[c]
-    if zc >= t:
+    if zc >= t or t <= zf:
         return 0.0
     if _is_multi(c, has_multi, bits):
         m = np.searchsorted(ids, c)
@@ -103,7 +104,25 @@ def _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi):
             if zc < hi[k]:
                 s += hi[k] - max(zc, lo[k])
         return s
-    return t - zc
+    return t - max(zc, zf)
+
+
+@njit(cache=True, inline="always")
+def _column(c, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol):
+    """One column under the tool surface at zc (tool tip at pz): cut it down (cut) and return
+    (height removed, axial depth reached, False), or only test it and return (0, 0, whether
+    material stands above zc by more than tol: a crash for a rapid)."""
+    t = top[c]
+    if zc >= t:
+        return 0.0, 0.0, False
+    if not cut:
+        return 0.0, 0.0, _above(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi) > tol
+    if _is_multi(c, has_multi, bits):
+        r = _cut_multi(c, zc, top, zf, ids, ptr, lo, hi)
+    else:
+        top[c] = max(zc, zf)
+        r = t - top[c]
+    return r, (t - pz if r > 0.0 else 0.0), False
 
 
 @njit(cache=True, inline="always")
@@ -175,20 +194,11 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
                 else:
                     dx = x0 + (i + 0.5) * h - px
                     zc = pz + surface_height(math.sqrt(dx * dx + dy * dy), shape, R, rc, r_tip, tan_half)
-                t = top[c]
-                if zc >= t:
-                    continue
-                if cut:
-                    if _is_multi(c, has_multi, bits):
-                        r = _cut_multi(c, zc, top, zf, ids, ptr, lo, hi)
-                    else:
-                        top[c] = max(zc, zf)
-                        r = t - top[c]
-                    if r > 0.0:
-                        rem += r
-                        ap = max(ap, t - pz)
-                elif _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi) > tol:
+                r, depth, crash = _column(c, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol)
+                if crash:
                     return rem, ap, True
+                rem += r
+                ap = max(ap, depth)
     return rem, ap, False
 
 
@@ -332,21 +342,11 @@ def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_
             if d > R:
                 continue
             zc = pz + surface_height(d, shape, R, rc, r_tip, tan_half)
-            c = row + i
-            t = top[c]
-            if zc >= t:
-                continue
-            if cut:
-                if _is_multi(c, has_multi, bits):
-                    r = _cut_multi(c, zc, top, zf, ids, ptr, lo, hi)
-                else:
-                    top[c] = max(zc, zf)
-                    r = t - top[c]
-                if r > 0.0:
-                    rem += r
-                    ap = max(ap, t - pz)
-            elif _above(c, zc, top, has_multi, bits, ids, ptr, lo, hi) > tol:
+            r, depth, crash = _column(row + i, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol)
+            if crash:
                 return rem, ap, True
+            rem += r
+            ap = max(ap, depth)
     return rem, ap, False
 
 

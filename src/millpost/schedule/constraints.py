@@ -67,6 +67,23 @@ class AxisAcceleration:
 
 
 @dataclass(frozen=True)
+class Centripetal:
+    """|κ_k|·b ≤ amax_k per axis as a speed cap: the centripetal share of the axis acceleration
+    alone. AxisAcceleration implies it at steady speed; as a cap it also bounds the F word of an arc,
+    which a controller that runs arcs as chains of short lines may not hold to it by itself."""
+
+    amax_mm_s2: tuple[float, float, float]
+    name: str = "centripetal"
+
+    def blocks(self, grid: PathGrid) -> list[Block]:
+        A = np.asarray(self.amax_mm_s2, float)[:, None]
+        k = np.abs(grid.curvature.T)
+        with np.errstate(divide="ignore"):
+            cap = np.min(np.where(k > 0, A / k, np.inf), axis=0)
+        return [SpeedBounds(self.name, np.zeros(len(grid)), cap)]
+
+
+@dataclass(frozen=True)
 class Junction:
     """Speed cap at sharp corners (tangent discontinuities between moves), so that ds does not decide
     the corner speed. The controller rounds the corner with an arc deviating at most deviation_mm
