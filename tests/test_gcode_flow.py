@@ -145,3 +145,42 @@ def test_genes_encoder_reads_as_linuxcnc_does():
     assert len(p.toolpath) > 1000
     if rs274_oracle.RS274:
         assert rs274_oracle.mismatches(p, rs274_oracle.run(f)) == []
+
+
+FANUC = """%
+O1000 (main)
+G21 G90 G17
+#1 = 0
+G0 X0 Y0 Z1
+M98 P2 L3
+G0 X100
+M98 P0002 L0
+M30
+O2 (drill one hole, one step over in X each run)
+#1 = [#1 + 1]
+G91 G0 X5
+G90 G1 Z-1 F100
+G0 Z1
+M99
+%
+"""
+
+
+def test_fanuc_subprogram_runs_l_times_and_shares_parameters():
+    p = read_text(FANUC, "fanuc.nc", ReaderOptions())
+    tp = p.toolpath
+    plunges = tp.end[(tp.kind != RAPID)]
+    np.testing.assert_allclose(plunges[:, 0], [5, 10, 15])  # L3; L0 runs nothing
+    assert tp.end[-1, 0] == 100
+    assert len(set(tp.line[tp.kind != RAPID])) == 1
+
+
+def test_m99_in_the_main_program_ends_it_and_m98_needs_p():
+    p = read_text("G21 G90\nG1 X1 F100\nM99\nG1 X2\n", "m99.nc", ReaderOptions())
+    assert len(p.toolpath) == 1 and any("M99" in n for n in p.notes)
+    with pytest.raises(ParseError) as info:
+        read_text("G21\nM98 L2\nM30\n", "m98.nc", ReaderOptions())
+    assert info.value.line == 2 and "P" in info.value.expected
+    with pytest.raises(ParseError) as info:
+        read_text("G21\nM98 P7\nM30\n", "m98.nc", ReaderOptions())
+    assert "O7" in str(info.value)

@@ -1,4 +1,6 @@
-"""O-word control flow as LinuxCNC runs it: ``oN sub``/``endsub``/``return``/``call`` with up to 30
+"""O-word control flow as LinuxCNC runs it, and Fanuc-style subprograms (``M98 P<n> L<repeats>`` runs
+the lines after ``O<n>`` up to ``M99``, sharing the caller's parameters; ``M99`` in the main program
+ends it): ``oN sub``/``endsub``/``return``/``call`` with up to 30
 positional arguments (#1–#30, local to the call, as are named parameters without a leading ``_``),
 ``if``/``elseif``/``else``/``endif``, ``while``/``endwhile``, ``do``/``while``, ``repeat``/``endrepeat``,
 ``break`` and ``continue``; ``endsub``/``return`` may carry a value, stored in ``#<_value>``.
@@ -24,6 +26,7 @@ from .expressions import evaluate_all
 _LABEL = re.compile(r"[ \t]*(?:/[ \t]*)?(?:[Nn][ \t]*\d+(?:\.\d*)?[ \t]*)?[Oo][ \t]*"
                     r"(\d+|<[^>]*>|#[ \t]*(?:<[^>]*>|\d+))")
 _COMMENT = re.compile(r"\([^()]*\)")
+_PROGRAM = re.compile(r"[ \t]*[Oo][ \t]*(\d+)[ \t]*(?:\([^()]*\)[ \t]*)*(?:;.*)?$")  # a Fanuc subprogram's O line
 KEYWORDS = {"sub", "endsub", "return", "call", "if", "elseif", "else", "endif", "while", "endwhile", "do",
             "repeat", "endrepeat", "break", "continue"}
 MAX_EXECUTED_LINES = 20_000_000  # a guard against loops that never end
@@ -84,8 +87,10 @@ class Source:
 class _Frame:
     label: str
     return_line: int
-    saved: dict  # the caller's local parameters
+    saved: dict  # the caller's local parameters (none for M98: Fanuc subprograms share them)
     loops: int  # depth of the loop stack at the call
+    start: int = 0  # M98: the subprogram's O line, and the runs still to go
+    repeats: int = 0
 
 
 @dataclass
@@ -104,6 +109,7 @@ class Flow:
     file: str
     params: dict
     subs: dict = field(default_factory=dict)  # label → line of its `sub`
+    programs: dict = field(default_factory=dict)  # M98 subprogram number → line of its O word
     frames: list = field(default_factory=list)
     loops: list = field(default_factory=list)
     executed: int = 0
@@ -243,6 +249,48 @@ class Flow:
         self.params.update(frame.saved)
         del self.loops[frame.loops:]  # loops a return leaves
         self.source.seek(frame.return_line)
+
+    def call_subprogram(self, label: str, repeats: int, raw: str) -> None:
+        """M98 P<label> L<repeats>: run the lines after `O<label>` up to its M99, `repeats` times."""
+        line = self.source.line
+        if repeats <= 0:
+            return
+        if label not in self.programs:
+            self._find_program(label, line, raw)
+        if len(self.frames) >= 100:
+            raise self.error(line, raw, "subprogram calls nested more than 100 deep", "recursion that ends")
+        self.frames.append(_Frame("", line + 1, {}, len(self.loops), self.programs[label], repeats))
+        self.source.seek(self.programs[label] + 1)
+
+    def return_subprogram(self) -> bool:
+        """M99: the next run of the subprogram, or back to the line after its M98. False in the
+        main program (no call to return from)."""
+        if not self.frames or not self.frames[-1].start:
+            return False
+        frame = self.frames[-1]
+        frame.repeats -= 1
+        del self.loops[frame.loops:]
+        if frame.repeats > 0:
+            self.source.seek(frame.start + 1)
+        else:
+            self.frames.pop()
+            self.source.seek(frame.return_line)
+        return True
+
+    def _find_program(self, label: str, line: int, raw: str) -> None:
+        """Record the line `O<label>` (a number alone, perhaps with a comment): after the call, else
+        before it."""
+        for first in (line + 1, 1):
+            self.source.seek(first)
+            while (text := self.source.next()) is not None:
+                m = _PROGRAM.match(text)
+                if m is not None and str(int(m.group(1))) == label:
+                    self.programs[label] = self.source.line
+                    self.source.seek(line + 1)
+                    return
+                if first == 1 and self.source.line >= line:
+                    break
+        raise self.error(line, raw, f"subprogram O{label} is not in this file", f"a line O{label} with its M99")
 
     def _next_branch(self, label: str, line: int, raw: str) -> None:
         """After a false if/elseif: run the next elseif whose condition holds, an else, or go past endif."""

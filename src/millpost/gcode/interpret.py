@@ -217,6 +217,7 @@ class Interpreter:
         self.ended = False
         self.safe_z_pending = False
         self.control_flow = False  # O-word control flow ran: lines may run more than once
+        self.subprogram: tuple[str, str, int] | None = None  # M98/M99 of the block being executed
 
     # --- helpers ----------------------------------------------------------------------------
     def err(self, msg: str, block: Block, word: Word | None, expected: str) -> ParseError:
@@ -299,6 +300,17 @@ class Interpreter:
                 self.blocks += 1
                 self.execute(block)
                 self.block_index += 1
+                if self.subprogram is not None:  # M98 / M99, after the rest of the block
+                    flow = flow or Flow(source, self.file, self.params)
+                    kind, label, repeats = self.subprogram
+                    self.subprogram = None
+                    self.control_flow = True
+                    if kind == "call":
+                        flow.call_subprogram(label, repeats, raw)
+                    elif not flow.return_subprogram():  # M99 in the main program ends it
+                        self.event(line_no, "end", 2)
+                        self.notes.append(f"line {line_no}: M99 in the main program: taken as its end")
+                        self.ended = True
             for c in block.comments:
                 if c:
                     self.event(line_no, "comment", c)
@@ -434,11 +446,18 @@ class Interpreter:
             self.selected = int(val["T"].value)
         mset = {c for c, _ in mcodes}
         for code, w in mcodes:
-            if code in (98, 99):
-                raise self.err("subprogram calls (M98/M99) are not supported", b, w,
-                               "straight-line G-code as a CAM post writes it")
-            if code not in (0, 1, 2, 30, 3, 4, 5, 6, 7, 8, 9, 29, 19, 48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65, 66,
-                            67, 68, 70, 71, 72, 73) and not 100 <= code <= 199:
+            if code == 98:  # Fanuc-style subprogram call, run after the rest of the block
+                p = val.get("P")
+                if p is None or p.value < 0 or p.value != int(p.value):
+                    raise self.err("M98 needs the subprogram number", b, w, "M98 P<number> [L<repeats>]")
+                reps = val.get("L")
+                if reps is not None and (reps.value < 0 or reps.value != int(reps.value)):
+                    raise self.err("repeat count L must be a non-negative integer", b, reps, "L0, L1, L2, ...")
+                self.subprogram = ("call", str(int(p.value)), 1 if reps is None else int(reps.value))
+            elif code == 99:
+                self.subprogram = ("return", "", 0)
+            elif code not in (0, 1, 2, 30, 3, 4, 5, 6, 7, 8, 9, 29, 19, 48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65,
+                              66, 67, 68, 70, 71, 72, 73) and not 100 <= code <= 199:
                 self.event(b.line, "m_code", code)
                 self.notes.append(f"line {b.line}: M{code} passed through (no motion)")
         if 6 in mset:
