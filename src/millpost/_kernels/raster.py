@@ -1,8 +1,8 @@
 """Scanline rasteriser: a closed triangle mesh to material intervals along vertical rays through the
 cell centres (numba).
 
-Each triangle is tested against the cell centres of its XY bounding box with exact integer edge
-functions (vertices snapped to 1/4096 of a cell) and a tie rule that gives a point on a shared edge
+Each triangle is tested row by row against the cell centres of its XY projection with exact integer
+edge functions (vertices snapped to 1/4096 of a cell) and a tie rule that gives a point on a shared edge
 to exactly one of the two triangles. The triangle's plane gives z at the centre, clamped to the
 triangle's z range (near-vertical triangles extrapolate badly). Up-facing triangles are where a ray
 leaves material, down-facing ones where it enters.
@@ -15,6 +15,7 @@ from numba import njit
 
 SUB = 4096  # fixed-point subdivisions per cell
 MULTI = np.uint8(128)  # flag bit in the per-column crossing count
+BUFFER_ROWS = 64  # rows of a triangle's cells buffered at a time (memory: 16 B per cell)
 
 
 @njit(cache=True, inline="always")
@@ -27,10 +28,20 @@ def _inside(e: np.int64, dx: np.int64, dy: np.int64) -> bool:
     return dy > 0 or (dy == 0 and dx < 0)
 
 
+@njit(cache=True, inline="always")
+def _in_triangle(ax, ay, bx, by, cx, cy, px, py) -> bool:
+    return (_inside((bx - ax) * (py - ay) - (by - ay) * (px - ax), bx - ax, by - ay)
+            and _inside((cx - bx) * (py - by) - (cy - by) * (px - bx), cx - bx, cy - by)
+            and _inside((ax - cx) * (py - cy) - (ay - cy) * (px - cx), ax - cx, ay - cy))
+
+
 @njit(cache=True)
-def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z):
-    """Cells whose centre lies in the triangle's XY projection: writes flat ids and z, returns
-    (count, up) where up is +1 for an up-facing triangle, -1 down-facing, 0 vertical."""
+def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from):
+    """Cells whose centre lies in the triangle's XY projection, row by row from row j_from (-1: the
+    first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z and returns
+    (count, up, next row or -1 when done), up +1 for an up-facing triangle, -1 down-facing. On each
+    row the inside cells are an interval: its ends are estimated from the edges, widened by a cell
+    and trimmed with the exact test."""
     X = np.empty(3, np.int64)
     Y = np.empty(3, np.int64)
     for v in range(3):
@@ -38,7 +49,7 @@ def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z):
         Y[v] = np.int64(np.round((tri[v, 1] - y0) / h * SUB))
     area = (X[1] - X[0]) * (Y[2] - Y[0]) - (Y[1] - Y[0]) * (X[2] - X[0])
     if area == 0:
-        return 0, 0
+        return 0, 0, -1
     up = 1 if area > 0 else -1
     ia, ib, ic = 0, 1, 2
     if area < 0:
@@ -56,72 +67,93 @@ def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z):
     j0 = max(0, -((-(min(ay, min(by, cy)) - half)) // SUB))
     j1 = min(ny - 1, (max(ay, max(by, cy)) - half) // SUB)
     n = 0
-    for j in range(j0, j1 + 1):
+    cap = out_c.shape[0]
+    for j in range(max(j0, j_from), j1 + 1):
+        if n + (i1 - i0 + 1) > cap:
+            return n, up, j
         py = j * SUB + half
         yc = y0 + (j + 0.5) * h
-        for i in range(i0, i1 + 1):
-            px = i * SUB + half
-            if not _inside((bx - ax) * (py - ay) - (by - ay) * (px - ax), bx - ax, by - ay):
-                continue
-            if not _inside((cx - bx) * (py - by) - (cy - by) * (px - bx), cx - bx, cy - by):
-                continue
-            if not _inside((ax - cx) * (py - cy) - (ay - cy) * (px - cx), ax - cx, ay - cy):
-                continue
+        # x range where all three edge functions are >= 0 on this row (floating estimate)
+        xl, xh = -1e300, 1e300
+        for e in range(3):
+            ex0, ey0 = (ax, ay) if e == 0 else ((bx, by) if e == 1 else (cx, cy))
+            ex1, ey1 = (bx, by) if e == 0 else ((cx, cy) if e == 1 else (ax, ay))
+            dx, dy = ex1 - ex0, ey1 - ey0
+            if dy != 0:  # inside: dx·(py − ey0) − dy·(px − ex0) ≥ 0
+                xe = ex0 + dx * (py - ey0) / dy
+                if dy > 0:
+                    xh = min(xh, xe)
+                else:
+                    xl = max(xl, xe)
+            elif dx * (py - ey0) < 0:
+                xl, xh = 1e300, -1e300
+        if xl > xh + SUB:
+            continue
+        lo_i = max(i0, int(np.floor((max(xl, -1e18) - half) / SUB)) - 1)
+        hi_i = min(i1, int(np.ceil((min(xh, 1e18) - half) / SUB)) + 1)
+        while lo_i <= hi_i and not _in_triangle(ax, ay, bx, by, cx, cy, lo_i * SUB + half, py):
+            lo_i += 1
+        while hi_i >= lo_i and not _in_triangle(ax, ay, bx, by, cx, cy, hi_i * SUB + half, py):
+            hi_i -= 1
+        for i in range(lo_i, hi_i + 1):
             xc = x0 + (i + 0.5) * h
             z = tri[0, 2] - (nxp * (xc - tri[0, 0]) + nyp * (yc - tri[0, 1])) / nzp
             out_c[n] = j * nx + i
             out_z[n] = min(max(z, zmin), zmax)
             n += 1
-    return n, up
+    return n, up, -1
 
 
-@njit(cache=True)
-def _bbox_cells(tris, x0, y0, h):
-    m = 1
-    for t in range(tris.shape[0]):
-        w = (max(tris[t, 0, 0], max(tris[t, 1, 0], tris[t, 2, 0])) - min(tris[t, 0, 0], min(tris[t, 1, 0], tris[t, 2, 0]))) / h + 2
-        d = (max(tris[t, 0, 1], max(tris[t, 1, 1], tris[t, 2, 1])) - min(tris[t, 0, 1], min(tris[t, 1, 1], tris[t, 2, 1]))) / h + 2
-        m = max(m, int(w * d) + 1)
-    return m
+@njit(cache=True, inline="always")
+def _count_crossings(cells, zs, n, up, flat, count, z_floor, tol):
+    """First pass over one batch of a triangle's cells: count crossings, raise the Z-map to up-facing
+    ones, flag columns entered above the floor."""
+    for k in range(n):
+        c = cells[k]
+        cnt = count[c] & 127
+        if cnt < 127:
+            count[c] = (count[c] & MULTI) | np.uint8(cnt + 1)
+        if up > 0:
+            if zs[k] > flat[c]:
+                flat[c] = zs[k]
+        elif zs[k] > z_floor + tol:
+            count[c] |= MULTI
 
 
 @njit(cache=True)
 def first_pass(tris, x0, y0, h, nx, ny, z_floor, tol, top, count):
     """Z-map of the up-facing crossings and per-column crossing counts; the MULTI bit marks columns
     that enter material above z_floor (an undercut or a raised bottom)."""
-    cap = _bbox_cells(tris, x0, y0, h)
-    cells = np.empty(cap, np.int64)
-    zs = np.empty(cap, np.float64)
+    cells = np.empty(BUFFER_ROWS * nx, np.int64)
+    zs = np.empty(BUFFER_ROWS * nx, np.float64)
     flat = top.reshape(-1)
     for t in range(tris.shape[0]):
-        n, up = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs)
-        for k in range(n):
-            c = cells[k]
-            cnt = count[c] & 127
-            if cnt < 127:
-                count[c] = (count[c] & MULTI) | np.uint8(cnt + 1)
-            if up > 0:
-                if zs[k] > flat[c]:
-                    flat[c] = zs[k]
-            elif zs[k] > z_floor + tol:
-                count[c] |= MULTI
+        j = -1
+        while True:
+            n, up, j = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, j)
+            _count_crossings(cells, zs, n, up, flat, count, z_floor, tol)
+            if j < 0:
+                break
 
 
 @njit(cache=True)
 def second_pass(tris, x0, y0, h, nx, ny, multi_ids, ptr, zc, up_c):
     """Collect every crossing (z, facing) of the multi columns into CSR slots."""
-    cap = _bbox_cells(tris, x0, y0, h)
-    cells = np.empty(cap, np.int64)
-    zs = np.empty(cap, np.float64)
+    cells = np.empty(BUFFER_ROWS * nx, np.int64)
+    zs = np.empty(BUFFER_ROWS * nx, np.float64)
     fill = ptr[:-1].copy()
     for t in range(tris.shape[0]):
-        n, up = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs)
-        for k in range(n):
-            m = np.searchsorted(multi_ids, cells[k])
-            if m < multi_ids.shape[0] and multi_ids[m] == cells[k] and fill[m] < ptr[m + 1]:
-                zc[fill[m]] = zs[k]
-                up_c[fill[m]] = up
-                fill[m] += 1
+        j = -1
+        while True:
+            n, up, j = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, j)
+            for k in range(n):
+                m = np.searchsorted(multi_ids, cells[k])
+                if m < multi_ids.shape[0] and multi_ids[m] == cells[k] and fill[m] < ptr[m + 1]:
+                    zc[fill[m]] = zs[k]
+                    up_c[fill[m]] = up
+                    fill[m] += 1
+            if j < 0:
+                break
 
 
 @njit(cache=True)

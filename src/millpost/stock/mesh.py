@@ -42,25 +42,27 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
     multi = ((count & 127) != 2) & (count != 0) | ((count & raster.MULTI) != 0)
     multi_ids = np.flatnonzero(multi).astype(np.int64)
-    ncross = (count[multi_ids] & 127).astype(np.int64)
+    ptr = np.zeros(len(multi_ids) + 1, np.int64)
+    np.cumsum(count[multi_ids] & 127, dtype=np.int64, out=ptr[1:])
     del count, multi
-    ptr = np.concatenate([[0], np.cumsum(ncross)]).astype(np.int64)
-    zc = np.empty(ptr[-1], np.float64)
+    # crossings and intervals in float32, the stock's own precision (halves the peak memory)
+    zc = np.empty(ptr[-1], np.float32)
     up = np.empty(ptr[-1], np.int8)
     raster.second_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, multi_ids, ptr, zc, up)
     out_ptr = np.empty_like(ptr)
-    lo = np.empty(ptr[-1] // 2 + 1, np.float64)
+    lo = np.empty(ptr[-1] // 2 + 1, np.float32)
     hi = np.empty_like(lo)
     w = raster.intervals_from_crossings(ptr, zc, up, out_ptr, lo, hi)
+    del zc, up, ptr
+    lo, hi = lo[:w].copy(), hi[:w].copy()
     flat = top.reshape(-1)
     first = out_ptr[:-1]
     has = out_ptr[1:] > first
-    flat[multi_ids] = np.where(has, hi[np.minimum(first, max(w - 1, 0))], zf).astype(np.float32)
-    bits = np.zeros(nx * ny, bool)
-    bits[multi_ids] = True
-    return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, multi_ids, out_ptr,
-                 lo[:w].astype(np.float32), hi[:w].astype(np.float32),
-                 np.packbits(bits, bitorder="little") if len(multi_ids) else np.zeros(1, np.uint8))
+    flat[multi_ids] = np.where(has, hi[np.minimum(first, max(w - 1, 0))], np.float32(zf))
+    del first, has
+    bits = np.zeros((nx * ny + 7) // 8, np.uint8)
+    np.bitwise_or.at(bits, multi_ids >> 3, (1 << (multi_ids & 7)).astype(np.uint8))
+    return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, multi_ids, out_ptr, lo, hi, bits)
 
 
 def from_stl(path: str | os.PathLike, cell_mm: float | None = None, **kw) -> Stock:
