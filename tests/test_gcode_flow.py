@@ -184,3 +184,12 @@ def test_m99_in_the_main_program_ends_it_and_m98_needs_p():
     with pytest.raises(ParseError) as info:
         read_text("G21\nM98 P7\nM30\n", "m98.nc", ReaderOptions())
     assert "O7" in str(info.value)
+
+
+def test_flow_starting_late_and_a_call_on_the_last_line_without_newline():
+    """The reader reads straight-line text without line bookkeeping and takes it up at the first
+    control statement: lines before it must still be reachable, and the return from a call on an
+    unterminated last line must end the program, not restart it."""
+    text = "G21 G90\nG0 X1\no100 sub\nG1 X5 F100\no100 endsub\nG0 Y2\no100 call"
+    p = read_text(text, "late.ngc", ReaderOptions.linuxcnc())
+    np.testing.assert_allclose(p.toolpath.end, [[1, 0, 0], [1, 2, 0], [5, 2, 0]])

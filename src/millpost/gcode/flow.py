@@ -5,9 +5,9 @@ positional arguments (#1–#30, local to the call, as are named parameters witho
 ``if``/``elseif``/``else``/``endif``, ``while``/``endwhile``, ``do``/``while``, ``repeat``/``endrepeat``,
 ``break`` and ``continue``; ``endsub``/``return`` may carry a value, stored in ``#<_value>``.
 
-`Source` walks a program's text one line at a time and can return to a line it has passed, so the
-interpreter reads a straight-line program in one pass and only remembers line offsets (8 bytes per
-line). `Flow` holds the call and loop stacks and moves the source where a statement sends it.
+`Source` walks a program's text one line at a time and can return to a line it has passed (it keeps
+8 bytes per line); the interpreter reads straight-line programs without it and starts one at the
+first control statement. `Flow` holds the call and loop stacks and moves the source where a statement sends it.
 Subroutines must be in the same file (LinuxCNC's search of other files is not modelled: such a call
 is an error that says so).
 """
@@ -59,11 +59,16 @@ def control_of(raw: str) -> tuple[str, str, int] | None:
 class Source:
     """Lines of a text by number (1-based), read forward and revisited by `seek`."""
 
-    def __init__(self, text: str) -> None:
+    def __init__(self, text: str, line: int = 0, pos: int = 0) -> None:
+        """Positioned after `line` (its next line starting at offset `pos`)."""
         self.text = text
-        self.pos = 0
-        self.line = 0  # number of the line last returned
+        self.pos = pos
+        self.line = line
         self.starts = array("q", [0])  # offset of every line seen so far, and of the one after
+        while len(self.starts) < line:
+            self.starts.append(text.find("\n", self.starts[-1]) + 1)
+        if line:
+            self.starts.append(pos)
 
     def next(self) -> str | None:
         if self.pos >= len(self.text):

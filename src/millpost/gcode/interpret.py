@@ -265,10 +265,31 @@ class Interpreter:
     # --- blocks -----------------------------------------------------------------------------
     def run(self, text: str) -> None:
         percent_seen = 0
-        source = Source(text)  # one line at a time: no list of lines, no copy of the text
-        flow: Flow | None = None  # created by the first O-word statement
-        while (raw := source.next()) is not None:
-            line_no = source.line
+        pos, size, line_no = 0, len(text), 0  # one line at a time: no list of lines, no copy of the text
+        source: Source | None = None  # lines by number, from the first control statement (or M98) on
+        flow: Flow | None = None
+
+        def start_flow() -> Flow:
+            nonlocal source, flow
+            if flow is None:
+                source = Source(text, line_no, pos)
+                flow = Flow(source, self.file, self.params)
+            return flow
+
+        while True:
+            if source is None:  # straight-line reading, no bookkeeping per line
+                if pos >= size:
+                    break
+                end = text.find("\n", pos)
+                end = size if end < 0 else end
+                raw = text[pos:end].rstrip("\r")
+                pos = end + 1
+                line_no += 1
+            else:
+                raw = source.next()
+                if raw is None:
+                    break
+                line_no = source.line
             if self.ended:
                 if raw.strip() and raw.strip() != "%":
                     self.notes.append(f"line {line_no}: after program end (M2/M30): not executed")
@@ -284,8 +305,7 @@ class Interpreter:
             control = control_of(raw)
             if control is not None:
                 if not (raw.lstrip().startswith("/") and self.opt.block_delete):
-                    flow = flow or Flow(source, self.file, self.params)
-                    flow.statement(raw, *control)
+                    start_flow().statement(raw, *control)
                     self.control_flow = True
                 continue
             block = lex_line(raw, line_no, self.file, self.params)
@@ -301,13 +321,12 @@ class Interpreter:
                 self.execute(block)
                 self.block_index += 1
                 if self.subprogram is not None:  # M98 / M99, after the rest of the block
-                    flow = flow or Flow(source, self.file, self.params)
                     kind, label, repeats = self.subprogram
                     self.subprogram = None
                     self.control_flow = True
                     if kind == "call":
-                        flow.call_subprogram(label, repeats, raw)
-                    elif not flow.return_subprogram():  # M99 in the main program ends it
+                        start_flow().call_subprogram(label, repeats, raw)
+                    elif not start_flow().return_subprogram():  # M99 in the main program ends it
                         self.event(line_no, "end", 2)
                         self.notes.append(f"line {line_no}: M99 in the main program: taken as its end")
                         self.ended = True
