@@ -156,15 +156,14 @@ def _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, 
 
 @njit(cache=True, inline="always")
 def _visit_row(row, i0, i1, kind, cx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, r_tip, tan_half, top, zf,
-               has_multi, bits, ids, ptr, lo, hi, tol):
-    """One row of columns under the tool: cut (or, for a rapid, check) them. Returns (removed length
-    sum, deepest cut below the old top, crash). The common case — cutting a stock without undercuts —
-    runs in its own loop: interval code in the same loop, even never run, makes it ~20× slower."""
+               has_multi, bits, ids, ptr, lo, hi, tol, rem, ap):
+    """One row of columns under the tool: cut (or, for a rapid, check) them. Adds to the removed
+    length sum `rem` and the deepest cut below the old top `ap`; returns (rem, ap, crash). The common
+    case — cutting a stock without undercuts — runs in its own loop: interval code in the same loop,
+    even never run, makes it ~20× slower."""
     if cut and not has_multi:
-        rem, ap = _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, tan_half, top, zf)
-        return rem, ap, False
-    rem = 0.0
-    ap = 0.0
+        r, a = _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, tan_half, top, zf)
+        return rem + r, max(ap, a), False
     for i in range(i0, i1 + 1):
         zc = _tool_z(kind, x0 + (i + 0.5) * h - cx, dy, fx, fy, pz, shape, R, rc, r_tip, tan_half)
         r, depth, crash = _column(row + i, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol)
@@ -236,12 +235,10 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
                     a0 = max(ia, int(math.floor(xb)) + 1)
         for seg in range(2):
             lo_i, hi_i = (a0, b0) if seg == 0 else (a1, b1)
-            r, depth, crash = _visit_row(j * nx, lo_i, hi_i, CAP, px, dy, 0.0, 0.0, pz, cut, x0, h, shape, R, rc, r_tip,
-                                         tan_half, top, zf, has_multi, bits, ids, ptr, lo, hi, tol)
+            rem, ap, crash = _visit_row(j * nx, lo_i, hi_i, CAP, px, dy, 0.0, 0.0, pz, cut, x0, h, shape, R, rc,
+                                        r_tip, tan_half, top, zf, has_multi, bits, ids, ptr, lo, hi, tol, rem, ap)
             if crash:
                 return rem, ap, True
-            rem += r
-            ap = max(ap, depth)
     return rem, ap, False
 
 
@@ -280,21 +277,26 @@ def _point_cells_sc(cx, cy, fx, fy, r, s, c, x0, y0, h, nx, ny, bilinear, cells,
 
 
 @njit(cache=True, inline="always")
+def _ring_height(cells, wts, i, bilinear, top, zf):
+    """Height-field top under ring point i (bilinear between the four cell centres, or the cell's);
+    z_floor outside the grid."""
+    if not bilinear:
+        c = cells[i, 0]
+        return top[c] if c >= 0 else zf
+    wx, wy = wts[i, 0], wts[i, 1]
+    c0, c1, c2, c3 = cells[i, 0], cells[i, 1], cells[i, 2], cells[i, 3]
+    v0 = top[c0] if c0 >= 0 else zf
+    v1 = top[c1] if c1 >= 0 else zf
+    v2 = top[c2] if c2 >= 0 else zf
+    v3 = top[c3] if c3 >= 0 else zf
+    return (1 - wy) * ((1 - wx) * v0 + wx * v1) + wy * ((1 - wx) * v2 + wx * v3)
+
+
+@njit(cache=True, inline="always")
 def _plain_material(cells, wts, i, za, zb, bilinear, top, zf):
     """Material length in [za, zb] under ring point i of a stock without undercuts: the slice's
-    share of [z_floor, H], H the (bilinear) height field there."""
-    if bilinear:
-        wx, wy = wts[i, 0], wts[i, 1]
-        c0, c1, c2, c3 = cells[i, 0], cells[i, 1], cells[i, 2], cells[i, 3]
-        v0 = top[c0] if c0 >= 0 else zf
-        v1 = top[c1] if c1 >= 0 else zf
-        v2 = top[c2] if c2 >= 0 else zf
-        v3 = top[c3] if c3 >= 0 else zf
-        H = (1 - wy) * ((1 - wx) * v0 + wx * v1) + wy * ((1 - wx) * v2 + wx * v3)
-    else:
-        c = cells[i, 0]
-        H = top[c] if c >= 0 else zf
-    return max(min(H, zb) - max(zf, za), 0.0)
+    share of [z_floor, H]."""
+    return max(min(_ring_height(cells, wts, i, bilinear, top, zf), zb) - max(zf, za), 0.0)
 
 
 @njit(cache=True, inline="always")
@@ -398,12 +400,10 @@ def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_
             continue
         i0 = max(0, int(math.ceil((xl - x0) / h - 0.5)))
         i1 = min(nx - 1, int(math.floor((xh - x0) / h - 0.5)))
-        r, depth, crash = _visit_row(j * nx, i0, i1, kind, qx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, r_tip,
-                                     tan_half, top, zf, has_multi, bits, ids, ptr, lo, hi, tol)
+        rem, ap, crash = _visit_row(j * nx, i0, i1, kind, qx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, r_tip,
+                                    tan_half, top, zf, has_multi, bits, ids, ptr, lo, hi, tol, rem, ap)
         if crash:
             return rem, ap, True
-        rem += r
-        ap = max(ap, depth)
     return rem, ap, False
 
 
@@ -468,17 +468,7 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
     area = 0.0
     hmax = -1e300
     for i in range(M + 1):
-        if bilinear:
-            wx, wy = wts[i, 0], wts[i, 1]
-            c0, c1, c2, c3 = cells[i, 0], cells[i, 1], cells[i, 2], cells[i, 3]
-            v0 = top[c0] if c0 >= 0 else zf
-            v1 = top[c1] if c1 >= 0 else zf
-            v2 = top[c2] if c2 >= 0 else zf
-            v3 = top[c3] if c3 >= 0 else zf
-            Hi = (1 - wy) * ((1 - wx) * v0 + wx * v1) + wy * ((1 - wx) * v2 + wx * v3)
-        else:
-            c = cells[i, 0]
-            Hi = top[c] if c >= 0 else zf
+        Hi = _ring_height(cells, wts, i, bilinear, top, zf)
         H[i] = Hi
         hmax = max(hmax, Hi)
         cnt[i] = min(max(int(math.floor((Hi - zbase) / dzs + 0.5)), 0), nk)
