@@ -199,3 +199,28 @@ def intervals_from_crossings(ptr, zc, up_c, out_ptr, lo, hi):
             j -= 1
     out_ptr[ptr.shape[0] - 1] = w
     return w
+
+
+@njit(cache=True)
+def multi_columns(count):
+    """Flat ids of the columns that need intervals: crossing count other than 0 or 2, or MULTI set."""
+    n = 0
+    for c in range(count.shape[0]):
+        k = count[c]
+        if (k & MULTI) != 0 or ((k & 127) != 2 and k != 0):
+            n += 1
+    ids = np.empty(n, np.int64)
+    n = 0
+    for c in range(count.shape[0]):
+        k = count[c]
+        if (k & MULTI) != 0 or ((k & 127) != 2 and k != 0):
+            ids[n] = c
+            n += 1
+    return ids
+
+
+@njit(cache=True)
+def tops_from_intervals(flat, multi_ids, out_ptr, hi, z_floor):
+    """Z-map of the multi columns: the top of their first (highest) interval, z_floor when empty."""
+    for m in range(multi_ids.shape[0]):
+        flat[multi_ids[m]] = hi[out_ptr[m]] if out_ptr[m + 1] > out_ptr[m] else z_floor

@@ -40,11 +40,10 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     top = np.full((ny, nx), np.float32(zf), np.float32)
     count = np.zeros(nx * ny, np.uint8)
     raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
-    multi = ((count & 127) != 2) & (count != 0) | ((count & raster.MULTI) != 0)
-    multi_ids = np.flatnonzero(multi).astype(np.int64)
+    multi_ids = raster.multi_columns(count)
     ptr = np.zeros(len(multi_ids) + 1, np.int64)
     np.cumsum(count[multi_ids] & 127, dtype=np.int64, out=ptr[1:])
-    del count, multi
+    del count
     # crossings and intervals in float32, the stock's own precision (halves the peak memory)
     zc = np.empty(ptr[-1], np.float32)
     up = np.empty(ptr[-1], np.int8)
@@ -54,12 +53,8 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     hi = np.empty_like(lo)
     w = raster.intervals_from_crossings(ptr, zc, up, out_ptr, lo, hi)
     del zc, up, ptr
-    lo, hi = lo[:w].copy(), hi[:w].copy()
-    flat = top.reshape(-1)
-    first = out_ptr[:-1]
-    has = out_ptr[1:] > first
-    flat[multi_ids] = np.where(has, hi[np.minimum(first, max(w - 1, 0))], np.float32(zf))
-    del first, has
+    lo, hi = lo[:w], hi[:w]
+    raster.tops_from_intervals(top.reshape(-1), multi_ids, out_ptr, hi, np.float32(zf))
     bits = np.zeros((nx * ny + 7) // 8, np.uint8)
     np.bitwise_or.at(bits, multi_ids >> 3, (1 << (multi_ids & 7)).astype(np.uint8))
     return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, multi_ids, out_ptr, lo, hi, bits)
