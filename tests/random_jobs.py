@@ -89,6 +89,7 @@ def random_engagement(rng: np.random.Generator, samples, tool: Tool) -> Engageme
     axial depth 0.05–2 D."""
     R = tool.radius_mm
     moves = np.unique(samples.move)
+    slices = int(rng.integers(1, 5))
     parts, order = [], []
     for m in moves:
         idx = np.flatnonzero(samples.move == m)
@@ -97,7 +98,7 @@ def random_engagement(rng: np.random.Generator, samples, tool: Tool) -> Engageme
         kind = 3 if samples.kind[idx[0]] == RAPID else rng.integers(0, 4)
         st, ex = {0: (0.0, math.pi), 1: (0.0, phi), 2: (math.pi - phi, math.pi), 3: (math.nan, math.nan)}[kind]
         ap = rng.uniform(0.05, 2.0) * tool.diameter_mm
-        e = Engagement.uniform(np.full(len(idx), st), np.full(len(idx), ex), ap, R, slices=int(rng.integers(1, 5)))
+        e = Engagement.uniform(np.full(len(idx), st), np.full(len(idx), ex), ap, R, slices=slices)
         if kind == 3:
             e.dz_mm[:] = 0.0
             e.ae_mm[:] = 0.0
@@ -105,8 +106,6 @@ def random_engagement(rng: np.random.Generator, samples, tool: Tool) -> Engageme
             e.ap_mm[:] = 0.0
         parts.append(e)
         order.append(idx)
-    k = max(p.dz_mm.shape[1] for p in parts)
-    parts = [_pad_slices(p, k) for p in parts]
     eng = Engagement.concatenate(parts)
     eng = eng.select(np.argsort(np.concatenate(order), kind="stable"))
     t = samples.tangent.copy()
@@ -114,19 +113,6 @@ def random_engagement(rng: np.random.Generator, samples, tool: Tool) -> Engageme
     n = np.linalg.norm(t, axis=1, keepdims=True)
     eng.feed_dir = np.where(n > 1e-9, t / np.where(n > 1e-9, n, 1.0), [1.0, 0.0, 0.0])
     return eng
-
-
-def _pad_slices(e: Engagement, k: int) -> Engagement:
-    """The same cut with K slices (the extra ones not cutting), so that moves can be concatenated."""
-    extra = k - e.dz_mm.shape[1]
-    if extra == 0:
-        return e
-    def pad(a, v):
-        return np.concatenate([a, np.full((a.shape[0], extra), v)], axis=1)
-    return Engagement(phi_st=pad(e.phi_st, np.nan), phi_ex=pad(e.phi_ex, np.nan), dz_mm=pad(e.dz_mm, 0.0),
-                      z_mm=pad(e.z_mm, 0.0), r_mm=pad(e.r_mm, e.r_mm[0, 0] if e.r_mm.size else 0.0),
-                      kappa=pad(e.kappa, math.pi / 2), feed_dir=e.feed_dir, ap_mm=e.ap_mm, ae_mm=e.ae_mm,
-                      volume_mm3=e.volume_mm3, area_mm2=e.area_mm2)
 
 
 def random_job(rng: np.random.Generator) -> tuple[Job, str]:

@@ -74,6 +74,12 @@ def builtin_names(kind: str) -> list[str]:
     return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".toml"))
 
 
+def load_description(kind: str, name_or_path: str | Path) -> tuple[dict[str, Any], str]:
+    """(parsed TOML, file name) of a built-in description by name, or of a file by path."""
+    path = resolve(kind, name_or_path)
+    return load_toml(path), str(path)
+
+
 def resolve(kind: str, name_or_path: str | Path) -> Path:
     """A built-in description by name, or a file by path; unknown names list the built-ins."""
     p = Path(name_or_path)

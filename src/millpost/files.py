@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
 
 
 @contextmanager
@@ -30,3 +32,14 @@ def write_atomic(path: str | os.PathLike, text: str) -> None:
     """Write text (newlines as given) to `path` atomically."""
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
         fh.write(text)
+
+
+def write_csv(path: str | os.PathLike, columns: Mapping[str, np.ndarray],
+              formats: Mapping[str, str] | None = None) -> None:
+    """Equal-length columns as CSV with a header row, atomically; numbers as "%.6g" unless
+    `formats` names another printf format for the column."""
+    formats = formats or {}
+    table = np.column_stack([np.asarray(v, float) for v in columns.values()])
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, table, fmt=[formats.get(k, "%.6g") for k in columns], delimiter=",",
+                   header=",".join(columns), comments="")

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import Table, load_toml, resolve
+from .config import Table, load_description
 
 DRIVES = ("ballscrew", "belt")
 CONTROLLERS = ("grbl", "linuxcnc", "fanuc", "mach3", "generic")
@@ -173,8 +173,8 @@ class Machine:
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Machine":
-        path = resolve("machines", name_or_path)
-        return cls.from_dict(load_toml(path), file=str(path))
+        data, file = load_description("machines", name_or_path)
+        return cls.from_dict(data, file=file)
 
     @classmethod
     def from_dict(cls, data: dict, *, file: str | None = None) -> "Machine":

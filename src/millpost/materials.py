@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import Table, load_toml, resolve
+from .config import Table, load_description
 from .errors import ConfigError
 from .forces import Kienzle, Mechanistic
 
@@ -69,8 +69,8 @@ class Material:
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Material":
-        path = resolve("materials", name_or_path)
-        return cls.from_dict(load_toml(path), file=str(path))
+        data, file = load_description("materials", name_or_path)
+        return cls.from_dict(data, file=file)
 
     @classmethod
     def from_dict(cls, data: dict, *, file: str | None = None) -> "Material":

@@ -51,10 +51,10 @@ def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from):
     if area == 0:
         return 0, 0, -1
     up = 1 if area > 0 else -1
-    ia, ib, ic = 0, 1, 2
-    if area < 0:
-        ib, ic = 2, 1
-    ax, ay, bx, by, cx, cy = X[ia], Y[ia], X[ib], Y[ib], X[ic], Y[ic]
+    if area < 0:  # counter-clockwise order for the edge functions
+        X[1], X[2] = X[2], X[1]
+        Y[1], Y[2] = Y[2], Y[1]
+    ax, ay, bx, by, cx, cy = X[0], Y[0], X[1], Y[1], X[2], Y[2]
     # plane z(x, y) in mm
     ux, uy, uz = tri[1, 0] - tri[0, 0], tri[1, 1] - tri[0, 1], tri[1, 2] - tri[0, 2]
     vx, vy, vz = tri[2, 0] - tri[0, 0], tri[2, 1] - tri[0, 1], tri[2, 2] - tri[0, 2]
@@ -76,9 +76,8 @@ def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from):
         # x range where all three edge functions are >= 0 on this row (floating estimate)
         xl, xh = -1e300, 1e300
         for e in range(3):
-            ex0, ey0 = (ax, ay) if e == 0 else ((bx, by) if e == 1 else (cx, cy))
-            ex1, ey1 = (bx, by) if e == 0 else ((cx, cy) if e == 1 else (ax, ay))
-            dx, dy = ex1 - ex0, ey1 - ey0
+            ex0, ey0 = X[e], Y[e]
+            dx, dy = X[(e + 1) % 3] - ex0, Y[(e + 1) % 3] - ey0
             if dy != 0:  # inside: dx·(py − ey0) − dy·(px − ex0) ≥ 0
                 xe = ex0 + dx * (py - ey0) / dy
                 if dy > 0:

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..files import write_atomic
+from ..files import write_atomic, write_csv
 from ..job import load_job
 from ..optimize import optimize
 
@@ -36,12 +36,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.json:
         write_atomic(args.json, text + "\n")
     if args.trace:
-        rows = result.trace
-        keys = list(rows)
-        lines = [",".join(keys)]
-        for i in range(len(result.samples)):
-            lines.append(",".join(f"{float(rows[k][i]):.6g}" for k in keys))
-        write_atomic(args.trace, "\n".join(lines) + "\n")
+        write_csv(args.trace, result.trace)
     status = result.summary["status"]
     print(f"millpost: {status}; cycle time {result.summary['cycle_time_before_s']:.1f} s -> "
           f"{result.summary['cycle_time_after_s']:.1f} s (baseline {result.summary['cycle_time_baseline_s']:.1f} s); "

@@ -14,10 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, MillpostError
-from ..files import atomic_path
+from ..files import atomic_path, write_csv
 
 TRACE_COLUMNS = ("sample", "s_mm", "x_mm", "y_mm", "z_mm", "move", "line", "kind", "tool", "feed_mm_min",
                  "volume_mm3", "area_mm2", "ap_mm", "ae_mm", "phi_st_deg", "phi_ex_deg", "engaged_deg", "descending")
+TRACE_FORMATS = {"sample": "%d", "move": "%d", "line": "%d", "kind": "%d", "tool": "%d", "descending": "%d",
+                 "s_mm": "%.4f", "x_mm": "%.4f", "y_mm": "%.4f", "z_mm": "%.4f", "ap_mm": "%.5g", "ae_mm": "%.5g",
+                 "phi_st_deg": "%.4f", "phi_ex_deg": "%.4f", "engaged_deg": "%.4f"}
 
 
 def register(subparsers) -> None:
@@ -104,14 +107,11 @@ def write_trace(path: str, samples, eng) -> None:
     none = ~np.isfinite(st)
     st[none], ex[none] = np.nan, np.nan
     engaged = np.degrees(eng.arc_rad.max(axis=1))
-    cols = [np.arange(len(samples)), samples.s_mm, *samples.xyz_mm.T, eng.move, eng.line, samples.kind,
-            samples.tool, samples.feed_mm_min, eng.volume_mm3, eng.area_mm2, eng.ap_mm, eng.ae_mm, st, ex, engaged,
-            eng.descending.astype(int)]
-    fmt = ["%d", "%.4f", "%.4f", "%.4f", "%.4f", "%d", "%d", "%d", "%d", "%.6g", "%.6g", "%.6g", "%.5g", "%.5g", "%.4f",
-           "%.4f", "%.4f", "%d"]
-    table = np.column_stack([np.asarray(c, float) for c in cols])
-    with atomic_path(path) as tmp:
-        np.savetxt(tmp, table, fmt=fmt, delimiter=",", header=",".join(TRACE_COLUMNS), comments="")
+    columns = dict(zip(TRACE_COLUMNS, [
+        np.arange(len(samples)), samples.s_mm, *samples.xyz_mm.T, eng.move, eng.line, samples.kind, samples.tool,
+        samples.feed_mm_min, eng.volume_mm3, eng.area_mm2, eng.ap_mm, eng.ae_mm, st, ex, engaged,
+        eng.descending.astype(int)]))
+    write_csv(path, columns, TRACE_FORMATS)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -924,20 +924,16 @@ class Interpreter:
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
             self.to_depth(FEED, clear, b, feed)
-        elif code == 850:
-            self.to_depth(FEED, bottom, b, feed)
-            self.to_depth(FEED, r, b, feed)
-            if clear != r:
-                self.to_depth(RAPID, clear, b)
         elif code == 860:
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
             self.event(b.line, "spindle", ("off", 0.0))
             self.to_depth(RAPID, clear, b)
             self.event(b.line, "spindle", ("cw", self.s))
-        elif code == 890:
+        elif code in (850, 890):  # boring: feed in, (G89: dwell), feed out to R
             self.to_depth(FEED, bottom, b, feed)
-            self.add_dwell(b, dwell)
+            if code == 890:
+                self.add_dwell(b, dwell)
             self.to_depth(FEED, r, b, feed)
             if clear != r:
                 self.to_depth(RAPID, clear, b)
