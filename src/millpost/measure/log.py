@@ -119,35 +119,45 @@ def read_log(path: str | os.PathLike) -> Log:
     if path.suffix.lower() == ".npz":
         return _read_npz(path)
     data = path.read_bytes()
-    name = str(path)
+    columns, header_at = read_table(path, check_column_name, required=("t_s",), data=data)
+    _check_time(columns["t_s"], str(path), data, header_at)
     gaps = [Gap(float(a), float(b), (r or b"").decode("utf-8", "replace")) for a, b, r in _GAP.findall(data)]
     meta = {k.decode(): v.decode("utf-8", "replace") for k, v in _META.findall(data)}
+    return Log(columns, gaps, meta, str(path))
+
+
+def read_table(path: str | os.PathLike, check_name, *, required: tuple[str, ...] = (),
+               describe: dict[str, str] | None = None, data: bytes | None = None) -> tuple[dict[str, np.ndarray], int]:
+    """A numeric CSV table with one header row (comment lines start with #): ({column: values}, header line).
+    check_name(name, file=, line=, column=) refuses unknown columns; `required` columns must be present.
+    Errors are ParseErrors at file:row:column naming the field and what was expected (`describe`: column
+    meanings for the message)."""
+    name = str(path)
+    data = Path(path).read_bytes() if data is None else data
     header_at, header = _header(data, name)
     names = [h.strip() for h in header.split(",")]
     col = 1
     for h_raw, h in zip(header.split(","), names):
-        check_column_name(h, file=name, line=header_at, column=col)
+        check_name(h, file=name, line=header_at, column=col)
         col += len(h_raw) + 1
-    if "t_s" not in names:
-        raise ParseError("the header has no t_s column", file=name, line=header_at, column=1, word=header[:40],
-                         expected="a header row naming t_s and the other columns")
     for k, h in enumerate(names):
         if h in names[:k]:
             raise ParseError(f"column {h!r} appears twice", file=name, line=header_at,
                              column=len(",".join(header.split(",")[:k])) + 2, word=h, expected="each column once")
+    missing = [r for r in required if r not in names]
+    if missing:
+        raise ParseError(f"the header has no {', '.join(missing)} column", file=name, line=header_at, column=1,
+                         word=header[:40], expected=f"a header row naming {', '.join(required)} and the other columns")
     try:
-        table = np.loadtxt(io.BytesIO(data), delimiter=",", comments="#", skiprows=header_at, ndmin=2,
-                           dtype=float, encoding=None)
+        table = np.loadtxt(io.BytesIO(data), delimiter=",", comments="#", skiprows=header_at, ndmin=2, dtype=float)
         if table.shape[1] != len(names) and len(table):
             raise ValueError("width")
     except ValueError:
-        _locate_bad_field(data, name, header_at, names)
+        _locate_bad_field(data, name, header_at, names, describe or COLUMNS)
         raise  # pragma: no cover - _locate_bad_field always raises
     if len(table) == 0:
         table = np.zeros((0, len(names)))
-    columns = {h: np.ascontiguousarray(table[:, i]) for i, h in enumerate(names)}
-    _check_time(columns["t_s"], name, data, header_at)
-    return Log(columns, gaps, meta, name)
+    return {h: np.ascontiguousarray(table[:, i]) for i, h in enumerate(names)}, header_at
 
 
 def _header(data: bytes, name: str) -> tuple[int, str]:
@@ -165,7 +175,7 @@ def _header(data: bytes, name: str) -> tuple[int, str]:
                      expected="a header row naming the columns (t_s, ...)")
 
 
-def _locate_bad_field(data: bytes, name: str, header_at: int, names: list[str]) -> None:
+def _locate_bad_field(data: bytes, name: str, header_at: int, names: list[str], describe: dict[str, str]) -> None:
     """Scan the rows after a failed fast parse and raise at the first bad field."""
     for lineno, raw in enumerate(data.decode("utf-8", "replace").splitlines(), start=1):
         if lineno <= header_at or not raw.strip() or raw.lstrip().startswith("#"):
@@ -182,7 +192,7 @@ def _locate_bad_field(data: bytes, name: str, header_at: int, names: list[str]) 
                 float(text)
             except ValueError:
                 raise ParseError(f"not a number in column {h}", file=name, line=lineno, column=col,
-                                 word=text.strip(), expected=f"a number ({COLUMNS.get(h, h)}; nan when missing)"
+                                 word=text.strip(), expected=f"a number ({describe.get(h, h)}; nan when missing)"
                                  ) from None
             col += len(text) + 1
     raise ParseError("unreadable table", file=name, line=header_at + 1, column=1,
