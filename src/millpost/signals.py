@@ -66,6 +66,7 @@ class Signals:
     axis_current_A: np.ndarray      # (N, 3) motor current of X, Y, Z
     tool_deflection_mm: np.ndarray     # (N,) lateral, at the load point
     machine_deflection_mm: np.ndarray  # (N, 3) per axis
+    engagement: Engagement | None = None  # the engagement the loads came from (for fits and discover)
 
     def __len__(self) -> int:
         return len(self.t_s)
@@ -87,7 +88,9 @@ class Signals:
 
     def select(self, index) -> "Signals":
         """The samples at `index` (slice, mask or index array)."""
-        return Signals(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+        return Signals(**{f.name: None if getattr(self, f.name) is None else
+                          getattr(self, f.name).select(index) if f.name == "engagement" else getattr(self, f.name)[index]
+                          for f in fields(self)})
 
     def sample_at(self, t_s) -> np.ndarray:
         """Index of the sample the tool has last passed at each time (s; clipped to the program)."""
@@ -175,7 +178,7 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
         ap_mm=np.where(engaged, eng.ap_mm, 0.0), ae_mm=np.where(engaged, eng.ae_mm, 0.0), force_tool_N=force,
         peak_force_xy_N=peak, torque_Nm=torque, cutting_power_W=torque * omega, spindle_power_W=torque * omega + idle,
         spindle_current_A=spindle_current, axis_velocity_mm_s=vel, axis_accel_mm_s2=acc, axis_current_A=current,
-        tool_deflection_mm=tool_defl, machine_deflection_mm=m.deflection_mm(force))
+        tool_deflection_mm=tool_defl, machine_deflection_mm=m.deflection_mm(force), engagement=eng)
 
 
 def simulate(job: Job, feed_mm_min: np.ndarray | None = None, *, program: Program | None = None,

@@ -79,9 +79,22 @@ class Plan:
     dialect: str
     notes: list[str]
 
-    def write(self, program_path: str | Path, plan_path: str | Path) -> None:
-        write_atomic(program_path, self.text)
-        write_plan(plan_path, self.moves)
+    def write(self, folder: str | Path, tool: Tool, material: str, machine: str,
+              stock: tuple[tuple[float, float, float], tuple[float, float, float]], *, tool_number: int = 1,
+              cell_mm: float = 0.05, ds_mm: float = 0.2) -> Path:
+        """The program (calibration.nc), the plan (plan.csv) and a job (job.toml) naming them, the
+        material, machine, stock and tool, in `folder`: what `calibrate fit --plan` and `optimize` read."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        write_atomic(folder / "calibration.nc", self.text)
+        write_plan(folder / "plan.csv", self.moves)
+        fields_ = {k: v for k, v in asdict(tool).items() if v is not None and k not in ("number", "name")}
+        job = {"program": "calibration.nc", "dialect": self.dialect, "material": material, "machine": machine,
+               "stock": {"box": [list(stock[0]), list(stock[1])], "cell_mm": cell_mm},
+               "tools": {str(tool_number): fields_}, "limits": {"ds_mm": ds_mm}}
+        from ..config import dump_toml
+        write_atomic(folder / "job.toml", "# millpost calibration job (millpost calibrate plan)\n" + dump_toml(job))
+        return folder
 
 
 def write_plan(path: str | Path, moves: list[PlannedMove]) -> None:
@@ -204,11 +217,14 @@ def make_plan(tool: Tool, material: Material, machine: Machine, request: PlanReq
     w = _Writer(tool, tool_number)
     feed_max = machine.feed_max_mm_min
     # idle: spindle speeds in the air
-    w.rapid(x0 - R - CLEAR_MM, y0 - R - CLEAR_MM, safe)
-    for n in request.idle_rpm:
+    xa, ya = x0 - R - CLEAR_MM, y0 - R - CLEAR_MM
+    w.rapid(xa, ya, safe)
+    for n in request.idle_rpm:   # a short move in the air on each side of the dwell carries its speed
         n = float(np.clip(n, machine.spindle.rpm_min, machine.spindle.rpm_max))
         w.other(f"S{n:.0f} M3")
+        w.feed(xa, ya, safe + 1.0, 600.0)
         w.dwell(request.idle_s, w.move("idle", *w.pos, *w.pos, rpm=n, dwell=request.idle_s))
+        w.feed(xa, ya, safe, 600.0)
     band = min(0.25 * (y1 - y0), 2.0 * D) if request.steps else 0.0  # the steps' band along the +Y face
     _slots(w, tool, material, machine, request, rpm, y1 - band - (CLEAR_MM if band else 0.0))
     if request.steps:
@@ -231,7 +247,7 @@ def _slots(w: _Writer, tool: Tool, material: Material, machine: Machine, req: Pl
     pitch = D + max(2.0, 0.25 * D)
     fits = int(np.floor((y1 - y0 - pitch + (pitch - D)) / pitch)) + 1 if y1 - y0 >= D + 2 else 0
     if len(cuts) > fits:
-        raise MillpostError(f"the stock is {y1 - y0:g} mm wide in Y: room for {fits} slots of D{D:g} "
+        raise MillpostError(f"the slots have {y1 - y0:g} mm of the stock in Y (the rest is for the stepped passes): room for {fits} slots of D{D:g} "
                             f"{pitch - D:g} mm apart, {len(cuts)} asked ({len(req.slot_ap_mm)} depths × "
                             f"{len(req.slot_fz_mm)} feeds); give a wider stock or fewer feeds or depths")
     ratios = predicted_ratios(tool, material, machine, np.full(len(cuts), D), [c[0] for c in cuts],
