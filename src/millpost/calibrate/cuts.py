@@ -118,8 +118,10 @@ def read_cuts(path: str | os.PathLike) -> Cuts:
         if key in cols:
             bad = np.flatnonzero(~ok(cols[key]))
             if len(bad):
-                raise ParseError(f"{key} must be {rule}", file=str(path), line=_row_line(path, header_at, bad[0]),
-                                 column=names.index(key) + 1, word=f"{cols[key][bad[0]]:g}", expected=rule)
+                line, text = _row_line(path, header_at, bad[0])
+                column = len(",".join(text.split(",")[:names.index(key)])) + (1 if names.index(key) == 0 else 2)
+                raise ParseError(f"{key} must be {rule}", file=str(path), line=line, column=column,
+                                 word=f"{cols[key][bad[0]]:g}", expected=rule)
     nan = np.full(n, np.nan)
     force = np.column_stack([cols.get(k, nan) for k in ("fx_N", "fy_N", "fz_N")])
     power = cols.get("spindle_power_W", nan)
@@ -130,14 +132,15 @@ def read_cuts(path: str | os.PathLike) -> Cuts:
                 cols["fz_mm"], cols["rpm"], cols.get("climb", np.ones(n)).astype(int), force, power, str(path))
 
 
-def _row_line(path, header_at: int, row: int) -> int:
+def _row_line(path, header_at: int, row: int) -> tuple[int, str]:
+    """(1-based line number, text) of data row `row` (0-based; comments and blank lines skipped)."""
     k = -1
     for lineno, raw in enumerate(Path(path).read_text().splitlines(), start=1):
         if lineno > header_at and raw.strip() and not raw.lstrip().startswith("#"):
             k += 1
             if k == row:
-                return lineno
-    return header_at + row + 1
+                return lineno, raw
+    return header_at + row + 1, ""
 
 
 @dataclass
