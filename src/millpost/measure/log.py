@@ -28,7 +28,6 @@ silently. In NPZ, gaps are the arrays `gap_t_start_s`, `gap_t_end_s`, `gap_reaso
 
 from __future__ import annotations
 
-import io
 import math
 import os
 import re
@@ -39,6 +38,7 @@ import numpy as np
 
 from ..errors import ParseError
 from ..files import atomic_path
+from ._csv import parse_numbers
 
 COLUMNS = {
     "t_s": "time (s)",
@@ -121,9 +121,21 @@ def read_log(path: str | os.PathLike) -> Log:
     data = path.read_bytes()
     columns, header_at = read_table(path, check_column_name, required=("t_s",), data=data)
     _check_time(columns["t_s"], str(path), data, header_at)
-    gaps = [Gap(float(a), float(b), (r or b"").decode("utf-8", "replace")) for a, b, r in _GAP.findall(data)]
-    meta = {k.decode(): v.decode("utf-8", "replace") for k, v in _META.findall(data)}
+    comments = b"\n".join(_comment_lines(data))
+    gaps = [Gap(float(a), float(b), (r or b"").decode("utf-8", "replace")) for a, b, r in _GAP.findall(comments)]
+    meta = {k.decode(): v.decode("utf-8", "replace") for k, v in _META.findall(comments)}
     return Log(columns, gaps, meta, str(path))
+
+
+def _comment_lines(data: bytes) -> list[bytes]:
+    """The lines that start with '#' (found with bytes.find: a log has millions of rows, a few comments)."""
+    out, pos = [], 0 if data.startswith(b"#") else data.find(b"\n#")
+    while pos >= 0:
+        start = pos if data[pos:pos + 1] == b"#" else pos + 1
+        end = data.find(b"\n", start)
+        out.append(data[start:len(data) if end < 0 else end].rstrip(b"\r"))
+        pos = -1 if end < 0 else data.find(b"\n#", end)
+    return out
 
 
 def read_table(path: str | os.PathLike, check_name, *, required: tuple[str, ...] = (),
@@ -148,16 +160,21 @@ def read_table(path: str | os.PathLike, check_name, *, required: tuple[str, ...]
     if missing:
         raise ParseError(f"the header has no {', '.join(missing)} column", file=name, line=header_at, column=1,
                          word=header[:40], expected=f"a header row naming {', '.join(required)} and the other columns")
-    try:
-        table = np.loadtxt(io.BytesIO(data), delimiter=",", comments="#", skiprows=header_at, ndmin=2, dtype=float)
-        if table.shape[1] != len(names) and len(table):
-            raise ValueError("width")
-    except ValueError:
+    table = parse_numbers(data, _line_start(data, header_at + 1), len(names))
+    if table is None:
         _locate_bad_field(data, name, header_at, names, describe or COLUMNS)
-        raise  # pragma: no cover - _locate_bad_field always raises
-    if len(table) == 0:
-        table = np.zeros((0, len(names)))
     return {h: np.ascontiguousarray(table[:, i]) for i, h in enumerate(names)}, header_at
+
+
+def _line_start(data: bytes, line: int) -> int:
+    """Byte offset of 1-based line `line` (len(data) past the end)."""
+    pos = 0
+    for _ in range(line - 1):
+        pos = data.find(b"\n", pos)
+        if pos < 0:
+            return len(data)
+        pos += 1
+    return pos
 
 
 def _header(data: bytes, name: str) -> tuple[int, str]:
@@ -196,7 +213,7 @@ def _locate_bad_field(data: bytes, name: str, header_at: int, names: list[str], 
                                  ) from None
             col += len(text) + 1
     raise ParseError("unreadable table", file=name, line=header_at + 1, column=1,
-                     expected="rows of comma-separated numbers")
+                     expected="rows of comma-separated numbers")  # pragma: no cover - the scan finds it
 
 
 def _check_time(t: np.ndarray, name: str, data: bytes | None = None, header_at: int = 0) -> None:
