@@ -2,7 +2,8 @@
 
 A `RegisterMap` (a data file: built-ins in ``millpost/data/vfd_maps/``, or the user's own TOML) says
 which registers hold what; `SpindleLogger` reads them at a fixed rate and writes the log format
-(`millpost.measure.log`). Every tick k is due at t₀ + k/rate. A tick whose read fails (timeout,
+(`millpost.measure.log`): t_s the time of the read (the middle of request and response), due_s the
+time its tick was due (their difference is the logger's latency). Every tick k is due at t₀ + k/rate. A tick whose read fails (timeout,
 exception response, connection lost) or that the logger could not serve in time (overrun) is lost: a run
 of lost ticks becomes one gap record [first lost tick, last lost tick] with its reason, counted in the
 summary, and the logger reconnects at the next tick. Ctrl-C (KeyboardInterrupt) ends the log cleanly:
@@ -190,10 +191,8 @@ class SpindleLogger:
         lost_from, lost_reason = None, ""
         last_row: list[float] = []
         next_progress = 0.0
-        with LogWriter(self.path, ["t_s"] + self.map.columns, meta) as writer:
-            client = self.client_factory()  # connected before the clock starts, so tick 0 is not lost to it
-            if not client.connect():
-                client = None
+        with LogWriter(self.path, ["t_s", "due_s"] + self.map.columns, meta) as writer:
+            client = None
             t0 = self.clock()
 
             def close_gap(last_lost_tick: int) -> None:
@@ -213,6 +212,11 @@ class SpindleLogger:
 
             k = 0
             try:
+                client = self.client_factory()  # connect before the clock starts: tick 0 is not lost to it
+                if not client.connect():
+                    client.close()
+                    client = None
+                t0 = self.clock()
                 while duration_s is None or k * period <= duration_s:
                     now = self.clock() - t0
                     due = k * period
@@ -244,7 +248,7 @@ class SpindleLogger:
                             client = None
                     else:
                         close_gap(k - 1)
-                        writer.row([t_row] + values)
+                        writer.row([t_row, due] + values)
                         summary.rows += 1
                         last_row = values
                     k += 1
