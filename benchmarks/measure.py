@@ -1,4 +1,4 @@
-"""Align and fit a 1-hour measurement log at 1 kHz (3.6 M rows): a calibration program of 90 slots at 45
+"""Align and fit a 1-hour measurement log at 1 kHz (3.6 M rows): a calibration program of 74 slots at 37
 feeds and two depths (about an hour of cutting), its forward-model signals, and a seeded synthetic log
 (forces, spindle power, positions; 3 % noise; unknown offset). Prints one JSON object:
 
@@ -49,7 +49,7 @@ def generate(work: Path, minutes: float, rate: float) -> dict:
     if log_path.exists():
         return {"log": str(log_path)}
     tool = Tool(diameter_mm=6, flutes=3, helix_deg=35, flute_length_mm=16, stickout_mm=24)
-    slots = int(round(90 * minutes / 60))
+    slots = int(round(74 * minutes / 60))   # about a minute of cutting per slot on average
     fz = tuple(np.round(np.linspace(0.006, 0.03, max(slots // 2, 2)), 5))
     stock = ((0.0, 0.0, -10.0), (200.0, 8.0 * len(fz) * 2 + 10.0, 0.0))
     plan = make_plan(tool, Material.load("al6061"), Machine.load("vmc-small"),

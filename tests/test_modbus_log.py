@@ -55,6 +55,12 @@ def wait_for_rows(folder: Path, timeout_s: float = 30.0) -> None:
     raise RuntimeError("the logger wrote nothing")
 
 
+def stop(*procs: subprocess.Popen) -> None:
+    for p in procs:
+        p.kill()
+        p.wait(5)
+
+
 def run_logger(args: list[str]) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(SRC))
     return subprocess.Popen([sys.executable, "-m", "millpost.cli", "log", *args], env=env, stdout=subprocess.PIPE,
@@ -91,9 +97,7 @@ def test_logger_survives_a_vanishing_server(tmp_path, framer):
             server = start_server(port, record, framer)
         _, err = logger.communicate(timeout=60)
     finally:
-        logger.kill()
-        server.kill()
-        server.wait(5)
+        stop(logger, server)
     assert logger.returncode == 0, err
     log = read_log(out)
     summary = json.loads(summary_file.read_text())
@@ -135,9 +139,7 @@ def test_ctrl_c_ends_with_a_complete_file(tmp_path):
         logger.send_signal(signal.SIGINT)
         _, err = logger.communicate(timeout=20)
     finally:
-        logger.kill()
-        server.kill()
-        server.wait(5)
+        stop(logger, server)
     assert logger.returncode == 0, err
     assert "interrupted" in err
     log = read_log(out)

@@ -25,7 +25,9 @@ def _scale(mant: float, exp: int, pow10: np.ndarray) -> float:
 
 @numba.njit(cache=True)
 def _parse(buf: np.ndarray, start: int, ncols: int, out: np.ndarray, pow10: np.ndarray) -> int:
-    """Rows parsed into out (rows × ncols, flat); −1 − (byte offset) of the first bad field."""
+    """Rows parsed into out (ncols × max_rows: column-major, so that columns are contiguous views);
+    the number of rows, or −1 − (byte offset) of the first bad field."""
+    max_rows = out.shape[1]
     n = len(buf)
     i, row, col = start, 0, 0
     while i < n:
@@ -85,9 +87,9 @@ def _parse(buf: np.ndarray, start: int, ncols: int, out: np.ndarray, pow10: np.n
                     return -1 - field
                 exp += -e if eneg else e
             value = _scale(mant, exp, pow10)
-        if row * ncols + col >= len(out):
+        if row >= max_rows:
             return -1 - field
-        out[row * ncols + col] = -value if neg else value
+        out[col, row] = -value if neg else value
         while i < n and (buf[i] == 32 or buf[i] == 9):
             i += 1
         if i < n and buf[i] == 44:
@@ -107,13 +109,13 @@ def _parse(buf: np.ndarray, start: int, ncols: int, out: np.ndarray, pow10: np.n
     return row
 
 
-def parse_numbers(data: bytes, start: int, ncols: int) -> np.ndarray | None:
-    """(rows, ncols) floats of the table in data[start:], or None when some field is not a number or a
-    row has the wrong number of fields (the caller reports where)."""
+def parse_numbers(data: bytes, start: int, ncols: int) -> list[np.ndarray] | None:
+    """The ncols columns (float arrays) of the table in data[start:], or None when some field is not a
+    number or a row has the wrong number of fields (the caller reports where)."""
     buf = np.frombuffer(data, np.uint8)
     max_rows = data.count(b"\n", start) + 1
-    out = np.empty(max_rows * ncols)
+    out = np.empty((ncols, max_rows))
     rows = _parse(buf, start, ncols, out, _POW10)
     if rows < 0:
         return None
-    return out[:rows * ncols].reshape(rows, ncols)
+    return [out[c, :rows] for c in range(ncols)]

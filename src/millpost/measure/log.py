@@ -163,7 +163,7 @@ def read_table(path: str | os.PathLike, check_name, *, required: tuple[str, ...]
     table = parse_numbers(data, _line_start(data, header_at + 1), len(names))
     if table is None:
         _locate_bad_field(data, name, header_at, names, describe or COLUMNS)
-    return {h: np.ascontiguousarray(table[:, i]) for i, h in enumerate(names)}, header_at
+    return dict(zip(names, table)), header_at
 
 
 def _line_start(data: bytes, line: int) -> int:

@@ -2,10 +2,11 @@
 and the controller model's time base (`millpost.signals`), never trusting timestamps alone.
 
 1. Cross-correlation: every channel the log shares with the prediction (forces, spindle power/current,
-   axis currents, positions) is resampled on a uniform grid at the log's median sample interval,
-   standardised (zero mean, unit variance; lost intervals count as the mean), and the correlations are
-   summed; the lag of the peak, refined by a parabola through it, gives the offset
-   o with  log(t) ≈ predicted(t − o).
+   axis currents, positions) is put on a uniform grid (the mean of the rows nearest each grid point),
+   standardised (zero mean, unit variance; lost intervals count as the mean), and the correlations with
+   the prediction are summed; the lag of the peak, refined by a parabola through it, gives the offset
+   o with  log(t) ≈ predicted(t − o). A long log is correlated first on a coarse grid (at most 2¹⁸
+   points, FFT over all lags), then at its own sample interval over the lags near the coarse peak.
 2. Position projection (when the log has x_mm, y_mm, z_mm): each logged point is projected onto the
    predicted path near the time the first estimate expects it (nearest neighbour in (x, y, z, λ·t),
    then onto the segment to the next sample), which gives the program time at which the tool was
@@ -29,6 +30,8 @@ from .log import Log
 CHANNELS = ("fx_N", "fy_N", "fz_N", "spindle_power_W", "spindle_current_A", "ix_A", "iy_A", "iz_A",
             "x_mm", "y_mm", "z_mm")
 POSITION_TIME_SCALE_MM_PER_S = 1.0  # λ: 1 s apart in program time weighs like 1 mm apart in space
+COARSE_POINTS = 1 << 18             # the first correlation runs on at most this many grid points
+POSITION_ROWS = 200_000             # logged positions projected for the refinement (evenly spread)
 
 
 @dataclass
@@ -72,25 +75,54 @@ def align(log: Log, signals: Signals, *, channels: tuple[str, ...] | None = None
     dt = float(np.median(np.diff(t)))
     if not dt > 0:
         raise MillpostError(f"{log.path}: t_s does not advance")
+    # coarse: block means on a grid of at most COARSE_POINTS, FFT correlation over all lags
+    factor = max(1, int(np.ceil((t[-1] - t[0]) / dt / COARSE_POINTS)))
+    coarse = _correlate(log, signals, pred, use, dt * factor, max_offset_s)
+    offset_c, score_c, energy = coarse
+    offset, score = offset_c, score_c
+    if factor > 1:   # fine: the log's own interval, lags within two coarse steps of the coarse peak
+        offset, score, energy = _correlate(log, signals, pred, use, dt, max_offset_s,
+                                           around=(offset_c, 2 * factor))
+    result = Alignment(offset, "xcorr", score / energy if energy > 0 else 0.0, use, xcorr_offset_s=offset)
+    if all(log.has(c) for c in ("x_mm", "y_mm", "z_mm")):
+        refined = _project(log, signals, offset)
+        if refined is not None:
+            result.offset_s, result.method = refined, "xcorr+position"
+    _residuals(result, log, signals, pred)
+    return result
+
+
+def _correlate(log: Log, signals: Signals, pred: dict, use: list[str], dt: float, max_offset_s: float | None,
+               around: tuple[float, int] | None = None) -> tuple[float, float, float]:
+    """(offset, peak score, normalising energy) of the summed correlation of standardised channels on a
+    grid of step dt (block means of the log, the prediction interpolated). around = (offset, k): only
+    the lags within k steps of that offset, by direct dot products; otherwise all lags by FFT."""
+    t = log.t_s
     t0 = float(t[0])
     n_log = int(np.floor((t[-1] - t0) / dt)) + 1
-    grid_log = t0 + dt * np.arange(n_log)
     n_pred = int(np.floor(signals.t_s[-1] / dt)) + 1
     grid_pred = dt * np.arange(n_pred)
-    lost = _in_gaps(grid_log, log)
-    nfft_total = None
-    score = None
+    cell = np.minimum(np.rint((t - t0) / dt).astype(np.int64), n_log - 1)   # the grid point nearest each row
+    lost = _in_gaps(t0 + dt * np.arange(n_log), log)
+    count = np.bincount(cell, minlength=n_log)
+    lost |= count == 0
+    lags = (np.arange(-(n_pred - 1), n_log) if around is None else
+            np.arange(int(np.floor((around[0] - t0) / dt)) - around[1], int(np.ceil((around[0] - t0) / dt)) + around[1] + 1))
+    score = np.zeros(len(lags))
     energy = 0.0
     for c in use:
-        a = _standardise(np.interp(grid_log, t, _fill(log[c])), lost)
+        a = _standardise(np.bincount(cell, weights=_fill(log[c]), minlength=n_log) / np.maximum(count, 1), lost)
         b = _standardise(np.interp(grid_pred, signals.t_s, pred[c]), None)
-        r = correlate(a, b, mode="full", method="fft")
-        score = r if score is None else score + r
+        if around is None:
+            score += correlate(a, b, mode="full", method="fft")
+        else:
+            for i, lag in enumerate(lags):   # Σ_j a[j + lag] b[j] over the overlap
+                lo, hi = max(0, -lag), min(n_pred, n_log - lag)
+                if hi > lo:
+                    score[i] += float(np.dot(a[lo + lag:hi + lag], b[lo:hi]))
         energy += float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
-        nfft_total = len(r)
-    lags = np.arange(nfft_total) - (n_pred - 1)
+    offsets = t0 + lags * dt
     if max_offset_s is not None:
-        offsets = t0 + lags * dt
         score = np.where(np.abs(offsets) <= max_offset_s, score, -np.inf)
     k = int(np.argmax(score))
     frac = 0.0
@@ -98,14 +130,7 @@ def align(log: Log, signals: Signals, *, channels: tuple[str, ...] | None = None
         y0, y1, y2 = score[k - 1], score[k], score[k + 1]
         den = y0 - 2 * y1 + y2
         frac = 0.5 * (y0 - y2) / den if den < 0 else 0.0
-    offset = t0 + (lags[k] + frac) * dt
-    result = Alignment(offset, "xcorr", float(score[k] / energy) if energy > 0 else 0.0, use, xcorr_offset_s=offset)
-    if all(log.has(c) for c in ("x_mm", "y_mm", "z_mm")):
-        refined = _project(log, signals, offset)
-        if refined is not None:
-            result.offset_s, result.method = refined, "xcorr+position"
-    _residuals(result, log, signals, pred)
-    return result
+    return float(offsets[k] + frac * dt), float(score[k]), energy
 
 
 def _fill(v: np.ndarray) -> np.ndarray:
@@ -139,8 +164,10 @@ def _project(log: Log, signals: Signals, offset: float) -> float | None:
         return None
     pts = np.column_stack([signals.xyz_mm, lam * signals.t_s])
     tree = cKDTree(pts)
-    xyz = np.column_stack([log["x_mm"], log["y_mm"], log["z_mm"]])
-    tau_guess = log.t_s - offset
+    pick = np.unique(np.linspace(0, len(log) - 1, min(len(log), POSITION_ROWS)).astype(np.int64))
+    xyz = np.column_stack([log["x_mm"][pick], log["y_mm"][pick], log["z_mm"][pick]])
+    t_log = log.t_s[pick]
+    tau_guess = t_log - offset
     inside = (tau_guess >= signals.t_s[0]) & (tau_guess <= signals.t_s[-1]) & np.isfinite(xyz).all(1)
     if inside.sum() < 2:
         return None
@@ -165,7 +192,7 @@ def _project(log: Log, signals: Signals, offset: float) -> float | None:
     ok = moving[jb] & moving[jb + 1] & (L2 > 0)
     if ok.sum() < 2:
         return None
-    return float(np.median(log.t_s[inside][ok] - tau[ok]))
+    return float(np.median(t_log[inside][ok] - tau[ok]))
 
 
 def _residuals(result: Alignment, log: Log, signals: Signals, pred: dict[str, np.ndarray]) -> None:
