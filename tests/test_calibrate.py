@@ -21,7 +21,7 @@ from millpost.forces import Kienzle
 from millpost.job import load_job
 from millpost.machine import Machine
 from millpost.materials import Material
-from millpost.measure import align, read_log
+from millpost.measure import align
 from millpost.measure.synthetic import synthetic_log
 from millpost.tools.cutter import Tool
 
@@ -40,7 +40,8 @@ def slot_series(tmp_path, noise: float, seed: int = 0):
                          N * a * K["Kac"] * c / math.pi + N * a * K["Kae"] / 2])
     F = F * (1 + noise * np.random.default_rng(seed).standard_normal(F.shape))
     rows = ["diameter_mm,flutes,helix_deg,ae_mm,ap_mm,fz_mm,rpm,fx_N,fy_N,fz_N"]
-    rows += [f"19.05,4,30,19.05,5,{ci},6000,{float(fx)!r},{float(fy)!r},{float(fz)!r}" for ci, (fx, fy, fz) in zip(c, F)]
+    rows += [f"19.05,4,30,19.05,5,{ci},6000,{float(fx)!r},{float(fy)!r},{float(fz)!r}"
+             for ci, (fx, fy, fz) in zip(c, F)]
     path = tmp_path / "cuts.csv"
     path.write_text("\n".join(rows) + "\n")
     return path, c, F, K

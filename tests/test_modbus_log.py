@@ -120,7 +120,8 @@ def test_logger_survives_a_vanishing_server(tmp_path, framer):
     # values equal served ones (in raw register counts), and were served when the row says
     wall, raw = served(record)
     epoch = float(log.meta["start_epoch_s"])
-    scale = {"output_frequency_Hz": (0, 0.01), "spindle_current_A": (1, 0.01), "spindle_rpm": (9, 1), "spindle_power_W": (12, 1)}
+    scale = {"output_frequency_Hz": (0, 0.01), "spindle_current_A": (1, 0.01), "spindle_rpm": (9, 1),
+             "spindle_power_W": (12, 1)}
     logged = np.column_stack([np.round(log[c] / s).astype(int) for c, (_, s) in scale.items()])
     served_rows = raw[:, [i for i, _ in scale.values()]]
     for t, row in zip(log.t_s, logged):

@@ -44,8 +44,8 @@ def main() -> None:
         for a, v in vals.items():
             if address <= a < address + count:
                 registers[a - start_address] = v
-        record.write(f"{now:.6f} " + " ".join(str(registers[a - start_address]) for a in range(address, address + count))
-                     + "\n")
+        served = " ".join(str(registers[a - start_address]) for a in range(address, address + count))
+        record.write(f"{now:.6f} {served}\n")
         return None
 
     device = SimDevice(id=1, simdata=[SimData(BASE, count=32, values=0, datatype=DataType.REGISTERS)], action=action)

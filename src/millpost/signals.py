@@ -88,9 +88,9 @@ class Signals:
 
     def select(self, index) -> "Signals":
         """The samples at `index` (slice, mask or index array)."""
-        return Signals(**{f.name: None if getattr(self, f.name) is None else
-                          getattr(self, f.name).select(index) if f.name == "engagement" else getattr(self, f.name)[index]
-                          for f in fields(self)})
+        def pick(value):
+            return None if value is None else value.select(index) if isinstance(value, Engagement) else value[index]
+        return Signals(**{f.name: pick(getattr(self, f.name)) for f in fields(self)})
 
     def sample_at(self, t_s) -> np.ndarray:
         """Index of the sample the tool has last passed at each time (s; clipped to the program)."""

@@ -107,7 +107,8 @@ def read_cuts(path: str | os.PathLike) -> Cuts:
     cols, header_at = read_table(path, check, required=REQUIRED, describe=CUT_COLUMNS)
     n = len(cols["ae_mm"])
     if n == 0:
-        raise ParseError("no cuts in the table", file=str(path), line=header_at + 1, column=1, expected="one row per cut")
+        raise ParseError("no cuts in the table", file=str(path), line=header_at + 1, column=1,
+                         expected="one row per cut")
     names = list(cols)
     for key, rule, ok in (("diameter_mm", "> 0", lambda v: v > 0), ("flutes", "a whole number >= 1",
                                                                       lambda v: (v >= 1) & (v == np.round(v))),

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
@@ -245,11 +244,14 @@ def _slots(w: _Writer, tool: Tool, material: Material, machine: Machine, req: Pl
     if not cuts:
         return
     pitch = D + max(2.0, 0.25 * D)
-    fits = int(np.floor((y1 - y0 - pitch + (pitch - D)) / pitch)) + 1 if y1 - y0 >= D + 2 else 0
+    margin = 0.5 * (pitch - D)           # stock left between the first slot and the stock's edge
+    room = y1 - y0 - D - margin
+    fits = int(np.floor(room / pitch)) + 1 if room >= 0 else 0
     if len(cuts) > fits:
-        raise MillpostError(f"the slots have {y1 - y0:g} mm of the stock in Y (the rest is for the stepped passes): room for {fits} slots of D{D:g} "
-                            f"{pitch - D:g} mm apart, {len(cuts)} asked ({len(req.slot_ap_mm)} depths × "
-                            f"{len(req.slot_fz_mm)} feeds); give a wider stock or fewer feeds or depths")
+        raise MillpostError(f"the slots have {y1 - y0:g} mm of the stock in Y (the rest is for the stepped "
+                            f"passes): room for {fits} slots of D{D:g} {pitch - D:g} mm apart, {len(cuts)} asked "
+                            f"({len(req.slot_ap_mm)} depths × {len(req.slot_fz_mm)} feeds); give a wider stock or "
+                            "fewer feeds or depths")
     ratios = predicted_ratios(tool, material, machine, np.full(len(cuts), D), [c[0] for c in cuts],
                               np.array([c[1] for c in cuts]), rpm, req.deflection_mm)
     over = ratios[:, [0, 2]].max(axis=1) > 1.0   # breakage and spindle power; deflection only bends a slot
@@ -261,7 +263,7 @@ def _slots(w: _Writer, tool: Tool, material: Material, machine: Machine, req: Pl
     w.other(f"S{rpm:.0f} M3")
     xs, xe = x0 - R - CLEAR_MM, x1 + R + CLEAR_MM
     for i, (ap, fz) in enumerate(cuts):
-        y = y0 + R + (pitch - D) / 2 + i * pitch
+        y = y0 + R + margin + i * pitch
         z = z1 - ap
         feed = min(fz * tool.flutes * rpm, machine.feed_max_mm_min)
         w.rapid(xs, y, z1 + SAFE_MM)

@@ -95,7 +95,8 @@ def run_plan(args: argparse.Namespace) -> int:
     tool = tool_from_args(args)
     material, machine = Material.load(args.material), Machine.load(args.machine)
     box = _box(args.stock_box)
-    request = PlanRequest(stock=box, rpm=args.rpm, slot_fz_mm=_numbers(args.fz, "fz"), slot_ap_mm=_numbers(args.ap, "ap"),
+    request = PlanRequest(stock=box, rpm=args.rpm, slot_fz_mm=_numbers(args.fz, "fz"),
+                          slot_ap_mm=_numbers(args.ap, "ap"),
                           step_fz_mm=args.step_fz, steps=not args.no_steps, margin=args.margin,
                           deflection_mm=args.deflection, axis_test=not args.no_axis_test,
                           idle_rpm=_numbers(args.idle_rpm, "idle-rpm"))

@@ -106,8 +106,11 @@ def _correlate(log: Log, signals: Signals, pred: dict, use: list[str], dt: float
     lost = _in_gaps(t0 + dt * np.arange(n_log), log)
     count = np.bincount(cell, minlength=n_log)
     lost |= count == 0
-    lags = (np.arange(-(n_pred - 1), n_log) if around is None else
-            np.arange(int(np.floor((around[0] - t0) / dt)) - around[1], int(np.ceil((around[0] - t0) / dt)) + around[1] + 1))
+    if around is None:
+        lags = np.arange(-(n_pred - 1), n_log)
+    else:
+        centre = (around[0] - t0) / dt
+        lags = np.arange(int(np.floor(centre)) - around[1], int(np.ceil(centre)) + around[1] + 1)
     score = np.zeros(len(lags))
     energy = 0.0
     for c in use:

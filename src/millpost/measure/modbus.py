@@ -3,8 +3,8 @@
 A `RegisterMap` (a data file: built-ins in ``millpost/data/vfd_maps/``, or the user's own TOML) says
 which registers hold what; `SpindleLogger` reads them at a fixed rate and writes the log format
 (`millpost.measure.log`): t_s the time of the read (the middle of request and response), due_s the
-time its tick was due (their difference is the logger's latency). Every tick k is due at t₀ + k/rate. A tick whose read fails (timeout,
-exception response, connection lost) or that the logger could not serve in time (overrun) is lost: a run
+time its tick was due (their difference is the logger's latency). Every tick k is due at t₀ + k/rate.
+A tick whose read fails (timeout, exception response, connection lost) or that the logger could not serve in time (overrun) is lost: a run
 of lost ticks becomes one gap record [first lost tick, last lost tick] with its reason, counted in the
 summary, and the logger reconnects at the next tick. Ctrl-C (KeyboardInterrupt) ends the log cleanly:
 the file holds every row taken up to then.
