@@ -84,9 +84,11 @@ def test_writer_keeps_rows_and_gaps(tmp_path):
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("positions", [False, True])
-@pytest.mark.parametrize("coarse_points", [1 << 18, 1 << 10])   # one FFT pass; coarse then fine
-def test_alignment_within_one_sample(predicted, seed, positions, coarse_points, monkeypatch):
+@pytest.mark.parametrize("coarse_points, fine_points", [(1 << 18, 1 << 18), (1 << 10, 1 << 14)])
+def test_alignment_within_one_sample(predicted, seed, positions, coarse_points, fine_points, monkeypatch):
+    # (one FFT pass over the whole log; or a coarse pass, then the log's interval on a window)
     monkeypatch.setattr("millpost.measure.alignment.COARSE_POINTS", coarse_points)
+    monkeypatch.setattr("millpost.measure.alignment.FINE_POINTS", fine_points)
     rng = np.random.default_rng(100 + seed)
     offset = float(rng.uniform(0.1, 3.0))
     rate = float(rng.choice([100.0, 250.0, 1000.0]))

@@ -31,6 +31,7 @@ CHANNELS = ("fx_N", "fy_N", "fz_N", "spindle_power_W", "spindle_current_A", "ix_
             "x_mm", "y_mm", "z_mm")
 POSITION_TIME_SCALE_MM_PER_S = 1.0  # λ: 1 s apart in program time weighs like 1 mm apart in space
 COARSE_POINTS = 1 << 18             # the first correlation runs on at most this many grid points
+FINE_POINTS = 1 << 18               # the second on a window of the program this long (at the log's interval)
 POSITION_ROWS = 200_000             # logged positions projected for the refinement (evenly spread)
 
 
@@ -111,19 +112,31 @@ def _correlate(log: Log, signals: Signals, pred: dict, use: list[str], dt: float
     else:
         centre = (around[0] - t0) / dt
         lags = np.arange(int(np.floor(centre)) - around[1], int(np.ceil(centre)) + around[1] + 1)
+    predicted = lambda c: _standardise(np.interp(grid_pred, signals.t_s, pred[c]), None)  # noqa: E731
+    j0, j1 = 0, n_pred
+    if around is not None and n_pred > FINE_POINTS:
+        # the window of the program whose prediction changes most (edges fix the time best)
+        g = np.zeros(n_pred - 1)
+        for c in use:
+            g += np.diff(predicted(c)) ** 2
+        sums = np.concatenate([[0.0], np.cumsum(g)])
+        j0 = int(np.argmax(sums[FINE_POINTS - 1:] - sums[:len(sums) - FINE_POINTS + 1]))
+        j1 = j0 + FINE_POINTS
     score = np.zeros(len(lags))
     energy = 0.0
     for c in use:
         a = _standardise(np.bincount(cell, weights=_fill(log[c]), minlength=n_log) / np.maximum(count, 1), lost)
-        b = _standardise(np.interp(grid_pred, signals.t_s, pred[c]), None)
+        b = predicted(c)
         if around is None:
             score += correlate(a, b, mode="full", method="fft")
-        else:
-            for i, lag in enumerate(lags):   # Σ_j a[j + lag] b[j] over the overlap
-                lo, hi = max(0, -lag), min(n_pred, n_log - lag)
-                if hi > lo:
-                    score[i] += float(np.dot(a[lo + lag:hi + lag], b[lo:hi]))
-        energy += float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
+            energy += float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
+            continue
+        for i, lag in enumerate(lags):   # Σ_j a[j + lag] b[j] over the window's overlap
+            lo, hi = max(j0, -lag), min(j1, n_log - lag)
+            if hi > lo:
+                score[i] += float(np.dot(a[lo + lag:hi + lag], b[lo:hi]))
+        lo, hi = max(j0, -lags[0]), min(j1, n_log - lags[-1])
+        energy += float(np.sqrt(np.sum(a[lo:hi] ** 2) * np.sum(b[lo:hi] ** 2))) if hi > lo else 0.0
     offsets = t0 + lags * dt
     if max_offset_s is not None:
         score = np.where(np.abs(offsets) <= max_offset_s, score, -np.inf)
