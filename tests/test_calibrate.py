@@ -309,3 +309,19 @@ def test_kienzle_fit_accepts_several_tools():
                             for k, (t, e) in enumerate(zip(tools, engs))])
     fit = Kienzle().fit(eng, Measurements(fz_mm=fz, rpm=8000.0, power_W=power), per_row)
     np.testing.assert_allclose(fit.coef_, [900.0, 0.3], rtol=1e-6)
+
+
+def test_stiffness_cli_writes_the_machine(tmp_path):
+    """A push test (force on the workpiece against position): k on the loading branch into the machine file."""
+    from millpost.measure import Log, write_log
+    x = np.r_[np.linspace(0, 0.04, 200), np.linspace(0.04, 0.0, 200)]
+    f = np.r_[-2500.0 * np.linspace(0, 0.04, 200), -2500.0 * 0.04 + 4000.0 * (0.04 - np.linspace(0.04, 0.0, 200))]
+    f = np.maximum(f, -2500 * 0.04) + np.random.default_rng(2).normal(0, 0.5, 400)
+    write_log(tmp_path / "push.csv", Log({"t_s": np.arange(400) * 0.01, "fx_N": f, "x_mm": x}))
+    assert main(["calibrate", "fit", "--stiffness", str(tmp_path / "push.csv"), "--axis", "x", "--machine",
+                 "vmc-small", "--machine-out", str(tmp_path / "m.toml"), "--json", str(tmp_path / "s.json")]) == 0
+    k = json.loads((tmp_path / "s.json").read_text())["stiffness"]["k_N_per_mm"]
+    assert k == pytest.approx(2500.0, rel=0.01)
+    m = Machine.load(tmp_path / "m.toml")
+    assert m.axes["x"].stiffness_N_per_mm == pytest.approx(k)
+    assert m.axes["y"].stiffness_N_per_mm == Machine.load("vmc-small").axes["y"].stiffness_N_per_mm

@@ -167,6 +167,7 @@ class Fit:
             se = np.sqrt(np.maximum(np.diag(self.kienzle.coef_cov_), 0))
             out["kienzle"] = {k: {"value": float(v), "stderr": float(s)}
                               for k, v, s in zip(("kc11", "mc"), self.kienzle.coef_, se)}
+            out["kienzle_covariance"] = self.kienzle.coef_cov_.tolist()
             out["kienzle_ratios"] = {"radial": self.kienzle.radial_ratio, "axial": self.kienzle.axial_ratio}
         after = self.residuals.get("mechanistic", {}).get("after", {})
         out["rms_N"] = after.get("force_N")
