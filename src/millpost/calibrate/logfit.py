@@ -32,14 +32,6 @@ from .plan import PlannedMove
 SPIN_UP_S = 1.0    # idle dwell rows this long after the speed change are left out
 
 
-def rows_to_samples(log: Log, alignment: Alignment, signals: Signals) -> np.ndarray:
-    """For every log row, the nearest path sample in program time (−1 outside the program)."""
-    tau = alignment.program_time(log.t_s)
-    j = np.clip(np.searchsorted(signals.t_s, tau), 1, len(signals) - 1)
-    j = np.where(np.abs(signals.t_s[j - 1] - tau) < np.abs(signals.t_s[j] - tau), j - 1, j)
-    return np.where((tau >= signals.t_s[0]) & (tau <= signals.t_s[-1]), j, -1)
-
-
 def steady_samples(signals: Signals, moves: list[PlannedMove], *, kinds=("slot", "step"), tol: float = 0.02,
                    erode: int = 2) -> np.ndarray:
     """Samples on the planned lines of `kinds` whose predicted engagement (ap, ae) and speed are the
@@ -78,7 +70,7 @@ def observations(log: Log, alignment: Alignment, signals: Signals, job: Job, use
     the average-force method fits; samples within a cut share its disturbances (runout, material), so
     they are not independent observations. idle_W(rpm) → no-load power (W) to subtract (default: the job
     machine's)."""
-    j = rows_to_samples(log, alignment, signals)
+    j = alignment.nearest_samples(log.t_s, signals)
     keep = (j >= 0) & use[np.maximum(j, 0)]
     lines = np.unique(signals.line[use])
     group = np.full(len(signals), -1)
@@ -147,7 +139,7 @@ def fit_axes(log: Log, alignment: Alignment, signals: Signals, moves: list[Plann
              terms=("inertia", "coulomb", "viscous")) -> dict[str, AxisDrive]:
     """Per axis with a logged current (ix_A, iy_A, iz_A): the drive model fitted on the axis-test strokes
     of that axis, kinematics from the controller model at the rows' program times."""
-    j = rows_to_samples(log, alignment, signals)
+    j = alignment.nearest_samples(log.t_s, signals)
     out = {}
     for k, axis in enumerate("xyz"):
         col = f"i{axis}_A"
@@ -208,7 +200,8 @@ def fit_log(folder, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
         notes.append("no idle dwells in the plan: the machine file's no-load power is subtracted")
     if log.has("spindle_current_A") and log.has("spindle_power_W"):
         # shaft torque P/ω against current wherever the spindle turns (idle and cutting)
-        rpm = signals.rpm[np.maximum(rows_to_samples(log, alignment, signals), 0)]
+        j = alignment.nearest_samples(log.t_s, signals)
+        rpm = np.where(j >= 0, signals.rpm[np.maximum(j, 0)], 0.0)
         on = rpm > 0
         if on.sum() >= 3:
             kt, i0 = fit_spindle_current(log["spindle_power_W"][on] / (2 * np.pi * rpm[on] / 60.0),

@@ -42,10 +42,16 @@ def run(args: argparse.Namespace) -> int:
         from dataclasses import replace
         regmap = replace(regmap, device_id=args.device_id)
     timeout = args.timeout or max(2.0 / args.rate, 0.02)
-    make_client(args.target, timeout_s=timeout)  # refuse a bad target before opening the log
-    logger = SpindleLogger(lambda: make_client(args.target, timeout_s=timeout, baudrate=args.baud, parity=args.parity,
-                                               stopbits=args.stopbits),
-                           regmap, args.output, rate_hz=args.rate,
+    def client():
+        return make_client(args.target, timeout_s=timeout, baudrate=args.baud, parity=args.parity,
+                           stopbits=args.stopbits)
+
+    probe = client()  # a bad target is refused before the log is opened; an absent drive is said
+    if not probe.connect():
+        print(f"millpost: no answer from {args.target} yet: logging gaps until it answers (Ctrl-C ends)",
+              file=sys.stderr)
+    probe.close()
+    logger = SpindleLogger(client, regmap, args.output, rate_hz=args.rate,
                            progress=progress_line(regmap.columns) if sys.stderr.isatty() else None)
     summary = logger.run(args.duration)
     if sys.stderr.isatty():

@@ -54,6 +54,13 @@ class Alignment:
         """Program time (s, the signals' time base) of log times."""
         return np.asarray(t_log_s, float) - self.offset_s
 
+    def nearest_samples(self, t_log_s, signals: Signals) -> np.ndarray:
+        """For log times, the index of the path sample nearest in program time (−1 outside the program)."""
+        tau = self.program_time(t_log_s)
+        j = np.clip(np.searchsorted(signals.t_s, tau), 1, len(signals) - 1)
+        j = np.where(np.abs(signals.t_s[j - 1] - tau) < np.abs(signals.t_s[j] - tau), j - 1, j)
+        return np.where((tau >= signals.t_s[0]) & (tau <= signals.t_s[-1]), j, -1)
+
     def summary(self) -> dict:
         return {"offset_s": round(self.offset_s, 6), "method": self.method, "correlation": round(self.correlation, 4),
                 "channels": self.channels, "position_rms_mm": None if np.isnan(self.position_rms_mm) else
