@@ -159,9 +159,9 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
     with np.errstate(divide="ignore", invalid="ignore"):
         shaft_torque = torque + np.where(omega > 0, idle / np.where(omega > 0, omega, 1.0), 0.0)
     spindle_current = np.where(rpm > 0, m.spindle.current_A(shaft_torque), 0.0)
-    # axis kinematics along the path: a = v dv/ds, axis velocity t·v, acceleration t·a + κ·v²
-    ds = np.gradient(samples.s_mm) if n > 1 else np.ones(n)
-    a_path = v * (np.gradient(v) if n > 1 else np.zeros(n)) / np.where(ds > 0, ds, 1.0)
+    # axis kinematics along the path: a = v dv/ds = ½ d(v²)/ds (exact on a constant-acceleration ramp,
+    # where v² is linear in s), axis velocity t·v, acceleration t·a + κ·v²
+    a_path = 0.5 * np.gradient(v**2, samples.s_mm) if n > 1 else np.zeros(n)
     vel = samples.tangent * v[:, None]
     acc = samples.tangent * a_path[:, None] + samples.curvature * (v**2)[:, None]
     current = np.zeros((n, 3))

@@ -150,10 +150,13 @@ def fit_axes(log: Log, alignment: Alignment, signals: Signals, moves: list[Plann
         if on.sum() < 10:
             continue
         tau = alignment.program_time(log.t_s[on])
-        v = np.interp(tau, signals.t_s, signals.axis_velocity_mm_s[:, k])
+        vs = signals.axis_velocity_mm_s[:, k]
+        v = np.interp(tau, signals.t_s, vs)
         a = np.interp(tau, signals.t_s, signals.axis_accel_mm_s2[:, k])
-        # at rest the friction's sign (and stiction) is undetermined: rows near v = 0 are left out
-        moving = np.abs(v) > 0.02 * np.max(np.abs(v))
+        # where the axis stops or reverses the friction's sign (and stiction) is undetermined: rows between
+        # samples that do not both move the same way are left out
+        before = np.clip(np.searchsorted(signals.t_s, tau) - 1, 0, len(signals) - 2)
+        moving = (np.sign(vs[before]) == np.sign(vs[before + 1])) & (vs[before] != 0)
         out[axis] = AxisDrive(terms).fit(v[moving], a[moving], log[col][on][moving])
     return out
 

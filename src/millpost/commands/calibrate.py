@@ -150,17 +150,23 @@ def run_fit(args: argparse.Namespace) -> int:
             axes_out[name] = {"r2": drive.r2_, "coef_A": dict(zip(drive.terms, drive.coef_.tolist())),
                               "intercept_A": drive.intercept_, **consts}
             machine_updates.setdefault("axes", {})[name] = {k: v for k, v in consts.items() if v > 0}
+            result["notes"] += [f"axis {name}: fitted {k} = {v:.4g} is not positive; the base machine's value is kept"
+                                for k, v in consts.items() if v <= 0]
         result["axes"] = axes_out
         result["spindle"] = lf.idle
     provenance = f"fitted by millpost calibrate fit from {source} on {stamp}"
     if fit is not None:
+        notes = result.get("notes", [])
         result.update(fit.as_dict())
+        result["notes"] = notes + result["notes"]
         print(fit.table())
     for name, a in result.get("axes", {}).items():
         print(f"axis {name}: " + ", ".join(f"{k} {v:.4g}" for k, v in a.items() if isinstance(v, float))
               + f" (R² {a['r2']:.4f})")
     if result.get("spindle"):
         print("spindle: " + ", ".join(f"{k} {v}" for k, v in result["spindle"].items()))
+    for note in result.get("notes", []):
+        print(f"millpost: note: {note}", file=sys.stderr)
     _write_json(args.json, result)
     if args.output:
         if fit is None:
