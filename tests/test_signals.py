@@ -64,7 +64,7 @@ def slot_means(ap, c, flutes=3, k=COEF):
 def test_slot_along_y_matches_closed_form_in_machine_axes(tmp_path):
     job = make_job(tmp_path, SLOT_Y, extra_machine="idle_rpm = [3000, 12000]\nidle_power_W = [60, 200]\n"
                                                    "kt_Nm_per_A = 0.5\nidle_current_A = 1.5\n")
-    sig = signals.simulate(job)
+    sig = signals.simulate(job, peaks=True)
     steady = (sig.xyz_mm[:, 1] > 15) & (sig.xyz_mm[:, 1] < 25) & (sig.speed_mm_s > 9.99)
     assert steady.sum() > 20
     c = 600.0 / (3 * 8000)
@@ -92,6 +92,12 @@ def test_slot_along_y_matches_closed_form_in_machine_axes(tmp_path):
     np.testing.assert_allclose(sig.tool_deflection_mm[steady].mean(), comp * math.hypot(fx, fy), rtol=0.02)
     np.testing.assert_allclose(sig.machine_deflection_mm[steady, 0].mean(),
                                -fy / job.machine.axes["x"].stiffness_N_per_mm, rtol=0.02)
+    # the peak per revolution: the force model's time-domain run on the same cut
+    from millpost.forces import given_cut
+    tool = job.tools[1]
+    ref = job.material.force_model().predict(given_cut(tool, 6.0, 2.0), c, 8000, tool, peaks=True)
+    np.testing.assert_allclose(sig.peak_force_xy_N[steady].mean(), ref.peak_force_xy_N[0], rtol=0.03)
+    assert np.all(np.isnan(sig.peak_force_xy_N[sig.ap_mm == 0]))
     cols = sig.log_columns()
     assert set(cols) >= {"t_s", "x_mm", "fx_N", "spindle_power_W", "ix_A"}
 
