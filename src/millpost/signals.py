@@ -116,10 +116,12 @@ def controller_model(job: Job) -> controller.ControllerModel:
 def time_base(program: Program, samples: Samples, execution: controller.Execution) -> np.ndarray:
     """Time (s) at each sample: the controller's motion time plus the dwells that ran before it."""
     t = execution.time_at_samples(samples)
-    for e in program.events:
-        if e.kind == "dwell" and float(e.value) > 0:
-            t = t + np.where(samples.move >= e.move, float(e.value), 0.0)
-    return t
+    dwells = sorted((e.move, float(e.value)) for e in program.events if e.kind == "dwell" and float(e.value) > 0)
+    if not dwells:
+        return t
+    at, secs = np.array(dwells).T
+    before = np.concatenate([[0.0], np.cumsum(secs)])   # dwell time run before move m: those with move ≤ m
+    return t + before[np.searchsorted(at, samples.move, side="right")]
 
 
 def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray, *, time_s: np.ndarray | None = None,
