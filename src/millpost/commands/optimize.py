@@ -21,6 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", help="output program (default: the job's output)")
     p.add_argument("--json", metavar="SUMMARY", help="write the summary JSON here ('-' for stdout)")
     p.add_argument("--trace", metavar="CSV", help="write per-sample engagement, loads and feeds as CSV")
+    p.add_argument("--report", metavar="HTML", help="write the job report (one HTML page that opens offline)")
     p.set_defaults(func=run)
 
 
@@ -37,6 +38,9 @@ def run(args: argparse.Namespace) -> int:
         write_atomic(args.json, text + "\n")
     if args.trace:
         write_csv(args.trace, result.trace)
+    if args.report:
+        from ..report import collect, write_report
+        write_report(args.report, collect(result.summary, result.trace, job))
     status = result.summary["status"]
     print(f"millpost: {status}; cycle time {result.summary['cycle_time_before_s']:.1f} s -> "
           f"{result.summary['cycle_time_after_s']:.1f} s (baseline {result.summary['cycle_time_baseline_s']:.1f} s); "
