@@ -30,7 +30,10 @@ allowed lateral force (bending strength / safety factor). With --machine, machin
 F_peak over the softer X/Y axis stiffness (in series with the tool) and spindle_power_ratio the cutting
 power over the spindle's power at that speed. Coefficients: --coeffs Ktc,Krc,Kac (N/mm²) and
 Kte,Kre,Kae (N/mm) for the mechanistic model; --kienzle kc11 (N/mm²), mc [, radial=F_r/F_t,
-axial=F_a/F_t]."""
+axial=F_a/F_t].
+
+example:
+  millpost calc --diameter 6 --flutes 3 --material al6061 --machine vmc-small --ae 1.2 --ap 6 --rpm 12000 --feed 2000"""
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -12,6 +12,7 @@ from ..gcode.convert import convert, same_path
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("convert", help="re-post a program for another controller dialect",
+                       epilog="example:\n  millpost convert sample_jobs/slotting/program.nc --to grbl -o slotting-grbl.nc",
                        description="Write the same toolpath for another controller: canned cycles expanded, "
                                    "arcs as IJK, the target's number format and line numbering. The result is "
                                    "read back and checked against the input path (1e-4 mm) before it is written.")

@@ -7,6 +7,7 @@ import json
 import sys
 from dataclasses import asdict
 
+from ..errors import ConfigError
 from ..files import atomic_path
 from ..heuristics import Limits, Recommendation, recommend, sweep_ae
 from ..machine import Machine
@@ -29,7 +30,10 @@ Heuristics (each limit is named in `binding` when it decides the answer):
   max_depth / slot  ap at the flute length, ae at the full diameter
 Among cuts within 0.5 % of the best removal rate the fastest feed wins (fast, light passes over slow,
 heavy ones). Units: mm, rpm, mm/min, mm³/min, N, W. --format fusion|freecad prints the values under the
-names of those CAM dialogs (metric); the ramp feed is the feed of a full-width helical ramp at 2°."""
+names of those CAM dialogs (metric); the ramp feed is the feed of a full-width helical ramp at 2°.
+
+example:
+  millpost recommend --diameter 6 --flutes 3 --material al6061 --machine vmc-small --format fusion"""
 
 KEYS = ("ap_mm", "ae_mm", "rpm", "fz_mm", "feed_mm_min", "mrr_mm3_min", "deflection_mm", "power_W")
 
@@ -111,6 +115,8 @@ def run(args: argparse.Namespace) -> int:
     tool = tool_from_args(args)
     material, machine = Material.load(args.material), Machine.load(args.machine)
     limits = limits_from_args(args)
+    if args.plot and not args.sweep:
+        raise ConfigError("plot", args.plot, "needs --sweep (the plot is removal rate against ae over the sweep)")
     rec = recommend(tool, material, machine, limits, model=args.model, ae_mm=args.ae, ap_mm=args.ap, rpm=args.rpm)
     if args.sweep:
         recs = sweep_ae(tool, material, machine, limits, model=args.model)

@@ -21,14 +21,21 @@ td:first-child, th:first-child { text-align: left; } tr:nth-child(even) { backgr
 
 
 def headline(summary: dict) -> str:
-    """One line a machinist reads: status and cycle time programmed → optimized (baseline)."""
+    """One line a machinist reads: status, cycle time programmed → optimized (change), the baseline,
+    and the limit that holds the feed most of the time."""
     before, after = summary.get("cycle_time_before_s"), summary.get("cycle_time_after_s")
     base = summary.get("cycle_time_baseline_s")
     if before is None or after is None:
         return "no optimize summary given: cycle times unknown"
     text = f"{summary.get('status', '?')}: cycle time {before:.1f} s programmed → {after:.1f} s optimized"
+    if before > 0:
+        text += f" ({100 * (after / before - 1):+.0f} %)"
     if base:
-        text += f" (one safe constant feed per tool: {base:.1f} s)"
+        text += f"; one safe constant feed per tool: {base:.1f} s"
+    binding = summary.get("binding") or {}
+    if binding:
+        name, share = max(binding.items(), key=lambda kv: kv[1])
+        text += f"; feed held mostly by {name} ({100 * share:.0f} % of cutting time)"
     return text
 
 
