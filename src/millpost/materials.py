@@ -16,6 +16,52 @@ from .errors import ConfigError
 from .forces import Kienzle, Mechanistic
 
 
+STRATEGIES = ("adaptive", "slot", "profile", "face")
+
+
+@dataclass(frozen=True)
+class StrategyRules:
+    """A machinist's rules for roughing with an end mill in this material, as fractions of the tool
+    diameter D. Radial width ranges (lo, hi): adaptive clearing (constant light engagement, deep),
+    profile (side milling a wall), face (a wide, shallow pass); slot_ap_D: deepest full-width slot (chips
+    must leave a closed slot); face_ap_D: deepest facing pass. Entry: ramp_angle_deg (steepest helical
+    or linear ramp), ramp_feed_ratio (ramp feed over the cutting feed), plunge_fz_ratio (axial feed per
+    tooth of a plunge over the chip-load target: the whole end edge cuts, no chip thinning)."""
+
+    adaptive_ae_D: tuple[float, float] = (0.05, 0.2)
+    profile_ae_D: tuple[float, float] = (0.1, 0.4)
+    face_ae_D: tuple[float, float] = (0.6, 0.8)
+    slot_ap_D: float = 1.0
+    face_ap_D: float = 0.1
+    ramp_angle_deg: float = 2.0
+    ramp_feed_ratio: float = 0.5
+    plunge_fz_ratio: float = 0.5
+    source: str = "millpost defaults (no material-specific source)"
+
+    def ae_range_D(self, strategy: str) -> tuple[float, float]:
+        """Radial width range of a strategy (fractions of D); a slot is full width."""
+        return (1.0, 1.0) if strategy == "slot" else getattr(self, f"{strategy}_ae_D")
+
+    def ap_max_D(self, strategy: str) -> float | None:
+        """Deepest cut of a strategy (fraction of D), None where only the flute length bounds it."""
+        return {"slot": self.slot_ap_D, "face": self.face_ap_D}.get(strategy)
+
+    @classmethod
+    def from_table(cls, t: Table) -> "StrategyRules":
+        ranges = {}
+        for name in ("adaptive_ae_D", "profile_ae_D", "face_ae_D"):
+            lo, hi = t.numbers(name, gt=0, length=2)
+            if not lo <= hi <= 1:
+                raise t.fail(name, [lo, hi], "must be [low, high] with high <= 1 (fractions of D)")
+            ranges[name] = (lo, hi)
+        rules = cls(**ranges, slot_ap_D=t.number("slot_ap_D", gt=0), face_ap_D=t.number("face_ap_D", gt=0),
+                    ramp_angle_deg=t.number("ramp_angle_deg", gt=0, le=45),
+                    ramp_feed_ratio=t.number("ramp_feed_ratio", gt=0, le=1),
+                    plunge_fz_ratio=t.number("plunge_fz_ratio", gt=0, le=1), source=t.string("source"))
+        t.done()
+        return rules
+
+
 @dataclass(frozen=True)
 class KienzleCoefficients:
     """k_c1.1 (N/mm², force per mm of chip width at h = 1 mm), m_c, and F_r/F_t, F_a/F_t ratios."""
@@ -51,6 +97,7 @@ class Material:
     surface_speed_m_min: {"carbide": (lo, hi), "hss": (lo, hi)}. chip_load: diameters (mm) with the
     recommended f_z range at each (interpolated in between, clamped outside). min_chip_ratio: minimum
     chip thickness over the cutting-edge radius (below it the edge ploughs instead of cutting).
+    strategies: roughing rules per strategy (optional table; defaults when absent, said in its source).
     """
 
     name: str
@@ -66,6 +113,7 @@ class Material:
     min_chip_ratio: float
     min_chip_source: str
     hardness_HB: float = 0.0
+    strategies: StrategyRules = StrategyRules()
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Material":
@@ -114,9 +162,10 @@ class Material:
         ratio = mc.number("ratio_to_edge_radius", gt=0, le=2)
         mc_source = mc.string("source")
         mc.done()
-        t.done(("mechanistic",))
+        strategies = StrategyRules.from_table(t.table("strategies")) if t.has("strategies") else StrategyRules()
+        t.done(("mechanistic", "strategies"))
         return cls(name, description, kienzle, mech, speeds, speed_source, dia, fmin, fmax, chip_source,
-                   ratio, mc_source, hardness)
+                   ratio, mc_source, hardness, strategies)
 
     # --- guidance -------------------------------------------------------------------------------
     def chip_load_mm(self, diameter_mm: float) -> tuple[float, float]:
