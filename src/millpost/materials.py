@@ -13,7 +13,7 @@ import numpy as np
 
 from .config import Table, load_description
 from .errors import ConfigError
-from .forces import Kienzle, Mechanistic
+from .registry import plugins
 
 
 STRATEGIES = ("adaptive", "slot", "profile", "face")
@@ -184,28 +184,12 @@ class Material:
         return self.min_chip_ratio * edge_radius_mm
 
     # --- force models ---------------------------------------------------------------------------
-    def kienzle_model(self, **settings) -> Kienzle:
-        k = self.kienzle
-        return Kienzle.from_coefficients(k.kc11_N_mm2, k.mc, radial_ratio=k.radial_ratio,
-                                         axial_ratio=k.axial_ratio, **settings)
-
-    def mechanistic_model(self, *, h0_mm: float = 0.05, **settings) -> Mechanistic:
-        """Published coefficients when the file has them; otherwise the tangent of the Kienzle law at chip
-        thickness h0 (PHYSICS.md §2.1): K_tc = (1 − m_c) k_c1.1 h0^(−m_c), K_te = m_c k_c1.1 h0^(1−m_c),
-        radial and axial terms by the Kienzle ratios. The tangent bounds the Kienzle force from above."""
-        if self.mechanistic is not None:
-            return Mechanistic.from_coefficients(*self.mechanistic.values(), **settings)
-        if h0_mm <= 0:
-            raise ConfigError("h0_mm", h0_mm, "must be > 0")
-        k = self.kienzle
-        ktc = (1 - k.mc) * k.kc11_N_mm2 * h0_mm ** (-k.mc)
-        kte = k.mc * k.kc11_N_mm2 * h0_mm ** (1 - k.mc)
-        return Mechanistic.from_coefficients(ktc, k.radial_ratio * ktc, k.axial_ratio * ktc,
-                                             kte, k.radial_ratio * kte, k.axial_ratio * kte, **settings)
-
-    def force_model(self, kind: str = "mechanistic", **settings) -> Mechanistic | Kienzle:
-        if kind == "mechanistic":
-            return self.mechanistic_model(**settings)
-        if kind == "kienzle":
-            return self.kienzle_model(**settings)
-        raise ConfigError("model", kind, "must be mechanistic or kienzle")
+    def force_model(self, kind: str = "mechanistic", **settings):
+        """The force model `kind` with this material's coefficients: any model registered in the
+        ``millpost.force_models`` entry-point group (built-ins: mechanistic, kienzle), built by its
+        ``from_material(material, **settings)``."""
+        models = plugins("force_models")
+        if kind not in models:
+            raise ConfigError("model", kind, f"must be one of {', '.join(sorted(models))} (force models registered "
+                                             "in the millpost.force_models entry-point group)")
+        return models[kind].from_material(self, **settings)

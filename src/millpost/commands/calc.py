@@ -13,6 +13,7 @@ from ..forces import (Kienzle, Mechanistic, chip_thinning_factor, given_cut, imm
 from ..forces.mechanistic import COEF_NAMES
 from ..machine import Machine
 from ..materials import Material
+from ..registry import plugins
 from ..tools.beam import ToolBeam
 from ..tools.cutter import Tool
 from ..tools.library import load_tool
@@ -81,7 +82,7 @@ def add_material_arguments(p: argparse.ArgumentParser) -> None:
     m.add_argument("--coeffs", metavar="Ktc=..,Krc=..,Kac=..,Kte=..,Kre=..,Kae=..",
                    help="mechanistic coefficients (N/mm², N/mm)")
     m.add_argument("--kienzle", metavar="kc11=..,mc=..", help="Kienzle kc1.1 (N/mm²) and mc")
-    g.add_argument("--model", choices=("mechanistic", "kienzle"), help="force model for --material "
+    g.add_argument("--model", choices=sorted(plugins("force_models")), help="force model for --material "
                    "(default mechanistic; --coeffs and --kienzle imply theirs)")
 
 

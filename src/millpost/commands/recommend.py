@@ -12,6 +12,7 @@ from ..files import atomic_path
 from ..heuristics import Limits, Recommendation, recommend, sweep_ae
 from ..machine import Machine
 from ..materials import STRATEGIES, Material
+from ..registry import plugins
 from .calc import add_tool_arguments, tool_from_args
 
 HELP = """\
@@ -53,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_tool_arguments(p)
     p.add_argument("--material", required=True, metavar="NAME|FILE", help="built-in material or material .toml")
     p.add_argument("--machine", required=True, metavar="NAME|FILE", help="built-in machine or machine .toml")
-    p.add_argument("--model", choices=("mechanistic", "kienzle"), default="mechanistic", help="force model")
+    p.add_argument("--model", choices=sorted(plugins("force_models")), default="mechanistic", help="force model")
     p.add_argument("--strategy", choices=(*STRATEGIES, "any"), default="adaptive",
                    help="roughing strategy whose rules the cut keeps (default adaptive; any: physics only)")
     lim = p.add_argument_group("limits")
