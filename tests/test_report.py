@@ -60,6 +60,10 @@ def test_report_numbers_and_self_contained(slotting_result):
     assert row["baseline_s"] == pytest.approx(row["length_mm"] / result.summary["baseline_feed_mm_min"][1] * 60,
                                               rel=0.01)
     assert 0 < row["optimized_s"] <= result.summary["cycle_time_after_s"]
+    # the drive current bound (inertia + friction + the whole peak force on X and Y) is no lower than the
+    # replay's current ratio (the cutting force along each axis): an upper bound, and a close one here
+    current = float(np.nanmax(np.where(data.cutting, data.signals["current_ratio"], np.nan)))
+    assert result.summary["limits"]["current"] - 1e-3 <= current <= 2 * result.summary["limits"]["current"] + 0.05
     page = render(data)
     assert len(re.findall(r"<svg data-figure=", page)) == 5
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", page)  # nothing fetched: opens offline

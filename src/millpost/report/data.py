@@ -4,7 +4,8 @@ limits per sample, the final stock).
 
 The optimize trace holds per sample the programmed, scheduled and executed feeds (mm/min), the peak
 in-plane force (N) and spindle power (W) at the executed feed, and where a cut is too heavy at any
-feed. Derived here from the job: the maximum chip thickness of a flat flank (see `_derive_limits`)
+feed. Derived here from the job: an upper bound of the drive current (see `_current_ratio`), the
+maximum chip thickness of a flat flank (see `_derive_limits`)
 against the material's chip load, the tool's allowed force (beam: strength / safety factor at the
 weakest section, load at mid-depth of cut), the spindle's power at the sample's speed, and the
 deflection (tool compliance at the tip + the softer X/Y axis) × peak force against `deflection_mm`.
@@ -182,9 +183,28 @@ def _derive_limits(data: ReportData, job, samples) -> None:
         chip[idx] = tr["feed_executed_mm_min"][idx] / (tool.flutes * rpm[idx]) * sin_max
         chip_lim[idx] = job.material.chip_load_mm(tool.diameter_mm)[1]
     data.signals["chip_mm"], data.limits["chip_mm"] = chip, chip_lim
+    data.signals["current_ratio"] = _current_ratio(job, samples, tr)
+    data.limits["current_ratio"] = np.ones(n)
 
 
-LABELS = {"peak_force_N": "cutting force", "power_W": "power", "deflection_mm": "deflection", "chip_mm": "chip load"}
+def _current_ratio(job, samples, tr: dict) -> np.ndarray:
+    """Largest axis current over its drive limit per sample at the executed feed: inertia (path tangent
+    and curvature, a = v dv/ds along the path) and friction, plus on X and Y the cutting share bounded
+    by the whole peak in-plane force (the trace has no force direction): an upper bound."""
+    v = np.nan_to_num(tr["feed_executed_mm_min"], nan=0.0) / 60.0
+    ds = np.gradient(samples.s_mm)
+    a_path = v * np.gradient(v) / np.where(ds > 0, ds, 1.0)
+    worst = np.zeros(len(v))
+    for k, name in enumerate("xyz"):
+        axis = job.machine.axes[name]
+        d = axis.demand(samples.tangent[:, k] * v, samples.tangent[:, k] * a_path + samples.curvature[:, k] * v ** 2)
+        cut = tr["peak_force_N"] * axis.rho_m_per_rad / (axis.efficiency * axis.motor.kt_Nm_per_A) if k < 2 else 0.0
+        worst = np.maximum(worst, (np.abs(d.current_A) + cut) / axis.motor.current_limit_A)
+    return worst
+
+
+LABELS = {"peak_force_N": "cutting force", "power_W": "power", "deflection_mm": "deflection", "chip_mm": "chip load",
+          "current_ratio": "drive current"}
 
 
 def _binding(data: ReportData, feed_cap: float | None) -> np.ndarray:

@@ -95,7 +95,7 @@ def feed_along_path(data: ReportData) -> str:
 def loads_vs_limits(data: ReportData) -> str:
     tr = data.trace
     s = tr["s_mm"]
-    keys = [k for k in ("peak_force_N", "power_W", "deflection_mm", "chip_mm") if k in tr or k in data.signals]
+    keys = [k for k in ("peak_force_N", "power_W", "deflection_mm", "chip_mm", "current_ratio") if k in tr or k in data.signals]
     ratios = data.summary.get("limits", {})
     fig, axes = _figure(height_in=2.6, rows=len(keys) + 1)
     for ax, key in zip(axes, keys):
@@ -104,10 +104,14 @@ def loads_vs_limits(data: ReportData) -> str:
         if key in data.limits:
             ax.plot(*envelope(s, np.where(data.cutting, data.limits[key], np.nan)), color="#d62728", lw=1.0,
                     label="limit")
-            top = np.nanmax(np.where(data.cutting, value, np.nan), initial=0.0)
-            ax.set_ylim(0, 1.3 * max(top, 1e-9))  # a far-off limit would flatten the signal
+            top = 1.3 * max(np.nanmax(np.where(data.cutting, value, np.nan), initial=0.0), 1e-9)
+            ax.set_ylim(0, top)  # a far-off limit would flatten the signal: say where it is instead
+            lowest = np.nanmin(np.where(data.cutting, data.limits[key], np.nan), initial=np.inf)
+            if lowest > top:
+                ax.text(0.01, 0.9, f"limit ≥ {lowest:.3g}: off the scale", transform=ax.transAxes, fontsize=8,
+                        color="#d62728")
         unit = key.rsplit("_", 1)[1]
-        ax.set_ylabel(f"{LABELS[key]} ({unit})")
+        ax.set_ylabel(f"{LABELS[key]} ({'of limit' if unit == 'ratio' else unit})")
         ax.legend(loc="upper right", fontsize=8)
     axes[-2].set_xlabel("path length s (mm)") if keys else None
     ax = axes[-1]
