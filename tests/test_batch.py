@@ -43,3 +43,24 @@ def test_batch_gives_what_each_job_gives_alone(tmp_path):
         assert float(row["cycle_time_after_s"]) == alone.summary["cycle_time_after_s"]
         assert (folder / "report.html").stat().st_size > 10_000
         assert f'href="{job.name}/report.html"' in page
+
+
+def test_batch_on_a_running_scheduler(tmp_path):
+    """--scheduler ADDRESS: the tasks go to a cluster that is already up (here a local one started by the
+    test); job folders are numbered when two jobs share a name."""
+    from dask.distributed import LocalCluster
+    bad = tmp_path / "a" / "job"
+    bad.mkdir(parents=True)
+    (bad / "job.toml").write_text("program = 'none.nc'\n")
+    other = tmp_path / "b" / "job"
+    other.mkdir(parents=True)
+    (other / "job.toml").write_text("not toml [\n")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        out = tmp_path / "out"
+        assert main(["batch", str(bad), str(other), "--out", str(out), "--scheduler", cluster.scheduler_address,
+                     "--quiet"]) == 1
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert [r["status"] for r in rows] == ["error", "error"]
+    assert "none.nc" in rows[0]["message"] and "file not found" in rows[0]["message"]
+    assert rows[1]["message"]
+    assert (out / "job").is_dir() and (out / "job-2").is_dir()
