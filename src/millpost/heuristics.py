@@ -48,6 +48,7 @@ from .errors import MillpostError
 from .forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut
 from .machine import Machine
 from .materials import STRATEGIES, Material
+from .progress import Progress, silent
 from .tools.beam import ToolBeam
 from .tools.cutter import Tool
 
@@ -311,7 +312,7 @@ def _entry_feeds(s: _Setup, ap: float, n: float, feed_mm_min: float) -> tuple[fl
 
 def sweep_ae(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
              model: str = "mechanistic", widths_mm: np.ndarray | None = None,
-             strategy: str | None = None) -> list[Recommendation]:
+             strategy: str | None = None, progress: Progress = silent) -> list[Recommendation]:
     """The best cut at each radial width (MRR against ae): why the recommendation chose its width
     (over the strategy's width range when one is given)."""
     s = _setup(tool, material, machine, limits, model, strategy)
@@ -320,11 +321,12 @@ def sweep_ae(tool: Tool, material: Material, machine: Machine, limits: Limits = 
     else:
         widths = np.linspace(*s.ae_range_mm, 20) if strategy else np.linspace(0.05, 1.0, 20) * tool.diameter_mm
     out = []
-    for ae in widths:
+    for k, ae in enumerate(widths):
         try:
             out.append(_describe(s, *_search(s, float(ae), None, None, 0.005)))
         except MillpostError:
-            continue
+            pass
+        progress("sweep ae", k + 1, len(widths))
     return out
 
 

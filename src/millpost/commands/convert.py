@@ -8,6 +8,7 @@ from ..files import write_atomic
 from ..errors import MillpostError
 from ..gcode import ReaderOptions, dialects, read_program, read_text
 from ..gcode.convert import convert, same_path
+from ..progress import Bars, stage
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,10 +26,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     target = dialects.get(args.to)
-    program = read_program(args.program, ReaderOptions(dialect=args.source))
-    text = convert(program, target)
-    back = read_text(text, args.output, ReaderOptions(dialect=target.name))
-    diff = same_path(program, back)
+    with Bars() as bars:
+        with stage(bars, "read program"):
+            program = read_program(args.program, ReaderOptions(dialect=args.source))
+        with stage(bars, "convert and read back"):
+            text = convert(program, target)
+            back = read_text(text, args.output, ReaderOptions(dialect=target.name))
+            diff = same_path(program, back)
     if diff:
         raise MillpostError(f"conversion would change the toolpath: {'; '.join(diff)}")
     write_atomic(args.output, text)

@@ -12,6 +12,7 @@ from ..files import atomic_path
 from ..heuristics import Limits, Recommendation, recommend, sweep_ae
 from ..machine import Machine
 from ..materials import STRATEGIES, Material
+from ..progress import Bars, stage
 from ..registry import plugins
 from .calc import add_tool_arguments, tool_from_args
 
@@ -129,10 +130,13 @@ def run(args: argparse.Namespace) -> int:
     if args.plot and not args.sweep:
         raise ConfigError("plot", args.plot, "needs --sweep (the plot is removal rate against ae over the sweep)")
     strategy = None if args.strategy == "any" else args.strategy
-    rec = recommend(tool, material, machine, limits, model=args.model, ae_mm=args.ae, ap_mm=args.ap, rpm=args.rpm,
-                    strategy=strategy)
+    with Bars() as bars:
+        with stage(bars, "search"):
+            rec = recommend(tool, material, machine, limits, model=args.model, ae_mm=args.ae, ap_mm=args.ap,
+                            rpm=args.rpm, strategy=strategy)
+        recs = sweep_ae(tool, material, machine, limits, model=args.model, strategy=strategy,
+                        progress=bars) if args.sweep else []
     if args.sweep:
-        recs = sweep_ae(tool, material, machine, limits, model=args.model, strategy=strategy)
         if args.plot:
             _write_plot(args.plot, recs, rec, f"D{tool.diameter_mm:g} {tool.flutes}FL, {material.name}, {machine.name}")
         if args.json:
