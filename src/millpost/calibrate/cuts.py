@@ -207,7 +207,7 @@ def fit_models(eng: Engagement, meas: Measurements, tools: list[Tool], base: Mat
     the residuals before the fit."""
     fit = Fit(len(eng), source, None, None)
     if base is not None:
-        mech = base.mechanistic_model(reweight_steps=0)
+        mech = base.force_model("mechanistic", reweight_steps=0)
     else:
         mech = Mechanistic(reweight_steps=0)
     before_m = _residuals(mech, eng, meas, tools) if hasattr(mech, "coef_") else {}
@@ -215,7 +215,7 @@ def fit_models(eng: Engagement, meas: Measurements, tools: list[Tool], base: Mat
     fit.residuals["mechanistic"] = {"before": before_m, "after": _residuals(fit.mechanistic, eng, meas, tools)}
     if meas.force_N is None:
         fit.notes.append("power only: K_tc and K_te are fitted; K_rc, K_ac, K_re, K_ae are the base material's")
-    kz = base.kienzle_model() if base is not None else Kienzle()
+    kz = base.force_model("kienzle") if base is not None else Kienzle()
     before_k = _residuals(kz, eng, meas, tools) if hasattr(kz, "coef_") else {}
     fit.kienzle = Kienzle(radial_ratio=kz.radial_ratio, axial_ratio=kz.axial_ratio).fit(eng, meas, tools)
     fit.residuals["kienzle"] = {"before": before_k, "after": _residuals(fit.kienzle, eng, meas, tools)}

@@ -23,6 +23,10 @@ from ..materials import Material
 from ..measure import read_log
 from .calc import add_tool_arguments, tool_from_args
 
+EXAMPLE_PLAN = ("millpost calibrate plan --diameter 6 --flutes 3 --material al6061 --machine vmc-small "
+                "--stock-box 0,0,-20,80,100,0 --rpm 8000 --fz 0.02,0.05,0.08 --ap 1 --idle-rpm 3000,8000 -o cal")
+EXAMPLE_FIT = "millpost calibrate fit --log spindle.csv --plan cal --json fit.json -o al6061-mine.toml"
+
 HELP_PLAN = """\
 Writes into OUT: calibration.nc (the program, in --dialect), plan.csv (per planned line: kind idle/slot/
 step/axis, the tool, ae, ap, fz, rpm, feed, start and end) and job.toml (program, material, machine, stock,
@@ -42,10 +46,10 @@ base machine with the fitted constants; both with the fit's provenance in `sourc
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("calibrate", help="calibration programs, and coefficients fitted from measurements",
-                       description=__doc__)
+                       description=__doc__, epilog=f"example:\n  {EXAMPLE_PLAN}\n  {EXAMPLE_FIT}")
     s = p.add_subparsers(dest="calibrate_command", required=True, metavar="plan|fit")
     plan = s.add_parser("plan", help="write a calibration program and its plan", description=HELP_PLAN,
-                        formatter_class=argparse.RawDescriptionHelpFormatter)
+                        epilog=f"example:\n  {EXAMPLE_PLAN}", formatter_class=argparse.RawDescriptionHelpFormatter)
     add_tool_arguments(plan)
     plan.add_argument("--material", required=True, metavar="NAME|FILE", help="material (predicts the loads)")
     plan.add_argument("--machine", required=True, metavar="NAME|FILE", help="machine (spindle, axes)")
@@ -66,7 +70,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     plan.set_defaults(func=run_plan)
 
     fit = s.add_parser("fit", help="fit coefficients from a log or a table of steady cuts", description=HELP_FIT,
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog=f"example:\n  {EXAMPLE_FIT}", formatter_class=argparse.RawDescriptionHelpFormatter)
     src = fit.add_mutually_exclusive_group(required=True)
     src.add_argument("--cuts", metavar="CUTS.csv", help="table of steady cuts")
     src.add_argument("--log", metavar="LOG", help="log (CSV/NPZ) of a calibration program (with --plan)")

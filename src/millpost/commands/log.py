@@ -15,7 +15,10 @@ serial device server) or rtu:DEVICE (RS-485 adapter, e.g. rtu:/dev/ttyUSB0 with 
 MAP: a built-in register map ({maps}) or your own TOML (see generic-example; the Huanyang HY series
 speaks a non-standard protocol and is refused). Rows are taken at a fixed rate; every lost interval
 (timeout, exception response, lost connection, overrun) is a gap record in the log and a count in the
-summary, and the logger reconnects. Ctrl-C ends the log cleanly: the file is complete up to the last row."""
+summary, and the logger reconnects. Ctrl-C ends the log cleanly: the file is complete up to the last row.
+
+example:
+  millpost log tcp:192.168.1.50 --map delta-ms300 -o spindle.csv --rate 50"""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
