@@ -5,9 +5,9 @@ time, hence a path sample: its engagement, feed per tooth, speed, axis kinematic
 which samples to use for what:
 
 - cutting coefficients: samples of the plan's slot and step lines where the predicted engagement is the
-  planned one and the speed the programmed one (steady cuts), one observation per sample = the mean of
-  the log rows nearest to it (force on the tool = −logged workpiece force; cutting power = logged spindle
-  power − the no-load power at that speed);
+  planned one and the speed the programmed one (steady), one observation per cut = the mean of the log
+  rows nearest to its steady samples (force on the tool = −logged workpiece force; cutting power = logged
+  spindle power − the no-load power at that speed);
 - spindle no-load power (and current): log rows inside the idle dwells, after a spin-up allowance;
 - axis drives: log rows on the axis-test strokes, with the controller model's axis velocity and
   acceleration at their program times.
@@ -16,18 +16,20 @@ which samples to use for what:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import MillpostError
 from ..forces import Measurements
+from ..gcode import ReaderOptions, read_program
 from ..gcode.interpret import Program
-from ..job import Job
-from ..measure import Alignment, Log
-from ..signals import Signals
-from .cuts import Fit
+from ..job import Job, load_job
+from ..measure import Alignment, Log, align
+from ..signals import Signals, simulate
+from .cuts import Fit, fit_models
 from .machine_fit import AxisDrive, fit_idle_power, fit_spindle_current
-from .plan import PlannedMove
+from .plan import PlannedMove, read_plan
 
 SPIN_UP_S = 1.0    # idle dwell rows this long after the speed change are left out
 
@@ -176,15 +178,6 @@ def fit_log(folder, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     """Align `log` to the calibration program in `folder` (calibrate plan's output: job.toml, plan.csv)
     and fit what the log holds: cutting coefficients (forces and/or spindle power), spindle no-load power
     and current, axis drives. base: the material to start from (default: the job's)."""
-    from pathlib import Path
-
-    from ..gcode import ReaderOptions, read_program
-    from ..job import load_job
-    from ..measure import align
-    from ..signals import simulate
-    from .cuts import fit_models
-    from .plan import read_plan
-
     folder = Path(folder)
     job = load_job(folder / "job.toml")
     moves = read_plan(folder / "plan.csv")

@@ -12,12 +12,14 @@ from pathlib import Path
 import numpy as np
 
 from ..calibrate.cuts import fit_cuts, material_dict, read_cuts
+from ..calibrate.logfit import fit_log
 from ..calibrate.machine_fit import fit_stiffness
 from ..calibrate.plan import PlanRequest, make_plan
-from ..config import dump_toml, load_description
+from ..config import dump_toml, load_description, load_toml
 from ..errors import ConfigError, MillpostError
 from ..files import write_atomic
 from ..gcode import dialects
+from ..job import load_job
 from ..machine import Machine
 from ..materials import Material
 from ..measure import read_log
@@ -138,8 +140,6 @@ def run_fit(args: argparse.Namespace) -> int:
     else:
         if not args.plan:
             raise MillpostError("--log needs --plan DIR (the folder `calibrate plan` wrote)")
-        from ..calibrate.logfit import fit_log
-        from ..job import load_job
         job = load_job(Path(args.plan) / "job.toml")
         base = Material.load(args.material) if args.material else job.material
         lf = fit_log(args.plan, read_log(args.log), base)
@@ -165,7 +165,7 @@ def run_fit(args: argparse.Namespace) -> int:
         result["notes"] = notes + result["notes"]
         print(fit.table())
     for name, a in result.get("axes", {}).items():
-        print(f"axis {name}: " + ", ".join(f"{k} {v:.4g}" for k, v in a.items() if isinstance(v, float))
+        print(f"axis {name}: " + ", ".join(f"{k} {v:.4g}" for k, v in a.items() if isinstance(v, float) and k != "r2")
               + f" (R² {a['r2']:.4f})")
     if result.get("spindle"):
         print("spindle: " + ", ".join(f"{k} {v}" for k, v in result["spindle"].items()))
@@ -192,7 +192,6 @@ def run_fit(args: argparse.Namespace) -> int:
 
 def _job_ref(folder: str, key: str) -> str:
     """The material or machine a plan folder's job names (a built-in name, or a path relative to it)."""
-    from ..config import load_toml
     value = str(load_toml(Path(folder) / "job.toml")[key])
     return str(Path(folder) / value) if value.endswith(".toml") and not Path(value).is_absolute() else value
 
