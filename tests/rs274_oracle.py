@@ -26,13 +26,17 @@ class Trace:
     error: str | None
 
 
-def run(program: Path, timeout: float = 60.0) -> Trace:
-    """Run `rs274 -g` with tools 1..99 of zero length (tool lengths unknown, as millpost assumes)."""
+def run(program: Path, timeout: float = 60.0, *, diameters_mm: dict[int, float] | None = None,
+        tool_table: Path | None = None) -> Trace:
+    """Run `rs274 -g` with `tool_table`, or tools 1..99 of zero length (tool lengths unknown, as millpost
+    assumes) and diameters `diameters_mm` (default 0). The standalone rs274 reads a table in inches."""
+    diameters_mm = diameters_mm or {}
     with tempfile.NamedTemporaryFile("w", suffix=".tbl") as table:
-        table.write("".join(f"T{i} P{i} Z0 D0\n" for i in range(1, 100)))
+        table.write("".join(f"T{i} P{i} Z0 D{diameters_mm.get(i, 0.0) / 25.4!r}\n" for i in range(1, 100)))
         table.flush()
-        proc = subprocess.run([RS274, "-t", table.name, "-g", str(program)], capture_output=True, text=True,
-                              timeout=timeout, cwd=program.parent, stdin=subprocess.DEVNULL, errors="replace")
+        proc = subprocess.run([RS274, "-t", str(tool_table or table.name), "-g", str(program)], capture_output=True,
+                              text=True, timeout=timeout, cwd=program.parent, stdin=subprocess.DEVNULL,
+                              errors="replace")
     return parse(proc.stdout + proc.stderr)
 
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import controller, engagement
-from .emit import FeedPlan, write_feeds
+from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .errors import MillpostError
 from .gcode import ReaderOptions, read_program
 from .gcode.interpret import Program
@@ -256,7 +256,8 @@ def replay(samples: Samples, limits: list, loads: dict, v_mm_s: np.ndarray, job:
 def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions | None = None) -> Result:
     """Run the whole post step on a job and return the new program and its summary."""
     t_start = time.perf_counter()
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+    diameters = {n: tool.diameter_mm for n, tool in job.tools.items()}  # for cutter compensation (G41/G42)
+    program = read_program(job.program, ReaderOptions(dialect=job.dialect, tool_diameters_mm=diameters))
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
     result = schedule_program(job, program, samples, eng, options)
@@ -287,8 +288,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     else:
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
-        fragments = piecewise_feeds(samples, emission_limit(samples, limits, sched,
-                                                            ("axis_acceleration", "junction", "jerk")))
+        fragments = whole_compensated_moves(program, piecewise_feeds(
+            samples, emission_limit(samples, limits, sched, ("axis_acceleration", "junction", "jerk"))))
         plan = _plan_from_fragments(program, fragments)
         emitted_tp = split_toolpath(tp, fragments)
         status, message = "solved", ""
