@@ -37,6 +37,9 @@ from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID
 LEFT, RIGHT = 1, -1  # the side as the sign of the turn from the direction of travel to the offset normal
 CORNER_TOL_RAD = 0.05  # LinuxCNC's TOLERANCE_CONCAVE_CORNER: a turn within this is straight on
 _EQUAL = 1e-4  # LinuxCNC's TOLERANCE_EQUAL (2.9)
+# how much further (rad) a cut-back arc may sweep than programmed: rs274 2.9 allows 0.001 in inch programs
+# and 25.4 times that in mm programs (measured: it scales the tolerance as a length)
+_SWEEP_TOL_INCH, _SWEEP_TOL_MM = 0.001, 0.0254
 _HALF_PI = math.pi / 2
 
 # What LinuxCNC refuses while compensation is on, by (letter, code·10 for G / code for M): its message.
@@ -427,7 +430,7 @@ class CutterComp:
                 if q.kind >= ARC_CW:
                     if q.sweep and self.endpoint is not None:
                         new = find_turn(*self.endpoint, q.center[0], q.center[1], q.turn, u, v)
-                        if abs(new) > abs(q.sweep) + 0.001:
+                        if abs(new) > abs(q.sweep) + (_SWEEP_TOL_INCH if q.modal[4] else _SWEEP_TOL_MM):
                             raise CompensationError(
                                 "Arc move in concave corner cannot be reached by the tool without gouging",
                                 f"a corner the tool fits in (arc of line {q.line})")

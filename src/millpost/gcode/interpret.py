@@ -609,7 +609,8 @@ class Interpreter:
         name, d = f"G{code / 10:g}", val.pop("D", None)
         if code in (411, 421):
             if d is None:
-                raise self.err(f"{name} with no D word", b, None, f"{name} D<tool diameter>")
+                g = next(w for w in b.words if w.letter == "G" and round(w.value * 10) == code)
+                raise self.err(f"{name} with no D word", b, g, f"{name} D<tool diameter>")
             if "L" in val:
                 raise self.err(f"{name} L (lathe tool orientation) is not supported", b, val["L"], f"{name} D alone")
             diameter = d.value * self.scale
