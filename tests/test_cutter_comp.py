@@ -362,3 +362,60 @@ def test_new_feeds_keep_the_compensated_path_under_rs274(tmp_path):
     back = read(text, diameter_mm=6.0)
     assert rs274_oracle.mismatches(back, tb) == []
     assert back.toolpath.feed_mm_min[cut].tolist() == sorted(back.toolpath.feed_mm_min[cut].tolist())
+
+
+JOB = """program = "program.nc"
+material = "al6061"
+machine = "vmc-small"
+
+[stock]
+box = [[0, 0, -10], [60, 40, 0]]
+cell_mm = 0.2
+
+[tools.1]
+diameter_mm = 6
+flutes = 3
+helix_deg = 35
+flute_length_mm = 16
+stickout_mm = 24
+"""
+
+
+@needs_rs274
+def test_optimize_keeps_compensation_and_rs274_reads_back_the_same_path(tmp_path):
+    """`optimize` on a compensated contour round a boss: the engagement follows the tool centre (the
+    job's 6 mm tool 1), the written program keeps G41 D1 / G40 on their lines with only F changed, and
+    rs274 runs it to the same moves as the original."""
+    from millpost.job import load_job
+    from millpost.optimize import optimize
+
+    (tmp_path / "program.nc").write_text(BOSS)
+    (tmp_path / "job.toml").write_text(JOB)
+    result = optimize(load_job(tmp_path), progress=False)
+    assert result.summary["status"] == "solved" and result.summary["removed_volume_mm3"] > 1000
+    assert max(result.summary["limits"].values()) <= 1.005
+    out = result.text.splitlines()
+    assert len(out) == len(BOSS.splitlines())
+    for old, new in zip(BOSS.splitlines(), out):
+        assert new.split(" F")[0].split("F")[0] == old.split(" F")[0].split("F")[0]  # only F words change
+    emitted = tmp_path / "emitted.ngc"
+    emitted.write_text(result.text)
+    original, back = (rs274_oracle.run(p, diameters_mm={1: 6.0}) for p in (tmp_path / "program.nc", emitted))
+    assert original.error is None and back.error is None
+    assert [(k, e) for k, e, _, _ in original.moves] == [(k, e) for k, e, _, _ in back.moves]
+
+
+def test_inverse_time_feeds_under_compensation_are_timed_by_the_programmed_move():
+    """G93 with compensation: LinuxCNC runs the offset move (and its corner arc) at the programmed
+    length × F, so a new feed v is written as F·v/v₀ (not v over the offset path's length)."""
+    text = ("G21 F600\nT1 M6\nG0 X0 Y-10\nG41 G1 X0 Y0\nG93\nG1 Y20 F30\nX20 F30\nY0 F20\nG94\n"
+            "G40 G1 X-10 F600\nM2\n")
+    p = read(text)
+    tp = p.toolpath
+    cut = tp.kind != RAPID
+    np.testing.assert_allclose(tp.feed_mm_min[tp.line == 7], 20 * 30)  # corner arc and side: 20 mm × 30/min
+    plan = FeedPlan.programmed(p)
+    plan.feed_mm_min[cut] *= 0.5
+    back = read(write_feeds(p, plan))
+    np.testing.assert_allclose(back.toolpath.feed_mm_min[cut], 0.5 * tp.feed_mm_min[cut], rtol=1e-3)
+    assert "X20 F15" in write_feeds(p, plan)

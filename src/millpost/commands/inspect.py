@@ -8,6 +8,7 @@ import sys
 
 from ..gcode import ReaderOptions, read_program
 from ..gcode.summary import moves_csv, summary
+from ..gcode.tool_table import read_tool_table
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,6 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dialect", help="controller dialect (default: detected from the text)")
     p.add_argument("--linuxcnc-frame", action="store_true",
                    help="assume LinuxCNC's frame: G28/G30 homes and G53 at machine zero (as `rs274` does)")
+    p.add_argument("--tool-table", metavar="FILE",
+                   help="LinuxCNC tool table (T P Z D): tool lengths for G43 and diameters for G41/G42")
+    p.add_argument("--tool-table-units", choices=("mm", "inch"), default="mm", help="units of the tool table")
     p.set_defaults(func=run)
 
 
@@ -27,6 +31,9 @@ def run(args: argparse.Namespace) -> int:
     opts = ReaderOptions.linuxcnc() if args.linuxcnc_frame else ReaderOptions()
     if args.dialect:
         opts.dialect = args.dialect
+    if args.tool_table:
+        table = read_tool_table(args.tool_table, args.tool_table_units)
+        opts.tool_lengths_mm, opts.tool_diameters_mm = table.lengths_mm, table.diameters_mm
     program = read_program(args.program, opts)
     if args.moves:
         sys.stdout.write(moves_csv(program))
