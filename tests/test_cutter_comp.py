@@ -186,8 +186,8 @@ def _random_contour(rng: np.random.Generator) -> str:
     inch = rng.random() < 0.25
     s = 1 / 25.4 if inch else 1.0
     incremental = rng.random() < 0.25
-    lines = [f"{'G20' if inch else 'G21'} G90 {plane} F{800 * s:.2f}", "T1 M6", f"G0 {u}0 {v}{-15 * s:.4f} {w}{2 * s:.4f}",
-             f"G1 {w}{-s:.4f}", f"{side} G1 {u}0 {v}0"]
+    lines = [f"{'G20' if inch else 'G21'} G90 {plane} F{800 * s:.2f}", "T1 M6",
+             f"G0 {u}0 {v}{-15 * s:.4f} {w}{2 * s:.4f}", f"G1 {w}{-s:.4f}", f"{side} G1 {u}0 {v}0"]
     if incremental:
         lines.append("G91")
     x = y = 0.0
@@ -229,7 +229,7 @@ def test_random_contours_match_rs274(tmp_path):
     with its message."""
     rng = np.random.default_rng(13)
     ran = refused = 0
-    for k in range(150):
+    for k in range(120):
         text = _random_contour(rng)
         diameter = float(rng.choice([0.5, 2.0, 4.0, 8.0]))
         path = tmp_path / f"c{k}.ngc"
@@ -244,7 +244,7 @@ def test_random_contours_match_rs274(tmp_path):
         assert trace.error is None, (text, diameter, trace.error)
         assert rs274_oracle.mismatches(program, trace) == [], (text, diameter)
         ran += 1
-    assert ran >= 90 and refused >= 20, (ran, refused)
+    assert ran >= 70 and refused >= 15, (ran, refused)
 
 
 @needs_rs274

@@ -1,8 +1,9 @@
 """LinuxCNC's interpreter test cases (../shared/data/linuxcnc/tests/interp and tests/ccomp, cutter
 compensation): each case's `expected` file is the canonical trace LinuxCNC printed, with the case's
-tool table `test.tbl` when it has one (read in inches, as the standalone interpreter does). For every case within scope (millpost does not refuse it
-as an out-of-scope feature: O-word control flow, lathe cycles, rotation, ...), the moves must match the
-expected STRAIGHT_TRAVERSE / STRAIGHT_FEED / ARC_FEED sequence within 1e-4 in program units.
+tool table `test.tbl` when it has one (read in inches, as the standalone interpreter does). For every
+case within scope (millpost does not refuse it as an out-of-scope feature: lathe cycles, rotation,
+lathe tool orientations, ...), the moves must match the expected STRAIGHT_TRAVERSE / STRAIGHT_FEED /
+ARC_FEED sequence within 1e-4 in program units.
 The counts are printed (run with -s) and asserted against the measured coverage."""
 
 from __future__ import annotations

@@ -106,6 +106,11 @@ def _inside(side: int, turn: int) -> bool:
     return (side == LEFT and turn > 0) or (side == RIGHT and turn < 0)
 
 
+def _tool_too_large(radius_mm: float) -> CompensationError:
+    return CompensationError("Tool radius not less than arc radius with comp",
+                             f"an arc radius larger than the tool radius ({radius_mm:g} mm)")
+
+
 Record = Callable[[int, object, object, object, int, float, int, tuple], None]
 
 
@@ -248,8 +253,7 @@ class CutterComp:
                                     f"an entry arc longer than the tool radius ({r:g} mm)")
         inside = _inside(self.side, turn)
         if inside and math.hypot(center[0] - cu, center[1] - cv) <= r:
-            raise CompensationError("Tool radius not less than arc radius with comp",
-                                    f"an arc radius larger than the tool radius ({r:g} mm)")
+            raise _tool_too_large(r)
         gamma = (math.atan2(center[1] - pv, center[0] - pu) if inside else math.atan2(pv - center[1], pu - center[0]))
         eu, ev = pu + r * math.cos(gamma), pv + r * math.sin(gamma)
         # the compensated arc: through the start and the offset end, centre on the line end->programmed centre
@@ -257,8 +261,7 @@ class CutterComp:
         to_centre = math.atan2(center[1] - ev, center[0] - eu)
         a = math.atan2(cv - ev, cu - eu) - to_centre
         if abs(math.cos(a)) < _EQUAL:
-            raise CompensationError("Tool radius not less than arc radius with comp",
-                                    f"an arc radius larger than the tool radius ({r:g} mm)")
+            raise _tool_too_large(r)
         dist = half / math.cos(a)
         c2 = (eu + dist * math.cos(to_centre), ev + dist * math.sin(to_centre))
         target = self._point(eu, ev, self._normal(end))
@@ -353,8 +356,7 @@ class CutterComp:
         if inside:
             gamma = math.atan2(center[1] - pv, center[0] - pu)
             if R <= r:
-                raise CompensationError("Tool radius not less than arc radius with comp",
-                                        f"an arc radius larger than the tool radius ({r:g} mm)")
+                raise _tool_too_large(r)
         else:
             gamma = math.atan2(pv - center[1], pu - center[0])
             delta += math.pi

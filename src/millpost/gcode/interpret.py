@@ -30,7 +30,7 @@ _MODAL_GROUPS = {
     **{g: "motion" for g in _MOTION | {800}},
     170: "plane", 180: "plane", 190: "plane", 200: "units", 210: "units", 900: "distance", 910: "distance",
     901: "arc distance", 911: "arc distance", 930: "feed mode", 940: "feed mode", 950: "feed mode",
-    400: "cutter comp", 410: "cutter comp", 420: "cutter comp", 411: "cutter comp", 421: "cutter comp", 430: "tool length", 431: "tool length",
+    **{g: "cutter comp" for g in (400, 410, 420, 411, 421)}, 430: "tool length", 431: "tool length",
     432: "tool length", 490: "tool length", 980: "retract", 990: "retract",
     **{g: "coordinate system" for g in (540, 550, 560, 570, 580, 590, 591, 592, 593)},
     610: "path", 611: "path", 640: "path", 40: "non-modal", 100: "non-modal", 280: "non-modal",
@@ -617,7 +617,8 @@ class Interpreter:
         else:
             if d is not None and (d.value < 0 or abs(d.value - round(d.value)) >= 1e-4):
                 raise self.err(f"{name} requires D word to be a whole number", b, d, "D<tool number>")
-            tool = int(round(d.value)) if d is not None and round(d.value) else (self.tool if self.tool >= 0 else self.selected)
+            tool = int(round(d.value)) if d is not None else 0
+            tool = tool or (self.tool if self.tool >= 0 else self.selected)  # D0 or none: the spindle's
             if tool < 0:  # LinuxCNC: an empty spindle has diameter 0
                 diameter = 0.0
                 self.notes.append(f"line {b.line}: {name} with no tool loaded: radius 0, no offset (as LinuxCNC)")
