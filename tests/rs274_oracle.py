@@ -48,8 +48,7 @@ def parse(text: str) -> Trace:
     is neither a canonical call nor rs274's "executing" banner is the interpreter's error message."""
     moves = []
     plane = (0, 1, 2)
-    feed = None  # in the units in force when it was set (the canonical machine holds it so)
-    feed_scale = 1.0
+    feed = None
     inch = False
     err = None
     for line in text.splitlines():
@@ -64,22 +63,17 @@ def parse(text: str) -> Trace:
         elif name == "SELECT_PLANE":
             plane = _PLANES.get(args.strip(), plane)
         elif name == "SET_FEED_RATE":
-            feed, feed_scale = float(args), 25.4 if inch else 1.0
+            feed = float(args)
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             v = [float(x) for x in args.split(",")]
             moves.append(("rapid" if name == "STRAIGHT_TRAVERSE" else "feed", tuple(v[:3]),
-                          None if name == "STRAIGHT_TRAVERSE" else _feed(feed, feed_scale, inch), inch))
+                          None if name == "STRAIGHT_TRAVERSE" else feed, inch))
         elif name == "ARC_FEED":
             v = [float(x) for x in args.split(",")]
             end = [0.0, 0.0, 0.0]
             end[plane[0]], end[plane[1]], end[plane[2]] = v[0], v[1], v[5]
-            moves.append(("arc_cw" if v[4] < 0 else "arc_ccw", tuple(end), _feed(feed, feed_scale, inch), inch))
+            moves.append(("arc_cw" if v[4] < 0 else "arc_ccw", tuple(end), feed, inch))
     return Trace(moves, err)
-
-
-def _feed(feed: float | None, scale: float, inch: bool) -> float | None:
-    """A feed set in other units (a move held back by cutter compensation across G20/G21) in the move's."""
-    return None if feed is None else feed * scale / (25.4 if inch else 1.0)
 
 
 def mismatches(program, trace: Trace, tol: float = 1e-4, prefix: bool = False) -> list[str]:

@@ -425,7 +425,6 @@ def test_inverse_time_feeds_under_compensation_are_timed_by_the_programmed_move(
 @pytest.mark.parametrize("text", [
     "G21 F500\nT1 M6\nG0 X0 Y-10\nG41 G1 X0 Y0\nY10\nM0\nX10\nM1\nY0\nG40 G1 X20\nM2\n",  # M0/M1 flush
     "G21 F500\nT1 M6\nG0 X0 Y-10\nG41 G1 X0 Y0\nY10\nG40\nG41\nX10 Y20\nY0\nG40 G1 X20\nM2\n",  # on again
-    "G21 F500\nT1 M6\nG0 X0 Y-10\nG41 G1 X0 Y0\nY10\nG20\nX0.5\nG21\nY0\nG40 G1 X20\nM2\n",  # units
     "G21 F500\nT1 M6\nG0 X0 Y-10\nG41 G0 X0 Y0\nG1 Y10\nS100 M3\n(hello)\nG4 P1\nX10\nG1 Z-1\nZ0\nY0\n"
     "G40 G0 X20\nM2\n",  # rapids, events and Z-only moves while compensating
     "G21 F500\nG0 X0 Y-10\nG41 D0\nG1 Y0\nX10\nG40 G1 Y-10\nM2\n",  # no tool in the spindle: radius 0

@@ -40,12 +40,12 @@ def test_interp_cases_match_expected_traces() -> None:
         name = str(program_path.relative_to(TESTS))
         trace = rs274_oracle.parse(expected.read_text(errors="replace"))
         options = ReaderOptions.linuxcnc()
-        if (program_path.parent / "test.tbl").exists():
-            table = read_tool_table(program_path.parent / "test.tbl", units="inch")
-            if any(q not in (0, 9) for q in table.orientation.values()):
+        table = program_path.parent / "test.tbl"
+        if table.exists():
+            if any(q not in (0, 9) for q in read_tool_table(table, units="inch").orientation.values()):
                 refused.append(f"{name}: lathe tool orientations (compensation of a lathe tool's nose)")
                 continue
-            options.tool_diameters_mm = table.diameters_mm
+            options.use_tool_table(table, units="inch")
         try:
             program = read_program(program_path, options)
         except ParseError as err:

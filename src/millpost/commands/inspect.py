@@ -8,7 +8,6 @@ import sys
 
 from ..gcode import ReaderOptions, read_program
 from ..gcode.summary import moves_csv, summary
-from ..gcode.tool_table import read_tool_table
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,8 +31,7 @@ def run(args: argparse.Namespace) -> int:
     if args.dialect:
         opts.dialect = args.dialect
     if args.tool_table:
-        table = read_tool_table(args.tool_table, args.tool_table_units)
-        opts.tool_lengths_mm, opts.tool_diameters_mm = table.lengths_mm, table.diameters_mm
+        opts.use_tool_table(args.tool_table, args.tool_table_units)
     program = read_program(args.program, opts)
     if args.moves:
         sys.stdout.write(moves_csv(program))

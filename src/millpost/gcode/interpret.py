@@ -21,6 +21,7 @@ from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
 from .cutter_comp import LEFT, RIGHT, CompensationError, CutterComp
 from .flow import MAX_EXECUTED_LINES, Flow, Source, control_of
 from .lexer import Block, Word, lex_line
+from .tool_table import read_tool_table
 
 INCH = 25.4
 # G codes as integers: round(value * 10)
@@ -82,6 +83,12 @@ class ReaderOptions:
     safe_z_mm: float | None = None
     dialect: str | None = None
     block_delete: bool = False
+
+    def use_tool_table(self, path, units: str = "mm") -> "ReaderOptions":
+        """Tool lengths (G43) and diameters (G41/G42) from a LinuxCNC tool table file in `units`."""
+        table = read_tool_table(path, units)
+        self.tool_lengths_mm, self.tool_diameters_mm = table.lengths_mm, table.diameters_mm
+        return self
 
     @classmethod
     def linuxcnc(cls) -> "ReaderOptions":
