@@ -429,6 +429,9 @@ def test_inverse_time_feeds_under_compensation_are_timed_by_the_programmed_move(
     "G40 G0 X20\nM2\n",  # rapids, events and Z-only moves while compensating
     "G21 F500\nG0 X0 Y-10\nG41 D0\nG1 Y0\nX10\nG40 G1 Y-10\nM2\n",  # no tool in the spindle: radius 0
     "G21 F500\nT1 M6\nG0 X0 Y-10\nG41.1 D2\nG40\nG1 X5\nM2\n",  # LinuxCNC's ccomp/early-exit
+    "G21 F500\nT1 M6\nG0 X0 Y0\nG41 G1 X10 Y0\nG3 X10 Y0 I-10 J0\nG40 G1 X0\nM2\n",  # full circle
+    "G21 F500\nT1 M6\nG0 X0 Y0\nG41 G1 X10 Y0\nG3 X10 Y0 I-10 J0 P2 Z-2\nG1 X5 Y5\nG40 G1 X0\nM2\n",  # helix
+    "G21 F500\nT1 M6\nG0 X-5 Y-20\nG41 G0 X0 Y-10\nG1 Y0\nG2 X10 Y0 R5\nG2 X20 Y0 R-5\nG40 G1 X30\nM2\n",
 ])
 def test_held_moves_across_other_blocks_match_rs274(tmp_path, text):
     path = tmp_path / "t.ngc"
