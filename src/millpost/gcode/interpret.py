@@ -85,9 +85,11 @@ class ReaderOptions:
     block_delete: bool = False
 
     def use_tool_table(self, path, units: str = "mm") -> "ReaderOptions":
-        """Tool lengths (G43) and diameters (G41/G42) from a LinuxCNC tool table file in `units`."""
+        """Tool lengths (G43) and diameters (G41/G42) from a LinuxCNC tool table file in `units`. Lathe
+        tools (a nose orientation 1..8) are left out of the diameters: compensating with one is refused."""
         table = read_tool_table(path, units)
-        self.tool_lengths_mm, self.tool_diameters_mm = table.lengths_mm, table.diameters_mm
+        self.tool_lengths_mm = table.lengths_mm
+        self.tool_diameters_mm = {n: d for n, d in table.diameters_mm.items() if table.orientation[n] in (0, 9)}
         return self
 
     @classmethod
