@@ -439,3 +439,23 @@ def test_held_moves_across_other_blocks_match_rs274(tmp_path, text):
     trace = rs274_oracle.run(path, diameters_mm={1: 3.0})
     assert trace.error is None
     assert rs274_oracle.mismatches(read_text(text, "t.ngc", linuxcnc(3.0)), trace) == []
+
+
+@pytest.mark.parametrize("name", ["interp/inside-corners/test.ngc", "interp/cam-nisley/cam.ngc",
+                                  "interp/crazy-paths/test.ngc", "ccomp/mill-zchanges/test.ngc",
+                                  "ccomp/mill-g90g91g92/test.ngc"])
+def test_new_feeds_on_linuxcnc_compensated_programs_keep_the_path(name):
+    """Random lower feeds on every cutting move of LinuxCNC's compensated test programs (inch tool
+    table): read back, the same tool-centre path, and no move faster than planned."""
+    path = shared_data("linuxcnc", "tests", *name.split("/"))
+    options = ReaderOptions.linuxcnc().use_tool_table(shared_data("linuxcnc", "tests", "interp", "cam-nisley",
+                                                                   "test.tbl"), units="inch")
+    p = read_text(path.read_text(), str(path), options)
+    tp = p.toolpath
+    cut = tp.kind != RAPID
+    assert p.compensated.sum() >= 10
+    plan = FeedPlan.programmed(p)
+    plan.feed_mm_min[cut] = np.round(tp.feed_mm_min[cut] * np.random.default_rng(1).uniform(0.3, 1.0, cut.sum()), 1)
+    back = read_text(write_feeds(p, plan), "back.ngc", options)
+    np.testing.assert_allclose(back.toolpath.end, tp.end, atol=2e-3)
+    assert (back.toolpath.feed_mm_min[cut] <= plan.feed_mm_min[cut] * (1 + 1e-9)).all()
