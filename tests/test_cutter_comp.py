@@ -459,3 +459,11 @@ def test_new_feeds_on_linuxcnc_compensated_programs_keep_the_path(name):
     back = read_text(write_feeds(p, plan), "back.ngc", options)
     np.testing.assert_allclose(back.toolpath.end, tp.end, atol=2e-3)
     assert (back.toolpath.feed_mm_min[cut] <= plan.feed_mm_min[cut] * (1 + 1e-9)).all()
+
+
+def test_program_ending_while_compensating_ends_the_held_move_at_its_offset_point():
+    """No G40 and no M2/M30: the last move is not left out (rs274 would drop it); it ends at its own
+    offset end point, and the assumption is noted."""
+    p = read("G21 F500\nT1 M6\nG0 X0 Y-10\nG41 G1 X0 Y0\nY10\nX10\n")
+    np.testing.assert_allclose(p.toolpath.end[-1][:2], [10, 10 + R], atol=1e-12)
+    assert p.toolpath.line[-1] == 6 and any("cutter compensation on" in n for n in p.notes)
