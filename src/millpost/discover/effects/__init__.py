@@ -1,0 +1,1 @@
+"""Candidate effects: one module each, registered in the ``millpost.effects`` entry-point group."""

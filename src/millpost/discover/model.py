@@ -1,0 +1,122 @@
+"""One linear model over all measured channels: the base terms of `rows` plus the terms of any effects,
+fitted jointly by weighted least squares (each channel weighted by 1/σ², σ its residual scale, so that
+newtons and watts are comparable), with the parameter covariance.
+
+A term is a column of one channel under a parameter name; a name that appears in several channels is one
+parameter shared by them (the cutting coefficients; an effect's physical constant). An effect may also
+filter a channel's whole prediction (a sensor lag): a linear filter of a linear model is the same model
+on filtered columns, so it stays linear.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import MillpostError
+from .rows import COEFS, CUTTING, Rows
+
+Terms = dict[str, dict[str, np.ndarray]]          # channel → {parameter: column}
+Filter = Callable[[np.ndarray], np.ndarray]        # applied along rows to every column of a channel
+
+
+@dataclass
+class Design:
+    names: list[str]
+    X: dict[str, np.ndarray]        # channel → (n, P)
+    fixed: dict[str, np.ndarray]    # channel → (n,) term with no parameter
+
+
+def design(rows: Rows, terms: list[Terms] = (), filters: dict[str, Filter] | None = None) -> Design:
+    """The stacked design: base columns, then each effect's (cutting coefficients with no column in the
+    measured channels are left out: the log says nothing about them)."""
+    filters = filters or {}
+    cols: dict[str, dict[str, np.ndarray]] = {c: {} for c in rows.channels}
+    fixed = {c: rows.fixed.get(c, np.zeros(len(rows))).astype(float) for c in rows.channels}
+    for c in rows.channels:
+        if c in CUTTING:
+            for k, name in enumerate(COEFS):
+                col = rows.cut[c][:, k]
+                if col.any():
+                    cols[c][name] = col
+        for name, col in rows.columns.get(c, {}).items():
+            cols[c][f"{c}:{name}"] = col
+    for t in terms:
+        for c, named in t.items():
+            if c in cols:
+                for name, col in named.items():
+                    cols[c][name] = cols[c].get(name, 0.0) + col
+    names: list[str] = []
+    for c in cols:
+        names += [k for k in cols[c] if k not in names]
+    X = {}
+    for c in cols:
+        m = np.zeros((len(rows), len(names)))
+        for k, col in cols[c].items():
+            m[:, names.index(k)] = col
+        if c in filters:
+            m = filters[c](m)
+            fixed[c] = filters[c](fixed[c][:, None])[:, 0]
+        X[c] = m
+    return Design(names, X, fixed)
+
+
+@dataclass
+class Fit:
+    """beta: parameters by name; cov: their covariance; sigma: per-channel residual scale used as weight."""
+
+    names: list[str]
+    beta: np.ndarray
+    cov: np.ndarray
+    sigma: dict[str, float]
+
+    def params(self) -> dict[str, float]:
+        return dict(zip(self.names, self.beta.tolist()))
+
+    def stderr(self) -> dict[str, float]:
+        return dict(zip(self.names, np.sqrt(np.maximum(np.diag(self.cov), 0.0)).tolist()))
+
+    def predict(self, d: Design) -> dict[str, np.ndarray]:
+        b = np.array([self.params().get(n, 0.0) for n in d.names])
+        return {c: d.X[c] @ b + d.fixed[c] for c in d.X}
+
+
+def solve(d: Design, rows: Rows, train: np.ndarray, sigma: dict[str, float]) -> Fit:
+    """Weighted least squares on the `train` rows (each channel's residuals divided by its σ)."""
+    P = len(d.names)
+    A = np.zeros((P, P))
+    b = np.zeros(P)
+    dof = -P
+    for c, X in d.X.items():
+        y = rows.measured[c] - d.fixed[c]
+        ok = train & np.isfinite(y)
+        w = 1.0 / sigma[c] ** 2
+        Xo = X[ok]
+        A += w * Xo.T @ Xo
+        b += w * Xo.T @ y[ok]
+        dof += int(ok.sum())
+    if dof <= 0:
+        raise MillpostError(f"too few log rows ({dof + P}) for {P} parameters")
+    scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    As = A / np.outer(scale, scale)
+    inv = np.linalg.pinv(As, rcond=1e-10)
+    beta = inv @ (b / scale) / scale
+    fit = Fit(list(d.names), beta, np.zeros((P, P)), dict(sigma))
+    pred = fit.predict(d)
+    chi2 = sum(float(np.nansum(((rows.measured[c] - pred[c])[train]) ** 2)) / sigma[c] ** 2 for c in d.X)
+    fit.cov = chi2 / dof * inv / np.outer(scale, scale)
+    return fit
+
+
+def residual_scale(d: Design, rows: Rows, train: np.ndarray, fit: Fit | None = None) -> dict[str, float]:
+    """Per channel σ: the RMS training residual of `fit` (or the measured values' spread without one)."""
+    pred = fit.predict(d) if fit is not None else None
+    out = {}
+    for c in d.X:
+        y = rows.measured[c][train]
+        r = y - pred[c][train] if pred is not None else y - np.nanmean(y)
+        s = float(np.sqrt(np.nanmean(r * r)))
+        out[c] = s if s > 0 else 1.0
+    return out

@@ -1,0 +1,141 @@
+"""The log rows discover works on: each row's measured channels beside what the forward model says about
+the tool at that instant (engagement, feed per tooth, speed, axis kinematics) and the base model's
+regressors for every channel.
+
+Base model per channel (linear in its parameters, refitted on the log):
+- fx_N, fy_N, fz_N (force on the workpiece) and spindle_power_W: the mechanistic cutting law with six
+  coefficients K_tc, K_rc, K_ac (N/mm²), K_te, K_re, K_ae (N/mm) shared by all of them (the average force
+  over a tooth period is affine in f_z: F = f_z·G·K_c + E·K_e, `millpost.forces.mechanistic.regressors`,
+  rotated to machine XYZ; power = torque·ω) + a zero offset per channel; spindle power also carries the
+  machine file's no-load power P_idle(n) as a fixed term;
+- spindle_current_A: a gain on the forward model's current + an offset;
+- ix_A, iy_A, iz_A (axis motor current): inertia k_a·a + a gain on the cutting force along the axis + an
+  offset (friction is a candidate effect, not part of the base).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MillpostError
+from ..forces.base import to_machine
+from ..forces.mechanistic import COEF_NAMES, regressors
+from ..job import Job
+from ..measure import Alignment, Log
+from ..signals import Signals
+
+FORCE = ("fx_N", "fy_N", "fz_N")
+CUTTING = FORCE + ("spindle_power_W",)
+CURRENTS = ("ix_A", "iy_A", "iz_A")
+CHANNELS = CUTTING + ("spindle_current_A",) + CURRENTS
+
+
+@dataclass
+class Rows:
+    """n log rows (time order) with their measured channels and per-row features.
+
+    t_s: log time (s); measured: channel → (n,) values (nan: missing); cut: channel → (n, 6) regressors of
+    the cutting law for fx_N, fy_N, fz_N, spindle_power_W (zeros where the tool does not cut), present
+    whether or not the channel is logged (effects use the force magnitude); columns: channel → {name: (n,)}
+    channel-own base columns; fixed: channel → (n,) fixed base term. features: rpm, fz_mm, ae_mm, ap_mm,
+    diameter_mm, cut_length_m (engaged path so far, per tool), velocity_mm_s (n, 3), accel_mm_s2 (n, 3)."""
+
+    t_s: np.ndarray
+    measured: dict[str, np.ndarray]
+    cut: dict[str, np.ndarray]
+    columns: dict[str, dict[str, np.ndarray]]
+    fixed: dict[str, np.ndarray]
+    features: dict[str, np.ndarray] = field(default_factory=dict)
+    index: np.ndarray | None = None   # the log rows these are (into the whole log)
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    @property
+    def channels(self) -> list[str]:
+        return list(self.measured)
+
+    @property
+    def dt_s(self) -> float:
+        return float(np.median(np.diff(self.t_s))) if len(self.t_s) > 1 else 1.0
+
+
+def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows:
+    """The rows of `log` inside the program (by the alignment), each with its nearest path sample."""
+    j_all = alignment.nearest_samples(log.t_s, signals)
+    inside = np.flatnonzero(j_all >= 0)
+    if len(inside) < 50:
+        raise MillpostError(f"{log.path}: only {len(inside)} log rows fall inside the program after alignment "
+                            f"(offset {alignment.offset_s:.3f} s)")
+    j = j_all[inside]
+    measured = {c: np.asarray(log[c][inside], float) for c in CHANNELS if log.has(c)}
+    if not measured:
+        raise MillpostError(f"{log.path}: no channel discover can use (has {', '.join(log.columns)}; "
+                            f"usable: {', '.join(CHANNELS)})")
+    n_s = len(signals)
+    eng = signals.engagement
+    cutting = signals.ap_mm > 1e-9
+    flutes = np.ones(n_s)
+    diameter = np.zeros(n_s)
+    for number in np.unique(signals.tool[cutting]):
+        tool = job.tools[int(number)]
+        on = signals.tool == number
+        flutes[on], diameter[on] = tool.flutes, tool.diameter_mm
+    per_sample = {c: np.zeros((n_s, 6)) for c in CUTTING}
+    idx = np.flatnonzero(cutting)
+    if len(idx):
+        G, E = regressors(eng.select(idx), flutes[idx])
+        fz = signals.fz_mm[idx]
+        fd = eng.feed_dir[idx]
+        omega = 2 * np.pi * signals.rpm[idx] / 60.0
+        for k in range(3):    # K_tc.. shearing (× f_z), K_te.. edge: force on the tool → on the workpiece (−)
+            shear = -to_machine(fd, fz[:, None] * G[:, :3, k])
+            edge = -to_machine(fd, E[:, :3, k])
+            for a, c in enumerate(FORCE):
+                per_sample[c][idx, k], per_sample[c][idx, 3 + k] = shear[:, a], edge[:, a]
+            per_sample["spindle_power_W"][idx, k] = fz * G[:, 3, k] / 1000.0 * omega
+            per_sample["spindle_power_W"][idx, 3 + k] = E[:, 3, k] / 1000.0 * omega
+    cut = {c: v[j] for c, v in per_sample.items()}
+    # engaged path length so far per tool (m): wear grows with it
+    ds = np.diff(signals.s_mm, prepend=signals.s_mm[0]) * cutting
+    length = np.zeros(n_s)
+    for number in np.unique(signals.tool):
+        on = signals.tool == number
+        length[on] = np.cumsum(ds[on]) / 1000.0
+    n = len(j)
+    ones = np.ones(n)
+    columns: dict[str, dict[str, np.ndarray]] = {}
+    fixed: dict[str, np.ndarray] = {}
+    for c in measured:
+        columns[c] = {"offset": ones}
+        if c == "spindle_power_W":
+            fixed[c] = job.machine.spindle.idle_power_at_W(signals.rpm[j])
+        elif c == "spindle_current_A":
+            columns[c]["gain"] = np.nan_to_num(signals.spindle_current_A[j])
+        elif c in CURRENTS:
+            k = CURRENTS.index(c)
+            columns[c]["inertia_A_per_m_s2"] = signals.axis_accel_mm_s2[j, k] / 1000.0
+            columns[c]["cut_force_gain"] = -signals.force_tool_N[j, k]
+    features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[j], "ae_mm": signals.ae_mm[j],
+                "ap_mm": signals.ap_mm[j], "diameter_mm": diameter[j], "cut_length_m": length[j],
+                "velocity_mm_s": signals.axis_velocity_mm_s[j], "accel_mm_s2": signals.axis_accel_mm_s2[j]}
+    return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside)
+
+
+def from_axis_arrays(t_s, velocity_mm_s, accel_mm_s2, currents: dict[str, np.ndarray]) -> Rows:
+    """Rows of axis drive logs without a program (e.g. a drive's own velocity, acceleration and current
+    feedback): velocity and acceleration (n, 3) per row, currents keyed ix_A/iy_A/iz_A."""
+    t = np.asarray(t_s, float)
+    v, a = np.asarray(velocity_mm_s, float), np.asarray(accel_mm_s2, float)
+    n = len(t)
+    columns = {c: {"offset": np.ones(n), "inertia_A_per_m_s2": a[:, CURRENTS.index(c)] / 1000.0}
+               for c in currents}
+    zeros = np.zeros(n)
+    return Rows(t, {c: np.asarray(i, float) for c, i in currents.items()}, {c: np.zeros((n, 6)) for c in CUTTING},
+                columns, {}, {"rpm": zeros, "fz_mm": zeros, "ae_mm": zeros, "ap_mm": zeros, "diameter_mm": zeros,
+                              "cut_length_m": zeros, "velocity_mm_s": v, "accel_mm_s2": a})
+
+
+COEFS = COEF_NAMES
