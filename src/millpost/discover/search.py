@@ -1,17 +1,18 @@
 """Held-out scoring and greedy selection of candidate effects.
 
-Split: the rows are cut into `blocks` consecutive time blocks; every third block is held out, the rest fit
+Split: the rows are cut into consecutive time blocks of about BLOCK_S; every third block is held out, the rest fit
 (neighbouring rows share disturbances, so a random row split would leak). Every model (the refitted
 base, each candidate) is fitted on the fitting blocks only and judged on the held-out ones.
 
-Criterion: for a candidate against the current model, each held-out block b gives
-d_b = Σ_channels Σ_rows∈b (r²_before − r²_after)/σ²_c  (σ_c the channel's residual scale under the
-base model, so channels in N and W weigh alike). The block sums are nearly independent even when the
-residuals are autocorrelated within a block, and the test is scale-free: the candidate is kept when the
-one-sided t-test of mean(d_b) > 0 has p < ALPHA / (number of candidates) (Bonferroni) AND the held-out
-weighted error falls by at least MIN_GAIN (a gain that small is not worth a physical claim even when
-real: unmodelled detail of the base model would otherwise be named as an effect). The best kept
-candidate is added and the search repeats once for a second effect; no effect is named when none passes.
+Criterion: a candidate against the current model is kept when (1) it is significant: the held-out
+F-test F = ((S_before − S_after)/k) / (S_after/(m − k)) on the held-out residuals averaged over
+sub-blocks of MEAN_S (averaging makes neighbouring rows' correlated noise one observation; every channel
+divided by its residual scale σ_c under the base model, so N and W weigh alike; F is free of the noise
+level), k the candidate's parameters, m the sub-block means, has p < ALPHA / (number of candidates)
+(Bonferroni); and (2) it is material: the held-out weighted squared error falls by at least MIN_GAIN
+(a real base model never matches a machine exactly; a few % of structured mismatch is significant on a
+long log but is not an effect worth naming). The best kept candidate is added and the search repeats
+once for a second effect; no effect is named when none passes.
 """
 
 from __future__ import annotations
@@ -29,16 +30,19 @@ from .effects.base import Context, Effect
 from .model import Design, Fit, design, residual_scale, solve
 from .rows import COEFS, Rows
 
-BLOCKS = 36
+BLOCK_S = 1.5        # time block length (s), between MIN_BLOCKS and MAX_BLOCKS blocks in all
+MIN_BLOCKS, MAX_BLOCKS = 30, 600
 HELD_OUT_EVERY = 3
-ALPHA = 0.001
-MIN_GAIN = 0.10
+MEAN_S = 0.5        # residual means over sub-blocks this long (s) for the F-test
+ALPHA = 0.01
+MIN_GAIN = 0.25
 MAX_EFFECTS = 2
 
 
-def split(t_s: np.ndarray, blocks: int = BLOCKS) -> tuple[np.ndarray, np.ndarray]:
+def split(t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(train mask, block number per row: −1 for fitting rows, k ≥ 0 for the k-th held-out block)."""
     t = np.asarray(t_s, float)
+    blocks = int(np.clip((t[-1] - t[0]) / BLOCK_S, MIN_BLOCKS, MAX_BLOCKS))
     edges = np.linspace(t[0], t[-1], blocks + 1)
     b = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, blocks - 1)
     held = b % HELD_OUT_EVERY == 1
@@ -79,24 +83,39 @@ def held_out_rms(rows: Rows, pred: dict[str, np.ndarray], held: np.ndarray) -> d
     return out
 
 
-def compare(rows: Rows, sigma: dict[str, float], block: np.ndarray, before: dict, after: dict) -> tuple[float, float]:
-    """(gain, p): relative fall of the held-out weighted squared error, and the one-sided p-value of the
-    block t-test (see the module's docstring)."""
-    nb = int(block.max()) + 1
+def compare(rows: Rows, sigma: dict[str, float], block: np.ndarray, before: dict, after: dict,
+            k: int) -> tuple[float, float]:
+    """(gain, p) of a candidate with k parameters: the relative fall of the held-out weighted squared
+    error, and the p-value of the held-out F-test on residual means over sub-blocks of MEAN_S (see the
+    module's docstring)."""
     held = block >= 0
-    d = np.zeros(nb)
-    total = np.zeros(nb)
+    sub = np.full(len(rows), -1)
+    sub[held] = np.floor((rows.t_s[held] - rows.t_s[0]) / MEAN_S).astype(np.int64)
+    nb = int(sub.max()) + 1
+    s_before = s_after = total = 0.0
+    m = 0
     for c in before:
         y = rows.measured[c]
-        rb, ra = (y - before[c]) ** 2 / sigma[c] ** 2, (y - after[c]) ** 2 / sigma[c] ** 2
-        ok = held & np.isfinite(rb) & np.isfinite(ra)
-        d += np.bincount(block[ok], weights=rb[ok] - ra[ok], minlength=nb)
-        total += np.bincount(block[ok], weights=rb[ok], minlength=nb)
-    gain = float(d.sum() / total.sum()) if total.sum() > 0 else 0.0
-    if nb < 3 or np.std(d) == 0:
-        return gain, 1.0 if gain <= 0 else 0.0
-    p = float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)
-    return gain, p
+        ok = held & np.isfinite(y)
+        cnt = np.bincount(sub[ok], minlength=nb)
+        use = cnt > 0
+        for pred, which in ((before[c], 0), (after[c], 1)):
+            mean = np.bincount(sub[ok], weights=(y - pred)[ok], minlength=nb)[use] / cnt[use]
+            ss = float(np.sum(cnt[use] * mean ** 2)) / sigma[c] ** 2
+            if which:
+                s_after += ss
+            else:
+                s_before += ss
+        r = (y - before[c])[ok] ** 2
+        total += float(np.sum(r)) / sigma[c] ** 2
+        m += int(use.sum())
+    rb = sum(float(np.nansum((rows.measured[c] - before[c])[held] ** 2)) / sigma[c] ** 2 for c in before)
+    ra = sum(float(np.nansum((rows.measured[c] - after[c])[held] ** 2)) / sigma[c] ** 2 for c in before)
+    gain = (rb - ra) / rb if rb > 0 else 0.0
+    if m <= k or s_after <= 0:
+        return gain, 1.0
+    F = ((s_before - s_after) / k) / (s_after / (m - k))
+    return gain, float(stats.f.sf(F, k, m - k)) if F > 0 else 1.0
 
 
 @dataclass
@@ -153,7 +172,8 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
                 round_scores[name] = {"applicable": False}
                 continue
             after = e.predict()
-            gain, p = compare(rows, sigma, block, current, after)
+            k = len([n for n in e.fit_.names if n.startswith(name + ":")]) + len(e.variant_.setting)
+            gain, p = compare(rows, sigma, block, current, after, max(k, 1))
             ok = p < level and gain >= min_gain
             round_scores[name] = {"applicable": True, "gain": gain, "p": p, "significant": ok}
             if ok and (best is None or gain > best[0]):
