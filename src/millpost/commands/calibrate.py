@@ -175,7 +175,7 @@ def run_fit(args: argparse.Namespace) -> int:
     if args.output:
         if fit is None:
             raise MillpostError("no cutting coefficients were fitted: nothing to write to " + args.output)
-        base_ref = args.material or (_job_ref(args.plan, "material") if args.log else None)
+        base_ref = args.material or (job_ref(args.plan, "material") if args.log else None)
         if base_ref is None:
             raise MillpostError("-o needs --material (the base material whose other data the file keeps)")
         data, _ = load_description("materials", base_ref)
@@ -186,17 +186,17 @@ def run_fit(args: argparse.Namespace) -> int:
     if args.machine_out:
         if not machine_updates:
             raise MillpostError("no machine constants were fitted: nothing to write to " + args.machine_out)
-        _write_machine(args.machine_out, args.machine or _job_ref(args.plan, "machine"), machine_updates, provenance)
+        write_machine(args.machine_out, args.machine or job_ref(args.plan, "machine"), machine_updates, provenance)
     return 0
 
 
-def _job_ref(folder: str, key: str) -> str:
+def job_ref(folder: str, key: str) -> str:
     """The material or machine a plan folder's job names (a built-in name, or a path relative to it)."""
     value = str(load_toml(Path(folder) / "job.toml")[key])
     return str(Path(folder) / value) if value.endswith(".toml") and not Path(value).is_absolute() else value
 
 
-def _write_machine(path: str, base: str, updates: dict, provenance: str) -> None:
+def write_machine(path: str, base: str, updates: dict, provenance: str) -> None:
     data, _ = load_description("machines", base)
     for section, values in updates.items():
         if section == "axes":
@@ -229,7 +229,7 @@ def _fit_stiffness(args, stamp: str) -> int:
     if args.machine_out:
         if not args.machine:
             raise MillpostError("--machine-out needs --machine (the base machine)")
-        _write_machine(args.machine_out, args.machine, {"axes": {args.axis: {"stiffness_N_per_mm": st.k_N_per_mm}}},
+        write_machine(args.machine_out, args.machine, {"axes": {args.axis: {"stiffness_N_per_mm": st.k_N_per_mm}}},
                        f"fitted by millpost calibrate fit from {args.stiffness} on {stamp}")
     return 0
 

@@ -25,6 +25,7 @@ class Discovery:
     nominal_coef: dict[str, float]
     notes: list[str]
     log_rows: int
+    rows_source: str = "<log>"
 
     @property
     def effects(self) -> list[Effect]:
@@ -90,8 +91,9 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
     for k, rs in enumerate(sel.scores):
         ranked = sorted(((n, r) for n, r in rs.items() if r.get("applicable")), key=lambda x: -x[1]["gain"])
         notes.append(f"round {k + 1}: " + "; ".join(f"{n} gain {100 * r['gain']:.1f} % p {r['p']:.2g}"
+                                                     + ("" if r["physical"] else " (unphysical sign)")
                                                      for n, r in ranked[:5])
                      + "".join(f"; {n} not applicable" for n, r in rs.items() if not r.get("applicable")))
     if not sel.effects:
         notes.append("no effect is significant: the refitted base model explains the held-out data")
-    return Discovery(alignment, rows, sel, nominal, notes, len(log))
+    return Discovery(alignment, rows, sel, nominal, notes, len(log), log.path)

@@ -11,7 +11,8 @@ divided by its residual scale σ_c under the base model, so N and W weigh alike;
 level), k the candidate's parameters, m the sub-block means, has p < ALPHA / (number of candidates)
 (Bonferroni); and (2) it is material: the held-out weighted squared error falls by at least MIN_GAIN
 (a real base model never matches a machine exactly; a few % of structured mismatch is significant on a
-long log but is not an effect worth naming). The best kept candidate is added and the search repeats
+long log but is not an effect worth naming); and (3) its parameters have the signs physics requires
+(`Effect.physical`). The best kept candidate is added and the search repeats
 once for a second effect; no effect is named when none passes.
 """
 
@@ -174,8 +175,9 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
             after = e.predict()
             k = len([n for n in e.fit_.names if n.startswith(name + ":")]) + len(e.variant_.setting)
             gain, p = compare(rows, sigma, block, current, after, max(k, 1))
-            ok = p < level and gain >= min_gain
-            round_scores[name] = {"applicable": True, "gain": gain, "p": p, "significant": ok}
+            ok = p < level and gain >= min_gain and e.physical
+            round_scores[name] = {"applicable": True, "gain": gain, "p": p, "physical": e.physical,
+                                  "significant": ok}
             if ok and (best is None or gain > best[0]):
                 best = (gain, e, after)
         sel.scores.append(round_scores)

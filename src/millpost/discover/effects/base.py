@@ -62,6 +62,13 @@ class Effect:
     name: ClassVar[str]
     channels: ClassVar[tuple[str, ...]]
     meaning: ClassVar[str] = ""
+    positive: ClassVar[tuple[str, ...]] = ()   # parameters that physics requires > 0
+
+    @property
+    def physical(self) -> bool:
+        """Whether the fitted parameters have the signs the physics requires (a wear that lowers forces,
+        a negative compliance or mass is another effect in disguise, never this one)."""
+        return self.applicable and all(self.params_[k] > 0 for k in self.positive)
 
     def variants(self, ctx: Context) -> Iterator[Variant]:
         raise NotImplementedError

@@ -15,6 +15,7 @@ class Deflection(Effect):
     name = "deflection"
     channels = ("fx_N", "fy_N", "fz_N", "spindle_power_W")
     meaning = "tool and machine compliance reducing the radial engagement"
+    positive = ("compliance_mm_per_N",)
 
     def variants(self, ctx: Context):
         chans = cutting_channels(ctx)

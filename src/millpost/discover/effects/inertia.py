@@ -11,6 +11,7 @@ class Inertia(Effect):
     name = "inertia"
     channels = ("fx_N", "fy_N", "fz_N")
     meaning = "mass × acceleration of the moving workpiece in the force signal"
+    positive = ("mass_kg",)
 
     def variants(self, ctx: Context):
         acc = ctx.rows.features["accel_mm_s2"] / 1000.0     # m/s²

@@ -27,6 +27,7 @@ class SensorLag(Effect):
     name = "sensor_lag"
     channels = tuple(c for g in GROUPS for c in g)
     meaning = "first-order lag of a sensor"
+    positive = ("tau_s",)
 
     def variants(self, ctx: Context):
         dt = ctx.rows.dt_s

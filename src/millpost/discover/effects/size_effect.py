@@ -15,6 +15,7 @@ class SizeEffect(Effect):
     name = "size_effect"
     channels = ("fx_N", "fy_N", "fz_N", "spindle_power_W")
     meaning = "specific cutting force rising at small chip thickness"
+    positive = ("m",)
 
     def variants(self, ctx: Context):
         chans = cutting_channels(ctx)

@@ -11,6 +11,7 @@ class ToolWear(Effect):
     name = "tool_wear"
     channels = ("fx_N", "fy_N", "fz_N", "spindle_power_W")
     meaning = "cutting coefficients rising with cut length"
+    positive = ("wear_per_m",)
 
     def variants(self, ctx: Context):
         chans = cutting_channels(ctx)
