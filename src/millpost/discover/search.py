@@ -157,7 +157,7 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
     effects = candidates() if effects is None else effects
     train, block = split(rows.t_s)
     base, d, sigma = fit_base(rows, train)
-    coef = {n: base.params().get(n, nominal[n]) for n in COEFS}
+    coef = {n: base.params().get(n, nominal.get(n, 0.0)) for n in COEFS}
     sel = Selection(base, d, sigma, train, block, coef)
     current = sel.predict_before()
     level = alpha / max(len(effects), 1)
