@@ -49,6 +49,7 @@ class Rows:
     fixed: dict[str, np.ndarray]
     features: dict[str, np.ndarray] = field(default_factory=dict)
     index: np.ndarray | None = None   # the log rows these are (into the whole log)
+    use: np.ndarray | None = None     # rows the fits and scores use (default all)
 
     def __len__(self) -> int:
         return len(self.t_s)
@@ -118,10 +119,29 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
             k = CURRENTS.index(c)
             columns[c]["inertia_A_per_m_s2"] = signals.axis_accel_mm_s2[j, k] / 1000.0
             columns[c]["cut_force_gain"] = -signals.force_tool_N[j, k]
+    exiting = exit_zone(signals, diameter)
     features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[j], "ae_mm": signals.ae_mm[j],
                 "ap_mm": signals.ap_mm[j], "diameter_mm": diameter[j], "cut_length_m": length[j],
                 "velocity_mm_s": signals.axis_velocity_mm_s[j], "accel_mm_s2": signals.axis_accel_mm_s2[j]}
-    return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside)
+    return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, ~exiting[j])
+
+
+def exit_zone(signals: Signals, diameter_mm: np.ndarray) -> np.ndarray:
+    """Samples within one tool radius of the end of a run of cutting samples: where the tool leaves the
+    material. There the material left in front of the tool can lie on two separate arcs of its circle
+    (a sliver at both flanks when a slot runs out of the stock), which the engagement's one entry/exit
+    arc per slice takes as the whole span between them: the forward model overstates the force there, so
+    discover leaves these rows out of its fits and scores (they keep their predictions)."""
+    cutting = signals.ap_mm > 1e-9
+    out = np.zeros(len(signals), bool)
+    if not cutting.any():
+        return out
+    edges = np.diff(np.concatenate([[0], cutting.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    for a, b in zip(starts, ends):
+        s_end = signals.s_mm[b - 1]
+        out[a:b] = s_end - signals.s_mm[a:b] < 0.5 * diameter_mm[a:b]
+    return out
 
 
 def from_axis_arrays(t_s, velocity_mm_s, accel_mm_s2, currents: dict[str, np.ndarray]) -> Rows:

@@ -81,6 +81,10 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
     notes = [f"aligned by {alignment.method} (correlation {alignment.correlation:.3f}); "
              f"{len(rows)} of {len(log)} log rows inside the program; {int((sel.block >= 0).sum())} held out "
              f"in {int(sel.block.max()) + 1} time blocks"]
+    if rows.use is not None and not rows.use.all():
+        notes.append(f"{int((~rows.use).sum())} rows where the tool leaves the material (within a tool radius of "
+                     "the end of a cut) are left out of fits and scores: the engagement's single arc per slice "
+                     "overstates the force there")
     refit = {k: v for k, v in sel.base.params().items() if k in nominal}
     if refit:
         change = ", ".join(f"{k} {nominal[k]:.4g} → {v:.4g}" for k, v in refit.items())

@@ -40,14 +40,16 @@ MIN_GAIN = 0.25
 MAX_EFFECTS = 2
 
 
-def split(t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(train mask, block number per row: −1 for fitting rows, k ≥ 0 for the k-th held-out block)."""
+def split(t_s: np.ndarray, use: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(train mask, block number per row: −1 for fitting rows, k ≥ 0 for the k-th held-out block); rows
+    not in `use` are in neither."""
     t = np.asarray(t_s, float)
     blocks = int(np.clip((t[-1] - t[0]) / BLOCK_S, MIN_BLOCKS, MAX_BLOCKS))
     edges = np.linspace(t[0], t[-1], blocks + 1)
     b = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, blocks - 1)
     held = b % HELD_OUT_EVERY == 1
-    return ~held, np.where(held, b // HELD_OUT_EVERY, -1)
+    use = np.ones(len(t), bool) if use is None else use
+    return ~held & use, np.where(held & use, b // HELD_OUT_EVERY, -1)
 
 
 def candidates(names: list[str] | None = None) -> dict[str, type[Effect]]:
@@ -155,7 +157,7 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
     """Refit the base, then greedily add the significant effect that removes most held-out error.
     nominal: the job material's cutting coefficients (used where the log does not inform them)."""
     effects = candidates() if effects is None else effects
-    train, block = split(rows.t_s)
+    train, block = split(rows.t_s, rows.use)
     base, d, sigma = fit_base(rows, train)
     coef = {n: base.params().get(n, nominal.get(n, 0.0)) for n in COEFS}
     sel = Selection(base, d, sigma, train, block, coef)
