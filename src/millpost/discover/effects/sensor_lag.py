@@ -1,7 +1,7 @@
 """sensor_lag: a sensor (or its filter) responds as a first-order lag, τ dy/dt = x − y: the dynamometer
 (fx_N, fy_N, fz_N together), the spindle power or current reading, or the axis currents. The variants
-are each sensor group × τ on a geometric grid from 2 log intervals to 2 s; the one with the smallest
-training residual is kept. Parameter tau_s (s)."""
+are each sensor group × τ on a geometric grid from 2 log intervals to 2 s, then a finer grid between the
+best one's neighbours; the one with the smallest training residual is kept. Parameter tau_s (s)."""
 
 from __future__ import annotations
 
@@ -29,10 +29,28 @@ class SensorLag(Effect):
     meaning = "first-order lag of a sensor"
     positive = ("tau_s",)
 
+    def __init__(self, taus: np.ndarray | None = None, groups: tuple | None = None) -> None:
+        self.taus, self.groups = taus, groups
+
+    def fit(self, ctx: Context) -> "SensorLag":
+        dt = ctx.rows.dt_s
+        if self.taus is not None or 2 * dt >= 2.0:
+            return super().fit(ctx)
+        coarse = np.geomspace(2 * dt, 2.0, 10)
+        first = SensorLag(coarse).fit(ctx)
+        if not first.applicable:
+            self.variant_ = None
+            return self
+        k = int(np.argmin(np.abs(coarse - first.params_["tau_s"])))
+        fine = np.geomspace(coarse[max(k - 1, 0)], coarse[min(k + 1, len(coarse) - 1)], 9)
+        group = tuple(first.channels_)
+        self.taus, self.groups = fine, (group,)
+        return super().fit(ctx)
+
     def variants(self, ctx: Context):
         dt = ctx.rows.dt_s
-        taus = np.geomspace(2 * dt, 2.0, 10) if 2 * dt < 2.0 else []
-        for group in GROUPS:
+        taus = self.taus if self.taus is not None else []
+        for group in self.groups or GROUPS:
             chans = ctx.measured(group)
             if not chans:
                 continue
