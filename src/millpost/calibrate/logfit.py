@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import MillpostError
 from ..forces import Measurements
-from ..gcode import ReaderOptions, read_program
+from ..gcode import read_program
 from ..gcode.interpret import Program
 from ..job import Job, load_job
 from ..measure import Alignment, Log, align
@@ -206,7 +206,7 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     job = load_job(target)
     plan_file = job.path.parent / "plan.csv"
     moves = read_plan(plan_file) if plan_file.exists() else []
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+    program = read_program(job.program, job.reader_options())
     signals = simulate(job, program=program)
     alignment = align(log, signals)
     notes: list[str] = []
