@@ -196,18 +196,20 @@ class LogFit:
     notes: list[str]
 
 
-def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "viscous")) -> LogFit:
+def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "viscous"),
+            progress=None) -> LogFit:
     """Align `log` to a job's program and fit what the log holds: cutting coefficients (forces and/or
     spindle power), spindle no-load power and current, axis drives. target: the folder `calibrate plan`
     wrote (job.toml and plan.csv: the planned cuts, idle dwells and axis strokes are used), or any job
     (folder or .toml: its steady stretches of cut, see `steady_job_samples`; cutting coefficients only).
-    base: the material to start from (default: the job's)."""
+    base: the material to start from (default: the job's). progress: as `millpost.optimize`'s (the
+    engagement run reports through it)."""
     target = Path(target)
     job = load_job(target)
     plan_file = job.path.parent / "plan.csv"
     moves = read_plan(plan_file) if plan_file.exists() else []
     program = read_program(job.program, job.reader_options())
-    signals = simulate(job, program=program)
+    signals = simulate(job, program=program, progress=progress)
     alignment = align(log, signals)
     notes: list[str] = []
     idle: dict = {}
