@@ -11,7 +11,7 @@ import pytest
 
 from millpost import signals
 from millpost.calibrate.cuts import Cuts, fit_models, read_cuts
-from millpost.calibrate.logfit import observations, steady_samples
+from millpost.calibrate.logfit import fit_log, observations, steady_samples
 from millpost.calibrate.machine_fit import AxisDrive, fit_spindle_current, fit_stiffness
 from millpost.calibrate.plan import PlanRequest, make_plan, read_plan
 from millpost.cli import main
@@ -327,3 +327,21 @@ def test_stiffness_cli_writes_the_machine(tmp_path):
     m = Machine.load(tmp_path / "m.toml")
     assert m.axes["x"].stiffness_N_per_mm == pytest.approx(k)
     assert m.axes["y"].stiffness_N_per_mm == Machine.load("vmc-small").axes["y"].stiffness_N_per_mm
+
+
+def test_log_of_any_job_fits_its_steady_cuts(tmp_path):
+    """No plan: the steady stretch of every cutting line of an ordinary program (slots at several feeds
+    and depths, some along Y) is one observation."""
+    from test_signals import make_job
+    lines = ["G21 G90 G94 G17", "T1 M6", "S8000 M3", "G0 X34 Y45 Z5", "G1 Z-1 F300", "G1 Y-5 F700", "G0 Z5"]
+    for i, (ap, f) in enumerate([(1.0, 400), (1.0, 900), (2.0, 600), (2.0, 1300), (1.5, 800), (1.5, 1500)]):
+        y = 4 + 6.5 * i   # across the first slot, which interrupts them for a while
+        lines += [f"G0 X-5 Y{y} Z5", f"G1 Z{-ap} F300", f"G1 X45 F{f}", "G0 Z5"]
+    lines += ["M5", "M30"]
+    job = make_job(tmp_path, "\n".join(lines) + "\n")
+    sig = signals.simulate(job)
+    log = synthetic_log(sig, rate_hz=1000, offset_s=0.8, noise=0.04, columns=("fx_N", "fy_N", "fz_N"), lead_s=1,
+                        tail_s=1, seed=4)
+    fit = fit_log(tmp_path, log, Material.load("al7075"))
+    assert fit.cutting.rows == 7 and "no plan" in fit.notes[0]
+    np.testing.assert_allclose(fit.cutting.mechanistic.coef_, AL6061, rtol=0.01)

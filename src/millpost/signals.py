@@ -31,9 +31,10 @@ import numpy as np
 from . import controller, engagement
 from .engagement import Engagement
 from .errors import MillpostError
-from .gcode import ReaderOptions, read_program
+from .gcode import read_program
 from .gcode.interpret import Program
 from .job import Job
+from .progress import Progress
 from .toolpath import RAPID, Samples
 from .tools.beam import ToolBeam
 
@@ -184,10 +185,10 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
 
 
 def simulate(job: Job, feed_mm_min: np.ndarray | None = None, *, program: Program | None = None,
-             peaks: bool = False, progress: bool | None = None) -> Signals:
+             peaks: bool = False, progress: Progress | bool | None = None) -> Signals:
     """The whole job: read the program, resample at the job's ds_mm, step the tools through the stock,
     run the controller model (feed_mm_min overrides the programmed feed per move) and predict."""
-    program = program or read_program(job.program, ReaderOptions(dialect=job.dialect))
+    program = program or read_program(job.program, job.reader_options())
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     if len(samples) == 0:
         raise MillpostError(f"{job.program}: the program has no motion")

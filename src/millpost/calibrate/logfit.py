@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import MillpostError
 from ..forces import Measurements
-from ..gcode import ReaderOptions, read_program
+from ..gcode import read_program
 from ..gcode.interpret import Program
 from ..job import Job, load_job
 from ..measure import Alignment, Log, align
@@ -50,6 +50,28 @@ def steady_samples(signals: Signals, moves: list[PlannedMove], *, kinds=("slot",
     for _ in range(erode):
         ok[1:-1] &= ok[:-2] & ok[2:]
         ok[[0, -1]] = False
+    return ok
+
+
+def steady_job_samples(signals: Signals, *, tol: float = 0.02, erode: int = 2, minimum: int = 10) -> np.ndarray:
+    """In any program: per source line, the cutting samples whose ap, ae and speed are the line's median
+    ones within `tol` (the steady stretch of the line's cut), runs shrunk by `erode` at both ends, lines
+    with at least `minimum` such samples."""
+    ok = np.zeros(len(signals), bool)
+    cutting = signals.ap_mm > 0
+    for line in np.unique(signals.line[cutting]):
+        on = cutting & (signals.line == line)
+        near = on.copy()
+        for q in (signals.ap_mm, signals.ae_mm, signals.speed_mm_s):
+            mid = float(np.median(q[on]))
+            near &= np.abs(q - mid) <= tol * mid
+        ok |= near
+    for _ in range(erode):
+        ok[1:-1] &= ok[:-2] & ok[2:]
+        ok[[0, -1]] = False
+    for line in np.unique(signals.line[ok]):
+        if np.count_nonzero(ok & (signals.line == line)) < minimum:
+            ok &= signals.line != line
     return ok
 
 
@@ -174,15 +196,20 @@ class LogFit:
     notes: list[str]
 
 
-def fit_log(folder, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "viscous")) -> LogFit:
-    """Align `log` to the calibration program in `folder` (calibrate plan's output: job.toml, plan.csv)
-    and fit what the log holds: cutting coefficients (forces and/or spindle power), spindle no-load power
-    and current, axis drives. base: the material to start from (default: the job's)."""
-    folder = Path(folder)
-    job = load_job(folder / "job.toml")
-    moves = read_plan(folder / "plan.csv")
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
-    signals = simulate(job, program=program)
+def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "viscous"),
+            progress=None) -> LogFit:
+    """Align `log` to a job's program and fit what the log holds: cutting coefficients (forces and/or
+    spindle power), spindle no-load power and current, axis drives. target: the folder `calibrate plan`
+    wrote (job.toml and plan.csv: the planned cuts, idle dwells and axis strokes are used), or any job
+    (folder or .toml: its steady stretches of cut, see `steady_job_samples`; cutting coefficients only).
+    base: the material to start from (default: the job's). progress: as `millpost.optimize`'s (the
+    engagement run reports through it)."""
+    target = Path(target)
+    job = load_job(target)
+    plan_file = job.path.parent / "plan.csv"
+    moves = read_plan(plan_file) if plan_file.exists() else []
+    program = read_program(job.program, job.reader_options())
+    signals = simulate(job, program=program, progress=progress)
     alignment = align(log, signals)
     notes: list[str] = []
     idle: dict = {}
@@ -204,7 +231,9 @@ def fit_log(folder, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
                                          log["spindle_current_A"][on])
             idle.update(kt_Nm_per_A=kt, idle_current_A=i0)
     cutting = None
-    steady = steady_samples(signals, moves)
+    steady = steady_samples(signals, moves) if moves else steady_job_samples(signals)
+    if not moves:
+        notes.append(f"no plan beside {job.path}: the job's steady stretches of cut are fitted")
     if steady.any() and (log.has("spindle_power_W") or log.has("fx_N")):
         obs = observations(log, alignment, signals, job, steady, idle_fn)
         cutting = fit_models(signals.engagement.select(obs.index), obs.measurements, obs.tools,

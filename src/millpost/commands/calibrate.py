@@ -77,7 +77,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--cuts", metavar="CUTS.csv", help="table of steady cuts")
     src.add_argument("--log", metavar="LOG", help="log (CSV/NPZ) of a calibration program (with --plan)")
     src.add_argument("--stiffness", metavar="LOG", help="push-test log: force vs displacement (with --axis)")
-    fit.add_argument("--plan", metavar="DIR", help="the folder `calibrate plan` wrote")
+    fit.add_argument("--plan", metavar="DIR|JOB", help="the folder `calibrate plan` wrote, or any job (its steady "
+                                                        "cuts are fitted)")
     fit.add_argument("--axis", choices=("x", "y", "z"), help="axis of the push test")
     fit.add_argument("--material", metavar="NAME|FILE", help="base material (default: the plan's job's)")
     fit.add_argument("--machine", metavar="NAME|FILE", help="base machine (default: the plan's job's)")
@@ -139,8 +140,8 @@ def run_fit(args: argparse.Namespace) -> int:
         machine_updates: dict = {}
     else:
         if not args.plan:
-            raise MillpostError("--log needs --plan DIR (the folder `calibrate plan` wrote)")
-        job = load_job(Path(args.plan) / "job.toml")
+            raise MillpostError("--log needs --plan DIR|JOB (the folder `calibrate plan` wrote, or a job)")
+        job = load_job(args.plan)
         base = Material.load(args.material) if args.material else job.material
         lf = fit_log(args.plan, read_log(args.log), base)
         fit, source = lf.cutting, args.log
@@ -190,10 +191,12 @@ def run_fit(args: argparse.Namespace) -> int:
     return 0
 
 
-def job_ref(folder: str, key: str) -> str:
-    """The material or machine a plan folder's job names (a built-in name, or a path relative to it)."""
-    value = str(load_toml(Path(folder) / "job.toml")[key])
-    return str(Path(folder) / value) if value.endswith(".toml") and not Path(value).is_absolute() else value
+def job_ref(target: str, key: str) -> str:
+    """The material or machine a job (plan folder or job file) names: a built-in name, or a path relative
+    to the job."""
+    path = load_job(target).path
+    value = str(load_toml(path)[key])
+    return str(path.parent / value) if value.endswith(".toml") and not Path(value).is_absolute() else value
 
 
 def write_machine(path: str, base: str, updates: dict, provenance: str) -> None:
