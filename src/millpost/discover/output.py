@@ -40,7 +40,7 @@ def write_model(d: Discovery, job_path: str | Path, out: str | Path) -> list[Pat
     factor = 1.0
     if "tool_wear" in effects:
         factor = 1.0 + effects["tool_wear"].params_["wear_per_m"] * float(d.rows.features["cut_length_m"].max())
-    material, _ = load_description("materials", job_ref(str(job_path.parent), "material"))
+    material, _ = load_description("materials", job_ref(str(job_path), "material"))
     mech = material.setdefault("mechanistic", {})
     for k, field in MECH_FIELDS.items():
         value = p.get(k, d.nominal_coef[k]) * factor
@@ -53,7 +53,7 @@ def write_model(d: Discovery, job_path: str | Path, out: str | Path) -> list[Pat
     mat_path = out / "material.toml"
     write_atomic(mat_path, dump_toml(material))
     written.append(mat_path)
-    machine_ref = job_ref(str(job_path.parent), "machine")
+    machine_ref = job_ref(str(job_path), "machine")
     updates: dict = {}
     from ..machine import Machine
     machine = Machine.load(machine_ref)
