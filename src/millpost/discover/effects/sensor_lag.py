@@ -29,11 +29,17 @@ class SensorLag(Effect):
     meaning = "first-order lag of a sensor"
     positive = ("tau_s",)
 
+    @property
+    def physical(self) -> bool:
+        """τ > 0, and longer than 2.5 log intervals: a shorter lag is within the sampling and alignment
+        resolution (a timing mismatch of the model, not a sensor's dynamics)."""
+        return super().physical and self.params_["tau_s"] > 2.5 * self.dt_
+
     def __init__(self, taus: np.ndarray | None = None, groups: tuple | None = None) -> None:
         self.taus, self.groups = taus, groups
 
     def fit(self, ctx: Context) -> "SensorLag":
-        dt = ctx.rows.dt_s
+        dt = self.dt_ = ctx.rows.dt_s
         if self.taus is not None or 2 * dt >= 2.0:
             return super().fit(ctx)
         coarse = np.geomspace(2 * dt, 2.0, 10)

@@ -27,6 +27,12 @@ class SizeEffect(Effect):
         yield Variant({"fz_ref_mm": float(np.median(fz[on]))},
                       {c: {self.param("minus_m"): ctx.cutting(c, slice(0, 3)) * lnr} for c in chans})
 
+    @property
+    def physical(self) -> bool:
+        """0 < m < 1: the specific force rises at small chips but the force itself still grows with the
+        chip (published Kienzle exponents are 0.1–0.45)."""
+        return super().physical and self.params_["m"] < 1.0
+
     def fit(self, ctx: Context) -> "SizeEffect":
         super().fit(ctx)
         if self.applicable:   # report m (the term's coefficient is −m)
