@@ -164,7 +164,7 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
     current = sel.predict_before()
     level = alpha / max(len(effects), 1)
     for _ in range(max_effects):
-        ctx = Context(rows, train, sigma, sel.effects[-1].fit_ if sel.effects else base, coef, list(sel.effects))
+        ctx = Context(rows, train, sigma, coef, list(sel.effects))
         round_scores: dict[str, dict] = {}
         best = None
         for name, cls in effects.items():

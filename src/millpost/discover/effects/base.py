@@ -16,20 +16,19 @@ from typing import ClassVar
 import numpy as np
 
 from ...forces import NotFittedError
-from ..model import Filter, Fit, Terms, design, solve
+from ..model import Filter, Terms, design, solve
 from ..rows import COEFS, CUTTING, Rows
 
 
 @dataclass
 class Context:
-    """What an effect fits against: the rows, the training mask, the channel weights σ, and the base
-    model's fit (the current model, with any effects already kept) and cutting coefficients K̂ (fitted
-    where the log informs them, the job material's otherwise)."""
+    """What an effect fits against: the rows, the training mask, the channel weights σ, the cutting
+    coefficients K̂ (the base refit's where the log informs them, the job material's otherwise) and the
+    effects already kept (fitted again with each candidate)."""
 
     rows: Rows
     train: np.ndarray
     sigma: dict[str, float]
-    fit: Fit
     coef: dict[str, float]
     kept: list["Effect"] = field(default_factory=list)
 
@@ -105,7 +104,7 @@ class Effect:
             raise NotFittedError(f"{self.name}: call fit() first")
         return self.variant_ is not None
 
-    def predict(self, rows: Rows | None = None) -> dict[str, np.ndarray]:
+    def predict(self) -> dict[str, np.ndarray]:
         """The joint model's prediction with this effect on the rows it was fitted on."""
         if not self.applicable:
             raise NotFittedError(f"{self.name}: not applicable to this log")
