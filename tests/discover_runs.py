@@ -28,7 +28,7 @@ from millpost.signals import simulate
 
 TRUE = {"Ktc": 631.0, "Krc": 99.0, "Kac": 273.0, "Kte": 13.0, "Kre": 10.0, "Kae": 2.8}
 TOOLS = ((6.0, 3), (10.0, 4), (8.0, 2))    # diameter (mm), flutes
-BOX = (120.0, 80.0, 12.0)                  # length X, width Y, height (top at z = 0)
+BOX = (120.0, 80.0, 20.0)                  # length X, width Y, height (top at z = 0)
 EFFECTS = ("none", "tool_wear", "size_effect", "deflection", "inertia", "sensor_lag", "spindle_no_load",
            "sensor_drift", "axis_friction")
 KT_TO_MECH = {"Ktc": "Ktc_N_mm2", "Krc": "Krc_N_mm2", "Kac": "Kac_N_mm2", "Kte": "Kte_N_per_mm",
