@@ -26,7 +26,7 @@ NAMES = ("tool_wear", "size_effect", "deflection", "inertia", "sensor_lag", "spi
 # seeds per effect: 3 in the shared suite (fast), MILLPOST_DISCOVER_RUNS=10 for the full bar
 RUNS = int(os.environ.get("MILLPOST_DISCOVER_RUNS", "3"))
 # what the generator's runs show today (see README, discover): these fall short of 9/10
-SHORT = {"tool_wear", "size_effect", "deflection"}
+SHORT = {"size_effect", "deflection"}
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,8 @@ F-test F = ((S_before − S_after)/k) / (S_after/(m − k)) on the held-out resi
 sub-blocks of MEAN_S (averaging makes neighbouring rows' correlated noise one observation; every channel
 divided by its residual scale σ_c under the base model, so N and W weigh alike; F is free of the noise
 level), k the candidate's parameters, m the sub-block means, has p < ALPHA / (number of candidates)
-(Bonferroni); and (2) it is material: the held-out weighted squared error falls by at least MIN_GAIN
+(Bonferroni); and (2) it is material: the held-out weighted squared error of the channels it acts on falls by at least
+MIN_GAIN
 (a real base model never matches a machine exactly; a few % of structured mismatch is significant on a
 long log but is not an effect worth naming); and (3) its parameters have the signs physics requires
 (`Effect.physical`). The best kept candidate is added and the search repeats
@@ -87,33 +88,27 @@ def held_out_rms(rows: Rows, pred: dict[str, np.ndarray], held: np.ndarray) -> d
 
 
 def compare(rows: Rows, sigma: dict[str, float], block: np.ndarray, before: dict, after: dict,
-            k: int) -> tuple[float, float]:
-    """(gain, p) of a candidate with k parameters: the relative fall of the held-out weighted squared
-    error, and the p-value of the held-out F-test on residual means over sub-blocks of MEAN_S (see the
+            k: int, channels: list[str]) -> tuple[float, float]:
+    """(gain, p) of a candidate with k parameters acting on `channels`: the relative fall of the held-out
+    weighted squared error on those channels, and the p-value (all channels) of the held-out F-test on residual means over sub-blocks of MEAN_S (see the
     module's docstring)."""
     held = block >= 0
     sub = np.full(len(rows), -1)
     sub[held] = np.floor((rows.t_s[held] - rows.t_s[0]) / MEAN_S).astype(np.int64)
     nb = int(sub.max()) + 1
-    s_before = s_after = total = 0.0
+    s_before = s_after = 0.0
     m = 0
     for c in before:
         y = rows.measured[c]
         ok = held & np.isfinite(y)
         cnt = np.bincount(sub[ok], minlength=nb)
         use = cnt > 0
-        for pred, which in ((before[c], 0), (after[c], 1)):
-            mean = np.bincount(sub[ok], weights=(y - pred)[ok], minlength=nb)[use] / cnt[use]
-            ss = float(np.sum(cnt[use] * mean ** 2)) / sigma[c] ** 2
-            if which:
-                s_after += ss
-            else:
-                s_before += ss
-        r = (y - before[c])[ok] ** 2
-        total += float(np.sum(r)) / sigma[c] ** 2
+        means = [np.bincount(sub[ok], weights=(y - p)[ok], minlength=nb)[use] / cnt[use] for p in (before[c], after[c])]
+        s_before += float(np.sum(cnt[use] * means[0] ** 2)) / sigma[c] ** 2
+        s_after += float(np.sum(cnt[use] * means[1] ** 2)) / sigma[c] ** 2
         m += int(use.sum())
-    rb = sum(float(np.nansum((rows.measured[c] - before[c])[held] ** 2)) / sigma[c] ** 2 for c in before)
-    ra = sum(float(np.nansum((rows.measured[c] - after[c])[held] ** 2)) / sigma[c] ** 2 for c in before)
+    rb = sum(float(np.nansum((rows.measured[c] - before[c])[held] ** 2)) / sigma[c] ** 2 for c in channels)
+    ra = sum(float(np.nansum((rows.measured[c] - after[c])[held] ** 2)) / sigma[c] ** 2 for c in channels)
     gain = (rb - ra) / rb if rb > 0 else 0.0
     if m <= k or s_after <= 0:
         return gain, 1.0
@@ -176,7 +171,7 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
                 continue
             after = e.predict()
             k = len([n for n in e.fit_.names if n.startswith(name + ":")]) + len(e.variant_.setting)
-            gain, p = compare(rows, sigma, block, current, after, max(k, 1))
+            gain, p = compare(rows, sigma, block, current, after, max(k, 1), e.channels_)
             ok = p < level and gain >= min_gain and e.physical
             round_scores[name] = {"applicable": True, "gain": gain, "p": p, "physical": e.physical,
                                   "significant": ok}
