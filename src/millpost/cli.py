@@ -1,5 +1,6 @@
 """The `millpost` command: a thin shell over the Python API. Each subcommand lives in
-`millpost.commands.<name>`; errors millpost raises on purpose print one line and exit 2."""
+`millpost.commands.<name>`; errors millpost raises on purpose print one line and exit 2; Ctrl-C
+prints "interrupted" and exits 130 (outputs are written atomically: no partial file is left)."""
 
 from __future__ import annotations
 
@@ -31,6 +32,9 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, UnicodeDecodeError) as exc:
         print(f"millpost: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("millpost: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

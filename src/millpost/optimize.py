@@ -22,13 +22,12 @@ When the solver fails, the programmed feeds are kept and the summary says why.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import controller, engagement
+from . import controller, safety
 from .emit import FeedPlan, write_feeds
 from .errors import MillpostError
 from .gcode import ReaderOptions, read_program
@@ -212,7 +211,10 @@ def baseline_feeds(program: Program, samples: Samples, limits: list) -> tuple[np
     per_tool = {}
     for number in np.unique(tp.tool[tp.kind != RAPID]):
         sel = (samples.tool == number) & (samples.kind != RAPID)
-        f = float(np.floor(cap[sel].min())) if sel.any() else math.nan
+        if not sel.any():  # no move of this tool is long enough to be sampled: its feeds stay
+            per_tool[int(number)] = None
+            continue
+        f = float(np.floor(cap[sel].min()))
         per_tool[int(number)] = f
         feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
     return feeds, per_tool
@@ -257,9 +259,10 @@ def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions
     """Run the whole post step on a job and return the new program and its summary."""
     t_start = time.perf_counter()
     program = read_program(job.program, ReaderOptions(dialect=job.dialect))
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
-    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
+    samples, eng, notes = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]),
+                                        job.allow, progress=progress)
     result = schedule_program(job, program, samples, eng, options)
+    result.summary["notes"] += notes
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 
-from ..files import write_atomic
 from ..errors import MillpostError
+from ..files import write_atomic
 from ..gcode import ReaderOptions, dialects, read_program, read_text
 from ..gcode.convert import convert, same_path
+from ..safety import check_outputs
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,6 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     target = dialects.get(args.to)
+    check_outputs({"-o": args.output}, [args.program])
     program = read_program(args.program, ReaderOptions(dialect=args.source))
     text = convert(program, target)
     back = read_text(text, args.output, ReaderOptions(dialect=target.name))

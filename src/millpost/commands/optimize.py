@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import json
+import math
 import sys
 from pathlib import Path
 
-from ..files import write_atomic, write_csv
+from ..errors import MillpostError
+from ..files import json_text, write_atomic, write_csv
 from ..job import load_job
 from ..optimize import optimize
+from ..safety import check_outputs
+from . import add_allow_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -21,24 +24,31 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", help="output program (default: the job's output)")
     p.add_argument("--json", metavar="SUMMARY", help="write the summary JSON here ('-' for stdout)")
     p.add_argument("--trace", metavar="CSV", help="write per-sample engagement, loads and feeds as CSV")
+    add_allow_argument(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     job = load_job(args.job)
-    result = optimize(job, progress=sys.stderr.isatty())
+    job.allow = job.allow | set(args.allow)
     output = Path(args.output) if args.output else job.output
-    write_atomic(output, result.text)
+    check_outputs({"output": output, "--json": args.json, "--trace": args.trace}, job.inputs)
+    result = optimize(job, progress=sys.stderr.isatty())
     result.summary["output"] = str(output)
-    text = json.dumps(result.summary, indent=2)
+    text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
+    times = [result.summary[f"cycle_time_{k}_s"] for k in ("before", "after", "baseline")]
+    if not all(math.isfinite(t) for t in times):
+        raise MillpostError(f"{job.program}: the cycle time is not finite ({times}); nothing written")
+    write_atomic(output, result.text)
     if args.json == "-":
         print(text)
     elif args.json:
         write_atomic(args.json, text + "\n")
     if args.trace:
         write_csv(args.trace, result.trace)
-    status = result.summary["status"]
-    print(f"millpost: {status}; cycle time {result.summary['cycle_time_before_s']:.1f} s -> "
-          f"{result.summary['cycle_time_after_s']:.1f} s (baseline {result.summary['cycle_time_baseline_s']:.1f} s); "
-          f"wrote {output}", file=sys.stderr)
+    for note in result.summary["notes"]:
+        if note.startswith(("warning", "note:")):
+            print(f"millpost: {note}", file=sys.stderr)
+    print(f"millpost: {result.summary['status']}; cycle time {times[0]:.1f} s -> {times[1]:.1f} s "
+          f"(baseline {times[2]:.1f} s); wrote {output}", file=sys.stderr)
     return 0
