@@ -223,6 +223,9 @@ def check_cut(program: Program, bounds: np.ndarray, tools: Tool | Mapping[int, T
         stock_text = f"X {x0:g}..{x1:g} Y {y0:g}..{y1:g} Z {zb:g}..{zt:g} mm"
         if not feed.any():
             msg = f"{f}: the program has no feed moves: nothing is cut"
+        elif zt <= zb:
+            msg = (f"{f}: the stock holds no material at all ({stock_text}): an open mesh (an STL missing a face) "
+                   "or a solid that did not rasterise")
         elif inside.any():
             msg = (f"{f}:{int(samples.line[np.argmax(inside)])}: the feed moves pass through the stock's bounds "
                    f"({stock_text}) but remove no material: the stock is empty where the tool goes (an STL "
