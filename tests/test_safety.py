@@ -331,3 +331,17 @@ def test_fusion_ledfloor_box_must_be_where_the_program_cuts(box, rc, tmp_path, c
         assert strict_json(captured.out)["removed_volume_mm3"] > 0 and out.exists()
     else:
         assert "no feed move reaches the stock" in captured.err and not out.exists()
+
+
+def test_optimize_never_reports_a_nan_cycle_time(tmp_path, capsys, monkeypatch):
+    """Whatever goes wrong upstream, a NaN cycle time is refused before anything is written."""
+    from millpost.optimize import Result
+
+    job = job_copy(tmp_path)
+    summary = {"status": "solved", "cycle_time_before_s": 10.0, "cycle_time_after_s": float("nan"),
+               "cycle_time_baseline_s": 9.0, "notes": []}
+    monkeypatch.setattr("millpost.commands.optimize.optimize", lambda *a, **k: Result("G0 X0\n", summary, None))
+    out = tmp_path / "o.nc"
+    assert main(["optimize", str(job), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "cycle_time_after_s is not a finite number" in err and "nan s" not in err and not out.exists()

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +34,7 @@ import numpy as np
 from . import engagement
 from .errors import CrashError, MillpostError, SafetyError
 from .files import check_writable
+from .gcode.convert import SourceBlocks
 from .gcode.interpret import Program
 from .toolpath import RAPID, Samples
 from .tools import Tool
@@ -147,10 +147,6 @@ def resample(program: Program, ds_mm: float, allow: Iterable[str], notes: list[s
     return program.toolpath.resample(ds_mm)
 
 
-_AXIS_WORD = re.compile(r"(?<![A-Z])([XYZ@^])\s*[-+.\d#\[]")
-_COMMENTS = re.compile(r"\([^)]*\)|;.*|<[^>]*>")
-
-
 def known_start(program: Program, samples: Samples) -> int:
     """The first sample whose position is known: the end of the first move by which every axis has
     been named in a block (the reader assumes a start for the others), or the first feed move's
@@ -158,15 +154,15 @@ def known_start(program: Program, samples: Samples) -> int:
     tp = program.toolpath
     if not len(samples):
         return 0
-    lines = program.text.splitlines()
+    blocks = SourceBlocks(program)
     named: set[str] = set()
     known = len(tp)
     for i in range(len(tp)):
         if tp.kind[i] != RAPID:
             break
-        text = lines[tp.line[i] - 1] if 0 < tp.line[i] <= len(lines) else ""
-        for letter in _AXIS_WORD.findall(_COMMENTS.sub("", text.upper())):
-            named.update("XY" if letter in "@^" else letter)
+        block = blocks[int(tp.line[i])]
+        for w in block.words if block is not None else ():
+            named.update("XY" if w.letter in "@^" else w.letter)
         if named >= {"X", "Y", "Z"}:
             known = i
             break

@@ -33,18 +33,26 @@ _WCS = {1: "G54", 2: "G55", 3: "G56", 4: "G57", 5: "G58", 6: "G59", 7: "G59.1", 
 
 _FRAME_SETTING = re.compile(r"(?<![A-Z])G\s*0*(10|52|92(?:\.[0-3])?|28\.1|30\.1)(?![\d.])")
 _COMMENT = re.compile(r"\([^)]*\)|;.*")
+_FRAME_CODES = {10.0, 52.0, 92.0, 92.1, 92.2, 92.3, 28.1, 30.1}
 
 
-def source_block(program: Program, line: int) -> Block | None:
-    """The words of source line `line` as written (values of parameter words are not evaluated:
-    check `Word.text`); None when the line needs the interpreter's parameters to be read."""
-    lines = program.text.splitlines()
-    if not 0 < line <= len(lines):
-        return None
-    try:
-        return lex_line(lines[line - 1], line, program.path, {})
-    except ParseError:
-        return None
+class SourceBlocks:
+    """The words of a program's source lines as written, lexed on demand and kept: `blocks[line]` is
+    the `Block` of 1-based `line`, or None when the line needs the interpreter's parameters to be
+    read (values of parameter words are not evaluated: check `Word.text`)."""
+
+    def __init__(self, program: Program) -> None:
+        self.lines, self.file = program.text.splitlines(), program.path
+        self._cache: dict[int, Block | None] = {}
+
+    def __getitem__(self, line: int) -> Block | None:
+        if line not in self._cache:
+            try:
+                text = self.lines[line - 1] if 0 < line <= len(self.lines) else ""
+                self._cache[line] = lex_line(text, line, self.file, {})
+            except ParseError:
+                self._cache[line] = None
+        return self._cache[line]
 
 
 def _g_codes(block: Block | None) -> set[float]:
@@ -56,32 +64,32 @@ def _refuse(program: Program, line: int, column: int, word: str, message: str, e
                       expected=expected)
 
 
-def _frame_setting(program: Program) -> None:
+def _frame_setting(program: Program, blocks: SourceBlocks) -> None:
     """Refuse offsets set in the program (G10, G52, G92..., G28.1, G30.1): re-posted coordinates would
-    land elsewhere on the machine."""
-    for n, text in enumerate(program.text.splitlines(), 1):
+    land elsewhere on the machine. (A text scan finds the candidate lines; the lexer confirms.)"""
+    for n, text in enumerate(blocks.lines, 1):
         if "G" not in text.upper():
             continue
         clean = _COMMENT.sub(lambda m: " " * len(m.group()), text.upper())
-        m = _FRAME_SETTING.search(clean)
-        if m:
-            raise _refuse(program, n, m.start() + 1, text[m.start():m.end()],
+        if not _FRAME_SETTING.search(clean):
+            continue
+        block = blocks[n]
+        words = [w for w in block.words if w.letter == "G" and round(w.value, 1) in _FRAME_CODES] if block else []
+        if block is None or words:
+            column = words[0].column if words else _FRAME_SETTING.search(clean).start() + 1
+            raise _refuse(program, n, column, words[0].text if words else "",
                           "offsets set in the program are not re-posted (the converted motion would differ)",
                           "a program without G10, G52, G92, G28.1 or G30.1 (set them on the controller)")
 
 
 def convert(program: Program, dialect: Dialect) -> str:
     """The program as `dialect` writes it: the same machine motion, to the target's number precision."""
-    _frame_setting(program)
+    blocks = SourceBlocks(program)
+    _frame_setting(program, blocks)
+    block = blocks.__getitem__
     tp = program.toolpath
     out: list[str] = []
     seq = [0]
-    blocks: dict[int, Block | None] = {}
-
-    def block(line: int) -> Block | None:
-        if line not in blocks:
-            blocks[line] = source_block(program, line)
-        return blocks[line]
 
     def emit(words: str) -> None:
         if dialect.line_numbers and words and not words.startswith(("(", ";", "%", "O")):
@@ -170,7 +178,7 @@ def convert(program: Program, dialect: Dialect) -> str:
         end = tp.end[i]
         moved = np.abs(end - tp.start[i]) > 1e-12
         for a in range(3):
-            known[a] = known[a] or "XYZ"[a] in named or bool(moved[a]) or src is None
+            known[a] = known[a] or "XYZ"[a] in named or bool(moved[a])
         words = [f"{'XYZ'[a]}{num(end[a])}" for a in range(3) if known[a]]
         kind = int(tp.kind[i])
         if kind == RAPID:
