@@ -173,3 +173,17 @@ def test_corpus_machine_motion_survives_every_dialect(path, tmp_path):
         assert [k for k, _ in got] == [k for k, _ in want], name
         # the trace prints 4 decimals; the dialects write 4 (mm) or 6 (inch)
         assert max((abs(a - b) for (_, p), (_, q) in zip(got, want) for a, b in zip(p, q)), default=0) <= 2e-4, name
+
+
+@pytest.mark.parametrize("text", ["%\n%\n", "G43 H1\nM30\n", "(only a comment)\n"])
+def test_programs_without_moves_convert_or_refuse_cleanly(text, tmp_path):
+    src = tmp_path / "in.nc"
+    src.write_text(text)
+    program = read_program(src)
+    for name in ("linuxcnc", "fanuc", "mach3", "grbl"):
+        try:
+            out = convert(program, dialects.get(name))
+        except MillpostError as exc:
+            assert name == "grbl" and f"{src}:1:1: convert: grbl has no G43" in str(exc)
+            continue
+        assert ("G43 H1" in out) == ("G43" in text)

@@ -210,7 +210,7 @@ def convert(program: Program, dialect: Dialect) -> str:
         emit(w)
     for e in events[ev:]:
         if e.kind == "tool_length":
-            emit(_tool_length(program, block(e.line), e.line, dialect, tool[0], bool(program.move_inch[-1]), g))
+            emit(_tool_length(program, block(e.line), e.line, dialect, tool[0], bool(inch), g))
         else:
             _event(e, dialect, emit, comment, g)
     if not any(e.kind == "end" for e in program.events):
