@@ -345,3 +345,16 @@ def test_optimize_never_reports_a_nan_cycle_time(tmp_path, capsys, monkeypatch):
     assert main(["optimize", str(job), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "cycle_time_after_s is not a finite number" in err and "nan s" not in err and not out.exists()
+
+
+def test_infinite_coordinate_never_reaches_a_report(tmp_path, capsys):
+    """`X` followed by 309 nines reads as inf: simulate refuses naming the line, inspect refuses to
+    print invalid JSON (unless the reader already refuses the word)."""
+    text = "G21 G90\nG0 X0 Y0 Z5\nS9000 M3\nG1 X" + "9" * 309 + " F100\nM30\n"
+    assert simulate(tmp_path, text) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'p.nc'}:4:" in err and "Traceback" not in err
+    rc = main(["inspect", str(tmp_path / "p.nc")])
+    captured = capsys.readouterr()
+    assert rc == 2 and "Infinity" not in captured.out
+    assert "bbox_mm.1.0 is not a finite number" in captured.err or f"{tmp_path / 'p.nc'}:4:" in captured.err

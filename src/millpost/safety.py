@@ -104,9 +104,16 @@ def _same_file(a: Path, b: Path) -> bool:
 
 # --- the program and its samples ----------------------------------------------------------------
 def check_program(program: Program) -> None:
-    """A program with no motion has nothing to simulate or optimize: say so instead of failing later."""
-    if len(program.toolpath) == 0:
+    """A program with no motion has nothing to simulate or optimize, and one with a non-finite
+    coordinate or feed cannot be run: say so instead of failing later."""
+    tp = program.toolpath
+    if len(tp) == 0:
         raise MillpostError(f"{program.path}: the program has no moves (nothing to simulate or optimize)")
+    bad = ~(np.isfinite(tp.start).all(axis=1) & np.isfinite(tp.end).all(axis=1)
+            & (np.isfinite(tp.feed_mm_min) | (tp.kind == RAPID)))
+    if bad.any():
+        raise MillpostError(f"{program.path}:{int(tp.line[np.argmax(bad)])}: a coordinate or feed of this move is "
+                            "not a finite number")
 
 
 def estimate_samples(program: Program, ds_mm: float) -> int:
