@@ -357,4 +357,5 @@ def test_infinite_coordinate_never_reaches_a_report(tmp_path, capsys):
     rc = main(["inspect", str(tmp_path / "p.nc")])
     captured = capsys.readouterr()
     assert rc == 2 and "Infinity" not in captured.out
-    assert "bbox_mm.1.0 is not a finite number" in captured.err or f"{tmp_path / 'p.nc'}:4:" in captured.err
+    assert (f"{tmp_path / 'p.nc'}: summary: feed_length_mm is not a finite number" in captured.err
+            or f"{tmp_path / 'p.nc'}:4:" in captured.err)

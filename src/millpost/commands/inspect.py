@@ -31,5 +31,5 @@ def run(args: argparse.Namespace) -> int:
     if args.moves:
         sys.stdout.write(moves_csv(program))
     else:
-        print(json_text(summary(program)))
+        print(json_text(summary(program), f"{args.program}: summary"))
     return 0
