@@ -9,12 +9,15 @@ from pathlib import Path
 from ..files import json_text, write_atomic, write_csv
 from ..job import load_job
 from ..optimize import optimize
+from ..progress import Bars, stage
+from ..report.page import headline
 from ..safety import check_outputs
 from . import add_allow_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("optimize", help="schedule the feeds of a job's program and write it back",
+    p = sub.add_parser("optimize", help="rewrite a job's feeds as fast as the machine, tool and material allow",
+                       epilog="example:\n  millpost optimize sample_jobs/adaptive_pocket --report pocket.html",
                        description="Read the job (a folder with job.toml, or the .toml; format in README), simulate "
                                    "engagement, predict loads, solve one convex feed schedule and write the same "
                                    "program with only F words changed (moves split where the feed must change).")
@@ -22,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", help="output program (default: the job's output)")
     p.add_argument("--json", metavar="SUMMARY", help="write the summary JSON here ('-' for stdout)")
     p.add_argument("--trace", metavar="CSV", help="write per-sample engagement, loads and feeds as CSV")
+    p.add_argument("--report", metavar="HTML", help="write the job report (one HTML page that opens offline)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars and no summary line")
     add_allow_argument(p)
     p.set_defaults(func=run)
 
@@ -30,21 +35,26 @@ def run(args: argparse.Namespace) -> int:
     job = load_job(args.job)
     job.allow = job.allow | set(args.allow)
     output = Path(args.output) if args.output else job.output
-    check_outputs({"output": output, "--json": args.json, "--trace": args.trace}, job.inputs)
-    result = optimize(job, progress=sys.stderr.isatty())
-    result.summary["output"] = str(output)
-    text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
-    times = [result.summary[f"cycle_time_{k}_s"] for k in ("before", "after", "baseline")]
-    write_atomic(output, result.text)
-    if args.json == "-":
-        print(text)
-    elif args.json:
-        write_atomic(args.json, text + "\n")
-    if args.trace:
-        write_csv(args.trace, result.trace)
-    for note in result.summary["notes"]:
-        if note.startswith(("warning", "note:")):
-            print(f"millpost: {note}", file=sys.stderr)
-    print(f"millpost: {result.summary['status']}; cycle time {times[0]:.1f} s -> {times[1]:.1f} s "
-          f"(baseline {times[2]:.1f} s); wrote {output}", file=sys.stderr)
+    check_outputs({"output": output, "--json": args.json, "--trace": args.trace, "--report": args.report},
+                  job.inputs)
+    with Bars(enabled=False if args.quiet else None) as bars:
+        result = optimize(job, progress=bars)
+        result.summary["output"] = str(output)
+        text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
+        write_atomic(output, result.text)
+        if args.json == "-":
+            print(text)
+        elif args.json:
+            write_atomic(args.json, text + "\n")
+        if args.trace:
+            write_csv(args.trace, result.trace)
+        if args.report:
+            from ..report import collect, write_report
+            with stage(bars, "report"):
+                write_report(args.report, collect(result.summary, result.trace, job))
+    if not args.quiet:
+        for note in result.summary["notes"]:
+            if note.startswith(("warning", "note:")):
+                print(f"millpost: {note}", file=sys.stderr)
+        print(f"millpost: {headline(result.summary)}; wrote {output}", file=sys.stderr)
     return 0

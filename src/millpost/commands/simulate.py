@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ConfigError, MillpostError
 from ..files import atomic_path, json_text, write_csv
+from ..progress import Bars
 from ..safety import check_outputs
 from . import add_allow_argument
 
@@ -26,7 +27,8 @@ TRACE_FORMATS = {"sample": "%d", "move": "%d", "line": "%d", "kind": "%d", "tool
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("simulate", help="engagement of the tools along a program through the stock",
-                              description=__doc__)
+                              description=__doc__, epilog="example:\n  millpost simulate sample_jobs/slotting "
+                                                          "--trace slotting.csv --stock-stl slotting.stl")
     p.add_argument("target", metavar="JOB|PROGRAM", help="job folder or job.toml, or a G-code file")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--stock-box", metavar="X0,Y0,Z0,X1,Y1,Z1", help="block stock corners (mm; PROGRAM only)")
@@ -134,8 +136,9 @@ def run(args: argparse.Namespace) -> int:
     program_path, stock, tools, step, dialect, allow = _inputs(args)
     program = read_program(program_path, ReaderOptions(dialect=dialect))
     v0 = stock.volume_mm3()
-    samples, eng, notes = engage(program, stock, tools, step, allow | set(args.allow), stage="simulate",
-                                 slices=args.slices)
+    with Bars() as bars:
+        samples, eng, notes = engage(program, stock, tools, step, allow | set(args.allow), stage="simulate",
+                                     slices=args.slices, progress=bars)
     write_trace(args.trace, samples, eng)
     if args.stock_stl:
         stock.export_stl(args.stock_stl)
