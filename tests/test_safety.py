@@ -359,3 +359,18 @@ def test_infinite_coordinate_never_reaches_a_report(tmp_path, capsys):
     assert rc == 2 and "Infinity" not in captured.out
     assert (f"{tmp_path / 'p.nc'}: summary: feed_length_mm is not a finite number" in captured.err
             or f"{tmp_path / 'p.nc'}:4:" in captured.err)
+
+
+def test_batch_and_report_never_replace_an_input(tmp_path, capsys):
+    from millpost.batch import run_one
+
+    job = job_copy(tmp_path)
+    (job / "job.toml").write_text('output = "program.nc"\n' + (job / "job.toml").read_text())
+    text = (job / "program.nc").read_text()
+    row = run_one(str(job), str(job))  # the output folder is the job's own
+    assert row["status"] == "error" and "is the same file as the input" in row["message"]
+    assert (job / "program.nc").read_text() == text
+    trace = tmp_path / "t.csv"
+    trace.write_text("s_mm\n0\n")
+    assert main(["report", str(trace), "-o", str(trace)]) == 2
+    assert "is the same file as the input" in capsys.readouterr().err and trace.read_text() == "s_mm\n0\n"

@@ -36,6 +36,7 @@ from .errors import CrashError, MillpostError, SafetyError
 from .files import check_writable
 from .gcode.convert import SourceBlocks
 from .gcode.interpret import Program
+from .progress import Progress
 from .toolpath import RAPID, Samples
 from .tools import Tool
 
@@ -169,7 +170,8 @@ def known_start(program: Program, samples: Samples) -> int:
             break
         block = blocks[int(tp.line[i])]
         for w in block.words if block is not None else ():
-            named.update("XY" if w.letter in "@^" else w.letter)
+            if w.letter in "XYZ@^":
+                named.update("XY" if w.letter in "@^" else w.letter)
         if named >= {"X", "Y", "Z"}:
             known = i
             break
@@ -185,7 +187,7 @@ def known_start(program: Program, samples: Samples) -> int:
 
 
 def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: float, allow: Iterable[str],
-           *, stage: str = "optimize", slices: int = 8, progress: bool | None = None
+           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None
            ) -> tuple[Samples, "engagement.Engagement", list[str]]:
     """Resample (``large`` gate), step the tools through `stock` (cut in place; ``rapid`` gate from the
     first known position) and check the cut (``no-cut``, ``below-stock``, ``flute-length``).
@@ -203,11 +205,14 @@ def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: flo
     return samples, eng, notes
 
 
-def _radius(tools: Tool | Mapping[int, Tool], numbers: np.ndarray) -> np.ndarray:
+def _per_sample(tools: Tool | Mapping[int, Tool], numbers: np.ndarray, attr: str, missing: float) -> np.ndarray:
+    """A tool attribute (mm) at each sample from its tool number (`missing` where no tool is described)."""
     if isinstance(tools, Tool):
-        return np.full(len(numbers), tools.radius_mm)
-    table = {n: t.radius_mm for n, t in tools.items()}
-    return np.array([table.get(int(n), 0.0) for n in numbers])
+        return np.full(len(numbers), float(getattr(tools, attr)))
+    out = np.full(len(numbers), missing)
+    for n, t in tools.items():
+        out[numbers == n] = float(getattr(t, attr))
+    return out
 
 
 def check_cut(program: Program, bounds: np.ndarray, tools: Tool | Mapping[int, Tool], samples: Samples, eng,
@@ -217,7 +222,7 @@ def check_cut(program: Program, bounds: np.ndarray, tools: Tool | Mapping[int, T
     f = program.path
     feed = np.asarray(samples.kind) != RAPID
     xyz = samples.xyz_mm
-    R = _radius(tools, samples.tool)
+    R = _per_sample(tools, np.asarray(samples.tool), "radius_mm", 0.0)
     (x0, y0, zb), (x1, y1, zt) = bounds
     over = ((xyz[:, 0] > x0 - R) & (xyz[:, 0] < x1 + R) & (xyz[:, 1] > y0 - R) & (xyz[:, 1] < y1 + R))
     removed = float(np.nansum(np.where(feed, eng.volume_mm3, 0.0)))
@@ -249,8 +254,7 @@ def check_cut(program: Program, bounds: np.ndarray, tools: Tool | Mapping[int, T
         else:
             notes.append(f"note: {msg}: a through-cut (within {THROUGH_CUT_MM:g} mm)")
     if eng.depth_mm is not None:
-        flute = (np.full(len(samples), tools.flute_len) if isinstance(tools, Tool) else
-                 np.array([tools[int(n)].flute_len if int(n) in tools else math.inf for n in samples.tool]))
+        flute = _per_sample(tools, np.asarray(samples.tool), "flute_len", math.inf)
         deep = feed & (eng.depth_mm > flute + 1e-3)
         if deep.any():
             k = int(np.flatnonzero(deep)[np.argmax((eng.depth_mm - flute)[deep])])
