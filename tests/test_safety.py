@@ -374,3 +374,22 @@ def test_batch_and_report_never_replace_an_input(tmp_path, capsys):
     trace.write_text("s_mm\n0\n")
     assert main(["report", str(trace), "-o", str(trace)]) == 2
     assert "is the same file as the input" in capsys.readouterr().err and trace.read_text() == "s_mm\n0\n"
+
+
+@pytest.mark.parametrize("line,message", [("tools = 5", "tools = 5: must be a table"),
+                                          ("limits = 5", "limits = 5: must be a table"),
+                                          ("dialect = 5", "dialect = 5: one of"),
+                                          ('material = "nosuch"', "material = 'nosuch': unknown material")])
+def test_wrong_types_in_the_job_name_the_file_and_key(line, message, tmp_path, capsys):
+    job = job_copy(tmp_path)
+    key = line.split()[0]
+    kept = []
+    for ln in (job / "job.toml").read_text().splitlines():
+        if ln.startswith(f"[{key}"):
+            break  # the job's own table of that name goes (and whatever follows it)
+        if not ln.startswith(key + " "):
+            kept.append(ln)
+    (job / "job.toml").write_text(line + "\n" + "\n".join(kept) + "\n")
+    assert main(["optimize", str(job)]) == 2
+    err = capsys.readouterr().err
+    assert f"{job / 'job.toml'}: {message}" in err and "Traceback" not in err

@@ -103,8 +103,12 @@ def load_job(path: str | Path) -> Job:
         if isinstance(where, Path):
             inputs.append(where)
         described.append(where)
-    material = Material.load(described[0])
-    machine = Machine.load(described[1])
+    try:
+        material, machine = Material.load(described[0]), Machine.load(described[1])
+    except ConfigError as exc:
+        if exc.file:
+            raise
+        raise ConfigError(exc.field, exc.value, exc.rule, file=f) from None
     stock = need("stock")
     if not isinstance(stock, dict):
         raise ConfigError("stock", stock, "must be a table with box = [[...],[...]] or file = ...", file=f)
@@ -130,7 +134,7 @@ def load_job(path: str | Path) -> Job:
         raise ConfigError("stock.cell_mm", cell, f"must be a number in [{CELL_RANGE_MM[0]:g}, {CELL_RANGE_MM[1]:g}] mm",
                           file=f)
     tools = {}
-    for key, spec in dict(need("tools")).items():
+    for key, spec in _table(need("tools"), "tools", f).items():
         if not str(key).isdigit():
             raise ConfigError(f"tools.{key}", spec, "tool tables are named by tool number, e.g. [tools.1]", file=f)
         n = int(key)
@@ -147,7 +151,7 @@ def load_job(path: str | Path) -> Job:
                 raise
             raise ConfigError(f"tools.{key}.{exc.field}", exc.value, exc.rule, file=f) from None
     limits = dict(_LIMIT_KEYS)
-    for key, value in dict(data.get("limits", {})).items():
+    for key, value in _table(data.get("limits", {}), "limits", f).items():
         if key not in _LIMIT_KEYS:
             raise ConfigError(f"limits.{key}", value, f"unknown limit; known: {', '.join(_LIMIT_KEYS)}", file=f)
         if key == "model":
@@ -159,8 +163,25 @@ def load_job(path: str | Path) -> Job:
             if not (_number(value) and lo <= value <= hi):
                 raise ConfigError(f"limits.{key}", value, f"must be a number in [{lo:g}, {hi:g}]", file=f)
         limits[key] = value
-    return Job(path, program, output, material, machine, tools, box, file, cell, data.get("dialect"), limits,
+    dialect = data.get("dialect")
+    if dialect is not None:
+        from .errors import MillpostError
+        from .gcode import dialects
+        try:
+            if not isinstance(dialect, str):
+                raise MillpostError("not a name")
+            dialects.get(dialect)
+        except MillpostError:
+            raise ConfigError("dialect", dialect, f"one of {', '.join(dialects.names())} (haas = fanuc)",
+                              file=f) from None
+    return Job(path, program, output, material, machine, tools, box, file, cell, dialect, limits,
                _allowed(data.get("safety", {}), f), tuple(inputs))
+
+
+def _table(value: object, key: str, f: str) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(key, value, "must be a table", file=f)
+    return value
 
 
 def _number(value: object) -> bool:
