@@ -15,8 +15,8 @@ a rapid into material is a crash whatever the user says, and an output must neve
   spoilboard, noted.
 - ``flute-length``: the tool meets material deeper than its flute length (the shank rubs, chips
   cannot leave).
-- ``large``: the resampled path would need more than `MAX_SAMPLES` samples, or more memory than the
-  machine has free (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
+- ``large``: the resampled path would need more than `MAX_SAMPLES` samples, or more than 80 % of the
+  memory free now (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
 - ``clobber`` (always refused): an output path is an input (program, job, stock, tool, material or
   machine file), another output, or a folder that does not exist.
 """
@@ -128,30 +128,19 @@ def estimate_samples(program: Program, ds_mm: float) -> int:
     return int(min(float(n.sum()) + 1.0, 1e18)) if np.all(np.isfinite(n)) else 10**18
 
 
-def available_memory_bytes() -> int | None:
-    """The memory the system can give this process now (Linux's MemAvailable), None if unknown."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
-
-
 def resample(program: Program, ds_mm: float, allow: Iterable[str], notes: list[str], *,
              stage: str = "optimize") -> Samples:
     """The program's path resampled at `ds_mm` after the ``large`` gate: the number of samples and
     their memory are estimated first, and refused beyond `MAX_SAMPLES` or the free memory."""
+    import psutil
+
     n = estimate_samples(program, ds_mm)
     need = n * BYTES_PER_SAMPLE[stage]
-    free = available_memory_bytes()
-    if n > MAX_SAMPLES or (free is not None and need > free):
-        room = f"{free / 1e9:.1f} GB free" if free is not None else "free memory unknown"
+    room = 0.8 * psutil.virtual_memory().available  # as the stock grid's cell choice allows itself
+    if n > MAX_SAMPLES or need > room:
         refuse_or_note("large", f"{program.path}: {n:,} path samples at ds_mm = {ds_mm:g} would need about "
-                       f"{need / 1e9:.1f} GB ({stage}; ceiling {MAX_SAMPLES:,} samples, {room}): raise ds_mm, "
-                       "or split the program", allow, notes)
+                       f"{need / 1e9:.1f} GB ({stage}; ceiling {MAX_SAMPLES:,} samples and 80 % of the "
+                       f"{room / 0.8e9:.1f} GB free): raise ds_mm, or split the program", allow, notes)
     return program.toolpath.resample(ds_mm)
 
 
