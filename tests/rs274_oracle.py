@@ -3,6 +3,7 @@ means: runs it and reads the canonical trace into moves comparable with millpost
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -28,11 +29,13 @@ class Trace:
 
 def run(program: Path, timeout: float = 60.0) -> Trace:
     """Run `rs274 -g` with tools 1..99 of zero length (tool lengths unknown, as millpost assumes)."""
-    with tempfile.NamedTemporaryFile("w", suffix=".tbl") as table:
-        table.write("".join(f"T{i} P{i} Z0 D0\n" for i in range(1, 100)))
-        table.flush()
-        proc = subprocess.run([RS274, "-t", table.name, "-g", str(program)], capture_output=True, text=True,
-                              timeout=timeout, cwd=program.parent, stdin=subprocess.DEVNULL, errors="replace")
+    with tempfile.TemporaryDirectory() as home:
+        table = Path(home) / "tools.tbl"
+        table.write_text("".join(f"T{i} P{i} Z0 D0\n" for i in range(1, 100)))
+        # rs274 shares its tool table through $HOME/.tool.mmap: a private HOME keeps concurrent runs apart
+        proc = subprocess.run([RS274, "-t", str(table), "-g", str(program)], capture_output=True, text=True,
+                              timeout=timeout, cwd=program.parent, stdin=subprocess.DEVNULL, errors="replace",
+                              env={**os.environ, "HOME": home})
     return parse(proc.stdout + proc.stderr)
 
 

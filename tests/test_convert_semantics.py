@@ -5,6 +5,7 @@ run is refused with file:line:column."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -49,12 +50,16 @@ def machine_moves(path, tmp_path) -> tuple[list[tuple[str, tuple[float, ...]]], 
     table = tmp_path / "tools.tbl"
     # lengths of 0.1 in · tool number (rs274 reads the table in inches): 2.54 mm for T1
     table.write_text("".join(f"T{i} P{i} Z{0.1 * i:.1f} D0.25 ;\n" for i in range(1, 100)))
-    proc = subprocess.run([RS274, "-t", str(table), "-g", str(path)], capture_output=True, text=True, timeout=60,
-                          stdin=subprocess.DEVNULL, cwd=path.parent)
+    params = tmp_path / "params.var"  # fresh parameters each run (rs274 saves them on exit)
+    params.write_text("")
+    # rs274 shares its tool table through $HOME/.tool.mmap: a private HOME keeps concurrent runs apart
+    proc = subprocess.run([RS274, "-v", str(params), "-t", str(table), "-g", str(path)], capture_output=True,
+                          text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=path.parent,
+                          env={**os.environ, "HOME": str(tmp_path)})
     g5x = g92 = tlo = (0.0, 0.0, 0.0)
     moves: list[tuple[str, tuple[float, ...]]] = []
     error = None
-    for line in (proc.stdout + proc.stderr).splitlines():
+    for line in (proc.stdout + "\n" + proc.stderr).splitlines():
         m = _CALL.match(line)
         if not m:
             if line.strip() and line.strip() != "executing" and error is None:
@@ -187,3 +192,12 @@ def test_programs_without_moves_convert_or_refuse_cleanly(text, tmp_path):
             assert name == "grbl" and f"{src}:1:1: convert: grbl has no G43" in str(exc)
             continue
         assert ("G43 H1" in out) == ("G43" in text)
+
+
+def test_incremental_move_from_an_unknown_position_is_refused(tmp_path):
+    """`G91 G0 Z-5` as the first Z move goes 5 mm down from wherever Z stands: an absolute Z word
+    (the reader's assumed start minus 5) would send the tool elsewhere."""
+    src = tmp_path / "in.ngc"
+    src.write_text("G21 G90\nG0 X10 Y10\nG91 G0 Z-5\nG90 G1 X20 F100\nM2\n")
+    with pytest.raises(MillpostError, match=re.escape(f"{src}:3:1: convert: an incremental (G91) move of Z")):
+        convert(read_program(src), dialects.get("linuxcnc"))

@@ -178,7 +178,12 @@ def convert(program: Program, dialect: Dialect) -> str:
         end = tp.end[i]
         moved = np.abs(end - tp.start[i]) > 1e-12
         for a in range(3):
-            known[a] = known[a] or "XYZ"[a] in named or bool(moved[a])
+            touched = "XYZ"[a] in named or bool(moved[a])
+            if touched and not known[a] and program.incremental[i]:
+                raise _refuse(program, line, 1, "", f"an incremental (G91) move of {'XYZ'[a]}, whose position is not "
+                              "known (program start, home or G53), has no absolute equivalent",
+                              f"an absolute {'XYZ'[a]} move before it")
+            known[a] = known[a] or touched
         words = [f"{'XYZ'[a]}{num(end[a])}" for a in range(3) if known[a]]
         kind = int(tp.kind[i])
         if kind == RAPID:
