@@ -393,3 +393,18 @@ def test_wrong_types_in_the_job_name_the_file_and_key(line, message, tmp_path, c
     assert main(["optimize", str(job)]) == 2
     err = capsys.readouterr().err
     assert f"{job / 'job.toml'}: {message}" in err and "Traceback" not in err
+
+
+def test_fusion_through_cut_deeper_than_assumed_flutes_is_refused(tmp_path, capsys):
+    """Fusion's adaptive + contour in 12.55 mm plywood with a 2.65 mm bit: without a flute length
+    (3·D = 7.95 mm assumed) the 12.55 mm contour walls are refused, naming the line and the fix."""
+    from millpost.gcode import read_program
+
+    path = shared_data("fusion-ledfloor", "1055_utab_265bit.nc")
+    bb = read_program(path).toolpath.bbox()
+    box = f"{bb[0, 0] - 1},{bb[0, 1] - 1},-12.55,{bb[1, 0] + 1},{bb[1, 1] + 1},0"
+    rc = main(["simulate", str(path), f"--stock-box={box}", "--cell", "0.1", "--step", "0.25", "--tool-diameter",
+               "2.65", "--trace", str(tmp_path / "t.csv")])
+    err = capsys.readouterr().err
+    assert rc == 2 and not (tmp_path / "t.csv").exists()
+    assert f"{path}:" in err and "deeper than its flute length 7.95 mm (3·D assumed: give flute_length_mm)" in err
