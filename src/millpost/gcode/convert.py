@@ -22,7 +22,7 @@ import re
 
 import numpy as np
 
-from ..errors import ParseError
+from ..errors import MillpostError, ParseError
 from ..toolpath import ARC_CW, PLANE_AXES, RAPID
 from .dialects import Dialect
 from .interpret import INCH, Program
@@ -88,6 +88,11 @@ def convert(program: Program, dialect: Dialect) -> str:
     _frame_setting(program, blocks)
     block = blocks.__getitem__
     tp = program.toolpath
+    if program.compensated.any():  # the moves are tool-centre paths: re-posting would drop the machine's offset
+        line = int(tp.line[np.flatnonzero(program.compensated)[0]])
+        raise MillpostError(f"{program.path}:{line}: cutter radius compensation (G41/G42) cannot be re-posted: "
+                            "convert writes the interpreted tool-centre path, which would bypass the machine's "
+                            "tool diameter and wear offsets; convert the program without compensation")
     out: list[str] = []
     seq = [0]
 
