@@ -22,7 +22,7 @@ import re
 
 import numpy as np
 
-from ..errors import MillpostError, ParseError
+from ..errors import ParseError
 from ..toolpath import ARC_CW, PLANE_AXES, RAPID
 from .dialects import Dialect
 from .interpret import INCH, Program
@@ -84,15 +84,15 @@ def _frame_setting(program: Program, blocks: SourceBlocks) -> None:
 
 def convert(program: Program, dialect: Dialect) -> str:
     """The program as `dialect` writes it: the same machine motion, to the target's number precision."""
-    blocks = SourceBlocks(program)
-    _frame_setting(program, blocks)
-    block = blocks.__getitem__
     tp = program.toolpath
     if program.compensated.any():  # the moves are tool-centre paths: re-posting would drop the machine's offset
         line = int(tp.line[np.flatnonzero(program.compensated)[0]])
-        raise MillpostError(f"{program.path}:{line}: cutter radius compensation (G41/G42) cannot be re-posted: "
-                            "convert writes the interpreted tool-centre path, which would bypass the machine's "
-                            "tool diameter and wear offsets; convert the program without compensation")
+        raise _refuse(program, line, 1, "", "cutter radius compensation (G41/G42) cannot be re-posted: convert "
+                      "writes the interpreted tool-centre path, which would bypass the machine's tool diameter "
+                      "and wear offsets", "a program without compensation")
+    blocks = SourceBlocks(program)
+    _frame_setting(program, blocks)
+    block = blocks.__getitem__
     out: list[str] = []
     seq = [0]
 
