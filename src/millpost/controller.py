@@ -20,7 +20,9 @@ Two planners, chosen by the machine's controller kind (`planner`):
   from the corner (`G64 P`; without P: a quarter of the shorter segment), using at most half of
   each segment, run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic
   blend at half acceleration. Speeds are planned backwards over `lookahead_blocks` segments (LinuxCNC:
-  50) and a segment is never faster than its length per servo period.
+  50), a segment is never faster than its length per servo period, and one that ends at rest ends
+  half a servo period late on average (the period's rest is lost). The last segment before the
+  motion queue runs empty (a command, the end) keeps its parabolic end and half its acceleration.
 
 A controller that processes at most `block_rate_hz` blocks per second cannot finish a block of
 length L faster than 1/rate (speed ≤ L·rate). Commands between moves stop the motion and take time:
@@ -253,13 +255,16 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         L, vnom, acc, vj2, move, u_end = _linuxcnc_blocks(tp, model, feed_mm_min, pauses)
     else:
         L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
-    vnom = np.minimum(vnom, L * model.block_rate_hz)
+    with np.errstate(invalid="ignore"):
+        vnom = np.minimum(vnom, np.where(L > 0, L * model.block_rate_hz, np.inf))
     vj2 = vj2.copy()
     vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
     n = len(L)
     v2 = _plan(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
     ve = np.sqrt(np.maximum(v2, 0))
     t = _trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
+    if model.planner == "linuxcnc":  # a segment ending at rest ends half a servo period late on average
+        t = t + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
     pause = 0.0
     if pauses is not None and n:
         first, last = move[0], move[-1]
@@ -317,7 +322,11 @@ def _grbl_blocks(tp, model, feed_mm_min, pauses):
     return L, vnom, acc, vj, blk.move, blk.u_end
 
 
-def _inscribed(normal: np.ndarray, limits) -> float:
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _inscribed(normal, limits) -> float:
     """LinuxCNC's calculateInscribedDiameter: the largest rate every direction of the plane with this
     normal allows (axis limit over the axis's share of the plane)."""
     best = math.inf
@@ -378,7 +387,7 @@ def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min) -> list[_Segmen
         s.trim_start = s.trim_end = 0.0
         s.req, s.maxvel, s.acc = float(req[k]), float(vmax[k]), float(acc[k])
         s.arc, s.rapid = bool(arc[k]), bool(rapid[k])
-        s.t0, s.t1, s.normal = t0[k], t1[k], normal[k]
+        s.t0, s.t1, s.normal = tuple(t0[k].tolist()), tuple(t1[k].tolist()), tuple(normal[k].tolist())
         s.radius, s.angle = float(radius[k]), float(angle[k])
         s.halved, s.kink_share = False, 0.0
         s.tolerance = model.blend_tolerance_mm
@@ -396,14 +405,15 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     """LinuxCNC's blend arc between two segments (blendmath.c: blendInit3From*, blendParamKinematics,
     blendComputeParameters): (trim of each segment, arc length, arc speed, arc acceleration), or None."""
     u1, u2 = prev.t1, cur.t0
-    dot = float(np.clip(np.dot(u1, u2), -1.0, 1.0))
+    dot = min(max(_dot(u1, u2), -1.0), 1.0)
     theta = math.acos(-dot) / 2.0
     if math.pi / 2 - theta < ANGLE_EPS or theta < ANGLE_EPS:
         return None
-    binormal = np.cross(u1, u2)
-    binormal /= np.linalg.norm(binormal)
+    b = (u1[1] * u2[2] - u1[2] * u2[1], u1[2] * u2[0] - u1[0] * u2[2], u1[0] * u2[1] - u1[1] * u2[0])
+    nb = math.sqrt(_dot(b, b))
+    binormal = (b[0] / nb, b[1] / nb, b[2] / nb)
     for s in (prev, cur):  # a blend arc lies in the plane of an arc it touches
-        if s.arc and abs(abs(float(np.dot(binormal, s.normal))) - 1.0) > 1e-6:
+        if s.arc and abs(abs(_dot(binormal, s.normal)) - 1.0) > 1e-6:
             return None
     if prev.arc and cur.arc and theta < math.pi / 12:
         return None
@@ -425,7 +435,7 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     vm2 = min(cur.maxvel, prev.maxvel / math.cos(phi_eff))
     v_alt = 0.0
     if not prev.arc and not cur.arc:
-        base = float(np.linalg.norm(u2 * vm2 - u1 * vm1))
+        base = math.sqrt(sum((u2[i] * vm2 - u1[i] * vm1) ** 2 for i in range(3)))
         v_alt = vm1 * vm2 * math.sin(phi) / base if base > 0 else 0.0
     v_goal = min(v_req, max(v_alt, v_planar))
     d_tol = math.cos(theta) * tol / (1.0 - math.sin(theta))
@@ -446,27 +456,26 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
 def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses):
     """LinuxCNC 2.9's queue: segments, blend arcs and the speed caps at their junctions."""
     segs = _segments(tp, model, feed_mm_min)
-    stop = _stops(tp, pauses)
+    stop = _stops(tp, pauses).tolist()
     dt = model.servo_period_s
-    amax = np.asarray(model.accel_mm_s2, float)
+    amax = model.accel_mm_s2
     exact = model.exact_stop
     # per junction between segments j-1 and j: ("stop"|"tangent"|"blend"|"parabolic", cap, blend)
     joints: list = [None] * len(segs)
     for j in range(1, len(segs)):
         prev, cur = segs[j - 1], segs[j]
-        if stop[prev.move + 1:cur.move + 1].any():
+        if any(stop[prev.move + 1:cur.move + 1]):
             joints[j] = ("pause", 0.0, None)
             continue
         if exact or prev.rapid != cur.rapid:
             joints[j] = ("stop", 0.0, None)
             continue
-        dot = float(np.dot(prev.t1, cur.t0))
-        if dot < SHARP_CORNER_COS:
+        if _dot(prev.t1, cur.t0) < SHARP_CORNER_COS:
             joints[j] = ("stop", 0.0, None)
             continue
         v_max = min(prev.maxvel, prev.req, cur.maxvel, cur.req)
-        jump = np.abs(v_max / dt * (cur.t0 - prev.t1)) / amax
-        share = float(jump.max()) / (TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0)
+        share = max(abs(cur.t0[i] - prev.t1[i]) / amax[i] for i in range(3)) * v_max / dt
+        share /= TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0
         if share < KINK_RATIO:
             joints[j] = ("tangent", v_max, None)
             prev.kink_share = max(prev.kink_share, share)
