@@ -16,9 +16,12 @@ from __future__ import annotations
 import dataclasses
 import fcntl
 import json
+import os
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from millpost.controller import ControllerModel, program_time
@@ -64,10 +67,60 @@ def limits(machine: Machine) -> list[str]:
     return ["--max-vel", vel, "--max-acc", acc]
 
 
+def _session(sid: int) -> dict[int, str]:
+    """Processes of a session: pid -> command name."""
+    out = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                if os.getsid(int(entry)) == sid:
+                    out[int(entry)] = Path(f"/proc/{entry}/comm").read_text().strip()
+            except OSError:
+                pass
+    return out
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = Path(f"/proc/{entry}/stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(entry))
+    return out
+
+
+def _run_once(cmd: list[str], wall_s: float) -> dict:
+    """One harness run. LinuxCNC's task process (milltask) sometimes dies mid-run and the harness then
+    waits for its whole timeout: when it is gone, the run's display is ended (the harness cleans up)."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0, seen = time.monotonic(), False
+    while proc.poll() is None and time.monotonic() - t0 < wall_s:
+        time.sleep(1.0)
+        session = {}
+        for child in _children(proc.pid):  # LinuxCNC runs in its own session under the harness
+            session.update(_session(child))
+        alive = "milltask" in session.values()
+        seen |= alive
+        if seen and not alive and proc.poll() is None:
+            for pid, name in session.items():
+                if name.startswith("headless_displ"):
+                    os.kill(pid, signal.SIGTERM)
+            seen = False
+    if proc.poll() is None:
+        proc.kill()
+    out, err = proc.communicate()
+    lines = out.strip().splitlines()
+    return json.loads(lines[-1]) if lines else {"ok": False, "error": err[-2000:]}
+
+
 def run(program: Path, machine: Machine, expected_s: float, *, speedup: float = SPEEDUP, attempts: int = 3) -> dict:
-    """LinuxCNC's result for a program (the harness's JSON: `seconds`, `ok`, `errors`). Holds the lock
-    for each run. LinuxCNC's task process sometimes dies at start-up and the run never ends: a run
-    is given 1.5 × the expected time plus a minute of simulated time, and retried."""
+    """LinuxCNC's result for a program (the harness's JSON: `seconds`, `ok`, `errors`), holding the
+    lock for each run; a run whose task process died is retried. A run is given 1.5 × the expected
+    time plus a minute of simulated time."""
     LOCK.touch(exist_ok=True)
     budget = 1.5 * expected_s + 60.0
     cmd = [str(PYTHON), str(HARNESS), str(program), "--speedup", f"{speedup:g}", "--timeout", f"{budget:g}",
@@ -76,12 +129,7 @@ def run(program: Path, machine: Machine, expected_s: float, *, speedup: float = 
     for _ in range(attempts):
         with open(LOCK) as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
-            try:
-                proc = subprocess.run(cmd, capture_output=True, text=True, timeout=budget / speedup + 300)
-                lines = proc.stdout.strip().splitlines()
-                res = json.loads(lines[-1]) if lines else {"ok": False, "error": proc.stderr[-2000:]}
-            except subprocess.TimeoutExpired:
-                res = {"ok": False, "error": "harness timeout"}
+            res = _run_once(cmd, budget / speedup + 300)
         if res.get("ok") or res.get("errors"):
             break
     return res

@@ -242,17 +242,40 @@ def pauses_s(program, model: ControllerModel) -> np.ndarray:
     return out
 
 
+EXACT_PATH, EXACT_STOP = -1.0, -2.0  # path modes in a blend-tolerance array: G61, G61.1
+
+
+def path_modes(program, model: ControllerModel) -> np.ndarray:
+    """Per move: the blend tolerance in effect (mm; G64 P, 0 for a G64 without P) or EXACT_PATH (G61:
+    stop at corners) or EXACT_STOP (G61.1: stop after every move); before the program sets one, the
+    controller's own `blend_tolerance_mm`."""
+    out = np.full(len(program.toolpath), model.blend_tolerance_mm)
+    inch = np.asarray(program.move_inch, bool)
+    for e in program.events:
+        if e.kind != "path_mode" or e.move >= len(out):
+            continue
+        name, p = e.value
+        if name == "blend":
+            out[e.move:] = 0.0 if p is None else p * (25.4 if inch[e.move] else 1.0)
+        else:
+            out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP
+    return out
+
+
 def program_time(program, model: ControllerModel) -> float:
-    """Cycle time of an interpreted program (s): motion and the pauses between its first and last move."""
-    return execute(program.toolpath, model, pauses=pauses_s(program, model)).time_s
+    """Cycle time of an interpreted program (s): motion and the pauses between its first and last
+    move, in the path modes (G61/G64) the program sets."""
+    return execute(program.toolpath, model, pauses=pauses_s(program, model),
+                   blend_mm=path_modes(program, model)).time_s
 
 
 def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
-            pauses: np.ndarray | None = None) -> Execution:
+            pauses: np.ndarray | None = None, blend_mm: np.ndarray | None = None) -> Execution:
     """Plan and time the whole program (rapids at the axis rates). feed_mm_min overrides the
-    programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves."""
+    programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
+    blend_mm (see `path_modes`, per move) sets the LinuxCNC planner's path mode."""
     if model.planner == "linuxcnc":
-        L, vnom, acc, vj2, move, u_end = _linuxcnc_blocks(tp, model, feed_mm_min, pauses)
+        L, vnom, acc, vj2, move, u_end = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
     else:
         L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
     with np.errstate(invalid="ignore"):
@@ -343,7 +366,7 @@ class _Segment:
                  "rapid", "t0", "t1", "normal", "radius", "angle", "halved", "kink_share", "tolerance")
 
 
-def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min) -> list[_Segment]:
+def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, blend_mm) -> list[_Segment]:
     """Segments of LinuxCNC's queue for the non-empty moves, with the limits emccanon gives them."""
     feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
     vax, aax = np.asarray(model.max_rate_mm_s, float), np.asarray(model.accel_mm_s2, float)
@@ -390,7 +413,7 @@ def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min) -> list[_Segmen
         s.t0, s.t1, s.normal = tuple(t0[k].tolist()), tuple(t1[k].tolist()), tuple(normal[k].tolist())
         s.radius, s.angle = float(radius[k]), float(angle[k])
         s.halved, s.kink_share = False, 0.0
-        s.tolerance = model.blend_tolerance_mm
+        s.tolerance = model.blend_tolerance_mm if blend_mm is None else float(blend_mm[idx[k]])
         segs.append(s)
     return segs
 
@@ -418,8 +441,8 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     if prev.arc and cur.arc and theta < math.pi / 12:
         return None
     phi = math.pi - 2.0 * theta
-    t1 = prev.tolerance or 0.25 * prev.nominal
-    t2 = cur.tolerance or 0.25 * cur.nominal
+    t1 = prev.tolerance if prev.tolerance > 0 else 0.25 * prev.nominal
+    t2 = cur.tolerance if cur.tolerance > 0 else 0.25 * cur.nominal
     tol = min(t1, t2, 0.25 * prev.nominal, 0.25 * cur.nominal)
     if prev.arc:
         L1 = min(prev.angle * 2.0 / 3.0, math.pi / 2) * prev.radius
@@ -453,9 +476,9 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     return d_plan, s_arc, min(v_plan, v_req), a_max * TANGENTIAL_SHARE
 
 
-def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses):
+def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, blend_mm):
     """LinuxCNC 2.9's queue: segments, blend arcs and the speed caps at their junctions."""
-    segs = _segments(tp, model, feed_mm_min)
+    segs = _segments(tp, model, feed_mm_min, blend_mm)
     stop = _stops(tp, pauses).tolist()
     dt = model.servo_period_s
     amax = model.accel_mm_s2
@@ -467,7 +490,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses):
         if any(stop[prev.move + 1:cur.move + 1]):
             joints[j] = ("pause", 0.0, None)
             continue
-        if exact or prev.rapid != cur.rapid:
+        if exact or prev.rapid != cur.rapid or prev.tolerance == EXACT_STOP:
             joints[j] = ("stop", 0.0, None)
             continue
         if _dot(prev.t1, cur.t0) < SHARP_CORNER_COS:
@@ -480,6 +503,9 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses):
             joints[j] = ("tangent", v_max, None)
             prev.kink_share = max(prev.kink_share, share)
             cur.kink_share = max(cur.kink_share, share)
+            continue
+        if prev.tolerance == EXACT_PATH:  # G61: no blending, a stop at every corner
+            joints[j] = ("stop", 0.0, None)
             continue
         kink_vel = v_max * KINK_RATIO / share
         blend = _blend(prev, cur, model)
