@@ -97,7 +97,7 @@ def _run_once(cmd: list[str], wall_s: float) -> dict:
     """One harness run. LinuxCNC's task process (milltask) sometimes dies mid-run and the harness then
     waits for its whole timeout: when it is gone, the run's display is ended (the harness cleans up)."""
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    t0, seen = time.monotonic(), False
+    t0, seen, missed = time.monotonic(), False, 0
     while proc.poll() is None and time.monotonic() - t0 < wall_s:
         time.sleep(1.0)
         session = {}
@@ -105,7 +105,8 @@ def _run_once(cmd: list[str], wall_s: float) -> dict:
             session.update(_session(child))
         alive = "milltask" in session.values()
         seen |= alive
-        if seen and not alive and proc.poll() is None:
+        missed = 0 if alive else missed + 1
+        if seen and missed >= 3 and proc.poll() is None:
             for pid, name in session.items():
                 if name.startswith("headless_displ"):
                     os.kill(pid, signal.SIGTERM)

@@ -278,8 +278,6 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         L, vnom, acc, vj2, move, u_end = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
     else:
         L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
-    with np.errstate(invalid="ignore"):
-        vnom = np.minimum(vnom, np.where(L > 0, L * model.block_rate_hz, np.inf))
     vj2 = vj2.copy()
     vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
     n = len(L)
@@ -324,6 +322,7 @@ def _grbl_blocks(tp, model, feed_mm_min, pauses):
     acc = _axis_limited(u, amax)
     rapid = tp.kind[blk.move] == RAPID
     vnom = np.where(rapid | ~np.isfinite(blk.feed_mm_s), axis_rate, np.minimum(blk.feed_mm_s, axis_rate))
+    vnom = np.minimum(vnom, L * model.block_rate_hz)
     n = len(L)
     vj = np.zeros(n + 1)
     if n > 1 and not model.exact_stop:
@@ -544,7 +543,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
         else:
             vj2.append(_parabolic_speed(segs[j - 1], s) ** 2)
         a = s.acc * (0.5 if s.halved else 1.0) * (1.0 - s.kink_share)
-        vmax = min(s.req, _arc_maxvel(s, s.halved) if s.arc else s.maxvel)
+        vmax = min(s.req, _arc_maxvel(s, s.halved) if s.arc else s.maxvel, s.nominal * model.block_rate_hz)
         if s.length >= GAP_CYCLES * dt * vmax or s.length == s.nominal:  # shorter rests join the blend arc
             vmax = min(vmax, s.length / dt)
         if s.arc:
