@@ -48,6 +48,7 @@ NORMAL_SHARE = math.sqrt(1.0 - 0.5**2)  # BLEND_ACC_RATIO_NORMAL: share of a kep
 TANGENTIAL_SHARE = 0.5  # BLEND_ACC_RATIO_TANGENTIAL: share of a along an arc
 KINK_RATIO = 0.1  # ARC_BLEND_TANGENT_KINK_RATIO
 GAP_CYCLES = 4  # ARC_BLEND_GAP_CYCLES: a rest of a segment shorter than this many periods is merged
+RAMP_TIME_S = 1.0 / 100.0  # 1 / ARC_BLEND_RAMP_FREQ: shorter feed segments ramp linearly end to end
 SHARP_CORNER_COS = math.cos(math.pi * (1.0 - 2.0 / 180.0))  # reversal within 2°: stop
 ANGLE_EPS = 1e-6
 # events that wait for the motion to stop, and which time of the model each costs
@@ -275,7 +276,7 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
     programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
     blend_mm (see `path_modes`, per move) sets the LinuxCNC planner's path mode."""
     if model.planner == "linuxcnc":
-        L, vnom, acc, vj2, move, u_end = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
+        L, vnom, acc, vj2, move, u_end, ramps = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
     else:
         L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
     vj2 = vj2.copy()
@@ -284,8 +285,14 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
     v2 = _plan(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
     ve = np.sqrt(np.maximum(v2, 0))
     t = _trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
-    if model.planner == "linuxcnc":  # a segment ending at rest ends half a servo period late on average
-        t = t + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
+    if model.planner == "linuxcnc":
+        # a feed segment run in less than RAMP_TIME_S that flows into the next changes speed linearly
+        # from end to end (no cruise above both ends); one ending at rest ends half a period late
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_ramp = np.where(ve[:-1] + ve[1:] > 0, 2.0 * L / (ve[:-1] + ve[1:]), np.inf)
+            t_est = np.where(ve[:-1] + np.minimum(ve[1:], vnom) > 0, 2.0 * L / (ve[:-1] + np.minimum(ve[1:], vnom)), np.inf)
+        ramp = ramps & (ve[1:] > 0) & (t_est < RAMP_TIME_S)
+        t = np.where(ramp, t_ramp, t) + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
     pause = 0.0
     if pauses is not None and n:
         first, last = move[0], move[-1]
@@ -361,7 +368,7 @@ def _inscribed(normal, limits) -> float:
 class _Segment:
     """One LinuxCNC trajectory segment while the queue is built (lengths mm, speeds mm/s)."""
 
-    __slots__ = ("move", "length", "nominal", "trim_start", "trim_end", "req", "maxvel", "acc", "arc",
+    __slots__ = ("move", "length", "nominal", "trim_end", "req", "maxvel", "acc", "arc",
                  "rapid", "t0", "t1", "normal", "radius", "angle", "halved", "kink_share", "tolerance")
 
 
@@ -395,6 +402,7 @@ def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, blend_mm) -> li
         rmin = np.minimum(r0, r1)
         spiral = (r1 - r0) / np.maximum(np.abs(sweep), 1e-12)
         radius[arc] = np.sqrt(rmin**2 + spiral**2)  # pmCircleEffectiveMinRadius
+        vmax[arc] = np.minimum(vmax[arc], np.sqrt(NORMAL_SHARE * acc[arc] * radius[arc]))  # pmCircleActualMaxVel
         angle[arc] = np.abs(sweep)
         nrm = np.zeros((arc.sum(), 3))
         nrm[np.arange(arc.sum()), an] = 1.0
@@ -406,7 +414,7 @@ def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, blend_mm) -> li
     for k in range(len(idx)):
         s = _Segment()
         s.move, s.length, s.nominal = int(idx[k]), float(L[idx[k]]), float(L[idx[k]])
-        s.trim_start = s.trim_end = 0.0
+        s.trim_end = 0.0
         s.req, s.maxvel, s.acc = float(req[k]), float(vmax[k]), float(acc[k])
         s.arc, s.rapid = bool(arc[k]), bool(rapid[k])
         s.t0, s.t1, s.normal = tuple(t0[k].tolist()), tuple(t1[k].tolist()), tuple(normal[k].tolist())
@@ -443,10 +451,13 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     t1 = prev.tolerance if prev.tolerance > 0 else 0.25 * prev.nominal
     t2 = cur.tolerance if cur.tolerance > 0 else 0.25 * cur.nominal
     tol = min(t1, t2, 0.25 * prev.nominal, 0.25 * cur.nominal)
+    # how much of each segment the arc may use: half a line, up to a third (next) or two thirds (previous)
+    # of an arc's sweep and at most a quarter turn (blendInit3From*)
     if prev.arc:
         L1 = min(prev.angle * 2.0 / 3.0, math.pi / 2) * prev.radius
     else:
-        L1 = min(prev.length, 0.5 * prev.nominal)
+        L1 = 0.5 * prev.nominal
+    L1 = min(L1, prev.length)
     L2 = min(cur.angle / 3.0, math.pi / 2) * cur.radius if cur.arc else 0.5 * cur.length
     a_max = _inscribed(binormal, model.accel_mm_s2)
     a_n = a_max * NORMAL_SHARE
@@ -514,7 +525,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             cur.kink_share = max(cur.kink_share, KINK_RATIO)
         elif blend is not None:
             joints[j] = ("blend", 0.0, blend)
-            prev.trim_end, cur.trim_start = blend[0], blend[0]
+            prev.trim_end = blend[0]
             prev.length -= blend[0]
             cur.length -= blend[0]
         else:
@@ -523,7 +534,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     for j, s in enumerate(segs):  # the last queued segment before a pause keeps its parabolic term
         if j + 1 == len(segs) or joints[j + 1][0] == "pause":
             s.halved = True
-    L, vnom, acc, vj2, move, u_end = [], [], [], [], [], []
+    L, vnom, acc, vj2, move, u_end, ramps = [], [], [], [], [], [], []
     for j, s in enumerate(segs):
         joint = joints[j]
         if joint is not None and joint[0] == "blend":
@@ -534,6 +545,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             acc.append(a)
             move.append(segs[j - 1].move)
             u_end.append(1.0)
+            ramps.append(True)
         if joint is None or joint[0] in ("stop", "pause"):
             vj2.append(0.0)
         elif joint[0] == "blend":
@@ -553,9 +565,10 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
         acc.append(a)
         move.append(s.move)
         u_end.append((s.nominal - s.trim_end) / s.nominal)
+        ramps.append(not s.rapid)
     vj2.append(0.0)
     return (np.asarray(L, float), np.asarray(vnom, float), np.asarray(acc, float), np.asarray(vj2, float),
-            np.asarray(move, np.int64), np.asarray(u_end, float))
+            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool))
 
 
 def _parabolic_speed(prev: _Segment, cur: _Segment) -> float:
