@@ -23,6 +23,7 @@ from pathlib import Path
 from .errors import ConfigError
 from .machine import Machine
 from .materials import Material
+from .registry import plugins
 from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
@@ -120,8 +121,9 @@ def load_job(path: str | Path) -> Job:
         if key not in _LIMIT_KEYS:
             raise ConfigError(f"limits.{key}", value, f"unknown limit; known: {', '.join(_LIMIT_KEYS)}", file=f)
         if key == "model":
-            if value not in ("mechanistic", "kienzle"):
-                raise ConfigError("limits.model", value, "mechanistic or kienzle", file=f)
+            if value not in plugins("force_models"):
+                raise ConfigError("limits.model", value, f"one of {', '.join(sorted(plugins('force_models')))}",
+                                  file=f)
         elif not (isinstance(value, (int, float)) and value >= 0):
             raise ConfigError(f"limits.{key}", value, "must be a number >= 0", file=f)
         limits[key] = value

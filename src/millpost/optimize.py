@@ -34,6 +34,7 @@ from .errors import MillpostError
 from .gcode import ReaderOptions, read_program
 from .gcode.interpret import Program
 from .job import Job
+from .progress import Progress, resolve, stage
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, ChipLoad, CurrentSlew, FeedLimit, Junction, MotorCurrent,
                        PathGrid, PathJerk, ScheduleOptions, SpeedLoad, schedule_samples)
 from .schedule.assemble import merged_bounds
@@ -249,13 +250,19 @@ def replay(samples: Samples, limits: list, loads: dict, v_mm_s: np.ndarray, job:
     return out
 
 
-def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions | None = None) -> Result:
-    """Run the whole post step on a job and return the new program and its summary."""
+def optimize(job: Job, *, progress: Progress | bool | None = None, options: ScheduleOptions | None = None) -> Result:
+    """Run the whole post step on a job and return the new program and its summary. progress: a
+    `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal)."""
     t_start = time.perf_counter()
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
-    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
-    result = schedule_program(job, program, samples, eng, options)
+    report = resolve(progress)
+    with stage(report, "read program"):
+        program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    with stage(report, "stock"):
+        stock = job.stock()
+    eng = engagement.simulate(stock, dict(job.tools), samples, progress=report)
+    with stage(report, "forces, schedule, emit"):
+        result = schedule_program(job, program, samples, eng, options)
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
