@@ -157,7 +157,7 @@ def test_linuxcnc_blend_speed_is_the_arc_within_tolerance():
     r = math.tan(theta) * d
     v = math.sqrt(math.sqrt(0.75) * 2500 * r)  # a in the XY plane: the weaker of X and Y
     assert ex.vnom[1] == pytest.approx(v, rel=1e-9)
-    assert ex.length[1] == pytest.approx(r * math.pi / 2, rel=1e-9)
+    assert ex.length[1] + ex.length[2] == pytest.approx(r * math.pi / 2, rel=1e-9)  # its halves on each line
 
 
 def test_pauses_add_their_time_and_stop_the_motion():

@@ -276,8 +276,9 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
     programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
     blend_mm (see `path_modes`, per move) sets the LinuxCNC planner's path mode."""
     if model.planner == "linuxcnc":
-        L, vnom, acc, vj2, move, u_end, ramps = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
+        L, vnom, acc, vj2, move, u_end, ramps, split = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
     else:
+        split = []
         L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
     vj2 = vj2.copy()
     vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
@@ -298,6 +299,17 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         first, last = move[0], move[-1]
         inside = np.arange(len(pauses))
         pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
+    if split:  # blend arcs as two halves, one on each move they join, for speeds along the program
+        k = np.array([b[0] for b in split])
+        mid = np.minimum.reduce([np.sqrt(ve[k] ** 2 + acc[k] * L[k]), vnom[k], np.sqrt(ve[k + 1] ** 2 + acc[k] * L[k])])
+        at = k + 1
+        t[k] *= 0.5
+        L = L.copy()
+        L[k] *= 0.5
+        t, L, vnom, acc = (np.insert(x, at, x[k]) for x in (t, L, vnom, acc))
+        ve = np.insert(ve, at, mid)
+        move = np.insert(move, at, [b[1] for b in split])
+        u_end = np.insert(u_end, at, [b[2] for b in split])
     return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, pause)
 
 
@@ -534,10 +546,10 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     for j, s in enumerate(segs):  # the last queued segment before a pause keeps its parabolic term
         if j + 1 == len(segs) or joints[j + 1][0] == "pause":
             s.halved = True
-    L, vnom, acc, vj2, move, u_end, ramps = [], [], [], [], [], [], []
+    L, vnom, acc, vj2, move, u_end, ramps, split = [], [], [], [], [], [], [], []
     for j, s in enumerate(segs):
         joint = joints[j]
-        if joint is not None and joint[0] == "blend":
+        if joint is not None and joint[0] == "blend":  # the arc; its second half lies on the next move
             d, s_arc, v, a = joint[2]
             vj2.append(np.inf)
             L.append(s_arc)
@@ -546,6 +558,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             move.append(segs[j - 1].move)
             u_end.append(1.0)
             ramps.append(True)
+            split.append((len(L) - 1, s.move, d / s.nominal))
         if joint is None or joint[0] in ("stop", "pause"):
             vj2.append(0.0)
         elif joint[0] == "blend":
@@ -568,7 +581,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
         ramps.append(not s.rapid)
     vj2.append(0.0)
     return (np.asarray(L, float), np.asarray(vnom, float), np.asarray(acc, float), np.asarray(vj2, float),
-            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool))
+            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool), split)
 
 
 def _parabolic_speed(prev: _Segment, cur: _Segment) -> float:

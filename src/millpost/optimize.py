@@ -65,7 +65,11 @@ class Result:
 
 
 def machine_controller(job: Job) -> controller.ControllerModel:
-    return controller.ControllerModel.from_machine(job.machine)
+    ax = [job.machine.axes[a] for a in "xyz"]
+    return controller.ControllerModel(
+        max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
+        junction_deviation_mm=job.machine.controller.junction_deviation_mm,
+        block_rate_hz=job.machine.controller.block_rate_Hz)
 
 
 def _max_sin(eng) -> np.ndarray:
