@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import controller, engagement
-from .emit import FeedPlan, write_feeds
+from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .errors import MillpostError
-from .gcode import ReaderOptions, read_program
+from .gcode import read_program
 from .gcode.interpret import Program
 from .job import Job
 from .progress import Progress, resolve, stage
@@ -260,7 +260,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     t_start = time.perf_counter()
     report = resolve(progress)
     with stage(report, "read program"):
-        program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+        program = read_program(job.program, job.reader_options())
         samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     with stage(report, "stock"):
         stock = job.stock()
@@ -294,8 +294,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     else:
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
-        fragments = piecewise_feeds(samples, emission_limit(samples, limits, sched,
-                                                            ("axis_acceleration", "junction", "jerk")))
+        fragments = whole_compensated_moves(program, piecewise_feeds(
+            samples, emission_limit(samples, limits, sched, ("axis_acceleration", "junction", "jerk"))))
         plan = _plan_from_fragments(program, fragments)
         emitted_tp = split_toolpath(tp, fragments)
         status, message = "solved", ""
