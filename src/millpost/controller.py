@@ -21,8 +21,10 @@ Two planners, chosen by the machine's controller kind (`planner`):
   each segment, run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic
   blend at half acceleration. Speeds are planned backwards over `lookahead_blocks` segments (LinuxCNC:
   50), a segment is never faster than its length per servo period, and one that ends at rest ends
-  half a servo period late on average (the period's rest is lost). The last segment before the
-  motion queue runs empty (a command, the end) keeps its parabolic end and half its acceleration.
+  half a servo period late on average (the period's rest is lost). A feed segment that takes less
+  than 10 ms (1/ARC_BLEND_RAMP_FREQ) and flows into the next changes speed linearly from end to end.
+  The last segment before the motion queue runs empty (a command, the end) keeps its parabolic end
+  and half its acceleration.
 
 A controller that processes at most `block_rate_hz` blocks per second cannot finish a block of
 length L faster than 1/rate (speed ≤ L·rate). Commands between moves stop the motion and take time:
@@ -40,7 +42,7 @@ import numba
 import numpy as np
 
 from millpost.errors import ConfigError
-from millpost.toolpath import ARC_CW, PLANE_AXES, RAPID, Samples, Toolpath
+from millpost.toolpath import ARC_CW, RAPID, Samples, Toolpath
 
 PLANNERS = ("grbl", "linuxcnc")
 # LinuxCNC 2.9 constants (tp.c, blendmath.h, tc_types.h and the [TRAJ] defaults)
@@ -320,7 +322,8 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         # from end to end (no cruise above both ends); one ending at rest ends half a period late
         with np.errstate(divide="ignore", invalid="ignore"):
             t_ramp = np.where(ve[:-1] + ve[1:] > 0, 2.0 * L / (ve[:-1] + ve[1:]), np.inf)
-            t_est = np.where(ve[:-1] + np.minimum(ve[1:], vnom) > 0, 2.0 * L / (ve[:-1] + np.minimum(ve[1:], vnom)), np.inf)
+            v_end = ve[:-1] + np.minimum(ve[1:], vnom)
+            t_est = np.where(v_end > 0, 2.0 * L / v_end, np.inf)
         ramp = ramps & (ve[1:] > 0) & (t_est < RAMP_TIME_S)
         t = np.where(ramp, t_ramp, t) + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
     pause = 0.0
@@ -437,9 +440,10 @@ def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, blend_mm) -> li
         c, s = planar / length, np.abs(dn) / length
         a1, a2, an = ax[:, 0], ax[:, 1], ax[:, 2]
         v_plane, a_plane = np.minimum(vax[a1], vax[a2]), np.minimum(aax[a1], aax[a2])
-        with np.errstate(divide="ignore"):
-            vmax[arc] = np.minimum(v_plane / np.maximum(c, 1e-12), np.where(s > 1e-12, vax[an] / np.maximum(s, 1e-12), np.inf))
-            acc[arc] = np.minimum(a_plane / np.maximum(c, 1e-12), np.where(s > 1e-12, aax[an] / np.maximum(s, 1e-12), np.inf))
+        # a helix: the plane's share c and the normal axis's share s of the path (emccanon's ARC_FEED)
+        c, s = np.maximum(c, 1e-12), np.maximum(s, 1e-12)
+        vmax[arc] = np.minimum(v_plane / c, np.where(s > 1e-12, vax[an] / s, np.inf))
+        acc[arc] = np.minimum(a_plane / c, np.where(s > 1e-12, aax[an] / s, np.inf))
         rmin = np.minimum(r0, r1)
         spiral = (r1 - r0) / np.maximum(np.abs(sweep), 1e-12)
         radius[arc] = np.sqrt(rmin**2 + spiral**2)  # pmCircleEffectiveMinRadius
