@@ -13,7 +13,8 @@ ix_A, iy_A, iz_A; positions help the alignment) is aligned to the job's forward 
 blocks: two of three fit, one is held out. The base model (cutting coefficients, offsets, axis inertia)
 is refitted first: a gap that refit closes is reported as coefficients in the notes. Then every
 registered effect is fitted with it and kept when the held-out error falls significantly (held-out F-test
-on 0.5 s residual means, Bonferroni over the candidates) and by at least 25 %; a second effect is
+on 0.5 s residual means, Bonferroni over the candidates), by at least 25 % on the channels it acts on, and with
+physical signs (wear, compliance, mass, lag, exponent > 0); a second effect is
 searched the same way. JSON: effects (name, params, stderr, channels, rms_before, rms_after), held-out
 rms_before/rms_after per channel, offset_s, notes.
 
