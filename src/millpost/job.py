@@ -9,7 +9,9 @@
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
     [limits]                          # optional: deflection_mm, feed_max_mm_min,
-                                      # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle")
+                                      # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle"),
+                                      # plunge_feed_max_mm_min (cap on the feed of moves going down
+                                      # into material: plunges, drilling, ramps)
 
 A folder stands for the `job.toml` inside it.
 """
@@ -28,7 +30,7 @@ from .config import Table
 from .tools.library import load_tool, tool_from_table
 
 _LIMIT_KEYS = {"deflection_mm": 0.025, "feed_max_mm_min": None, "tool_safety_factor": None,
-               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None}
+               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None}
 
 
 @dataclass

@@ -14,6 +14,7 @@ import numpy as np
 from .config import Table, load_description
 from .errors import ConfigError
 from .forces import Kienzle, Mechanistic
+from .forces.endcut import EndCut
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,16 @@ class MechanisticCoefficients:
 
 
 @dataclass(frozen=True)
+class EndCuttingCoefficients:
+    """Drilling/plunging: thrust_ratio c_f (normal over cutting force of an end edge) and the Shaw–Oxford
+    drilling constant Kd_N_mm2 (K_d, for the chisel edge's feed-independent thrust)."""
+
+    thrust_ratio: float
+    Kd_N_mm2: float
+    source: str
+
+
+@dataclass(frozen=True)
 class Material:
     """A workpiece material. Speeds m/min, chip loads mm per tooth, hardness HB (0 when not given).
 
@@ -66,6 +77,7 @@ class Material:
     min_chip_ratio: float
     min_chip_source: str
     hardness_HB: float = 0.0
+    end_cutting: EndCuttingCoefficients | None = None
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Material":
@@ -114,9 +126,15 @@ class Material:
         ratio = mc.number("ratio_to_edge_radius", gt=0, le=2)
         mc_source = mc.string("source")
         mc.done()
-        t.done(("mechanistic",))
+        end = None
+        if t.has("end_cutting"):
+            e = t.table("end_cutting")
+            end = EndCuttingCoefficients(e.number("thrust_ratio", ge=0, le=3), e.number("Kd_N_mm2", ge=0),
+                                         e.string("source"))
+            e.done()
+        t.done(("mechanistic", "end_cutting"))
         return cls(name, description, kienzle, mech, speeds, speed_source, dia, fmin, fmax, chip_source,
-                   ratio, mc_source, hardness)
+                   ratio, mc_source, hardness, end)
 
     # --- guidance -------------------------------------------------------------------------------
     def chip_load_mm(self, diameter_mm: float) -> tuple[float, float]:
@@ -153,6 +171,14 @@ class Material:
         kte = k.mc * k.kc11_N_mm2 * h0_mm ** (1 - k.mc)
         return Mechanistic.from_coefficients(ktc, k.radial_ratio * ktc, k.axial_ratio * ktc,
                                              kte, k.radial_ratio * kte, k.axial_ratio * kte, **settings)
+
+    def end_cut_model(self) -> EndCut | None:
+        """Thrust and torque of the tool's end (Kienzle lips with this material's k_c1.1, m_c, plus the
+        chisel edge); None when the material has no [end_cutting] data."""
+        if self.end_cutting is None:
+            return None
+        return EndCut(self.kienzle.kc11_N_mm2, self.kienzle.mc, self.end_cutting.thrust_ratio,
+                      self.end_cutting.Kd_N_mm2)
 
     def force_model(self, kind: str = "mechanistic", **settings) -> Mechanistic | Kienzle:
         if kind == "mechanistic":

@@ -189,6 +189,39 @@ def _material(c, za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi):
 
 
 @njit(cache=True)
+def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids,
+              ptr, lo, hi, out):
+    """The tool's end on a descending step (tip now at pz, `drop` mm lower than before): per radial bin
+    j of [0, R] (J = len(out) equal bins), the mean over the bin's columns of the material fraction in
+    the band [z_s, z_s + drop] just above the tool surface z_s = pz + height(r). That is the share of
+    the circle at radius r where the end edges cut a full axial feed (1 when drilling on or re-entering
+    the own bottom, 0 over a hole, partial while the tip enters a surface). Read only (before cutting)."""
+    J = out.shape[0]
+    cnt = np.zeros(J)
+    j0 = int(math.ceil((py - R - y0) / h - 0.5))
+    j1 = int(math.floor((py + R - y0) / h - 0.5))
+    for j in range(j0, j1 + 1):
+        dy = y0 + (j + 0.5) * h - py
+        w2 = R * R - dy * dy
+        if w2 < 0.0:
+            continue
+        w = math.sqrt(w2)
+        ia = int(math.ceil((px - w - x0) / h - 0.5))
+        ib = int(math.floor((px + w - x0) / h - 0.5))
+        for i in range(ia, ib + 1):
+            dx = x0 + (i + 0.5) * h - px
+            d = math.sqrt(dx * dx + dy * dy)
+            b = min(int(d / R * J), J - 1)
+            cnt[b] += 1.0
+            if 0 <= i < nx and 0 <= j < ny:  # columns off the grid are air
+                zs = pz + surface_height(d, shape, R, rc, r_tip, tan_half)
+                m = _material(j * nx + i, zs, zs + drop, top, zf, has_multi, bits, ids, ptr, lo, hi)
+                out[b] += min(m / drop, 1.0)
+    for b in range(J):
+        out[b] = out[b] / cnt[b] if cnt[b] > 0 else 0.0
+
+
+@njit(cache=True)
 def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
                has_multi, bits, ids, ptr, lo, hi, tol):
     """Update (cut=True) or check (cut=False) the columns under the tool at tip (px, py, pz).
@@ -537,11 +570,12 @@ def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
 @njit(cache=True)
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
-        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o):
+        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, end_o):
     """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
     ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
-    look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
-    of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place)."""
+    look-ahead distance further on). Outputs are written in place (rows k); end_o[k] is the end's
+    radial engagement of a descending feed step (`_end_band`). Returns OK or the index of a rapid that
+    hits material. prev_f: (2,) feed direction carried across calls (in place)."""
     dphi = math.pi / M
     sin_t = np.sin(np.arange(M + 1) * dphi)
     cos_t = np.cos(np.arange(M + 1) * dphi)
@@ -574,6 +608,9 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         gx, gy = ring_at[k, 2], ring_at[k, 3]
         feed_o[k, 0], feed_o[k, 1] = gx, gy
         desc_o[k] = descending
+        if descending and not rapid[k]:
+            _end_band(px, py, pz, -ddz, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits,
+                      ids, ptr, lo, hi, end_o[k])
         n = xyz.shape[0]
         if _level_step(k, n, xyz, fresh, shape):
             # the level sweep of this step: its band, the wedge at its start (when the previous
