@@ -135,12 +135,6 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
             loads[f"{key}_a"][idx] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
             loads[f"{key}_b"][idx] = getattr(ll, f"{key}_b")
         sin_end[idx] = end_chip_factor(eng.select(idx), tool)
-        if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
-            le = end_model.linear_loads(eng.select(idx), tool, rpm[idx],
-                                        feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[idx], nan=100.0))
-            for key in ("power", "torque", "force"):
-                loads[f"{key}_a"][idx] += getattr(le, f"{key}_a") * 60.0
-                loads[f"{key}_b"][idx] += getattr(le, f"{key}_b")
         thrust_limit[idx] = thrust_limit_N(tool, job.limits["tool_safety_factor"] or None)
         tool_torque_limit[idx] = torque_limit_Nm(tool, job.limits["tool_safety_factor"] or None)
         beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
@@ -153,6 +147,14 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
         end_here = idx[sin_end[idx] > 0]
         fz_hi[end_here] = np.minimum(fz_hi[end_here], entry_chip_share(tool) * h_max / sin_end[end_here])
         fz_lo[end_here] = h_min / np.maximum(sin_max[end_here], sin_end[end_here])
+        if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
+            # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above it
+            # is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
+            ref = np.minimum(np.nan_to_num(samples.feed_mm_min[idx], nan=100.0), fz_hi[idx] * tool.flutes * rpm[idx])
+            le = end_model.linear_loads(eng.select(idx), tool, rpm[idx], feed_ref_mm_min=ref)
+            for key in ("power", "torque", "force"):
+                loads[f"{key}_a"][idx] += getattr(le, f"{key}_a") * 60.0
+                loads[f"{key}_b"][idx] += getattr(le, f"{key}_b")
         limits.append(ChipLoad(tool.flutes, rpm, np.where(samples.tool == number, fz_lo, 0.0),
                                np.where(samples.tool == number, fz_hi, np.inf), name="chip_load"))
     loads["unavoidable"] = {}

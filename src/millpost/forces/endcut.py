@@ -73,6 +73,11 @@ def radial_weights(tool: Tool, bins: int, mc: float, sub: int = 64) -> tuple[np.
     return (r * s ** (-mc)).sum(1) * dr, (s ** (1.0 - mc)).sum(1) * dr
 
 
+def _descent(engagement: Engagement) -> np.ndarray:
+    """−dz/ds per sample; 0 for engagements given as flank cuts (no end data)."""
+    return engagement.descent if engagement.descent is not None else np.zeros(len(engagement))
+
+
 def end_chip_factor(engagement: Engagement, tool: Tool) -> np.ndarray:
     """Per sample the largest end chip per unit feed per tooth, descent·max sin κ over the engaged bins
     (the axial chip is h = f_z·descent·sin κ); 0 where the end does not cut."""
@@ -82,7 +87,7 @@ def end_chip_factor(engagement: Engagement, tool: Tool) -> np.ndarray:
     J = w.shape[1]
     mid = (np.arange(J) + 0.5) * tool.radius_mm / J
     s = np.where(w > 0, tool.end_sin_kappa(mid)[None, :], 0.0).max(axis=1)
-    return engagement.descent * s
+    return _descent(engagement) * s
 
 
 def entry_chip_share(tool: Tool) -> float:
@@ -124,14 +129,16 @@ class EndCut:
 
     def power_law(self, engagement: Engagement, tool: Tool) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """(Q_F (N,), Q_M (N,), C (N,), p) with thrust = Q_F·f^p + C (N) and torque = Q_M·f^p (N·mm) for an
-        axial feed per tooth f (mm): the module docstring's integrals over the engaged bins."""
+        axial feed per tooth f (mm): the module docstring's integrals over the engaged bins. An engagement
+        given as flank cuts (no end_engaged: `Engagement.uniform`, `given_cut`) has no end loads."""
         w = engagement.end_engaged
         if w is None:
-            raise MillpostError("end cutting needs the end's engagement (from engagement.simulate)")
+            zero = np.zeros(len(engagement))
+            return zero, zero, zero, 1.0 - self.mc
         W_M, W_F = radial_weights(tool, w.shape[1], self.mc)
         k = tool.flutes * self.kc11
         chisel = 0.007 * self.Kd * tool.diameter_mm ** 2 * chisel_factor(tool.chisel_ratio)
-        cutting = engagement.descent > 0
+        cutting = _descent(engagement) > 0
         return (np.where(cutting, self.thrust_ratio * k * (w @ W_F), 0.0), np.where(cutting, k * (w @ W_M), 0.0),
                 np.where(cutting, chisel * w[:, 0], 0.0), 1.0 - self.mc)
 
@@ -139,7 +146,7 @@ class EndCut:
         """(thrust N, torque N·m) per sample at feed per tooth fz_mm along the path (the end's axial feed
         per tooth is fz·descent)."""
         QF, QM, C, p = self.power_law(engagement, tool)
-        f = np.broadcast_to(np.asarray(fz_mm, float), (len(engagement),)) * engagement.descent
+        f = np.broadcast_to(np.asarray(fz_mm, float), (len(engagement),)) * _descent(engagement)
         fp = np.power(np.maximum(f, 0.0), p)
         return QF * fp + C, QM * fp / 1000.0
 
@@ -149,7 +156,7 @@ class EndCut:
         f^p, f = v·descent/(z·n), which bounds it from above for every v ≥ 0."""
         n = len(engagement)
         rpm_n = rpm_array(rpm, n)
-        per_feed = engagement.descent / (tool.flutes * rpm_n)        # f per mm/min of path feed
+        per_feed = _descent(engagement) / (tool.flutes * rpm_n)        # f per mm/min of path feed
         v0 = np.broadcast_to(np.asarray(feed_ref_mm_min, float), (n,))
         if np.any(v0 <= 0):
             raise MillpostError("the reference feed must be > 0")
