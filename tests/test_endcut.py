@@ -257,3 +257,24 @@ def test_drill_and_mill_cycles(tmp_path):
     assert limits["thrust"] <= 1.005 and limits["tool_torque"] <= 1.005 and limits["torque"] <= 1.005
     drilling = (result.samples.tool == 2) & (result.trace["thrust_N"] > 0)
     assert drilling.sum() > 50 and np.all(result.trace["torque_Nm"][drilling] > 0)
+
+
+def test_absurd_drilling_feed_is_lowered_to_the_drill_strength(tmp_path):
+    """FreeCAD's legacy post test drills G83 at F6000 and S1000 (6 mm/rev with a 5 mm drill). The thrust
+    bound is the tangent at the chip-load cap, not at the absurd program, so the cycle is lowered below the
+    feed where the exact thrust (lips + chisel) reaches the HSS drill's buckling load over its safety
+    factor, and nothing is reported as unavoidable and held at F6000."""
+    (tmp_path / "p.nc").write_text("%\nG17 G54 G40 G49 G80 G90 G94\nG21\nM6 T1\nM3 S1000\nG0 X0 Y0 Z20\n"
+                                   "G83 Z0 F6000 Q2 R10\nG0 X20\nG83 Z0 Q2 R10\nG80\nM30\n%\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-10, -10, -10], [30, 10, 5]]\n'
+        '[tools.1]\ndiameter_mm = 5\nflutes = 2\nshape = "drill"\nmaterial = "hss"\nflute_length_mm = 52\n'
+        'stickout_mm = 62\n')
+    job = load_job(tmp_path / "job.toml")
+    result = optimize(job, progress=False)
+    assert result.summary["status"] == "solved" and not result.summary["unavoidable_samples"]
+    feed = float(next(ln for ln in result.text.splitlines() if ln.startswith("G83")).split("F")[1].split()[0])
+    tool = job.tools[1]
+    thrust = model("al6061").predict(solid_end(), feed / (2 * 1000), tool)[0][0]
+    assert thrust <= thrust_limit_N(tool) * 1.001
+    assert 50 < feed < 6000 / 10
