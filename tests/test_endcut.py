@@ -22,7 +22,7 @@ import pytest
 
 from millpost import stock
 from millpost.engagement import Engagement, simulate
-from millpost.forces.endcut import EndCut, chisel_factor, thrust_limit_N, torque_limit_Nm
+from millpost.forces.endcut import EndCut, chisel_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
 from millpost.gcode import read_text
 from millpost.job import load_job
 from millpost.materials import Material
@@ -141,6 +141,7 @@ def test_end_engagement_annulus_over_a_hole():
     drop = -np.diff(samples.xyz_mm[:, 2], prepend=samples.xyz_mm[0, 2])
     assert eng.volume_mm3[sel] == pytest.approx(np.pi * (25 - 4) * drop[sel], rel=0.01)
     assert np.all(eng.end_engaged[sel][:, 0] == 0)    # the hole: nothing under the centre
+    assert np.all(entry_chip_share(eng, tools[2])[sel] == 1.0)   # not enclosed: chips fall into the hole
 
 
 def test_ramp_and_helix_descent_and_whole_end_engaged():
@@ -153,6 +154,7 @@ def test_ramp_and_helix_descent_and_whole_end_engaged():
     assert eng.descent[steady] == pytest.approx(math.sin(alpha), rel=1e-6)
     assert eng.end_engaged[steady].mean() == pytest.approx(1.0, abs=0.02)
     assert np.all(np.isfinite(eng.phi_st[steady]).any(axis=1))          # and the flank cuts the slot
+    assert np.all(entry_chip_share(eng, tool)[steady] == 0.5)           # an enclosed end: entry chip load
     # helix of radius 4 (path Ø8), pitch 1 mm per turn, two turns down from the surface
     samples, eng = box_plunge(tool, "G21 G90 G0 X4 Y0 Z0\nS8000 M3\nG17 G2 X4 Y0 Z-1 I-4 J0 F600\nG2 X4 Y0 Z-2 I-4 J0\n")
     tan_a = 1.0 / (math.pi * 8)

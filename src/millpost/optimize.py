@@ -13,7 +13,7 @@ machine, tool and material:
 - chip_load: the maximum chip thickness h_max = f_z·max sin φ·sin κ of the engaged arc between the
   material's minimum chip (edge radius: no rubbing; a soft floor) and its maximum chip load; where the
   tool's end cuts (moving down into material) also the axial chip f_z·descent·sin κ, up to half the
-  chip load for a milling cutter (`forces.endcut.entry_chip_share`);
+  chip load for a milling cutter entering along its axis (`forces.endcut.entry_chip_share`);
 - thrust and tool_torque: the end's thrust and torque (`forces.endcut`, added to the axial force and
   the spindle torque/power) under the tool's buckling load and torsional strength; plunge_feed: the
   user's `plunge_feed_max_mm_min` on moves going down into material (and the programmed feed there
@@ -128,13 +128,14 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
             line = int(samples.line[np.flatnonzero(cutting & (samples.tool == number))[0]])
             raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
         idx = np.flatnonzero(samples.tool == number)
+        eng_t = eng.select(idx)
         # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
-        ll = model.linear_loads(eng.select(idx), tool, rpm[idx],
+        ll = model.linear_loads(eng_t, tool, rpm[idx],
                                 feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[idx], nan=100.0))
         for key in ("peak", "power", "torque", "force"):
             loads[f"{key}_a"][idx] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
             loads[f"{key}_b"][idx] = getattr(ll, f"{key}_b")
-        sin_end[idx] = end_chip_factor(eng.select(idx), tool)
+        sin_end[idx] = end_chip_factor(eng_t, tool)
         thrust_limit[idx] = thrust_limit_N(tool, job.limits["tool_safety_factor"] or None)
         tool_torque_limit[idx] = torque_limit_Nm(tool, job.limits["tool_safety_factor"] or None)
         beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
@@ -144,14 +145,16 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
         cut_here = idx[sin_max[idx] > 0]
         fz_hi[cut_here] = h_max / sin_max[cut_here]
         fz_lo[cut_here] = h_min / sin_max[cut_here]
-        end_here = idx[sin_end[idx] > 0]
-        fz_hi[end_here] = np.minimum(fz_hi[end_here], entry_chip_share(tool) * h_max / sin_end[end_here])
+        end_cut = sin_end[idx] > 0
+        end_here = idx[end_cut]
+        share = entry_chip_share(eng_t, tool)[end_cut]
+        fz_hi[end_here] = np.minimum(fz_hi[end_here], share * h_max / sin_end[end_here])
         fz_lo[end_here] = h_min / np.maximum(sin_max[end_here], sin_end[end_here])
         if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
             # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above it
             # is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
             ref = np.minimum(np.nan_to_num(samples.feed_mm_min[idx], nan=100.0), fz_hi[idx] * tool.flutes * rpm[idx])
-            le = end_model.linear_loads(eng.select(idx), tool, rpm[idx], feed_ref_mm_min=ref)
+            le = end_model.linear_loads(eng_t, tool, rpm[idx], feed_ref_mm_min=ref)
             for key in ("power", "torque", "force"):
                 loads[f"{key}_a"][idx] += getattr(le, f"{key}_a") * 60.0
                 loads[f"{key}_b"][idx] += getattr(le, f"{key}_b")

@@ -90,10 +90,15 @@ def end_chip_factor(engagement: Engagement, tool: Tool) -> np.ndarray:
     return _descent(engagement) * s
 
 
-def entry_chip_share(tool: Tool) -> float:
-    """Share of the material's chip load an end may take: 1 for a drill (its job), 0.5 for a milling
-    cutter entering along its axis (`MILL_ENTRY_CHIP_SHARE`)."""
-    return 1.0 if tool.shape == "drill" else MILL_ENTRY_CHIP_SHARE
+def entry_chip_share(engagement: Engagement, tool: Tool) -> np.ndarray:
+    """Per sample the share of the material's chip load the end may take: 1 for a drill (its job);
+    for a milling cutter `MILL_ENTRY_CHIP_SHARE` where it enters along its axis with the end enclosed
+    (material all round at every radius: a plunge, ramp or helical entry, chips leave only up the
+    flutes), 1 where the end cuts only part of the circle (e.g. a ball going down a slope)."""
+    n = len(engagement)
+    if tool.shape == "drill" or engagement.end_engaged is None:
+        return np.ones(n)
+    return np.where(engagement.end_engaged.min(axis=1) > 0.5, MILL_ENTRY_CHIP_SHARE, 1.0)
 
 
 def thrust_limit_N(tool: Tool, safety_factor: float | None = None) -> float:
