@@ -102,6 +102,18 @@ def test_ball_nose_plunge_closed_form():
     assert m_ball[0] / m_flat[0] == pytest.approx(2 / 1.75, rel=0.01)
 
 
+def test_bull_nose_plunge_closed_form():
+    """Bull nose (corner radius r_ε): flat part h = f_z for r ≤ a = R − r_ε; on the torus h = f_z·cos ψ,
+    r = a + r_ε·sin ψ, db = r_ε·dψ, so M = z·k_c1.1·f^p·[a²/2 + r_ε·(a·∫cos^p ψ dψ + r_ε/(p + 1))] with
+    ∫₀^{π/2} cos^p ψ dψ = (√π/2)·Γ((p+1)/2)/Γ(p/2 + 1), p = 1 − m_c."""
+    from scipy.special import gamma
+    tool, p, a, re = Tool(10, 4, shape="bull", corner_radius_mm=1.5), 0.75, 3.5, 1.5
+    _, M = model("al6061").predict(solid_end(), 0.04, tool)
+    i_cos = math.sqrt(math.pi) / 2 * gamma((p + 1) / 2) / gamma(p / 2 + 1)
+    closed = 4 * 800 * 0.04 ** p * (a * a / 2 + re * (a * i_cos + re / (p + 1))) / 1000
+    assert M[0] == pytest.approx(closed, rel=0.005)
+
+
 def box_plunge(tool: Tool, program: str, cell=0.05):
     prog = read_text(program)
     samples = prog.toolpath.resample(0.1)

@@ -146,10 +146,11 @@ class Tool:
     def end_sin_kappa(self, r_mm: np.ndarray | float) -> np.ndarray:
         """sin κ of the end's cutting edge at radius r (mm): κ is the angle between the edge and the tool
         axis, sin κ = 1/√(1 + (dz/dr)²) of the profile (1 on a flat end, sin(σ/2) on a cone, √(1 − x²/r_ε²)
-        on a corner radius at x = r − (R − r_ε) from its centre). An axial feed f cuts a chip h = f·sin κ."""
+        on a corner radius at x = r − (R − r_ε) from its centre, 1 on a chamfer tool's flat tip). An axial
+        feed f cuts a chip h = f·sin κ."""
         r = np.asarray(r_mm, float)
         if self.shape in CONE_SHAPES:
-            return np.full_like(r, math.sin(math.radians(0.5 * self.tip_angle_deg)))
+            return np.where(r < 0.5 * self.tip_diameter_mm, 1.0, math.sin(math.radians(0.5 * self.tip_angle_deg)))
         rc = self.corner_radius
         if rc > 0:
             x = np.clip(r - (self.radius_mm - rc), 0.0, rc)
