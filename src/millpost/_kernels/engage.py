@@ -12,9 +12,12 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
    immersion φ ∈ [0, π] (Altintas: φ clockwise from +y = left of feed, x = feed) decides whether
    the slice is engaged there (more than half the slice filled). Coarse samples find the arcs,
    bisection places each transition; the swept cross-section ∫ r sin φ · m(φ) dφ follows.
+3. End band (descending feed steps only, read before the cut): per radial bin of the tool's end, the
+   share of its columns whose band [surface, surface + drop] just above the new tool surface holds
+   material: where the end edges cut a full axial feed (`_end_band`).
 
-Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer. These closed
-forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
+Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer or drill (a cone).
+These closed forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
 """
 
 from __future__ import annotations
