@@ -39,7 +39,7 @@ def solid_end(n: int = 1, bins: int = 8) -> Engagement:
 
 
 def model(name: str) -> EndCut:
-    return Material.load(name).end_cut_model()
+    return EndCut.from_material(Material.load(name))
 
 
 def kienzle_lip_torque(kc11, mc, D, f_rev, sigma_deg):
@@ -153,7 +153,7 @@ def test_end_engagement_annulus_over_a_hole():
     drop = -np.diff(samples.xyz_mm[:, 2], prepend=samples.xyz_mm[0, 2])
     assert eng.volume_mm3[sel] == pytest.approx(np.pi * (25 - 4) * drop[sel], rel=0.01)
     assert np.all(eng.end_engaged[sel][:, 0] == 0)    # the hole: nothing under the centre
-    assert np.all(entry_chip_share(eng, tools[2])[sel] == 1.0)   # not enclosed: chips fall into the hole
+    assert np.all(entry_chip_share(eng, tools[2], 0.5)[sel] == 1.0)   # not enclosed: chips fall into the hole
 
 
 def test_ramp_and_helix_descent_and_whole_end_engaged():
@@ -166,7 +166,7 @@ def test_ramp_and_helix_descent_and_whole_end_engaged():
     assert eng.descent[steady] == pytest.approx(math.sin(alpha), rel=1e-6)
     assert eng.end_engaged[steady].mean() == pytest.approx(1.0, abs=0.02)
     assert np.all(np.isfinite(eng.phi_st[steady]).any(axis=1))          # and the flank cuts the slot
-    assert np.all(entry_chip_share(eng, tool)[steady] == 0.5)           # an enclosed end: entry chip load
+    assert np.all(entry_chip_share(eng, tool, 0.5)[steady] == 0.5)           # an enclosed end: entry chip load
     # helix of radius 4 (path Ø8), pitch 1 mm per turn, two turns down from the surface
     samples, eng = box_plunge(tool, "G21 G90 G0 X4 Y0 Z0\nS8000 M3\nG17 G2 X4 Y0 Z-1 I-4 J0 F600\nG2 X4 Y0 Z-2 I-4 J0\n")
     tan_a = 1.0 / (math.pi * 8)

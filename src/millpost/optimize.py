@@ -12,8 +12,8 @@ machine, tool and material:
   controllers do, and reported);
 - chip_load: the maximum chip thickness h_max = f_z·max sin φ·sin κ of the engaged arc between the
   material's minimum chip (edge radius: no rubbing; a soft floor) and its maximum chip load; where the
-  tool's end cuts (moving down into material) also the axial chip f_z·descent·sin κ, up to half the
-  chip load for a milling cutter entering along its axis (`forces.endcut.entry_chip_share`);
+  tool's end cuts (moving down into material) also the axial chip f_z·descent·sin κ, up to the
+  material's plunge share of it for a milling cutter entering along its axis (`forces.endcut.entry_chip_share`);
 - thrust and tool_torque: the end's thrust and torque (`forces.endcut`, added to the axial force and
   the spindle torque/power) under the tool's buckling load and torsional strength; plunge_feed: the
   user's `plunge_feed_max_mm_min` on moves going down into material (and the programmed feed there
@@ -35,12 +35,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import controller, engagement
-from .emit import FeedPlan, write_feeds
+from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .errors import MillpostError
-from .forces.endcut import end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
-from .gcode import ReaderOptions, read_program
+from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
+from .gcode import read_program
 from .gcode.interpret import Program
 from .job import Job
+from .progress import Progress, resolve, stage
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, ChipLoad, CurrentSlew, FeedLimit, Junction, MotorCurrent,
                        PathGrid, PathJerk, ScheduleOptions, SpeedLoad, schedule_samples)
 from .schedule.assemble import merged_bounds
@@ -107,7 +108,7 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
     if job.limits.get("jerk_mm_s3"):
         limits.append(PathJerk(float(job.limits["jerk_mm_s3"])))
     model = job.material.force_model(job.limits["model"])
-    end_model = job.material.end_cut_model()
+    end_model = EndCut.from_material(job.material)
     cutting = samples.kind != RAPID
     engaged = eng.ap_mm > 1e-9
     spin = samples.rpm > 0
@@ -147,7 +148,7 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
         fz_lo[cut_here] = h_min / sin_max[cut_here]
         end_cut = sin_end[idx] > 0
         end_here = idx[end_cut]
-        share = entry_chip_share(eng_t, tool)[end_cut]
+        share = entry_chip_share(eng_t, tool, job.material.strategies.plunge_fz_ratio)[end_cut]
         fz_hi[end_here] = np.minimum(fz_hi[end_here], share * h_max / sin_end[end_here])
         fz_lo[end_here] = h_min / np.maximum(sin_max[end_here], sin_end[end_here])
         if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
@@ -285,13 +286,19 @@ def replay(samples: Samples, limits: list, loads: dict, v_mm_s: np.ndarray, job:
     return out
 
 
-def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions | None = None) -> Result:
-    """Run the whole post step on a job and return the new program and its summary."""
+def optimize(job: Job, *, progress: Progress | bool | None = None, options: ScheduleOptions | None = None) -> Result:
+    """Run the whole post step on a job and return the new program and its summary. progress: a
+    `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal)."""
     t_start = time.perf_counter()
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
-    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
-    result = schedule_program(job, program, samples, eng, options)
+    report = resolve(progress)
+    with stage(report, "read program"):
+        program = read_program(job.program, job.reader_options())
+        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    with stage(report, "stock"):
+        stock = job.stock()
+    eng = engagement.simulate(stock, dict(job.tools), samples, progress=report)
+    with stage(report, "forces, schedule, emit"):
+        result = schedule_program(job, program, samples, eng, options)
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
@@ -319,8 +326,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     else:
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
-        fragments = piecewise_feeds(samples, emission_limit(samples, limits, sched,
-                                                            ("axis_acceleration", "junction", "jerk")))
+        fragments = whole_compensated_moves(program, piecewise_feeds(
+            samples, emission_limit(samples, limits, sched, ("axis_acceleration", "junction", "jerk"))))
         plan = _plan_from_fragments(program, fragments)
         emitted_tp = split_toolpath(tp, fragments)
         status, message = "solved", ""

@@ -51,9 +51,6 @@ BUCKLING_K = 2.0
 DRILL_BENDING_DIAMETER = 0.20 ** 0.25
 DRILL_TORSION_DIAMETER = 0.50
 MILL_DIAMETER = 0.8
-# a milling cutter entering along its axis (plunge, ramp, helix): chip load 25–50 % of the table's
-# (FANAR general catalogue 2021 p. 329, pocket entry by plunge or ramp; Kyocera MEAS −50 %)
-MILL_ENTRY_CHIP_SHARE = 0.5
 
 
 def chisel_factor(chisel_ratio: float) -> float:
@@ -90,15 +87,16 @@ def end_chip_factor(engagement: Engagement, tool: Tool) -> np.ndarray:
     return _descent(engagement) * s
 
 
-def entry_chip_share(engagement: Engagement, tool: Tool) -> np.ndarray:
+def entry_chip_share(engagement: Engagement, tool: Tool, plunge_fz_ratio: float) -> np.ndarray:
     """Per sample the share of the material's chip load the end may take: 1 for a drill (its job);
-    for a milling cutter `MILL_ENTRY_CHIP_SHARE` where it enters along its axis with the end enclosed
-    (material all round at every radius: a plunge, ramp or helical entry, chips leave only up the
-    flutes), 1 where the end cuts only part of the circle (e.g. a ball going down a slope)."""
+    for a milling cutter `plunge_fz_ratio` (the material's entry rule, e.g. Kyocera's −50 % for ramps
+    and plunges, FANAR's 25–50 %) where it enters along its axis with the end enclosed (material all
+    round at every radius: a plunge, ramp or helical entry; chips leave only up the flutes), 1 where
+    the end cuts only part of the circle (e.g. a ball going down a slope, a plunge over a hole)."""
     n = len(engagement)
     if tool.shape == "drill" or engagement.end_engaged is None:
         return np.ones(n)
-    return np.where(engagement.end_engaged.min(axis=1) > 0.5, MILL_ENTRY_CHIP_SHARE, 1.0)
+    return np.where(engagement.end_engaged.min(axis=1) > 0.5, plunge_fz_ratio, 1.0)
 
 
 def thrust_limit_N(tool: Tool, safety_factor: float | None = None) -> float:
@@ -131,6 +129,15 @@ class EndCut:
             raise MillpostError(f"end cutting needs kc1.1 > 0, 0 <= mc < 1, thrust ratio >= 0 and K_d >= 0, got "
                                 f"{kc11}, {mc}, {thrust_ratio}, {Kd_N_mm2}")
         self.kc11, self.mc, self.thrust_ratio, self.Kd = kc11, mc, thrust_ratio, Kd_N_mm2
+
+    @classmethod
+    def from_material(cls, material) -> "EndCut | None":
+        """The material's Kienzle k_c1.1, m_c on the end edges with its [end_cutting] thrust ratio and K_d;
+        None when the material has no end-cutting data."""
+        if material.end_cutting is None:
+            return None
+        e = material.end_cutting
+        return cls(material.kienzle.kc11_N_mm2, material.kienzle.mc, e.thrust_ratio, e.Kd_N_mm2)
 
     def power_law(self, engagement: Engagement, tool: Tool) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """(Q_F (N,), Q_M (N,), C (N,), p) with thrust = Q_F·f^p + C (N) and torque = Q_M·f^p (N·mm) for an
