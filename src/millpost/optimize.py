@@ -28,13 +28,12 @@ When the solver fails, the programmed feeds are kept and the summary says why.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import controller, engagement
+from . import controller, safety
 from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
@@ -245,7 +244,10 @@ def baseline_feeds(program: Program, samples: Samples, limits: list) -> tuple[np
     per_tool = {}
     for number in np.unique(tp.tool[tp.kind != RAPID]):
         sel = (samples.tool == number) & (samples.kind != RAPID)
-        f = float(np.floor(cap[sel].min())) if sel.any() else math.nan
+        if not sel.any():  # no move of this tool is long enough to be sampled: its feeds stay
+            per_tool[int(number)] = None
+            continue
+        f = float(np.floor(cap[sel].min()))
         per_tool[int(number)] = f
         feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
     return feeds, per_tool
@@ -293,12 +295,13 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     report = resolve(progress)
     with stage(report, "read program"):
         program = read_program(job.program, job.reader_options())
-        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     with stage(report, "stock"):
         stock = job.stock()
-    eng = engagement.simulate(stock, dict(job.tools), samples, progress=report)
+    samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                                        progress=report)
     with stage(report, "forces, schedule, emit"):
         result = schedule_program(job, program, samples, eng, options)
+    result.summary["notes"] += notes
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
