@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from millpost.errors import ConfigError
@@ -20,7 +21,9 @@ FUSION = {
          "post-process": {"number": 7}},
         {"type": "chamfer mill", "unit": "millimeters", "geometry": {"DC": 10, "NOF": 2, "TA": 45, "tip-diameter": 1,
                                                                      "LCF": 5, "LB": 20}},
-        {"type": "drill", "unit": "millimeters", "geometry": {"DC": 5}},
+        {"type": "drill", "unit": "millimeters", "geometry": {"DC": 5, "NOF": 2, "SIG": 135, "LCF": 28, "LB": 40},
+         "post-process": {"number": 9}},
+        {"type": "tap right hand", "unit": "millimeters", "geometry": {"DC": 6}},
     ],
     "version": 16,
 }
@@ -30,15 +33,16 @@ def test_fusion_library(tmp_path):
     p = tmp_path / "lib.json"
     p.write_text(json.dumps(FUSION))
     tools = read_fusion_library(p)
-    assert [t.shape for t in tools] == ["flat", "bull", "chamfer"]
-    flat, bull, chamfer = tools
+    assert [t.shape for t in tools] == ["flat", "bull", "chamfer", "drill"]
+    flat, bull, chamfer, drill = tools
+    assert (drill.tip_angle_deg, drill.chisel_ratio, drill.flutes, drill.number) == (135, 0.18, 2, 9)
     assert (flat.diameter_mm, flat.flutes, flat.flute_length_mm, flat.stickout_mm, flat.number) == (6, 3, 18, 25, 3)
     assert bull.diameter_mm == pytest.approx(6.35) and bull.corner_radius_mm == pytest.approx(0.762)
     assert bull.stickout_mm == pytest.approx(25.4) and bull.material == "hss"
     assert chamfer.tip_angle_deg == 90 and chamfer.tip_diameter_mm == 1
     assert load_tool(p, number=7) is not None and load_tool(p, number=7).flutes == 4
     assert load_tool(p).number == 3
-    with pytest.raises(ConfigError, match="no milling cutter numbered 99"):
+    with pytest.raises(ConfigError, match="no milling cutter or drill numbered 99"):
         load_tool(p, number=99)
 
 
@@ -72,6 +76,25 @@ def test_freecad_tool_bits(tmp_path):
     assert read_fctb(tmp_path / "bull.fctb").corner_radius_mm == pytest.approx(1.0)
     v = read_fctb(tmp_path / "v.fctb")
     assert (v.shape, v.tip_angle_deg, v.tip_diameter_mm) == ("chamfer", 60, 0.2)
+    drill = {"shape": "drill.fcstd", "parameter": {"Diameter": "6.8 mm", "Length": "70 mm", "TipAngle": "118.00 °"}}
+    (tmp_path / "d.fctb").write_text(json.dumps(drill))
+    d = read_fctb(tmp_path / "d.fctb")
+    assert (d.shape, d.tip_angle_deg, d.diameter_mm) == ("drill", 118, 6.8)
+
+
+def test_drill_shape_rules(tmp_path):
+    p = tmp_path / "d.toml"
+    p.write_text('[tool]\ndiameter_mm = 5\nshape = "drill"\n')
+    d = load_tool(p)
+    assert (d.tip_angle_deg, d.chisel_ratio) == (118, 0.18)   # a jobber drill's standard point
+    assert d.height_at(2.5) == pytest.approx(2.5 / np.tan(np.radians(59)))  # the cone of the point
+    p.write_text('[tool]\ndiameter_mm = 5\nshape = "drill"\nchisel_ratio = 0.5\n')
+    with pytest.raises(ConfigError) as err:
+        load_tool(p)
+    assert err.value.field == "tool.chisel_ratio"
+    p.write_text('[tool]\ndiameter_mm = 5\nshape = "drill"\ntip_diameter_mm = 1\n')
+    with pytest.raises(ConfigError, match="no flat"):
+        load_tool(p)
 
 
 def test_freecad_wrong_units_and_shape(tmp_path):

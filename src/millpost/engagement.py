@@ -20,6 +20,7 @@ from .errors import CrashError, MillpostError
 from .progress import Progress, resolve
 from .toolpath import RAPID, Samples
 from .tools import Tool
+from .tools.cutter import CONE_SHAPES
 
 
 @dataclass
@@ -40,6 +41,11 @@ class Engagement:
     descending (N,) the step moves down (its area comes from the removed cells, not the ring);
     move, line (N,) the toolpath move and source line of each sample; depth_mm (N,) the depth of
     material the step meets below its old top, not clipped to the flute length (ap_mm is).
+    end_engaged (N, J): the tool's end on a descending step, per radial bin j of J equal bins over
+    [0, R]: the share of the circle at that radius where the end edges cut a full axial feed (0 where
+    the step does not descend). descent (N,): −dz/ds of the step (0 level or rising, 1 a plunge), so the
+    end's axial feed per tooth is f_z·descent. On a step with no horizontal motion (a plunge, a drill)
+    the flank sweeps no new material: its slices are not engaged (the end carries the whole cut).
     """
 
     phi_st: np.ndarray
@@ -59,6 +65,8 @@ class Engagement:
     move: np.ndarray | None = None
     line: np.ndarray | None = None
     depth_mm: np.ndarray | None = None
+    end_engaged: np.ndarray | None = None
+    descent: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ap_mm)
@@ -98,11 +106,14 @@ class Engagement:
             ap_mm=np.full(n, ap_mm), ae_mm=ae, volume_mm3=np.full(n, np.nan), area_mm2=area)
 
 
+END_BINS = 8  # radial bins of the tool's end (Engagement.end_engaged)
+
+
 def _tool_params(tool: Tool) -> tuple[int, float, float, float, float]:
-    """(shape code, R, corner radius, chamfer tip radius, tan of chamfer half angle) for the kernel."""
+    """(shape code, R, corner radius, cone tip radius, tan of cone half angle) for the kernel."""
     if tool.shape in ("ball", "bull"):
         return _k.CORNER, tool.radius_mm, tool.corner_radius, 0.0, 1.0
-    if tool.shape == "chamfer":
+    if tool.shape in CONE_SHAPES:
         return _k.CHAMFER, tool.radius_mm, 0.0, 0.5 * tool.tip_diameter_mm, math.tan(math.radians(0.5 * tool.tip_angle_deg))
     return _k.FLAT, tool.radius_mm, 0.0, 0.0, 1.0
 
@@ -200,7 +211,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
     out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
                rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
-               area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool), depth=np.zeros(n))
+               area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool), depth=np.zeros(n),
+               end=np.zeros((n, END_BINS)))
     top = stock.top.reshape(-1)
     prev_f = np.array([1.0, 0.0])
     moving = steps[steps > 0]
@@ -238,9 +250,15 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     for a, b, t in runs:
         kappa[a:b] = _kappa(t, out["zmid"][a:b])
     feed3 = np.column_stack([out["feed"], np.zeros(n)])
+    dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        descent = np.where(out["desc"] & (steps > 0), -dz_step / np.where(steps > 0, steps, 1.0), 0.0)
+    plunge = out["desc"] & (descent > 1.0 - 1e-9)
+    out["phi_st"][plunge], out["phi_ex"][plunge], out["dz"][plunge], out["arc"][plunge] = np.nan, np.nan, 0.0, 0.0
+    out["ae"][plunge] = 0.0
     return Engagement(
         phi_st=out["phi_st"], phi_ex=out["phi_ex"], dz_mm=out["dz"], z_mm=out["zmid"], r_mm=out["rad"],
         kappa=kappa, feed_dir=feed3, ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
         volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
         step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
-        depth_mm=out["depth"])
+        depth_mm=out["depth"], end_engaged=out["end"], descent=descent)

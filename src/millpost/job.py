@@ -9,7 +9,9 @@
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
     [limits]                          # optional: deflection_mm, feed_max_mm_min,
-                                      # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle")
+                                      # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle"),
+                                      # plunge_feed_max_mm_min (cap on the feed of moves going down
+                                      # into material: plunges, drilling, ramps)
     [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
 
 A folder stands for the `job.toml` inside it. Every number must be finite and inside its stated
@@ -33,12 +35,12 @@ from .config import Table
 from .tools.library import load_tool, tool_from_table
 
 _LIMIT_KEYS = {"deflection_mm": 0.025, "feed_max_mm_min": None, "tool_safety_factor": None,
-               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None}
+               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None}
 # the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
 # a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
 # budget of 5 mm or a feed of 1000 m/min is no limit at all.
 LIMIT_RANGES = {"deflection_mm": (1e-4, 5.0), "feed_max_mm_min": (1.0, 1e6), "tool_safety_factor": (1.0, 100.0),
-                "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9)}
+                "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9), "plunge_feed_max_mm_min": (1.0, 1e6)}
 CELL_RANGE_MM = (1e-3, 10.0)
 STOCK_SPAN_MM = 1e5  # no stock corner is 100 m from the work zero
 

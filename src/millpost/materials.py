@@ -91,6 +91,16 @@ class MechanisticCoefficients:
 
 
 @dataclass(frozen=True)
+class EndCuttingCoefficients:
+    """Drilling/plunging: thrust_ratio c_f (normal over cutting force of an end edge) and the Shaw–Oxford
+    drilling constant Kd_N_mm2 (K_d, for the chisel edge's feed-independent thrust)."""
+
+    thrust_ratio: float
+    Kd_N_mm2: float
+    source: str
+
+
+@dataclass(frozen=True)
 class Material:
     """A workpiece material. Speeds m/min, chip loads mm per tooth, hardness HB (0 when not given).
 
@@ -98,6 +108,8 @@ class Material:
     recommended f_z range at each (interpolated in between, clamped outside). min_chip_ratio: minimum
     chip thickness over the cutting-edge radius (below it the edge ploughs instead of cutting).
     strategies: roughing rules per strategy (optional table; defaults when absent, said in its source).
+    end_cutting: drilling/plunging coefficients (None when the file has none: then no end load can be
+    predicted and feeds of moves that cut with the tool's end are not raised; `forces.endcut.EndCut`).
     """
 
     name: str
@@ -114,6 +126,7 @@ class Material:
     min_chip_source: str
     hardness_HB: float = 0.0
     strategies: StrategyRules = StrategyRules()
+    end_cutting: EndCuttingCoefficients | None = None
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Material":
@@ -163,9 +176,15 @@ class Material:
         mc_source = mc.string("source")
         mc.done()
         strategies = StrategyRules.from_table(t.table("strategies")) if t.has("strategies") else StrategyRules()
-        t.done(("mechanistic", "strategies"))
+        end = None
+        if t.has("end_cutting"):
+            e = t.table("end_cutting")
+            end = EndCuttingCoefficients(e.number("thrust_ratio", ge=0, le=3), e.number("Kd_N_mm2", ge=0),
+                                         e.string("source"))
+            e.done()
+        t.done(("mechanistic", "strategies", "end_cutting"))
         return cls(name, description, kienzle, mech, speeds, speed_source, dia, fmin, fmax, chip_source,
-                   ratio, mc_source, hardness, strategies)
+                   ratio, mc_source, hardness, strategies, end)
 
     # --- guidance -------------------------------------------------------------------------------
     def chip_load_mm(self, diameter_mm: float) -> tuple[float, float]:

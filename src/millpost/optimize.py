@@ -11,7 +11,13 @@ machine, tool and material:
 - power and torque: the spindle's curve at the programmed rpm (clamped to the spindle's range, as
   controllers do, and reported);
 - chip_load: the maximum chip thickness h_max = f_z·max sin φ·sin κ of the engaged arc between the
-  material's minimum chip (edge radius: no rubbing; a soft floor) and its maximum chip load;
+  material's minimum chip (edge radius: no rubbing; a soft floor) and its maximum chip load; where the
+  tool's end cuts (moving down into material) also the axial chip f_z·descent·sin κ, up to the
+  material's plunge share of it for a milling cutter entering along its axis (`forces.endcut.entry_chip_share`);
+- thrust and tool_torque: the end's thrust and torque (`forces.endcut`, added to the axial force and
+  the spindle torque/power) under the tool's buckling load and torsional strength; plunge_feed: the
+  user's `plunge_feed_max_mm_min` on moves going down into material (and the programmed feed there
+  when the material has no end-cutting data);
 - current: per axis, inertia (moving mass and reflected rotor inertia) plus cutting force plus
   friction under the drive's current limit; current_slew: di/dt under (V_bus − R·I − K_e·ω)/L.
 
@@ -30,6 +36,7 @@ import numpy as np
 from . import controller, safety
 from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .errors import MillpostError
+from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
 from .gcode import read_program
 from .gcode.interpret import Program
 from .job import Job
@@ -49,7 +56,7 @@ EFFECTS = {"axis_velocity": "inertia", "axis_acceleration": "inertia", "centripe
            "jerk": "inertia",
            "feed": "feed", "cutting_force": "cutting force", "deflection": "deflection", "power": "power",
            "torque": "power", "current": "current", "cutting_current": "current", "current_slew": "current",
-           "chip_load_max": "chip load",
+           "chip_load_max": "chip load", "thrust": "thrust", "tool_torque": "tool torque", "plunge_feed": "feed",
            "chip_load_min": "chip-load floor"}
 
 
@@ -100,6 +107,7 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
     if job.limits.get("jerk_mm_s3"):
         limits.append(PathJerk(float(job.limits["jerk_mm_s3"])))
     model = job.material.force_model(job.limits["model"])
+    end_model = EndCut.from_material(job.material)
     cutting = samples.kind != RAPID
     engaged = eng.ap_mm > 1e-9
     spin = samples.rpm > 0
@@ -112,19 +120,24 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
     k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
     peak_limit, defl_per_N = np.full(n, np.inf), np.zeros(n)
     fz_hi, fz_lo = np.full(n, np.inf), np.zeros(n)
-    sin_max = _max_sin(eng)
+    sin_max, sin_end = _max_sin(eng), np.zeros(n)
+    thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
     for number in np.unique(samples.tool[cutting]):
         tool = job.tools.get(int(number))
         if tool is None:
             line = int(samples.line[np.flatnonzero(cutting & (samples.tool == number))[0]])
             raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
         idx = np.flatnonzero(samples.tool == number)
+        eng_t = eng.select(idx)
         # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
-        ll = model.linear_loads(eng.select(idx), tool, rpm[idx],
+        ll = model.linear_loads(eng_t, tool, rpm[idx],
                                 feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[idx], nan=100.0))
         for key in ("peak", "power", "torque", "force"):
             loads[f"{key}_a"][idx] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
             loads[f"{key}_b"][idx] = getattr(ll, f"{key}_b")
+        sin_end[idx] = end_chip_factor(eng_t, tool)
+        thrust_limit[idx] = thrust_limit_N(tool, job.limits["tool_safety_factor"] or None)
+        tool_torque_limit[idx] = torque_limit_Nm(tool, job.limits["tool_safety_factor"] or None)
         beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
         peak_limit[idx] = beam.breaking_force_N(eng.ap_mm[idx])  # the cut's depth sets the lever arm
         defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + 1.0 / k_xy
@@ -132,16 +145,35 @@ def build_limits(job: Job, samples: Samples, eng) -> tuple[list, dict]:
         cut_here = idx[sin_max[idx] > 0]
         fz_hi[cut_here] = h_max / sin_max[cut_here]
         fz_lo[cut_here] = h_min / sin_max[cut_here]
+        end_cut = sin_end[idx] > 0
+        end_here = idx[end_cut]
+        share = entry_chip_share(eng_t, tool, job.material.strategies.plunge_fz_ratio)[end_cut]
+        fz_hi[end_here] = np.minimum(fz_hi[end_here], share * h_max / sin_end[end_here])
+        fz_lo[end_here] = h_min / np.maximum(sin_max[end_here], sin_end[end_here])
+        if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
+            # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above it
+            # is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
+            ref = np.minimum(np.nan_to_num(samples.feed_mm_min[idx], nan=100.0), fz_hi[idx] * tool.flutes * rpm[idx])
+            le = end_model.linear_loads(eng_t, tool, rpm[idx], feed_ref_mm_min=ref)
+            for key in ("power", "torque", "force"):
+                loads[f"{key}_a"][idx] += getattr(le, f"{key}_a") * 60.0
+                loads[f"{key}_b"][idx] += getattr(le, f"{key}_b")
         limits.append(ChipLoad(tool.flutes, rpm, np.where(samples.tool == number, fz_lo, 0.0),
                                np.where(samples.tool == number, fz_hi, np.inf), name="chip_load"))
     loads["unavoidable"] = {}
     v_hold = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0
+    plunging = sin_end > 0
+    plunge_cap = np.inf if job.limits["plunge_feed_max_mm_min"] is None else job.limits["plunge_feed_max_mm_min"] / 60.0
+    plunge_cap = np.where(plunging, np.minimum(plunge_cap, v_hold if end_model is None else np.inf), np.inf)
     for name, a, b, bound in (
             ("cutting_force", loads["peak_a"], loads["peak_b"], peak_limit),
             ("deflection", loads["peak_a"] * defl_per_N, loads["peak_b"] * defl_per_N,
              np.full(n, float(job.limits["deflection_mm"]))),
             ("power", loads["power_a"], loads["power_b"], np.where(spin, m.spindle.power_available_W(rpm), np.inf)),
-            ("torque", loads["torque_a"], loads["torque_b"], np.where(spin, m.spindle.torque_Nm(rpm), np.inf))):
+            ("torque", loads["torque_a"], loads["torque_b"], np.where(spin, m.spindle.torque_Nm(rpm), np.inf)),
+            ("thrust", loads["force_a"][:, 2], loads["force_b"][:, 2], thrust_limit),
+            ("tool_torque", loads["torque_a"], loads["torque_b"], tool_torque_limit),
+            ("plunge_feed", plunging.astype(float), np.zeros(n), plunge_cap)):
         # Where the cut exceeds the bound at any feed a program can state (its edge forces alone: the
         # depth or width of cut, not the feed, is at fault), feeding slower cannot help: never feed
         # faster than programmed there, and report those samples rather than crawl.
@@ -329,7 +361,9 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
              "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
              "feed_schedule_mm_min": sched.feed_mm_s * 60.0, "feed_executed_mm_min": executed * 60.0,
              "peak_force_N": np.where(cut, loads["peak_a"] * executed + loads["peak_b"], 0.0),
-             "power_W": np.where(cut, loads["power_a"] * executed + loads["power_b"], 0.0)}
+             "power_W": np.where(cut, loads["power_a"] * executed + loads["power_b"], 0.0),
+             "thrust_N": np.where(cut, loads["force_a"][:, 2] * executed + loads["force_b"][:, 2], 0.0),
+             "torque_Nm": np.where(cut, loads["torque_a"] * executed + loads["torque_b"], 0.0)}
     # 1 where the cut exceeds that limit at any feed (held at the programmed feed and reported)
     trace.update({f"unavoidable_{k}": v.astype(np.int8) for k, v in sorted(loads["unavoidable"].items())})
     return Result(text, summary, samples, trace)

@@ -12,9 +12,12 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
    immersion φ ∈ [0, π] (Altintas: φ clockwise from +y = left of feed, x = feed) decides whether
    the slice is engaged there (more than half the slice filled). Coarse samples find the arcs,
    bisection places each transition; the swept cross-section ∫ r sin φ · m(φ) dφ follows.
+3. End band (descending feed steps only, read before the cut): per radial bin of the tool's end, the
+   share of its columns whose band [surface, surface + drop] just above the new tool surface holds
+   material: where the end edges cut a full axial feed (`_end_band`).
 
-Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer. These closed
-forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
+Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer or drill (a cone).
+These closed forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
 """
 
 from __future__ import annotations
@@ -186,6 +189,39 @@ def _material(c, za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi):
             s += max(min(hi[k], zb) - max(lo[k], za), 0.0)
         return s
     return max(min(top[c], zb) - max(zf, za), 0.0)
+
+
+@njit(cache=True)
+def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids,
+              ptr, lo, hi, out):
+    """The tool's end on a descending step (tip now at pz, `drop` mm lower than before): per radial bin
+    j of [0, R] (J = len(out) equal bins), the mean over the bin's columns of the material fraction in
+    the band [z_s, z_s + drop] just above the tool surface z_s = pz + height(r). That is the share of
+    the circle at radius r where the end edges cut a full axial feed (1 when drilling on or re-entering
+    the own bottom, 0 over a hole, partial while the tip enters a surface). Read only (before cutting)."""
+    J = out.shape[0]
+    cnt = np.zeros(J)
+    j0 = int(math.ceil((py - R - y0) / h - 0.5))
+    j1 = int(math.floor((py + R - y0) / h - 0.5))
+    for j in range(j0, j1 + 1):
+        dy = y0 + (j + 0.5) * h - py
+        w2 = R * R - dy * dy
+        if w2 < 0.0:
+            continue
+        w = math.sqrt(w2)
+        ia = int(math.ceil((px - w - x0) / h - 0.5))
+        ib = int(math.floor((px + w - x0) / h - 0.5))
+        for i in range(ia, ib + 1):
+            dx = x0 + (i + 0.5) * h - px
+            d = math.sqrt(dx * dx + dy * dy)
+            b = min(int(d / R * J), J - 1)
+            cnt[b] += 1.0
+            if 0 <= i < nx and 0 <= j < ny:  # columns off the grid are air
+                zs = pz + surface_height(d, shape, R, rc, r_tip, tan_half)
+                m = _material(j * nx + i, zs, zs + drop, top, zf, has_multi, bits, ids, ptr, lo, hi)
+                out[b] += min(m / drop, 1.0)
+    for b in range(J):
+        out[b] = out[b] / cnt[b] if cnt[b] > 0 else 0.0
 
 
 @njit(cache=True)
@@ -537,12 +573,13 @@ def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
 @njit(cache=True)
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
-        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o):
+        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o):
     """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
     ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
     of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place).
-    depth_o[k]: the depth of material the step meets, before ap is clipped to the flute length."""
+    depth_o[k]: the depth of material the step meets, before ap is clipped to the flute length.
+    end_o[k]: the end's radial engagement of a descending feed step (`_end_band`)."""
     dphi = math.pi / M
     sin_t = np.sin(np.arange(M + 1) * dphi)
     cos_t = np.cos(np.arange(M + 1) * dphi)
@@ -575,6 +612,9 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         gx, gy = ring_at[k, 2], ring_at[k, 3]
         feed_o[k, 0], feed_o[k, 1] = gx, gy
         desc_o[k] = descending
+        if descending and not rapid[k]:
+            _end_band(px, py, pz, -ddz, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits,
+                      ids, ptr, lo, hi, end_o[k])
         n = xyz.shape[0]
         if _level_step(k, n, xyz, fresh, shape):
             # the level sweep of this step: its band, the wedge at its start (when the previous

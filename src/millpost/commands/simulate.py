@@ -17,6 +17,7 @@ from ..files import atomic_path, json_text, write_csv
 from ..progress import Bars
 from ..safety import check_outputs
 from . import add_allow_argument
+from ..tools.cutter import SHAPES
 
 TRACE_COLUMNS = ("sample", "s_mm", "x_mm", "y_mm", "z_mm", "move", "line", "kind", "tool", "feed_mm_min",
                  "volume_mm3", "area_mm2", "ap_mm", "ae_mm", "phi_st_deg", "phi_ex_deg", "engaged_deg", "descending")
@@ -37,9 +38,10 @@ def register(subparsers) -> None:
     p.add_argument("--cell", type=float, default=None, help="stock cell size in mm (default: the job's, else "
                                                             "0.025 where memory allows)")
     p.add_argument("--tool-diameter", type=float, help="cutter diameter (mm; PROGRAM only: one tool for all)")
-    p.add_argument("--shape", default="flat", choices=("flat", "ball", "bull", "chamfer"))
+    p.add_argument("--shape", default="flat", choices=SHAPES)
     p.add_argument("--corner-radius", type=float, default=0.0, help="bull nose corner radius (mm)")
-    p.add_argument("--tip-angle", type=float, default=90.0, help="chamfer/V included angle (degrees)")
+    p.add_argument("--tip-angle", type=float, default=None,
+                   help="chamfer/V included angle (default 90) or drill point angle (default 118), degrees")
     p.add_argument("--tip-diameter", type=float, default=0.0, help="chamfer flat tip diameter (mm)")
     p.add_argument("--flute-length", type=float, default=None, help="cutting length (mm)")
     p.add_argument("--step", type=float, default=None, help="sample spacing along the path (mm; default: the "

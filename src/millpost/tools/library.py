@@ -3,10 +3,11 @@ tool bits (.fctb). Everything becomes a `Tool`; refusals are ConfigErrors naming
 
 Fusion (``{"data": [{"type": "flat end mill", "unit": "millimeters", "geometry": {...}}]}``) geometry keys:
 DC cutting diameter, NOF flutes, LCF flute length, LB body length below the holder (= stickout), SFDM
-shank diameter, RE corner radius, TA taper angle (half angle of a chamfer mill), tip-diameter; number in
-post-process.number; BMC body material. FreeCAD (``{"shape": "endmill.fcstd", "parameter": {...}}``):
-Diameter, CuttingEdgeHeight, ShankDiameter, Flutes, FlatRadius (bull nose), CuttingEdgeAngle (included
-angle of chamfer/V bits), TipDiameter; quantities are strings such as "6.000 mm". Neither format stores
+shank diameter, RE corner radius, TA taper angle (half angle of a chamfer mill), tip-diameter, SIG point
+angle of a drill (types "drill" and "spot drill"); number in post-process.number; BMC body material.
+FreeCAD (``{"shape": "endmill.fcstd", "parameter": {...}}``): Diameter, CuttingEdgeHeight, ShankDiameter,
+Flutes, FlatRadius (bull nose), CuttingEdgeAngle (included angle of chamfer/V bits), TipDiameter,
+TipAngle (point angle of drill.fcstd); quantities are strings such as "6.000 mm". Neither format stores
 a helix angle reliably; the Tool default (30°) applies unless the file gives one.
 """
 
@@ -22,9 +23,9 @@ from ..errors import ConfigError
 from .cutter import Tool
 
 FUSION_SHAPES = {"flat end mill": "flat", "ball end mill": "ball", "bull nose end mill": "bull",
-                 "chamfer mill": "chamfer"}
+                 "chamfer mill": "chamfer", "drill": "drill", "spot drill": "drill"}
 FREECAD_SHAPES = {"endmill": "flat", "ballend": "ball", "bullnose": "bull", "chamfer": "chamfer", "v-bit": "chamfer",
-                  "vbit": "chamfer"}
+                  "vbit": "chamfer", "drill": "drill"}
 TOOL_MATERIALS = {"carbide": "carbide", "hss": "hss", "hsco": "hss", "high speed steel": "hss"}
 
 
@@ -69,7 +70,8 @@ def _json(path: Path) -> Any:
 
 
 def read_fusion_library(path: str | Path) -> list[Tool]:
-    """Milling cutters of a Fusion tool library (drills, holders, probes and other types are skipped)."""
+    """Milling cutters and drills of a Fusion tool library (holders, taps, probes and other types are
+    skipped)."""
     p = Path(path)
     data = _json(p)
     entries = data.get("data") if isinstance(data, dict) else None
@@ -107,6 +109,10 @@ def read_fusion_library(path: str | Path) -> list[Tool]:
             values["corner_radius_mm"] = length("RE")
         if shape == "chamfer" and "TA" in geo:
             values["tip_angle_deg"] = 2 * quantity(geo["TA"], None, f"{field}.geometry.TA", file=str(p))
+        if shape == "drill":
+            values.pop("tip_diameter_mm", None)
+            if "SIG" in geo:
+                values["tip_angle_deg"] = quantity(geo["SIG"], None, f"{field}.geometry.SIG", file=str(p))
         if values.get("flute_length_mm") and values.get("stickout_mm") and \
                 values["flute_length_mm"] > values["stickout_mm"]:
             values["flute_length_mm"] = values["stickout_mm"]   # flutes partly inside the holder
@@ -164,6 +170,10 @@ def read_fctb(path: str | Path) -> Tool:
             tip = 2 * q("FlatRadius", "mm")
         if tip is not None:
             values["tip_diameter_mm"] = tip
+    if shape == "drill":
+        angle = q("TipAngle", "deg")
+        if angle is not None:
+            values["tip_angle_deg"] = angle
     material = TOOL_MATERIALS.get(str(attr.get("Material", "carbide")).lower())
     if material:
         values["material"] = material
@@ -172,7 +182,7 @@ def read_fctb(path: str | Path) -> Tool:
 
 def load_tool(path: str | Path, *, number: int | None = None) -> Tool:
     """A tool from a .toml, .fctb or Fusion .json file; `number` picks one from a Fusion library
-    (default: the first milling cutter)."""
+    (default: the first milling cutter or drill)."""
     p = Path(path)
     if not p.is_file():
         raise ConfigError("tool", str(p), "file not found")
@@ -186,7 +196,8 @@ def load_tool(path: str | Path, *, number: int | None = None) -> Tool:
         if number is not None:
             tools = [t for t in tools if t.number == number]
         if not tools:
-            what = f"no milling cutter numbered {number}" if number is not None else "no milling cutter"
+            what = f"no milling cutter or drill numbered {number}" if number is not None else \
+                "no milling cutter or drill"
             raise ConfigError("tool", str(p), what, file=str(p))
         return tools[0]
     raise ConfigError("tool", str(p), "expected a .toml, .fctb or Fusion .json file")
