@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from millpost.gcode import read_text
-from millpost.optimize import spindle_rpm
+from millpost.limits import spindle_rpm
 from millpost.toolpath import RAPID
 from millpost.tools.beam import ToolBeam
 from random_jobs import run_job
@@ -57,8 +57,8 @@ def _independent(job, eng, result) -> dict:
     }
     out = {}
     for name, r in ratios.items():
-        # where the edge forces alone exceed the bound the pipeline holds the feed and reports it
-        keep = cut & (tr[f"unavoidable_{name}"] == 0)
+        # where the policy held the bound (min-chip feed) the pipeline reports it
+        keep = cut & (tr[f"held_{name}"] == 0)
         out[name] = float(np.max(r[keep], initial=0.0))
     return out
 

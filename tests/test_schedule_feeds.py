@@ -36,7 +36,7 @@ def test_fragments_bound_the_limit_and_respect_length_and_count():
     smp = tp.resample(0.05)
     rng = np.random.default_rng(5)
     lim = 50 + 30 * np.sin(smp.s_mm / 3.0) + 5 * rng.random(len(smp))
-    frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, resolution_mm_min=1.0)
+    frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, step=0.0)
     fed = fragment_feed_at_samples(smp, frs, tp)
     assert np.all(fed <= lim + 1e-12)
     L = tp.lengths()
@@ -47,7 +47,7 @@ def test_fragments_bound_the_limit_and_respect_length_and_count():
         assert min(lengths) >= min(2.0, L[m]) - 1e-9
         assert sum(lengths) == pytest.approx(L[m])
     # more freedom → closer to the limit: time Σ l/F approaches ∫ ds/limit
-    fine = piecewise_feeds(smp, lim, min_fragment_mm=0.05, max_changes_per_mm=100, resolution_mm_min=0.001)
+    fine = piecewise_feeds(smp, lim, min_fragment_mm=0.05, max_changes_per_mm=100, step=0.0)
     t_fine = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in fine)
     t_coarse = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in frs)
     ideal = np.sum(np.diff(smp.s_mm) / np.minimum(lim[1:], lim[:-1]))

@@ -9,7 +9,8 @@
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
     [limits]                          # optional: deflection_mm, feed_max_mm_min,
-                                      # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle")
+                                      # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle"),
+                                      # lower ("hard"|"all"), feed_step (relative, 0.05)
 
 A folder stands for the `job.toml` inside it.
 """
@@ -27,8 +28,9 @@ from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
 
-_LIMIT_KEYS = {"deflection_mm": 0.025, "feed_max_mm_min": None, "tool_safety_factor": None,
-               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None}
+_LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
+               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "lower": "hard", "feed_step": 0.05}
+_CHOICES = {"model": ("mechanistic", "kienzle"), "lower": ("hard", "all")}
 
 
 @dataclass
@@ -119,9 +121,9 @@ def load_job(path: str | Path) -> Job:
     for key, value in dict(data.get("limits", {})).items():
         if key not in _LIMIT_KEYS:
             raise ConfigError(f"limits.{key}", value, f"unknown limit; known: {', '.join(_LIMIT_KEYS)}", file=f)
-        if key == "model":
-            if value not in ("mechanistic", "kienzle"):
-                raise ConfigError("limits.model", value, "mechanistic or kienzle", file=f)
+        if key in _CHOICES:
+            if value not in _CHOICES[key]:
+                raise ConfigError(f"limits.{key}", value, " or ".join(_CHOICES[key]), file=f)
         elif not (isinstance(value, (int, float)) and value >= 0):
             raise ConfigError(f"limits.{key}", value, "must be a number >= 0", file=f)
         limits[key] = value

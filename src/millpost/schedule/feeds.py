@@ -56,14 +56,34 @@ def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarra
     return L, V
 
 
-SLOWEST_FEED_MM_MIN = 1.0  # feed resolution of the emitted F words, and the slowest one written
+SLOWEST_FEED_MM_MIN = 1.0  # the slowest feed written (F0 would be no feed at all)
+
+
+def settle(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
+    """Feeds in program order lowered into runs of one feed each, so that F words change only where
+    the feed changes meaningfully: a feed joins the current run while the run's largest member stays
+    within `step` (relative) of its smallest, and the run takes its smallest (never above any
+    member's limit). Consecutive runs then differ by more than `step`, except where a later member
+    pulls a run down next to the one before."""
+    out = np.asarray(feeds_mm_min, float).copy()
+    if step <= 0 or len(out) == 0:
+        return out
+    start, lo, hi = 0, out[0], out[0]
+    for i in range(1, len(out) + 1):
+        if i < len(out) and max(hi, out[i]) <= min(lo, out[i]) * (1 + step):
+            lo, hi = min(lo, out[i]), max(hi, out[i])
+            continue
+        out[start:i] = lo
+        if i < len(out):
+            start, lo, hi = i, out[i], out[i]
+    return out
 
 
 def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm: float = 2.0,
-                    max_changes_per_mm: float = 0.2, resolution_mm_min: float = SLOWEST_FEED_MM_MIN) -> list[Fragment]:
-    """Fragments of every cutting move whose samples carry a finite limit (mm/s). Feeds are rounded
-    down to `resolution_mm_min`, and never below it: a limit under the slowest feed a program can
-    state gets that feed (F0 would be no feed at all)."""
+                    max_changes_per_mm: float = 0.2, step: float = 0.05) -> list[Fragment]:
+    """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
+    and never below SLOWEST_FEED_MM_MIN; their feeds settled into runs (`settle`) and equal
+    neighbours within a move merged."""
     lim = np.asarray(limit_mm_s, float)
     out: list[Fragment] = []
     mv = samples.move
@@ -86,12 +106,19 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
         hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
         cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
         cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
-        q = np.maximum(np.floor(cell_v * 60.0 / resolution_mm_min), 1.0) * resolution_mm_min / 60.0
+        q = np.maximum(cell_v * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
         Lf, Vf = _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
         u = np.r_[0.0, np.cumsum(Lf) / L]
         u[-1] = 1.0
         out.extend(Fragment(m, float(u[k]), float(u[k + 1]), float(Vf[k] * 60.0)) for k in range(len(Vf)))
-    return out
+    feeds = settle(np.array([f.feed_mm_min for f in out]), step)
+    merged: list[Fragment] = []
+    for f, v in zip(out, feeds):
+        if merged and merged[-1].move == f.move and merged[-1].feed_mm_min == v:
+            merged[-1] = Fragment(f.move, merged[-1].u_start, f.u_end, float(v))
+        else:
+            merged.append(Fragment(f.move, f.u_start, f.u_end, float(v)))
+    return merged
 
 
 def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
