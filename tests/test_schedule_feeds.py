@@ -9,8 +9,9 @@ from test_schedule import AMAX, VMAX, make_toolpath, pocket_toolpath
 
 from millpost.controller import ControllerModel, execute
 from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, schedule_samples
-from millpost.schedule.feeds import emission_limit, piecewise_feeds, split_toolpath
+from millpost.schedule.feeds import Fragment, emission_limit, piecewise_feeds
 from millpost.schedule.rows import PathGrid
+from millpost.toolpath import ARC_CW, PLANE_AXES, Toolpath
 
 
 def fragment_feed_at_samples(samples, fragments, tp):
@@ -27,6 +28,42 @@ def fragment_feed_at_samples(samples, fragments, tp):
         for f in fragments:
             if f.move == m and f.u_start - 1e-9 <= u <= f.u_end + 1e-9:
                 out[k] = np.nanmin([out[k], f.feed_mm_min / 60.0])
+    return out
+
+
+def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
+    """Test helper: the program with each fragmented move split at its fragment ends (arcs as arcs about the same
+    centre) and the fragment feeds; other moves unchanged. Keeps line and block of the source."""
+    by_move: dict[int, list[Fragment]] = {}
+    for f in fragments:
+        by_move.setdefault(f.move, []).append(f)
+    idx, u0, u1, feed = [], [], [], []
+    for m in range(len(tp)):
+        frs = by_move.get(m)
+        if not frs:
+            idx.append(m), u0.append(0.0), u1.append(1.0), feed.append(tp.feed_mm_min[m])
+            continue
+        for f in sorted(frs, key=lambda f: f.u_start):
+            idx.append(m), u0.append(f.u_start), u1.append(f.u_end), feed.append(f.feed_mm_min)
+    idx, u0, u1 = np.array(idx), np.array(u0), np.array(u1)
+    out = tp.subset(idx)
+    out.start = tp.points(idx, u0)
+    out.end = tp.points(idx, u1)
+    out.feed_mm_min = np.array(feed, float)
+    arc = out.kind >= ARC_CW
+    if arc.any():
+        _, _, _, sweep, _, _ = tp.subset(idx[arc])._arc_params()
+        sw = np.abs(sweep) * (u1[arc] - u0[arc])
+        full = np.floor(sw / (2 * np.pi) + 1e-9)
+        rem = sw - 2 * np.pi * full
+        out.turns = out.turns.copy()
+        out.turns[arc] = np.where(rem < 1e-9, full - 1, full).astype(np.int32)
+        # the normal-axis component of a centre equals its move's start
+        ax = np.array(PLANE_AXES)[out.plane[arc].astype(int)][:, 2]
+        c = out.center[arc].copy()
+        c[np.arange(len(c)), ax] = out.start[arc][np.arange(len(c)), ax]
+        out.center = out.center.copy()
+        out.center[arc] = c
     return out
 
 
@@ -80,7 +117,7 @@ def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
               SpeedLoad(alpha, np.full(n, 5.0), force_cap, "force")]
     ps = schedule_samples(smp, limits)
     assert ps.ok
-    lim = emission_limit(smp, limits, ps)
+    lim = emission_limit(smp, limits, ps, ("axis_velocity", "axis_acceleration", "junction"))
     assert np.all(lim[np.isfinite(lim)] >= ps.feed_mm_s[np.isfinite(lim)] - 1e-9)
     frs = piecewise_feeds(smp, lim, min_fragment_mm=1.0, max_changes_per_mm=0.5)
     sp = split_toolpath(tp, frs)

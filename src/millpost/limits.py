@@ -24,11 +24,14 @@ tool). The bound therefore gives the feed max(v_cap, v_keep), v_cap the speed wh
 reaches the limit: never increasing in the load, so a heavier cut never gets a higher feed than a
 lighter one for the same reason.
 
-Deflection default (`deflection_mm` not given): per sample, a finishing cut (radial width ≤ 10 %
-of the diameter) 0.005 mm, otherwise (roughing) 0.8 % of the diameter but at least 0.025 mm;
-CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in (0.025 mm) for a
-1/8 in (3.175 mm) end mill as a roughing limit and 0.0002 in (0.005 mm) for finishing, and
-deflection scales with the tool (stiffer tools are held to the same fraction of their diameter).
+Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
+the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
+(0.025 mm) as suitable for roughing with a 1/8 in end mill and 0.0002 in (0.005 mm) for
+finishing; from 1/4 in (6.35 mm) up the limit grows with the diameter, 0.001 in per 1/4 in
+(engineering judgement: a larger tool leaves a proportionally larger finishing allowance). It is a
+quality limit, so on small tools it never lowers a programmed feed. A single sample cannot tell a
+finishing pass from adaptive roughing (both cut a narrow width), so finishing accuracy is the
+user's `deflection_mm`.
 """
 
 from __future__ import annotations
@@ -48,10 +51,8 @@ from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
 
 HARD, QUALITY = "hard", "quality"
-FINISH_AE_RATIO = 0.1  # radial width / diameter at or below which a cut is a finishing pass
-DEFLECTION_FINISH_MM = 0.005  # 0.0002 in
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
-DEFLECTION_ROUGH_RATIO = 0.008  # 0.001 in over 1/8 in
+DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
 
 
 @dataclass(frozen=True)
@@ -186,10 +187,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
         if job.limits["deflection_mm"]:
             defl_limit[idx] = float(job.limits["deflection_mm"])
         else:
-            rough = max(DEFLECTION_ROUGH_MM, DEFLECTION_ROUGH_RATIO * tool.diameter_mm)
-            finishing = eng.ae_mm[idx] <= FINISH_AE_RATIO * tool.diameter_mm
-            defl_limit[idx] = np.where(finishing, DEFLECTION_FINISH_MM, rough)
-            rough_by_tool[int(number)] = rough
+            defl_limit[idx] = rough_by_tool[int(number)] = max(DEFLECTION_ROUGH_MM,
+                                                               DEFLECTION_ROUGH_RATIO * tool.diameter_mm)
         h_min = job.material.min_chip_mm(tool.edge_radius_mm)
         cut_here = idx[sin_max[idx] > 0]
         per_tooth = tool.flutes * rpm[cut_here] / 60.0  # mm/s per mm of feed per tooth
@@ -197,8 +196,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
         h_max[cut_here] = job.material.chip_load_mm(tool.diameter_mm)[1]
         floor[cut_here] = h_min / sin_max[cut_here] * per_tooth
     if rough_by_tool:
-        defaults["deflection"] = (f"by operation: finishing (ae <= {FINISH_AE_RATIO:.0%} of D) {DEFLECTION_FINISH_MM} mm, "
-                                  "roughing " + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
+        defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
+                                  + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
     v_prog = np.where(cutting, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
     keep_hard = np.minimum(floor, v_prog)
     keep_quality = v_prog if lower == HARD else keep_hard

@@ -18,13 +18,13 @@ import numpy as np
 
 from . import controller, engagement
 from .emit import FeedPlan, write_feeds
-from .gcode import ReaderOptions, read_program
+from .gcode import ReaderOptions, read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
 from .limits import HARD, JobLimits, build_limits, spindle_rpm
 from .replay import baseline_feeds, binding_shares, limit_ratios
 from .schedule import ScheduleOptions, schedule_samples
-from .schedule.feeds import emission_limit, piecewise_feeds, split_toolpath
+from .schedule.feeds import cluster, emission_limit, piecewise_feeds
 from .toolpath import RAPID, Samples
 
 
@@ -46,7 +46,10 @@ def machine_controller(job: Job) -> controller.ControllerModel:
         block_rate_hz=job.machine.controller.block_rate_Hz)
 
 
-def _plan_from_fragments(program: Program, fragments) -> FeedPlan:
+def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
+    """The emitter's plan from the fragments. With control flow a line that runs several times gets
+    one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
+    ones differ by at least `step`."""
     plan = FeedPlan.programmed(program)
     by_move: dict[int, list] = {}
     for f in fragments:
@@ -58,6 +61,14 @@ def _plan_from_fragments(program: Program, fragments) -> FeedPlan:
         else:
             plan.feed_mm_min[mv] = min(f.feed_mm_min for f in frs)
             plan.fragments[mv] = [(f.u_end, f.feed_mm_min) for f in frs]
+    if program.control_flow:
+        tp = program.toolpath
+        fed = np.flatnonzero(np.isfinite(plan.feed_mm_min) & (tp.kind != RAPID))
+        lines, inverse = np.unique(tp.line[fed], return_inverse=True)
+        per_line = np.full(len(lines), np.inf)
+        np.minimum.at(per_line, inverse, plan.feed_mm_min[fed])
+        plan.feed_mm_min[fed] = cluster(per_line, step)[inverse]
+        plan.fragments = {}
     return plan
 
 
@@ -89,7 +100,6 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed:
         plan = FeedPlan.programmed(program)
-        emitted_tp = tp
         status = "fallback_programmed_feeds"
         message = "; ".join(f"{s.status.value}: {s.message}" for s in failed[:3])
     else:
@@ -97,15 +107,16 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False))
         fragments = piecewise_feeds(samples, limit_mm_s, step=float(job.limits["feed_step"]))
-        plan = _plan_from_fragments(program, fragments)
-        emitted_tp = split_toolpath(tp, fragments)
+        plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
         status, message = "solved", ""
     text = write_feeds(program, plan)
+    emitted_tp = read_text(text, str(job.program), ReaderOptions(dialect=job.dialect)).toolpath  # what will run
     after = controller.execute(emitted_tp, model)
     if status == "solved" and after.time_s > before.time_s * (1 + 1e-3):
         status = "slower"
     executed = np.interp(samples.s_mm, *_speed_profile(emitted_tp, after, ds))
     ratios = limit_ratios(samples, limits, executed, job)
+    as_programmed = limit_ratios(samples, limits, before.speed_at_samples(samples), job)
     by_effect, by_limit = binding_shares(samples, sched, limits)
     cut = samples.kind != RAPID
     summary = {
@@ -122,6 +133,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         "removed_volume_mm3": round(float(np.nansum(eng.volume_mm3)), 3),
         "policy": limits.lower,
         "limits": {k: round(v, 4) for k, v in sorted(ratios.items())},
+        "limits_programmed": {k: round(v, 4) for k, v in sorted(as_programmed.items())},
+        "hard_limits": sorted(set(limits.names(kind=HARD))),
         "binding": by_effect,
         "binding_limits": by_limit,
         "defaults_binding": {k: v for k, v in limits.defaults.items() if by_limit.get(k, 0.0) > 0

@@ -37,8 +37,37 @@ def run(args: argparse.Namespace) -> int:
         write_atomic(args.json, text + "\n")
     if args.trace:
         write_csv(args.trace, result.trace)
-    status = result.summary["status"]
-    print(f"millpost: {status}; cycle time {result.summary['cycle_time_before_s']:.1f} s -> "
-          f"{result.summary['cycle_time_after_s']:.1f} s (baseline {result.summary['cycle_time_baseline_s']:.1f} s); "
-          f"wrote {output}", file=sys.stderr)
+    print(report(result.summary, output), file=sys.stderr)
     return 0
+
+
+def report(s: dict, output: Path) -> str:
+    """What a machinist reads after a run: the outcome, why (the limits that bound the feeds and for
+    which share of the cutting time, limits the program already exceeds, defaults that bound), the
+    feeds held by the policy, and per tool the programmed and optimized time and feed range."""
+    out = [f"millpost: {s['status']}; cycle time {s['cycle_time_before_s']:.1f} s -> {s['cycle_time_after_s']:.1f} s "
+           f"(baseline {s['cycle_time_baseline_s']:.1f} s); F words {s['f_words']['programmed']} -> "
+           f"{s['f_words']['optimized']}; wrote {output}"]
+    if s["message"]:
+        out.append(f"  {s['message']}")
+    hard = set(s.get("hard_limits", ()))
+    if s.get("binding_limits"):
+        out.append("  limits that set the feed (share of cutting time): " + ", ".join(
+            f"{k} {v:.0%}{' (hard)' if k in hard else ''}" for k, v in
+            sorted(s["binding_limits"].items(), key=lambda kv: -kv[1]) if v >= 0.005))
+    over = {k: v for k, v in s.get("limits_programmed", {}).items() if v > 1.005 and k in hard}
+    if over:
+        out.append("  the programmed feeds exceed hard limits (x bound): " +
+                   ", ".join(f"{k} {v:.2f}" for k, v in sorted(over.items())) +
+                   ("; feeds lowered there, hence slower" if s["status"] == "slower" else ""))
+    for name, why in s.get("defaults_binding", {}).items():
+        out.append(f"  default {name}: {why}")
+    for name, h in s.get("held", {}).items():
+        lines = ", ".join(map(str, h["lines"])) + (" ..." if h["line_count"] > len(h["lines"]) else "")
+        out.append(f"  {name} ({h['kind']}) held on {h['line_count']} lines [{lines}]: {h['reason']}")
+    out.append("  tool  programmed s  optimized s  programmed F  optimized F (mm/min)")
+    for number, row in s.get("tools", {}).items():
+        out.append(f"  T{number:<4} {row['programmed_s']:12.1f} {row['optimized_s']:12.1f}  "
+                   f"{row['programmed_feed_mm_min'][0]:g}-{row['programmed_feed_mm_min'][1]:g}  "
+                   f"{row['optimized_feed_mm_min'][0]:g}-{row['optimized_feed_mm_min'][1]:g}")
+    return "\n".join(out)

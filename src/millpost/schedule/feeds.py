@@ -22,7 +22,7 @@ from millpost.schedule.assemble import merged_bounds
 from millpost.schedule.constraints import path_blocks
 from millpost.schedule.rows import PathGrid, SpeedBounds
 from millpost.schedule.solve import ProgramSchedule
-from millpost.toolpath import ARC_CW, PLANE_AXES, RAPID, Samples, Toolpath
+from millpost.toolpath import RAPID, Samples
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,21 @@ def settle(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
     return out
 
 
+def cluster(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
+    """Feeds in any order lowered to the smallest of their cluster: ascending, a cluster holds the
+    feeds within `step` (relative) of its smallest; so any two different results differ by more
+    than `step`."""
+    f = np.asarray(feeds_mm_min, float)
+    order = np.argsort(f)
+    out = f.copy()
+    lo = -np.inf
+    for k in order:
+        if not f[k] <= lo * (1 + step):
+            lo = f[k]
+        out[k] = lo
+    return out
+
+
 def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm: float = 2.0,
                     max_changes_per_mm: float = 0.2, step: float = 0.05) -> list[Fragment]:
     """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
@@ -121,50 +136,13 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     return merged
 
 
-def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
-    """The program with each fragmented move split at its fragment ends (arcs as arcs about the same
-    centre) and the fragment feeds; other moves unchanged. Keeps line and block of the source."""
-    by_move: dict[int, list[Fragment]] = {}
-    for f in fragments:
-        by_move.setdefault(f.move, []).append(f)
-    idx, u0, u1, feed = [], [], [], []
-    for m in range(len(tp)):
-        frs = by_move.get(m)
-        if not frs:
-            idx.append(m), u0.append(0.0), u1.append(1.0), feed.append(tp.feed_mm_min[m])
-            continue
-        for f in sorted(frs, key=lambda f: f.u_start):
-            idx.append(m), u0.append(f.u_start), u1.append(f.u_end), feed.append(f.feed_mm_min)
-    idx, u0, u1 = np.array(idx), np.array(u0), np.array(u1)
-    out = tp.subset(idx)
-    out.start = tp.points(idx, u0)
-    out.end = tp.points(idx, u1)
-    out.feed_mm_min = np.array(feed, float)
-    arc = out.kind >= ARC_CW
-    if arc.any():
-        _, _, _, sweep, _, _ = tp.subset(idx[arc])._arc_params()
-        sw = np.abs(sweep) * (u1[arc] - u0[arc])
-        full = np.floor(sw / (2 * np.pi) + 1e-9)
-        rem = sw - 2 * np.pi * full
-        out.turns = out.turns.copy()
-        out.turns[arc] = np.where(rem < 1e-9, full - 1, full).astype(np.int32)
-        # the normal-axis component of a centre equals its move's start
-        ax = np.array(PLANE_AXES)[out.plane[arc].astype(int)][:, 2]
-        c = out.center[arc].copy()
-        c[np.arange(len(c)), ax] = out.start[arc][np.arange(len(c)), ax]
-        out.center = out.center.copy()
-        out.center[arc] = c
-    return out
-
-
-CONTROLLER_ENFORCED = ("axis_velocity", "axis_acceleration", "junction", "jerk")
 # limits on the drives' current: while the schedule ramps, what binds is the acceleration, which the
 # controller plans itself (F words cannot shape a ramp; a ladder of them only ends in F≈0 at a stop)
 RAMP_OWNED = ("current", "current_slew")
 
 
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
-                   controller_enforced: tuple[str, ...] = CONTROLLER_ENFORCED) -> np.ndarray:
+                   controller_enforced: tuple[str, ...]) -> np.ndarray:
     """Per-sample feed limit (mm/s) for `piecewise_feeds`: the schedule's speed where a limit the
     controller does not know binds (loads, chip load, current at steady speed...), and the speed caps
     of the limits it does not enforce itself where only its own dynamics (named in
