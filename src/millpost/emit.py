@@ -80,6 +80,7 @@ class _LineWriter:
 
     def __init__(self, raw: str, block: Block, spaced: bool) -> None:
         self.raw, self.block = raw, block
+        self.lower = bool(block.words) and all(w.text[0].islower() for w in block.words if w.text[0].isalpha())
         one_word = len(block.words) + (block.number is not None) < 2
         self.sep = " " if (spaced if one_word else re.search(_SPACED, raw)) else ""
 
@@ -102,7 +103,8 @@ class _LineWriter:
         if missing:
             anchor = [w.end for w in self.block.words if w.letter in "GXYZIJKR" and w.letter not in drop]
             at = max(anchor) if anchor else self.block.code_end
-            edits.append((at, at, "".join(self.sep + L + new[L] if (at > 0 or i) else L + new[L]
+            case = str.lower if self.lower else str.upper
+            edits.append((at, at, "".join(self.sep + case(L) + new[L] if (at > 0 or i) else case(L) + new[L]
                                           for i, L in enumerate(missing))))
         for s, e, rep in sorted(edits, key=lambda t: (t[0], t[1]), reverse=True):
             text = text[:s] + rep + text[e:]
@@ -232,7 +234,6 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     arc = tp.kind[i] >= ARC_CW
     uses_r = any(w.letter == "R" for w in block.words)
     g_word = next((w for w in block.words if w.letter == "G" and int(round(w.value)) in (1, 2, 3)), None)
-    lower = bool(block.words) and all(w.text[0].islower() for w in block.words if w.text[0].isalpha())
     order = [w.letter for w in block.words if w.letter in _AXIS_LETTERS + _ARC_LETTERS + "RF" or w is g_word]
     us = np.array([0.0] + [u for u, _ in fragments])
     points = tp.points(np.full(len(us), i), us)
@@ -267,7 +268,7 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
             out.append(writer.replace(words, drop=drop) + ending)
         else:
             ranked = sorted(words, key=lambda L: order.index(L) if L in order else len(order) + "XYZIJKRF".index(L))
-            texts = [(L.lower() if lower else L) + words[L] for L in ranked]
+            texts = [(L.lower() if writer.lower else L) + words[L] for L in ranked]
             if g_word is not None:
                 at = order.index("G") if "G" in order else 0
                 texts.insert(min(at, len(texts)), g_word.text.strip())
