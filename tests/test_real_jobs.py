@@ -142,3 +142,15 @@ def test_feed_changes_are_meaningful(run):
     step = float(job.limits["feed_step"])
     share = float(np.mean(changes[changed] >= step * 0.98))
     assert share >= 0.95, f"{name}: only {share:.1%} of {int(changed.sum())} feed changes are >= {step:.0%}"
+
+
+def test_block_rate_bounds_every_changed_feed(run):
+    """A move of length L runs at most L × block rate: every F millpost wrote obeys it."""
+    name, job, result = run
+    original = read_text(job.program.read_text(), str(job.program)).toolpath
+    tp = read_text(result.text, "emitted.nc").toolpath
+    rate = job.machine.controller.block_rate_Hz
+    changed = set(np.round(tp.feed_mm_min[tp.kind != RAPID], 3)) - set(np.round(original.feed_mm_min, 3))
+    mine = (tp.kind != RAPID) & np.isin(np.round(tp.feed_mm_min, 3), list(changed)) & (tp.lengths() > 0)
+    over = tp.feed_mm_min[mine] / 60.0 > tp.lengths()[mine] * rate * (1 + 1e-6)
+    assert not over.any(), f"{name}: {int(over.sum())} moves faster than the block rate allows"

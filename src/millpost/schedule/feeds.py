@@ -136,18 +136,15 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     return merged
 
 
-# limits on the drives' current: while the schedule ramps, what binds is the acceleration, which the
-# controller plans itself (F words cannot shape a ramp; a ladder of them only ends in F≈0 at a stop)
-RAMP_OWNED = ("current", "current_slew")
-
-
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
-                   controller_enforced: tuple[str, ...]) -> np.ndarray:
+                   controller_enforced: tuple[str, ...], ramp_owned: tuple[str, ...] = ()) -> np.ndarray:
     """Per-sample feed limit (mm/s) for `piecewise_feeds`: the schedule's speed where a limit the
     controller does not know binds (loads, chip load, current at steady speed...), and the speed caps
     of the limits it does not enforce itself where only its own dynamics (named in
-    controller_enforced, and the current limits while ramping) bind — the controller ramps there on
-    its own, and programming the ramp as F words would only slow it. nan on rapids."""
+    controller_enforced, and those in ramp_owned while the schedule ramps: the drives' current, whose
+    binding share during a ramp is the acceleration) bind — the controller ramps there on its own,
+    and programming the ramp as F words would only slow it (a ladder of them ends in F≈0 at a
+    stop). nan on rapids."""
     grid = PathGrid.from_samples(samples)
     caps = [blk for blk in path_blocks(grid, limits)
             if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
@@ -158,6 +155,6 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
         a = np.abs(sch.a)
         a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)
         ramping = np.r_[a > a_ref, False] | np.r_[False, a > a_ref]
-        own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, RAMP_OWNED) & ramping)
+        own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, ramp_owned) & ramping)
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
     return out
