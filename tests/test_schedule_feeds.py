@@ -133,3 +133,17 @@ def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
     best_const = (force_cap - 5.0) / alpha.max() * 60
     base = execute(tp, ctl, np.full(len(tp), best_const))
     assert ex.time_s < base.time_s
+
+
+def test_settle_and_cluster_never_raise_and_space_the_feeds():
+    from millpost.schedule.feeds import cluster, settle
+    rng = np.random.default_rng(1)
+    f = 1000 * np.exp(np.cumsum(rng.normal(0, 0.03, 3000)))
+    for out, consecutive in ((settle(f, 0.05), True), (cluster(f, 0.05), False)):
+        assert np.all(out <= f)
+        assert np.all(out >= f.min())
+        v = np.diff(out) if consecutive else np.diff(np.unique(out))
+        base = np.minimum(out[1:], out[:-1]) if consecutive else np.unique(out)[:-1]
+        rel = np.abs(v) / base
+        assert np.all((rel == 0) | (rel >= 0.05 - 1e-12))
+    assert np.array_equal(settle(np.array([100.0, 103.0, 120.0, 119.0]), 0.05), [100.0, 100.0, 119.0, 119.0])

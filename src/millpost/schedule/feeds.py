@@ -63,20 +63,23 @@ def settle(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
     """Feeds in program order lowered into runs of one feed each, so that F words change only where
     the feed changes meaningfully: a feed joins the current run while the run's largest member stays
     within `step` (relative) of its smallest, and the run takes its smallest (never above any
-    member's limit). Consecutive runs then differ by more than `step`, except where a later member
-    pulls a run down next to the one before."""
+    member's limit). Repeated until no two neighbouring runs lie within `step` of each other (a run
+    pulled down by a later member may land next to the one before)."""
     out = np.asarray(feeds_mm_min, float).copy()
     if step <= 0 or len(out) == 0:
         return out
-    start, lo, hi = 0, out[0], out[0]
-    for i in range(1, len(out) + 1):
-        if i < len(out) and max(hi, out[i]) <= min(lo, out[i]) * (1 + step):
-            lo, hi = min(lo, out[i]), max(hi, out[i])
-            continue
-        out[start:i] = lo
-        if i < len(out):
-            start, lo, hi = i, out[i], out[i]
-    return out
+    while True:
+        prev = out.copy()
+        start, lo, hi = 0, out[0], out[0]
+        for i in range(1, len(out) + 1):
+            if i < len(out) and max(hi, out[i]) <= min(lo, out[i]) * (1 + step):
+                lo, hi = min(lo, out[i]), max(hi, out[i])
+                continue
+            out[start:i] = lo
+            if i < len(out):
+                start, lo, hi = i, out[i], out[i]
+        if np.array_equal(out, prev):
+            return out
 
 
 def cluster(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
