@@ -10,7 +10,8 @@
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
     [limits]                          # optional: deflection_mm, feed_max_mm_min,
                                       # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle"),
-                                      # lower ("hard"|"all"), feed_step (relative, 0.05)
+                                      # lower ("hard"|"all"), feed_step (relative, 0.05),
+                                      # solver ("auto"|"clarabel": Clarabel on every segment)
 
 A folder stands for the `job.toml` inside it.
 """
@@ -29,8 +30,9 @@ from .config import Table
 from .tools.library import load_tool, tool_from_table
 
 _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
-               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "lower": "hard", "feed_step": 0.05}
-_CHOICES = {"model": ("mechanistic", "kienzle"), "lower": ("hard", "all")}
+               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "lower": "hard", "feed_step": 0.05,
+               "solver": "auto"}
+_CHOICES = {"model": ("mechanistic", "kienzle"), "lower": ("hard", "all"), "solver": ("auto", "clarabel")}
 
 
 @dataclass

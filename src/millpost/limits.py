@@ -53,6 +53,7 @@ from .tools.beam import ToolBeam, default_safety_factor
 HARD, QUALITY = "hard", "quality"
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
+LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
 
 
 @dataclass(frozen=True)
@@ -172,12 +173,14 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
             line = int(samples.line[np.flatnonzero(cutting & (samples.tool == number))[0]])
             raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
         idx = np.flatnonzero(samples.tool == number)
-        # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
-        ll = model.linear_loads(eng.select(idx), tool, rpm[idx],
-                                feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[idx], nan=100.0))
-        for key in ("peak", "power", "torque", "force"):
-            loads[f"{key}_a"][idx] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
-            loads[f"{key}_b"][idx] = getattr(ll, f"{key}_b")
+        # in chunks: the models' per-slice temporaries (kilobytes a sample) stay bounded by the chunk
+        for part in np.array_split(idx, max(1, -(-len(idx) // LOAD_CHUNK))):
+            # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
+            ll = model.linear_loads(eng.select(part), tool, rpm[part],
+                                    feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[part], nan=100.0))
+            for key in ("peak", "power", "torque", "force"):
+                loads[f"{key}_a"][part] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
+                loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
         beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
         if not job.limits["tool_safety_factor"]:
             defaults.setdefault("cutting_force", "tool safety factor on the bending strength: "

@@ -73,12 +73,17 @@ def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
 
 
 def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions | None = None) -> Result:
-    """Run the whole post step on a job and return the new program and its summary."""
+    """Run the whole post step on a job and return the new program and its summary. `options`
+    default to the job's `[limits] solver` on all cores."""
     t_start = time.perf_counter()
     program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+    t_read = time.perf_counter()
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
+    t_engage = time.perf_counter()
     result = schedule_program(job, program, samples, eng, options)
+    result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
+                                 **result.summary["stage_s"]}
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
@@ -89,9 +94,10 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     (Split from `optimize` so that tests can give engagements of known geometry.)"""
     tp = program.toolpath
     ds = float(job.limits["ds_mm"])
+    t_limits = time.perf_counter()
     limits = build_limits(job, samples, eng, tp)
     t0 = time.perf_counter()
-    sched = schedule_samples(samples, limits, options or ScheduleOptions())
+    sched = schedule_samples(samples, limits, options or ScheduleOptions.from_choices(solver=job.limits["solver"]))
     solver_s = time.perf_counter() - t0
     model = machine_controller(job)
     before = controller.execute(tp, model)
@@ -110,6 +116,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
         status, message = "solved", ""
     text = write_feeds(program, plan)
+    t_emit = time.perf_counter()
     emitted_tp = read_text(text, str(job.program), ReaderOptions(dialect=job.dialect)).toolpath  # what will run
     after = controller.execute(emitted_tp, model)
     if status == "solved" and after.time_s > before.time_s * (1 + 1e-3):
@@ -130,6 +137,10 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         "tools": _tool_table(tp, emitted_tp, before, after),
         "f_words": {"programmed": _f_words(program.text), "optimized": _f_words(text)},
         "solver_s": round(solver_s, 3),
+        # wall seconds per stage (read and engagement added by `optimize`); emit includes the programmed and
+        # baseline controller runs, replay the emitted one and the limit ratios
+        "stage_s": {"limits": round(t0 - t_limits, 3), "schedule": round(solver_s, 3),
+                    "emit": round(t_emit - t0 - solver_s, 3), "replay": round(time.perf_counter() - t_emit, 3)},
         "removed_volume_mm3": round(float(np.nansum(eng.volume_mm3)), 3),
         "policy": limits.lower,
         "limits": {k: round(v, 4) for k, v in sorted(ratios.items())},

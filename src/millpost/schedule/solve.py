@@ -5,13 +5,16 @@ committed b (two samples when StepRows need a fixed a) and ends inside the contr
 b ≤ K_hi of the reachability pass, which keeps every later window feasible (notes/SCHEDULE-PROTOTYPE
 §4.8). With several processes the segment is first cut at cruise anchors (samples where the greedy
 profile sits on the speed cap over ±3 samples, so the optimum does too) and the chunks are solved
-independently with b fixed at the anchors.
+independently with b fixed at the anchors. The cuts depend only on the segment (about one per
+`chunk` samples), never on the number of processes, so that any number of processes gives the same
+schedule; `schedule_samples` hands whole segments to the processes when there are several.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import multiprocessing
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -38,18 +41,37 @@ class ScheduleOptions:
     Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
     normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it;
     after the retries the best solution is kept if its violation is within `accept_residual` (1e-4 of
-    the top speed squared: far inside the 0.5 % the replay check allows)."""
+    the top speed squared: far inside the 0.5 % the replay check allows).
+    `chunk`: samples per independently solved chunk of a long segment (cut at cruise anchors).
+    `processes`: worker processes for segments and chunks (default: all cores); the result does
+    not depend on it (the chunks are cut the same way whatever the count).
+    Build from the user's words with `from_choices`."""
 
     window: int = 2000
     overlap: int = 100
     monolithic_max: int = 4000
-    processes: int = 1
+    chunk: int = 8000
+    processes: int = field(default_factory=lambda: os.cpu_count() or 1)
     relinearize: int = 1
     floor_penalty: float = 10.0
     max_residual: float = 1e-6
     accept_residual: float = 1e-4
     certify_gap: float = 1e-3
     solver: SolverOptions = field(default_factory=lambda: SolverOptions(iterative_refinement=False))
+
+    SOLVERS = ("auto", "clarabel")
+
+    @classmethod
+    def from_choices(cls, *, solver: str | None = None, jobs: int | None = None) -> "ScheduleOptions":
+        """solver "auto" (certified O(N) profile where its proven gap is within `certify_gap`,
+        Clarabel elsewhere) or "clarabel" (Clarabel on every segment, for comparison); jobs: worker
+        processes (None: all cores)."""
+        if solver not in (None, *cls.SOLVERS):
+            raise ValueError(f"solver {solver!r}: expected one of {', '.join(cls.SOLVERS)}")
+        if jobs is not None and jobs < 1:
+            raise ValueError(f"jobs {jobs}: expected a whole number >= 1")
+        opts = cls() if jobs is None else cls(processes=jobs)
+        return dataclasses.replace(opts, certify_gap=0.0) if solver == "clarabel" else opts
 
 
 @dataclass
@@ -267,7 +289,7 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
     if n <= opts.monolithic_max:
         bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, np.array([b_start]), (b_end, b_end))
         return bw, sw, sol.solve_s, 1, "" if bw is not None else f"conic solve: {sol.raw_status}"
-    parts = 2 * opts.processes if opts.processes > 1 else 1
+    parts = max(1, round(n / opts.chunk))
     cuts = [0, *_anchors(rc, b_hi, parts, margin=opts.window // 4 + nfix), n - 1]
     jobs = []
     for k in range(len(cuts) - 1):
@@ -334,12 +356,27 @@ class ProgramSchedule:
 def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | None = None) -> ProgramSchedule:
     """Schedule every cutting segment of `samples` rest to rest. `limits` are constraint objects
     whose per-sample arrays span all samples."""
+    opts = options or ScheduleOptions()
     grid = PathGrid.from_samples(samples)
     blocks = [blk for lim in limits for blk in lim.blocks(grid)]
+    ranges = cutting_segments(samples)
+    tasks = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi)) for lo, hi in ranges]
+    big = sorted(range(len(tasks)), key=lambda k: -len(tasks[k][0]))
+    if opts.processes > 1 and len(tasks) > 1 and sum(len(g) for g, _ in tasks) > 2 * opts.monolithic_max:
+        # whole segments to the workers, largest first; each solves its chunks in turn
+        one = dataclasses.replace(opts, processes=1)
+        with ProcessPoolExecutor(max_workers=min(opts.processes, len(tasks)),
+                                 mp_context=multiprocessing.get_context("fork")) as ex:
+            done = dict(zip(big, ex.map(_solve_segment, [(*tasks[k], one) for k in big],
+                                                  chunksize=max(1, len(big) // (8 * opts.processes)))))
+        schedules = [done[k] for k in range(len(tasks))]
+    else:  # one long segment (its chunks in parallel), or only short ones
+        schedules = [solve_path(g, b, opts) for g, b in tasks]
     feed = np.full(len(samples), np.nan)
-    segs = []
-    for lo, hi in cutting_segments(samples):
-        sch = solve_path(grid.window(lo, hi), _window_blocks(blocks, lo, hi), options)
+    for (lo, hi), sch in zip(ranges, schedules):
         feed[lo:hi] = sch.feed_mm_s
-        segs.append((lo, hi, sch))
-    return ProgramSchedule(feed, segs)
+    return ProgramSchedule(feed, [(lo, hi, sch) for (lo, hi), sch in zip(ranges, schedules)])
+
+
+def _solve_segment(args: tuple) -> Schedule:
+    return solve_path(*args)
