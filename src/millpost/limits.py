@@ -253,9 +253,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
     return JobLimits(limits, loads, held, forced, floor, lower, defaults)
 
 
-def static_caps(samples: Samples, limits) -> np.ndarray:
+def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate)."""
+    by itself allow (loads, chip load, feed, block rate), of one kind or all."""
     grid = PathGrid.from_samples(samples)
-    caps = [blk for lim in limits if not lim.controller for blk in lim.blocks(grid) if isinstance(blk, SpeedBounds)]
+    caps = [blk for lim in limits if not lim.controller and kind in (None, lim.kind)
+            for blk in lim.blocks(grid) if isinstance(blk, SpeedBounds)]
     return np.sqrt(merged_bounds(caps, len(samples))[1])

@@ -21,8 +21,8 @@ from .emit import FeedPlan, write_feeds
 from .gcode import ReaderOptions, read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
-from .limits import HARD, JobLimits, build_limits, spindle_rpm
-from .replay import baseline_feeds, binding_shares, limit_ratios
+from .limits import HARD, JobLimits, build_limits, spindle_rpm, static_caps
+from .replay import baseline_feeds, binding_shares, feed_at_samples, limit_ratios
 from .schedule import ScheduleOptions, schedule_samples
 from .schedule.feeds import cluster, emission_limit, piecewise_feeds
 from .toolpath import RAPID, Samples
@@ -152,6 +152,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
                              or np.any(limits.held.get(k, False))},
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
+        "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(emitted_tp, samples)),
         "notes": program.notes + _rpm_notes(job, program),
     }
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
@@ -159,6 +160,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
              "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
              "feed_schedule_mm_min": sched.feed_mm_s * 60.0, "feed_executed_mm_min": executed * 60.0,
              "feed_min_chip_mm_min": limits.floor_mm_s * 60.0,
+             "feed_hard_cap_mm_min": static_caps(samples, limits, HARD) * 60.0,
              "peak_force_N": np.where(cut, limits.loads["peak_a"] * executed + limits.loads["peak_b"], 0.0),
              "power_W": np.where(cut, limits.loads["power_a"] * executed + limits.loads["power_b"], 0.0)}
     # 1 where the policy held that limit's bound at the programmed or minimum-chip feed (reported)
@@ -183,6 +185,18 @@ def _tool_table(tp, emitted_tp, before: controller.Execution, after: controller.
             row[f"{key}_feed_mm_min"] = [round(float(np.nanmin(feeds)), 1), round(float(np.nanmax(feeds)), 1)]
         out[int(number)] = row
     return out
+
+
+def _below_min_chip(samples: Samples, limits: JobLimits, feed_mm_min: np.ndarray) -> dict:
+    """Lines whose written F is under the minimum-chip feed (or the programmed one, if lower)
+    somewhere: one F covers a stretch of samples, and a hard limit on a heavier part of it needs less
+    than the chip floor of a lighter part."""
+    cut = (samples.kind != RAPID) & (limits.floor_mm_s > 0)
+    need = np.minimum(limits.floor_mm_s * 60.0, np.nan_to_num(samples.feed_mm_min, nan=np.inf))
+    low = cut & (feed_mm_min < need * (1 - 1e-3) - 0.1)  # F words are rounded down to 0.1 mm/min
+    lines = np.unique(samples.line[low])
+    return {"samples": int(low.sum()), "lines": [int(x) for x in lines[:20]], "line_count": int(len(lines)),
+            "reason": "a hard limit on a heavier part of the same F needs a feed below the chip floor here"}
 
 
 def _held_lines(samples: Samples, limits: JobLimits) -> dict:

@@ -17,7 +17,7 @@ from .job import Job
 from .limits import JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
 from .schedule.rows import SpeedBounds
-from .toolpath import RAPID, Samples
+from .toolpath import RAPID, Samples, Toolpath
 
 
 def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tuple[np.ndarray, dict]:
@@ -33,6 +33,14 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
         per_tool[int(number)] = f
         feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
     return feeds, per_tool
+
+
+def feed_at_samples(emitted: Toolpath, samples: Samples) -> np.ndarray:
+    """The F in force (mm/min) of an emitted program at each sample of the original resampling, by
+    arc length (splitting moves does not change the path's length)."""
+    s_end = np.cumsum(emitted.lengths())
+    k = np.clip(np.searchsorted(s_end, samples.s_mm - 1e-9), 0, max(len(emitted) - 1, 0))
+    return emitted.feed_mm_min[k]
 
 
 def limit_ratios(samples: Samples, limits: JobLimits, v_mm_s: np.ndarray, job: Job) -> dict[str, float]:
