@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from millpost._kernels import announce_compile
 from millpost.errors import ConfigError
 from millpost.toolpath import ARC_CW, RAPID, Samples, Toolpath
 
@@ -193,6 +194,7 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         # a jump between blocks (not contiguous: e.g. program discontinuity) is a stop
         cont = np.linalg.norm(blk.start[1:] - blk.end[:-1], axis=1) < 1e-6
         vj[1:-1] = np.where(cont, np.minimum(v2, np.minimum(vnom[:-1], vnom[1:]) ** 2), 0.0)
+    announce_compile(_plan)
     v2 = _plan(L, vnom, acc, vj, int(model.lookahead_blocks)) if n else np.zeros(1)
     ve = np.sqrt(np.maximum(v2, 0))
     t = _trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
