@@ -264,6 +264,8 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
         if b_new is None:
             break
         result_b, result_slack = b_new, slack
+        if not _tangents_bind(grid, blocks, result_b, v0):
+            break  # re-taking the tangents cannot move the optimum: no linearised row is active off its tangent
         v0 = np.maximum(np.sqrt(result_b), 0.05 * vref)  # tangent point of the next linearisation
     floor = soft_floor(blocks, n)
     if result_b is None:
@@ -276,6 +278,33 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
     a = np.diff(b) / (2 * ds)
     return Schedule(b, a, status, traversal_time(ds, b), message, floor_unmet, _excess(grid, blocks, b, a),
                     _binding(grid, blocks, b, a), secs, windows)
+
+
+def _tangents_bind(grid: PathGrid, blocks: list[Block], b: np.ndarray, v0: np.ndarray, tol: float = 1e-3) -> bool:
+    """Whether a row linearised at the tangent speeds v0 (LocalRows with g > 0, StepRows) is active
+    (within `tol` of its right-hand side, relative to it) at a sample whose speed differs from its
+    tangent point by more than 1 %. Only there is the linearisation tighter than the row itself, so
+    only then can another pass at the solution's speeds gain time."""
+    v = np.sqrt(np.maximum(b, 0.0))
+    off = np.abs(v - v0) > 1e-2 * v0
+    a = np.diff(b) / (2 * grid.ds)
+    aa = np.append(a, 0.0)
+    for blk in blocks:
+        if isinstance(blk, LocalRows) and (blk.g > 0).any():
+            pos = blk.g > 0
+            w = blk.w + np.where(pos, blk.g / (2 * v0), 0.0)
+            h = blk.h - np.where(pos, blk.g * v0 / 2, 0.0)
+            lin = blk.u * aa + w * b + np.where(pos, 0.0, blk.g) * v
+            active = lin >= h - tol * np.maximum(np.abs(h), blk.scale)
+            if (active & pos & off).any():
+                return True
+        elif isinstance(blk, StepRows) and len(b) > 2:
+            kb, rhs = blk.linearised(grid, v0)
+            e = blk.u[:, :-1] * a + blk.w[:, :-1] * b[:-1]
+            lin = np.abs(np.diff(e, axis=1)) + kb * b[1:-1]
+            if ((lin >= rhs - tol * np.abs(rhs)) & off[1:-1]).any():
+                return True
+    return False
 
 
 def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, v0: np.ndarray, vref: float,
