@@ -234,11 +234,12 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
         raise ValueError("every sample needs a finite speed cap (add a FeedLimit)")
     if opts.certify_gap > 0 and b_start == 0 and b_end == 0:
         t0 = time.perf_counter()
-        cert = certified_reach(grid, blocks)
+        cert = certified_reach(grid, blocks, opts.floor_penalty)
         if cert is not None and cert[1] <= opts.certify_gap:
             b = cert[0]
             a = np.diff(b) / (2 * ds)
-            return Schedule(b, a, Status.SOLVED, traversal_time(ds, b), "", np.zeros(n, bool),
+            floor_unmet = soft_floor(blocks, n) > b * (1 + 1e-6) + 1e-9
+            return Schedule(b, a, Status.SOLVED, traversal_time(ds, b), "", floor_unmet,
                             _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), time.perf_counter() - t0, 0,
                             "reach", cert[1])
     vref = float(np.sqrt(b_hi.max())) or 1.0
