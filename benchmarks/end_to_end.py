@@ -102,6 +102,7 @@ def measure(blocks: int, seed: int, solver: str | None, jobs: int | None, repeat
     best = min(runs, key=lambda r: r["cpu_s"])  # the machine is shared: the least-disturbed run
     best.update(blocks=blocks, solver=solver or "auto", jobs=jobs or os.cpu_count(),
                 cpu_s_runs=[r["cpu_s"] for r in runs], wall_s_runs=[r["wall_s"] for r in runs])
+    print(json.dumps(best), file=sys.stderr, flush=True)  # progress: one line per measured job
     return best
 
 

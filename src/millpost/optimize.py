@@ -137,6 +137,10 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         "tools": _tool_table(tp, emitted_tp, before, after),
         "f_words": {"programmed": _f_words(program.text), "optimized": _f_words(text)},
         "solver_s": round(solver_s, 3),
+        # segments accepted with the certified O(N) profile ("reach") or solved by Clarabel ("socp", windows)
+        "schedule_methods": {"reach": sum(s.method == "reach" for _, _, s in sched.segments),
+                             "socp": sum(s.method == "socp" for _, _, s in sched.segments),
+                             "windows": sum(s.windows for _, _, s in sched.segments)},
         # wall seconds per stage (read and engagement added by `optimize`); emit includes the programmed and
         # baseline controller runs, replay the emitted one and the limit ratios
         "stage_s": {"limits": round(t0 - t_limits, 3), "schedule": round(solver_s, 3),
