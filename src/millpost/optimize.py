@@ -106,7 +106,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
-        fragments = piecewise_feeds(samples, limit_mm_s, step=float(job.limits["feed_step"]))
+        fragments = piecewise_feeds(samples, limit_mm_s, step=float(job.limits["feed_step"]),
+                                    accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz"))
         plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
         status, message = "solved", ""
     text = write_feeds(program, plan)
