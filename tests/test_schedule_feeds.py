@@ -147,3 +147,15 @@ def test_settle_and_cluster_never_raise_and_space_the_feeds():
         rel = np.abs(v) / base
         assert np.all((rel == 0) | (rel >= 0.05 - 1e-12))
     assert np.array_equal(settle(np.array([100.0, 103.0, 120.0, 119.0]), 0.05), [100.0, 100.0, 119.0, 119.0])
+
+
+def test_reachable_joins_short_peaks_only():
+    from millpost.schedule.feeds import reachable
+    joined = np.array([False, True, True, True])
+    f = np.array([600.0, 660.0, 600.0, 6000.0])  # mm/min; 0.1 mm pieces at 3000 mm/s²
+    out = reachable(f, np.full(4, 0.1), np.full(4, 3000.0), joined, 0.05)
+    # piece 1 peaks at sqrt(10² + 300) = 20 mm/s (1200 mm/min) > 1.05 × 600: it keeps its F
+    np.testing.assert_array_equal(out, f)
+    out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05)
+    # 1 µm: it peaks at sqrt(100 + 3) mm/s = 609 mm/min, within 5 % of 600: joined to its neighbours
+    np.testing.assert_array_equal(out, [600.0, 600.0, 600.0, 6000.0])

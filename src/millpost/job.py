@@ -25,6 +25,7 @@ from pathlib import Path
 from .errors import ConfigError
 from .machine import Machine
 from .materials import Material
+from .registry import plugins
 from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
@@ -32,7 +33,7 @@ from .tools.library import load_tool, tool_from_table
 _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
                "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "lower": "hard", "feed_step": 0.05,
                "solver": "auto"}
-_CHOICES = {"model": ("mechanistic", "kienzle"), "lower": ("hard", "all"), "solver": ("auto", "clarabel")}
+_CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel")}
 
 
 @dataclass
@@ -123,7 +124,11 @@ def load_job(path: str | Path) -> Job:
     for key, value in dict(data.get("limits", {})).items():
         if key not in _LIMIT_KEYS:
             raise ConfigError(f"limits.{key}", value, f"unknown limit; known: {', '.join(_LIMIT_KEYS)}", file=f)
-        if key in _CHOICES:
+        if key == "model":
+            if value not in plugins("force_models"):
+                raise ConfigError("limits.model", value, f"one of {', '.join(sorted(plugins('force_models')))}",
+                                  file=f)
+        elif key in _CHOICES:
             if value not in _CHOICES[key]:
                 raise ConfigError(f"limits.{key}", value, " or ".join(_CHOICES[key]), file=f)
         elif not (isinstance(value, (int, float)) and value >= 0):

@@ -83,13 +83,14 @@ class JobLimits:
     power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3). held: {limit name: samples where the
     policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
     hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
-    sample (0 where nothing cuts); speed_mm_s: the programmed feed per sample (0 on rapids)."""
+    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut)."""
 
     limits: list[Limit]
     loads: dict
     held: dict[str, np.ndarray]
     forced: dict[str, np.ndarray]
     floor_mm_s: np.ndarray
+    deflection_mm: np.ndarray
     lower: str = HARD
     defaults: dict[str, str] = field(default_factory=dict)
 
@@ -250,7 +251,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
                                     tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
-    return JobLimits(limits, loads, held, forced, floor, lower, defaults)
+    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
 
 
 def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:

@@ -21,6 +21,7 @@ from .emit import FeedPlan, write_feeds
 from .gcode import ReaderOptions, read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
+from .progress import Progress, resolve, stage
 from .limits import HARD, JobLimits, build_limits, spindle_rpm, static_caps
 from .replay import baseline_feeds, binding_shares, feed_at_samples, limit_ratios
 from .schedule import ScheduleOptions, schedule_samples
@@ -72,16 +73,22 @@ def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
     return plan
 
 
-def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions | None = None) -> Result:
-    """Run the whole post step on a job and return the new program and its summary. `options`
-    default to the job's `[limits] solver` on all cores."""
+def optimize(job: Job, *, progress: Progress | bool | None = None, options: ScheduleOptions | None = None) -> Result:
+    """Run the whole post step on a job and return the new program and its summary. progress: a
+    `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal).
+    `options` default to the job's `[limits] solver` on all cores."""
     t_start = time.perf_counter()
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+    report = resolve(progress)
+    with stage(report, "read program"):
+        program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     t_read = time.perf_counter()
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
-    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
+    with stage(report, "stock"):
+        stock = job.stock()
+    eng = engagement.simulate(stock, dict(job.tools), samples, progress=report)
     t_engage = time.perf_counter()
-    result = schedule_program(job, program, samples, eng, options)
+    with stage(report, "forces, schedule, emit"):
+        result = schedule_program(job, program, samples, eng, options)
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
@@ -112,7 +119,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
-        fragments = piecewise_feeds(samples, limit_mm_s, step=float(job.limits["feed_step"]))
+        fragments = piecewise_feeds(samples, limit_mm_s, step=float(job.limits["feed_step"]),
+                                    accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz"))
         plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
         status, message = "solved", ""
     text = write_feeds(program, plan)
@@ -165,6 +173,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
              "feed_schedule_mm_min": sched.feed_mm_s * 60.0, "feed_executed_mm_min": executed * 60.0,
              "feed_min_chip_mm_min": limits.floor_mm_s * 60.0,
              "feed_hard_cap_mm_min": static_caps(samples, limits, HARD) * 60.0,
+             "deflection_limit_mm": limits.deflection_mm,
              "peak_force_N": np.where(cut, limits.loads["peak_a"] * executed + limits.loads["peak_b"], 0.0),
              "power_W": np.where(cut, limits.loads["power_a"] * executed + limits.loads["power_b"], 0.0)}
     # 1 where the policy held that limit's bound at the programmed or minimum-chip feed (reported)

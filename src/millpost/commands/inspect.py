@@ -8,10 +8,12 @@ import sys
 
 from ..gcode import ReaderOptions, read_program
 from ..gcode.summary import moves_csv, summary
+from ..progress import Bars, stage
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("inspect", help="summarise a G-code program (JSON) or list its moves (CSV)",
+                       epilog="example:\n  millpost inspect sample_jobs/drill_and_mill/program.nc",
                        description="Read a program as a controller would and report what it does. Lengths in mm, "
                                    "times in s, feeds in mm/min; end points in the program's coordinate frame.")
     p.add_argument("program", help="G-code file")
@@ -27,7 +29,8 @@ def run(args: argparse.Namespace) -> int:
     opts = ReaderOptions.linuxcnc() if args.linuxcnc_frame else ReaderOptions()
     if args.dialect:
         opts.dialect = args.dialect
-    program = read_program(args.program, opts)
+    with Bars() as bars, stage(bars, "read program"):
+        program = read_program(args.program, opts)
     if args.moves:
         sys.stdout.write(moves_csv(program))
     else:

@@ -10,11 +10,14 @@ from pathlib import Path
 from ..files import write_atomic, write_csv
 from ..job import load_job
 from ..optimize import optimize
+from ..progress import Bars, stage
+from ..report.page import headline
 from ..schedule import ScheduleOptions
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("optimize", help="schedule the feeds of a job's program and write it back",
+    p = sub.add_parser("optimize", help="rewrite a job's feeds as fast as the machine, tool and material allow",
+                       epilog="example:\n  millpost optimize sample_jobs/adaptive_pocket --report pocket.html",
                        description="Read the job (a folder with job.toml, or the .toml; format in README), simulate "
                                    "engagement, predict loads, solve one convex feed schedule and write the same "
                                    "program with only F words changed (moves split where the feed must change).")
@@ -22,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", help="output program (default: the job's output)")
     p.add_argument("--json", metavar="SUMMARY", help="write the summary JSON here ('-' for stdout)")
     p.add_argument("--trace", metavar="CSV", help="write per-sample engagement, loads and feeds as CSV")
+    p.add_argument("--report", metavar="HTML", help="write the job report (one HTML page that opens offline)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars and no summary line")
     p.add_argument("--solver", choices=ScheduleOptions.SOLVERS,
                    help="auto: the certified O(N) profile where its proven gap is within 0.1 %%, Clarabel "
                         "elsewhere; clarabel: Clarabel everywhere, for comparison (default: the job's "
@@ -39,18 +44,24 @@ def _positive_int(text: str) -> int:
 def run(args: argparse.Namespace) -> int:
     job = load_job(args.job)
     options = ScheduleOptions.from_choices(solver=args.solver or job.limits["solver"], jobs=args.jobs)
-    result = optimize(job, progress=sys.stderr.isatty(), options=options)
-    output = Path(args.output) if args.output else job.output
-    write_atomic(output, result.text)
-    result.summary["output"] = str(output)
-    text = json.dumps(result.summary, indent=2)
-    if args.json == "-":
-        print(text)
-    elif args.json:
-        write_atomic(args.json, text + "\n")
-    if args.trace:
-        write_csv(args.trace, result.trace)
-    print(report(result.summary, output), file=sys.stderr)
+    with Bars(enabled=False if args.quiet else None) as bars:
+        result = optimize(job, progress=bars, options=options)
+        output = Path(args.output) if args.output else job.output
+        write_atomic(output, result.text)
+        result.summary["output"] = str(output)
+        text = json.dumps(result.summary, indent=2)
+        if args.json == "-":
+            print(text)
+        elif args.json:
+            write_atomic(args.json, text + "\n")
+        if args.trace:
+            write_csv(args.trace, result.trace)
+        if args.report:
+            from ..report import collect, write_report
+            with stage(bars, "report"):
+                write_report(args.report, collect(result.summary, result.trace, job))
+    if not args.quiet:
+        print(report(result.summary, output), file=sys.stderr)
     return 0
 
 
@@ -58,9 +69,8 @@ def report(s: dict, output: Path) -> str:
     """What a machinist reads after a run: the outcome, why (the limits that bound the feeds and for
     which share of the cutting time, limits the program already exceeds, defaults that bound), the
     feeds held by the policy, and per tool the programmed and optimized time and feed range."""
-    out = [f"millpost: {s['status']}; cycle time {s['cycle_time_before_s']:.1f} s -> {s['cycle_time_after_s']:.1f} s "
-           f"(baseline {s['cycle_time_baseline_s']:.1f} s); F words {s['f_words']['programmed']} -> "
-           f"{s['f_words']['optimized']}; wrote {output}"]
+    out = [f"millpost: {headline(s)}; F words {s['f_words']['programmed']} -> {s['f_words']['optimized']}; "
+           f"wrote {output}"]
     if s["message"]:
         out.append(f"  {s['message']}")
     hard = set(s.get("hard_limits", ()))

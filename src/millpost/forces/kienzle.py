@@ -77,6 +77,13 @@ class Kienzle:
         model.coef_cov_ = np.zeros((2, 2))
         return model
 
+    @classmethod
+    def from_material(cls, material, **settings) -> "Kienzle":
+        """The material's published Kienzle set (k_c1.1, m_c and the F_r/F_t, F_a/F_t ratios)."""
+        k = material.kienzle
+        return cls.from_coefficients(k.kc11_N_mm2, k.mc, radial_ratio=k.radial_ratio, axial_ratio=k.axial_ratio,
+                                     **settings)
+
     def _coef(self) -> np.ndarray:
         if not hasattr(self, "coef_"):
             raise NotFittedError("Kienzle model has no coefficients: call fit() or from_coefficients()")

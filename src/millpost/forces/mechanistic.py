@@ -75,6 +75,21 @@ class Mechanistic:
         model.coef_cov_ = np.zeros((6, 6))
         return model
 
+    @classmethod
+    def from_material(cls, material, *, h0_mm: float = 0.05, **settings) -> "Mechanistic":
+        """The material's published mechanistic set when it has one; otherwise the tangent of its Kienzle
+        law at chip thickness h0 (mm): K_tc = (1 − m_c) k_c1.1 h0^(−m_c), K_te = m_c k_c1.1 h0^(1−m_c),
+        radial and axial terms by the Kienzle ratios (the tangent bounds the Kienzle force from above)."""
+        if material.mechanistic is not None:
+            return cls.from_coefficients(*material.mechanistic.values(), **settings)
+        if h0_mm <= 0:
+            raise MillpostError(f"h0_mm must be > 0 mm, got {h0_mm}")
+        k = material.kienzle
+        ktc = (1 - k.mc) * k.kc11_N_mm2 * h0_mm ** (-k.mc)
+        kte = k.mc * k.kc11_N_mm2 * h0_mm ** (1 - k.mc)
+        return cls.from_coefficients(ktc, k.radial_ratio * ktc, k.axial_ratio * ktc,
+                                     kte, k.radial_ratio * kte, k.axial_ratio * kte, **settings)
+
     @property
     def coefficients(self) -> dict[str, float]:
         return dict(zip(COEF_NAMES, self._coef().tolist()))

@@ -97,13 +97,36 @@ def cluster(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
     return out
 
 
+def reachable(feeds_mm_min: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.ndarray, joined: np.ndarray,
+              step: float) -> np.ndarray:
+    """Feeds of pieces too short to reach them taken down to their faster neighbour's: a piece of
+    length L between neighbours at lower feeds v_prev, v_next, accelerating and braking at most at a,
+    peaks at v² = (v_prev² + v_next²)/2 + a·L; where that is within `step` of the faster neighbour the
+    piece's own F changes nothing meaningful on the machine and is not written (a bounds the path
+    acceleration from above, so the loss is under `step`). joined[i]: piece i continues piece i − 1."""
+    v = np.asarray(feeds_mm_min, float) / 60.0
+    nxt_joined = np.r_[joined[1:], False]
+    prev = np.r_[np.inf, v[:-1]]
+    nxt = np.r_[v[1:], np.inf]
+    inner = joined & nxt_joined & (v > prev) & (v > nxt)
+    peak = np.sqrt((prev**2 + nxt**2) / 2 + accel_mm_s2 * length_mm)
+    faster = np.maximum(prev, nxt)
+    take = inner & (peak <= faster * (1 + step))
+    return np.where(take, faster, v) * 60.0
+
+
 def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm: float = 2.0,
-                    max_changes_per_mm: float = 0.2, step: float = 0.05) -> list[Fragment]:
+                    max_changes_per_mm: float = 0.2, step: float = 0.05,
+                    accel_mm_s2: tuple[float, float, float] | None = None) -> list[Fragment]:
     """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
-    and never below SLOWEST_FEED_MM_MIN; their feeds settled into runs (`settle`) and equal
-    neighbours within a move merged."""
+    and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`) and, with the axes'
+    accelerations (mm/s²), short peaks the controller cannot reach joined to their neighbours
+    (`reachable`), repeated until stable; equal neighbours within a move merged."""
     lim = np.asarray(limit_mm_s, float)
     out: list[Fragment] = []
+    length: list[float] = []
+    accel: list[float] = []
+    amax = np.asarray(accel_mm_s2 if accel_mm_s2 is not None else (np.inf,) * 3, float)
     mv = samples.move
     starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
     ends = np.r_[starts[1:], len(mv)]
@@ -129,7 +152,19 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
         u = np.r_[0.0, np.cumsum(Lf) / L]
         u[-1] = 1.0
         out.extend(Fragment(m, float(u[k]), float(u[k + 1]), float(Vf[k] * 60.0)) for k in range(len(Vf)))
-    feeds = settle(np.array([f.feed_mm_min for f in out]), step)
+        length.extend(Lf)
+        t = np.abs(samples.tangent[a:b])
+        with np.errstate(divide="ignore"):  # the path acceleration the axes allow along the move, at most
+            accel.extend([float(np.max(np.min(np.where(t > 1e-12, amax / np.maximum(t, 1e-12), np.inf), axis=1)))]
+                         * len(Lf))
+    feeds = np.array([f.feed_mm_min for f in out])
+    move = np.array([f.move for f in out])
+    joined = np.r_[False, (move[1:] == move[:-1]) | (move[1:] == move[:-1] + 1)]
+    for _ in range(20):
+        before = feeds
+        feeds = reachable(settle(feeds, step), np.array(length), np.array(accel), joined, step)
+        if np.array_equal(feeds, before):
+            break
     merged: list[Fragment] = []
     for f, v in zip(out, feeds):
         if merged and merged[-1].move == f.move and merged[-1].feed_mm_min == v:
