@@ -26,6 +26,7 @@ from .errors import ConfigError
 from .machine import Machine
 from .materials import Material
 from .registry import plugins
+from .gcode import ReaderOptions
 from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
@@ -51,6 +52,10 @@ class Job:
     cell_mm: float | None = None
     dialect: str | None = None
     limits: dict = field(default_factory=lambda: dict(_LIMIT_KEYS))
+
+    def reader_options(self) -> ReaderOptions:
+        """How to read the program: the job's dialect, and its tools' diameters for cutter compensation."""
+        return ReaderOptions(dialect=self.dialect, tool_diameters_mm={n: t.diameter_mm for n, t in self.tools.items()})
 
     def stock(self):
         """Build the stock height field (mm, program frame)."""

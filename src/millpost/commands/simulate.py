@@ -124,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("step", args.step, "must be > 0 mm")
     t0 = time.perf_counter()
     program_path, stock, tools, step, dialect = _inputs(args)
-    program = read_program(program_path, ReaderOptions(dialect=dialect))
+    diameters = {n: t.diameter_mm for n, t in tools.items()} if isinstance(tools, dict) else {}  # for G41/G42
+    program = read_program(program_path, ReaderOptions(dialect=dialect, tool_diameters_mm=diameters))
     v0 = stock.volume_mm3()
     samples = program.toolpath.resample(step)
     with Bars() as bars:
