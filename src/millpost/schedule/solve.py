@@ -43,15 +43,16 @@ class ScheduleOptions:
     after the retries the best solution is kept if its violation is within `accept_residual` (1e-4 of
     the top speed squared: far inside the 0.5 % the replay check allows).
     `chunk`: samples per independently solved chunk of a long segment (cut at cruise anchors).
-    `processes`: worker processes for segments and chunks (default: all cores); the result does
-    not depend on it (the chunks are cut the same way whatever the count).
+    `processes`: worker processes for segments and chunks (default: all cores; one inside a daemonic
+    process such as a multiprocessing pool's worker, which may not start processes); the result
+    does not depend on it (the chunks are cut the same way whatever the count).
     Build from the user's words with `from_choices`."""
 
     window: int = 2000
     overlap: int = 100
     monolithic_max: int = 4000
     chunk: int = 8000
-    processes: int = field(default_factory=lambda: os.cpu_count() or 1)
+    processes: int = field(default_factory=lambda: 1 if multiprocessing.current_process().daemon else os.cpu_count() or 1)
     relinearize: int = 1
     floor_penalty: float = 10.0
     max_residual: float = 1e-6
@@ -101,6 +102,11 @@ class Schedule:
     @property
     def feed_mm_s(self) -> np.ndarray:
         return np.sqrt(np.maximum(self.b, 0.0))
+
+
+def _parallel(opts: ScheduleOptions) -> bool:
+    """Whether to use worker processes (a daemonic process may not start any: then one, same result)."""
+    return opts.processes > 1 and not multiprocessing.current_process().daemon
 
 
 def _window_blocks(blocks: list[Block], lo: int, hi: int) -> list[Block]:
@@ -331,7 +337,7 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
                    b_start=float(first[-1]), b_end_max=float(last[-1]), b_end_min=float(last[-1]))
         jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
                      rk.k_lo, rk.k_hi, first, last, nfix))
-    if opts.processes > 1 and len(jobs) > 1:
+    if _parallel(opts) and len(jobs) > 1:
         ctx = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
             outs = list(ex.map(_solve_chunk, jobs))
@@ -392,7 +398,7 @@ def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | 
     ranges = cutting_segments(samples)
     tasks = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi)) for lo, hi in ranges]
     big = sorted(range(len(tasks)), key=lambda k: -len(tasks[k][0]))
-    if opts.processes > 1 and len(tasks) > 1 and sum(len(g) for g, _ in tasks) > 2 * opts.monolithic_max:
+    if _parallel(opts) and len(tasks) > 1 and sum(len(g) for g, _ in tasks) > 2 * opts.monolithic_max:
         # whole segments to the workers, largest first; each solves its chunks in turn
         one = dataclasses.replace(opts, processes=1)
         with ProcessPoolExecutor(max_workers=min(opts.processes, len(tasks)),
