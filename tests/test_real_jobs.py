@@ -88,7 +88,8 @@ def test_no_feed_below_min_chip_unless_hard_forced(run):
     f = emitted.feed_mm_min
     run_id = np.cumsum(np.r_[True, (f[1:] != f[:-1]) & (emitted.kind[1:] != RAPID)])
     sample_run = run_id[move]
-    cap = tr["feed_hard_cap_mm_min"]
+    # the hard speed caps, and the schedule's speed where a hard limit without a cap of its own binds
+    cap = np.minimum(tr["feed_hard_cap_mm_min"], np.where(tr["binding_hard"] == 1, tr["feed_schedule_mm_min"], np.inf))
     for r in np.unique(sample_run[low]):
         on = sample_run == r
         on |= np.r_[on[1:], False]

@@ -24,7 +24,7 @@ from .job import Job
 from .progress import Progress, resolve, stage
 from .limits import HARD, JobLimits, build_limits, spindle_rpm, static_caps
 from .replay import baseline_feeds, binding_shares, feed_at_samples, limit_ratios
-from .schedule import ScheduleOptions, schedule_samples
+from .schedule import PathGrid, ScheduleOptions, schedule_samples
 from .schedule.feeds import cluster, emission_limit, piecewise_feeds
 from .toolpath import RAPID, Samples
 
@@ -175,11 +175,22 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
              "feed_min_chip_mm_min": limits.floor_mm_s * 60.0,
              "feed_hard_cap_mm_min": static_caps(samples, limits, HARD) * 60.0,
              "deflection_limit_mm": limits.deflection_mm,
+             "binding_hard": _binding_kind(samples, sched, limits, HARD),
              "peak_force_N": np.where(cut, limits.loads["peak_a"] * executed + limits.loads["peak_b"], 0.0),
              "power_W": np.where(cut, limits.loads["power_a"] * executed + limits.loads["power_b"], 0.0)}
     # 1 where the policy held that limit's bound at the programmed or minimum-chip feed (reported)
     trace.update({f"held_{k}": v.astype(np.int8) for k, v in sorted(limits.held.items())})
     return Result(text, summary, samples, trace)
+
+
+def _binding_kind(samples: Samples, sched, limits: JobLimits, kind: str) -> np.ndarray:
+    """1 where the limit that binds in the schedule is of this kind (hard: the schedule's speed there is
+    forced, e.g. by the drives' current, which has no speed cap of its own), else 0."""
+    owner = limits.by_block(PathGrid.from_samples(samples))
+    out = np.zeros(len(samples), np.int8)
+    for lo, hi, s in sched.segments:
+        out[lo:hi] = [name in owner and owner[name].kind == kind for name in s.binding.astype(str)]
+    return out
 
 
 def _f_words(text: str) -> int:
