@@ -28,7 +28,12 @@ def test_round_trip_through_own_dialect_and_grbl(path):
         return
     for name in {program.dialect, "grbl"}:
         target = dialects.get(name)
-        back = read_text(convert(program, target), f"{path.name}->{name}", ReaderOptions(dialect=name))
+        try:
+            text = convert(program, target)
+        except ParseError as exc:  # what the target cannot run (G43 H on grbl, offsets set in the program)
+            assert f"{path}:" in str(exc) and ": convert: " in str(exc)
+            continue
+        back = read_text(text, f"{path.name}->{name}", ReaderOptions(dialect=name))
         assert same_path(program, back) == [], name
         if len(program.toolpath):
             assert back.toolpath.bbox() == pytest.approx(program.toolpath.bbox(), abs=1e-4)

@@ -179,11 +179,25 @@ class Spindle:
 
 @dataclass(frozen=True)
 class Controller:
-    """Motion controller: kind, junction deviation (mm, grbl's cornering rule), block rate (blocks/s)."""
+    """Motion controller: kind, junction deviation (mm, grbl's cornering rule), block rate (blocks/s),
+    corner blending tolerance (mm, LinuxCNC's G64 P; 0: none, the planner's own bound), and the time
+    (s) the machine stands still for a tool change, a spindle start (to speed), coolant and any other
+    command that waits for the motion to end (spindle stop or speed, tool length...)."""
 
     kind: str
     junction_deviation_mm: float
     block_rate_Hz: float
+    blend_tolerance_mm: float = 0.0
+    tool_change_s: float = 0.0
+    spindle_start_s: float = 0.0
+    coolant_s: float = 0.0
+    command_s: float = 0.0
+
+    @property
+    def planner(self) -> str:
+        """The trajectory planner model (`millpost.controller`): grbl's for grbl, LinuxCNC's (a
+        look-ahead planner blending corners within a tolerance) for the others."""
+        return "grbl" if self.kind == "grbl" else "linuxcnc"
 
 
 @dataclass(frozen=True)
@@ -223,7 +237,12 @@ class Machine:
         c = t.table("controller")
         controller = Controller(c.string("kind", "generic", choices=CONTROLLERS),
                                 c.number("junction_deviation_mm", 0.01, gt=0),
-                                c.number("block_rate_Hz", 1000.0, gt=0))
+                                c.number("block_rate_Hz", 1000.0, gt=0),
+                                c.number("blend_tolerance_mm", 0.0, ge=0),
+                                c.number("tool_change_s", 0.0, ge=0),
+                                c.number("spindle_start_s", 0.0, ge=0),
+                                c.number("coolant_s", 0.0, ge=0),
+                                c.number("command_s", 0.0, ge=0))
         c.done()
         t.done()
         return cls(name, description, axes, spindle, controller, source)

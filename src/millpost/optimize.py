@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import controller, engagement
+from . import controller, safety
 from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
@@ -81,14 +81,15 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     report = resolve(progress)
     with stage(report, "read program"):
         program = read_program(job.program, job.reader_options())
-        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     t_read = time.perf_counter()
     with stage(report, "stock"):
         stock = job.stock()
-    eng = engagement.simulate(stock, dict(job.tools), samples, progress=report)
+    samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                                        progress=report)
     t_engage = time.perf_counter()
     with stage(report, "forces, schedule, emit"):
         result = schedule_program(job, program, samples, eng, options)
+    result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
+from ..files import json_text
 from ..gcode import ReaderOptions, read_program
 from ..gcode.summary import moves_csv, summary
 from ..progress import Bars, stage
@@ -39,5 +39,5 @@ def run(args: argparse.Namespace) -> int:
     if args.moves:
         sys.stdout.write(moves_csv(program))
     else:
-        print(json.dumps(summary(program), indent=2))
+        print(json_text(summary(program), f"{args.program}: summary"))
     return 0

@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from ..files import write_atomic, write_csv
+from ..files import json_text, write_atomic, write_csv
 from ..job import load_job
 from ..optimize import optimize
 from ..progress import Bars, stage
 from ..report.page import headline
+from ..safety import check_outputs
 from ..schedule import ScheduleOptions
+from . import add_allow_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,6 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "elsewhere; clarabel: Clarabel everywhere, for comparison (default: the job's "
                         "[limits] solver, else auto)")
     p.add_argument("--jobs", type=_positive_int, metavar="N", help="worker processes (default: all cores)")
+    add_allow_argument(p)
     p.set_defaults(func=run)
 
 
@@ -43,13 +45,16 @@ def _positive_int(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     job = load_job(args.job)
+    job.allow = job.allow | set(args.allow)
+    output = Path(args.output) if args.output else job.output
+    check_outputs({"output": output, "--json": args.json, "--trace": args.trace, "--report": args.report},
+                  job.inputs)
     options = ScheduleOptions.from_choices(solver=args.solver or job.limits["solver"], jobs=args.jobs)
     with Bars(enabled=False if args.quiet else None) as bars:
         result = optimize(job, progress=bars, options=options)
-        output = Path(args.output) if args.output else job.output
-        write_atomic(output, result.text)
         result.summary["output"] = str(output)
-        text = json.dumps(result.summary, indent=2)
+        text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
+        write_atomic(output, result.text)
         if args.json == "-":
             print(text)
         elif args.json:
@@ -61,6 +66,9 @@ def run(args: argparse.Namespace) -> int:
             with stage(bars, "report"):
                 write_report(args.report, collect(result.summary, result.trace, job))
     if not args.quiet:
+        for note in result.summary["notes"]:
+            if note.startswith(("warning", "note:")):
+                print(f"millpost: {note}", file=sys.stderr)
         print(report(result.summary, output), file=sys.stderr)
     return 0
 
