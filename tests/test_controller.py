@@ -97,3 +97,90 @@ def test_bad_model_is_a_config_error():
         ControllerModel((1.0, 1.0), (1.0, 1.0, 1.0))
     with pytest.raises(ConfigError):
         model(lookahead_blocks=0)
+
+
+# --- LinuxCNC's planner ---------------------------------------------------------------------------
+# Cycle times LinuxCNC 2.9 itself gave for these two-line programs (the harness in ../shared/tools/lcnc at
+# speed-up 1, axes of vmc-small: X/Y/Z 400/400/333.3 mm/s, 3000/2500/2500 mm/s²); the closed forms below
+# reproduce them without LinuxCNC.
+VMC = dict(max_rate_mm_s=(400.0, 400.0, 1000.0 / 3.0), accel_mm_s2=(3000.0, 2500.0, 2500.0), planner="linuxcnc",
+           lookahead_blocks=50)
+MEASURED = {"G0 X100": 0.517, "G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000": 2.150, "square 20 mm F6000 twice": 1.505,
+            "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655}
+
+
+def lcnc(**kw):
+    return ControllerModel(**{**VMC, **kw})
+
+
+def test_linuxcnc_single_segment_runs_at_half_acceleration():
+    # the last segment of the queue keeps its parabolic end: half the acceleration on all of it
+    tp = make_toolpath((0, 0, 0), [("rapid", (100, 0, 0))])
+    a = 1500.0
+    t = 2 * math.sqrt(100 / a) + 0.0005  # triangle (400 mm/s not reached) + half a servo period at the stop
+    assert execute(tp, lcnc()).time_s == pytest.approx(t, rel=1e-9)
+    assert t == pytest.approx(MEASURED["G0 X100"], abs=0.002)
+
+
+def test_linuxcnc_arc_at_half_tangential_acceleration():
+    tp = make_toolpath((0, 0, 0), [("rapid", (50, 0, 0)), ("arc", (50, 0, 0), (0, 0, 0), False)])
+    tp.feed_mm_min[:] = 12000.0
+    # rapid to the arc: a stop (rapid -> feed), full 3000 mm/s²; the circle: plane acceleration 2500,
+    # halved (last segment), half of it along the path; 200 mm/s under √(0.87·1250·50)
+    t_rapid = 2 * math.sqrt(50 / 3000) + 0.0005
+    a, v, L = 2500 * 0.5 * 0.5, 200.0, 2 * math.pi * 50
+    t_arc = L / v + v / a + 0.0005
+    assert math.sqrt(0.866 * 1250 * 50) > v
+    assert execute(tp, lcnc()).time_s == pytest.approx(t_rapid + t_arc, rel=1e-9)
+    assert t_rapid + t_arc == pytest.approx(MEASURED["G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000"], abs=0.002)
+
+
+def test_linuxcnc_blend_arcs_and_stops_match_linuxcnc():
+    sq = [("line", p) for p in [(20, 0, 0), (20, 20, 0), (0, 20, 0), (0, 0, 0)] * 2]
+    assert execute(feed_tp(sq, 6000), lcnc()).time_s == pytest.approx(MEASURED["square 20 mm F6000 twice"], abs=0.003)
+    moves = []
+    for k in range(50):
+        moves += [("rapid", (2 * k + 1, 0, 0)), ("line", (2 * k + 2, 0, 0))]
+    tp = make_toolpath((0, 0, 0), moves)
+    tp.feed_mm_min[:] = 6000.0
+    assert execute(tp, lcnc()).time_s == pytest.approx(MEASURED["100 rapid/feed stops"], abs=0.005)
+
+
+def test_linuxcnc_blend_speed_is_the_arc_within_tolerance():
+    # a right-angle corner between long lines: the blend arc deviates at most P from the corner, so its
+    # radius is P·tan45°/(1/sin45° − 1)·… (blendComputeParameters) and its speed √(0.87·a·R)
+    tp = feed_tp([("line", (100, 0, 0)), ("line", (100, 100, 0))], 3000 * 60)
+    tol = 0.05
+    ex = execute(tp, lcnc(blend_tolerance_mm=tol))
+    theta = math.pi / 4
+    d = math.cos(theta) * tol / (1 - math.sin(theta))
+    r = math.tan(theta) * d
+    v = math.sqrt(math.sqrt(0.75) * 2500 * r)  # a in the XY plane: the weaker of X and Y
+    assert ex.vnom[1] == pytest.approx(v, rel=1e-9)
+    assert ex.length[1] + ex.length[2] == pytest.approx(r * math.pi / 2, rel=1e-9)  # its halves on each line
+
+
+def test_pauses_add_their_time_and_stop_the_motion():
+    from millpost.controller import pauses_s, program_time
+    from millpost.gcode import read_text
+
+    prog = read_text("G21 G90\nG0 X10\nT2 M6\nG0 X20\nG4 P1.5\nM8\nG0 X30\nM2\n")
+    m = lcnc(tool_change_s=0.33, coolant_s=0.01)
+    p = pauses_s(prog, m)
+    assert np.nansum(p) == pytest.approx(0.33 + 1.5 + 0.01)
+    one = 2 * math.sqrt(10 / 1500) + 0.0005  # each 10 mm rapid alone, at half acceleration
+    assert program_time(prog, m) == pytest.approx(3 * one + 0.33 + 1.5 + 0.01, rel=1e-9)
+    assert program_time(read_text("G21 G90\nG0 X10\nT2 M6\nG0 X20\nM2\n"), lcnc(tool_change_s=0.33)) == \
+        pytest.approx(MEASURED["G0 X10 / M6 / G0 X20"], abs=0.02)
+
+
+def test_exact_path_stops_at_corners():
+    from millpost.controller import program_time
+    from millpost.gcode import read_text
+
+    blend = program_time(read_text("G21 G90 G1 X20 F6000\nY20\nM2\n"), lcnc())
+    exact = program_time(read_text("G21 G90 G61 G1 X20 F6000\nY20\nM2\n"), lcnc())
+    # G61: two moves from rest to rest; X at full acceleration (stop, not parabolic), Y halved (last)
+    t = 20 / 100 + 100 / 3000 + 0.0005 + 20 / 100 + 100 / 1250 + 0.0005
+    assert exact == pytest.approx(t, rel=1e-9)
+    assert blend < exact

@@ -82,7 +82,7 @@ def test_rapid_through_stock_is_an_error(tmp_path, capsys):
     rc = main(["simulate", str(nc), "--stock-box", "0,0,-10,20,20,0", "--cell", "0.1", "--tool-diameter", "6",
                "--trace", str(tmp_path / "t.csv")])
     assert rc == 2
-    assert "line 5: rapid move runs into the stock" in capsys.readouterr().err
+    assert f"{nc}:5: rapid move runs into the stock" in capsys.readouterr().err
     assert not (tmp_path / "t.csv").exists()
 
 
@@ -170,14 +170,15 @@ def test_camotics_examples_simulate(proj, fname, tmp_path, capsys):
     ("1071_surface_40mm_10overlap", 40, 12.55, 0.5)])
 def test_fusion_programs_simulate(name, dia, thick, top, tmp_path, capsys):
     """Plywood stock (thickness from the author's log) under the program's XY extent; the facing
-    program cuts at Z0, so its stock is given 0.5 mm to skim."""
+    program cuts at Z0, so its stock is given 0.5 mm to skim. The bits cut through the plywood in
+    the author's log, so their flutes are longer than the stock is thick."""
     from millpost.gcode import read_program
 
     path = DATA / "fusion-ledfloor" / f"{name}.nc"
     bb = read_program(path).toolpath.bbox()
     box = f"{bb[0, 0] - 1},{bb[0, 1] - 1},{-thick},{bb[1, 0] + 1},{bb[1, 1] + 1},{top}"
     rc = main(["simulate", str(path), f"--stock-box={box}", "--cell", "0.1", "--step", "0.25", "--tool-diameter",
-               f"{dia}", "--trace", str(tmp_path / "t.csv"), "--json"])
+               f"{dia}", "--flute-length", f"{thick + 1}", "--trace", str(tmp_path / "t.csv"), "--json"])
     captured = capsys.readouterr()
     assert rc == 0, captured.err
     assert json.loads(captured.out)["removed_mm3"] > 0

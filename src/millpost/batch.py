@@ -13,7 +13,7 @@ import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
-from .files import write_atomic
+from .files import json_text, write_atomic
 from .progress import Progress, silent
 
 COLUMNS = ("job", "status", "cycle_time_before_s", "cycle_time_after_s", "cycle_time_baseline_s", "run_s",
@@ -26,6 +26,7 @@ def run_one(job_path: str, out_dir: str) -> dict:
     from .job import load_job
     from .optimize import optimize
     from .report import collect, write_report
+    from .safety import check_outputs
     t0 = time.perf_counter()
     row = dict.fromkeys(COLUMNS, "")
     row["job"] = str(job_path)
@@ -33,11 +34,14 @@ def run_one(job_path: str, out_dir: str) -> dict:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         job = load_job(job_path)
-        result = optimize(job, progress=False)
         output = out / job.output.name
-        write_atomic(output, result.text)
+        check_outputs({"output": output, "summary": out / "summary.json", "report": out / "report.html"},
+                      job.inputs)
+        result = optimize(job, progress=False)
         result.summary["output"] = str(output)
-        write_atomic(out / "summary.json", json.dumps(result.summary, indent=2) + "\n")
+        summary = json_text(result.summary)
+        write_atomic(output, result.text)
+        write_atomic(out / "summary.json", summary + "\n")
         write_report(out / "report.html", collect(result.summary, result.trace, job))
         s = result.summary
         row.update(status=s["status"], output=str(output), report=str(out / "report.html"), message=s["message"],

@@ -6,7 +6,8 @@ start with:  millpost optimize sample_jobs/adaptive_pocket --report pocket.html
 then see:    millpost COMMAND --help (each has an example)"""
 
 # A thin shell over the Python API: each subcommand lives in `millpost.commands.<name>`; errors
-# millpost raises on purpose print one line and exit 2.
+# millpost raises on purpose print one line and exit 2; Ctrl-C prints "interrupted" and exits 130
+# (outputs are written atomically: no partial file is left).
 
 from __future__ import annotations
 
@@ -41,8 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
     try:
+        args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
     except MillpostError as exc:
         print(f"millpost: error: {exc}", file=sys.stderr)
@@ -50,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, UnicodeDecodeError) as exc:
         print(f"millpost: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("millpost: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

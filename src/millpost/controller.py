@@ -1,19 +1,41 @@
-"""What a real motion planner does with a program: a grbl/LinuxCNC-like model for cycle times.
+"""What a real motion planner does with a program: cycle time and the speed actually reached.
 
-Moves become blocks (arcs are cut into chords within `arc_tolerance_mm`, as grbl does); each block
-runs a trapezoidal velocity profile (constant acceleration, no jerk limit) at the smallest axis
-acceleration along its direction, at most the programmed feed (rapids: the axis rates) and the axis
-rate limits. Junction speeds follow grbl's junction deviation δ (a virtual blend arc of deviation δ
-run at the centripetal acceleration the axes allow along the direction change); a G64 P<tol>
-blend (LinuxCNC) is the same geometry with δ = tol; with `exact_stop` (G61) every junction stops.
-The planner only sees `lookahead_blocks` blocks ahead and must be able
-to stop at the end of the last one; a controller that processes at most `block_rate_hz` blocks per
-second cannot finish a block of length L faster than 1/rate, so its speed is at most L·rate.
-Returns the executed time and the actual speed at any sample of the path.
+Two planners, chosen by the machine's controller kind (`planner`):
+
+- "grbl": arcs are cut into chords within `arc_tolerance_mm` (grbl's mc_arc); each block runs a
+  trapezoidal velocity profile (constant acceleration, no jerk limit) at the smallest axis
+  acceleration along its direction, at most the programmed feed (rapids: the axis rates). Junction
+  speeds follow grbl's junction deviation δ: a virtual arc of deviation δ run at the centripetal
+  acceleration the axes allow along the direction change. The planner sees `lookahead_blocks` blocks
+  and must be able to stop at the end of the last one.
+- "linuxcnc": LinuxCNC 2.9's trajectory planner (tp.c, blendmath.c), the model for look-ahead
+  controllers that blend corners within a tolerance (LinuxCNC, Mach3, Fanuc-like). Lines and arcs
+  are segments of their own. A line's speed and acceleration are the largest the axes allow along
+  it; an arc's are those of its plane's weaker axis, its speed at most √(0.87·a·r) (87 % of the
+  acceleration normal to the path) and its acceleration along the path half of a (the other half is
+  kept for the turn). A corner between two segments is, in this order: a stop (rapid ↔ feed, a
+  reversal, a command between them); "tangent" when the velocity jump v·Δu in one servo period
+  (1 ms) needs less than 10 % of the axes' acceleration (both segments then lose that share of
+  their acceleration); otherwise a blend arc tangent to both segments, at most the blend tolerance
+  from the corner (`G64 P`; without P: a quarter of the shorter segment), using at most half of
+  each segment, run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic
+  blend at half acceleration. Speeds are planned backwards over `lookahead_blocks` segments (LinuxCNC:
+  50), a segment is never faster than its length per servo period, and one that ends at rest ends
+  half a servo period late on average (the period's rest is lost). A feed segment that takes less
+  than 10 ms (1/ARC_BLEND_RAMP_FREQ) and flows into the next changes speed linearly from end to end.
+  The last segment before the motion queue runs empty (a command, the end) keeps its parabolic end
+  and half its acceleration.
+
+A controller that processes at most `block_rate_hz` blocks per second cannot finish a block of
+length L faster than 1/rate (speed ≤ L·rate). Commands between moves stop the motion and take time:
+a dwell its P, a tool change `tool_change_s`, a spindle start `spindle_start_s`, coolant `coolant_s`, any
+other command that waits for motion to end (spindle stop or speed, tool length, user M codes)
+`command_s`. Times count from the first motion to the end of the last one.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba
@@ -22,11 +44,25 @@ import numpy as np
 from millpost.errors import ConfigError
 from millpost.toolpath import ARC_CW, RAPID, Samples, Toolpath
 
+PLANNERS = ("grbl", "linuxcnc")
+# LinuxCNC 2.9 constants (tp.c, blendmath.h, tc_types.h and the [TRAJ] defaults)
+NORMAL_SHARE = math.sqrt(1.0 - 0.5**2)  # BLEND_ACC_RATIO_NORMAL: share of a kept for the turn
+TANGENTIAL_SHARE = 0.5  # BLEND_ACC_RATIO_TANGENTIAL: share of a along an arc
+KINK_RATIO = 0.1  # ARC_BLEND_TANGENT_KINK_RATIO
+GAP_CYCLES = 4  # ARC_BLEND_GAP_CYCLES: a rest of a segment shorter than this many periods is merged
+RAMP_TIME_S = 1.0 / 100.0  # 1 / ARC_BLEND_RAMP_FREQ: shorter feed segments ramp linearly end to end
+SHARP_CORNER_COS = math.cos(math.pi * (1.0 - 2.0 / 180.0))  # reversal within 2°: stop
+ANGLE_EPS = 1e-6
+# events that wait for the motion to stop, and which time of the model each costs
+PAUSE_KINDS = {"dwell": None, "tool_change": "tool_change_s", "coolant": "coolant_s", "tool_length": "command_s",
+               "m_code": "command_s", "stop": None}
+
 
 @dataclass(frozen=True)
 class ControllerModel:
-    """Planner settings. Rates mm/s, accelerations mm/s², lengths mm (grbl: $110-$112 in mm/min,
-    $120-$122, $11 junction deviation, $12 arc tolerance; buffer of 16 blocks on an AVR)."""
+    """Planner settings. Rates mm/s, accelerations mm/s², lengths mm, times s (grbl: $110-$112 in
+    mm/min, $120-$122, $11 junction deviation, $12 arc tolerance; a buffer of 16 blocks on an AVR.
+    LinuxCNC: [AXIS_*] MAX_VELOCITY/MAX_ACCELERATION, G64 P, ARC_BLEND_OPTIMIZATION_DEPTH 50)."""
 
     max_rate_mm_s: tuple[float, float, float]
     accel_mm_s2: tuple[float, float, float]
@@ -35,20 +71,44 @@ class ControllerModel:
     block_rate_hz: float = float("inf")
     arc_tolerance_mm: float = 0.002
     exact_stop: bool = False
+    planner: str = "grbl"
+    blend_tolerance_mm: float = 0.0
+    servo_period_s: float = 0.001
+    tool_change_s: float = 0.0
+    spindle_start_s: float = 0.0
+    coolant_s: float = 0.0
+    command_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("max_rate_mm_s", "accel_mm_s2"):
             v = np.asarray(getattr(self, name), float)
             if v.shape != (3,) or not (v > 0).all():
                 raise ConfigError(name, getattr(self, name), "three positive numbers (X, Y, Z)")
-        if self.junction_deviation_mm < 0:
-            raise ConfigError("junction_deviation_mm", self.junction_deviation_mm, "must be ≥ 0")
+        for name in ("junction_deviation_mm", "blend_tolerance_mm", "tool_change_s", "spindle_start_s", "coolant_s",
+                     "command_s"):
+            if not getattr(self, name) >= 0:
+                raise ConfigError(name, getattr(self, name), "must be ≥ 0")
         if self.lookahead_blocks < 1:
             raise ConfigError("lookahead_blocks", self.lookahead_blocks, "must be ≥ 1")
         if not self.block_rate_hz > 0:
             raise ConfigError("block_rate_hz", self.block_rate_hz, "must be > 0")
         if not self.arc_tolerance_mm > 0:
             raise ConfigError("arc_tolerance_mm", self.arc_tolerance_mm, "must be > 0")
+        if not self.servo_period_s > 0:
+            raise ConfigError("servo_period_s", self.servo_period_s, "must be > 0")
+        if self.planner not in PLANNERS:
+            raise ConfigError("planner", self.planner, f"one of {', '.join(PLANNERS)}")
+
+    @classmethod
+    def from_machine(cls, machine) -> "ControllerModel":
+        """The model of a machine's controller: its axis rates and accelerations, its planner."""
+        ax = [machine.axes[a] for a in "xyz"]
+        c = machine.controller
+        return cls(max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
+                   junction_deviation_mm=c.junction_deviation_mm, block_rate_hz=c.block_rate_Hz,
+                   planner=c.planner, lookahead_blocks=16 if c.planner == "grbl" else 50,
+                   blend_tolerance_mm=c.blend_tolerance_mm, tool_change_s=c.tool_change_s,
+                   spindle_start_s=c.spindle_start_s, coolant_s=c.coolant_s, command_s=c.command_s)
 
 
 @dataclass
@@ -63,7 +123,7 @@ class Blocks:
 
 
 def to_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Blocks:
-    """Lines as one block each, arcs as chords with sagitta ≤ arc_tolerance (grbl's mc_arc)."""
+    """grbl: lines as one block each, arcs as chords with sagitta ≤ arc_tolerance (grbl's mc_arc)."""
     feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
     L = tp.lengths()
     nseg = np.ones(len(tp), np.int64)
@@ -123,35 +183,64 @@ def _trapezoid_time(L, vin, vout, vmax, a):
 
 @dataclass
 class Execution:
-    """Executed time (s) and per block entry speeds; `speed_at` gives the actual speed (mm/s)."""
+    """Executed time (s, first motion to the end of the last, pauses between included), per block
+    times, lengths, speed caps, accelerations and entry speeds (mm/s); `speed_at` gives the actual
+    speed. Blocks are in path order; `move` and `u_end` place each on the program's moves."""
 
     time_s: float
     block_time_s: np.ndarray
-    blocks: Blocks
+    move: np.ndarray
+    u_end: np.ndarray
     length: np.ndarray
     vnom: np.ndarray
     acc: np.ndarray
     v_entry: np.ndarray  # (n+1,)
+    pause_s: float = 0.0  # of time_s, spent stopped between moves (dwells, tool changes, commands)
 
-    def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Actual speed at fraction u of move `move` (sample positions map onto chords by fraction)."""
-        key = self.blocks.move.astype(float) + self.blocks.u_end
+    def _locate(self, move: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Block index and distance into it (mm) of fraction u of move `move` (by fraction on blocks)."""
+        key = self.move.astype(float) + self.u_end
         q = np.asarray(move, float) + np.clip(u, 0, 1)
         k = np.clip(np.searchsorted(key, q - 1e-12), 0, len(key) - 1)
-        ustart = np.where(k > 0, np.where(self.blocks.move[np.maximum(k - 1, 0)] == self.blocks.move[k],
-                                          self.blocks.u_end[np.maximum(k - 1, 0)], 0.0), 0.0)
-        frac = np.clip((np.clip(u, 0, 1) - ustart) / np.maximum(self.blocks.u_end[k] - ustart, 1e-300), 0, 1)
-        x = frac * self.length[k]
+        prev = np.maximum(k - 1, 0)
+        ustart = np.where((k > 0) & (self.move[prev] == self.move[k]), self.u_end[prev], 0.0)
+        frac = np.clip((np.clip(u, 0, 1) - ustart) / np.maximum(self.u_end[k] - ustart, 1e-300), 0, 1)
+        return k, frac * self.length[k]
+
+    def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Actual speed at fraction u of move `move` (sample positions map onto blocks by fraction)."""
+        k, x = self._locate(move, u)
         a = self.acc[k]
         v = np.minimum.reduce([np.sqrt(self.v_entry[k] ** 2 + 2 * a * x), self.vnom[k],
                                np.sqrt(self.v_entry[k + 1] ** 2 + 2 * a * (self.length[k] - x))])
         return v
 
+    def time_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Time (s from the program start) at which the tool passes fraction u of move `move`: the
+        blocks before plus the time into the block's trapezoid (accelerate from the entry speed at a,
+        cruise at the peak speed, decelerate to the exit speed)."""
+        k, x = self._locate(move, u)
+        a, L, v0, v1 = self.acc[k], self.length[k], self.v_entry[k], self.v_entry[k + 1]
+        vp = np.minimum(np.sqrt(np.maximum((2 * a * L + v0**2 + v1**2) / 2, 0)), self.vnom[k])
+        d_acc = (vp**2 - v0**2) / (2 * a)
+        d_dec = (vp**2 - v1**2) / (2 * a)
+        before = np.concatenate([[0.0], np.cumsum(self.block_time_s)])[k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_acc = (np.sqrt(v0**2 + 2 * a * np.minimum(x, d_acc)) - v0) / a
+            t_cruise = np.where(vp > 0, np.clip(x - d_acc, 0, None) / vp, 0.0)
+            t_dec = (np.sqrt(np.maximum(vp**2 - 2 * a * np.clip(x - (L - d_dec), 0, None), 0)) - vp) / -a
+        t_cruise = np.minimum(t_cruise, np.where(vp > 0, np.maximum(L - d_acc - d_dec, 0) / vp, 0.0))
+        return before + t_acc + t_cruise + t_dec
+
     def speed_at_samples(self, samples: Samples) -> np.ndarray:
         """Actual speed at every sample (mm/s); a sample's position along its move by arc length."""
+        return self.speed_at(samples.move, self._sample_fractions(samples))
+
+    @staticmethod
+    def _sample_fractions(samples: Samples) -> np.ndarray:
+        """Fraction of each sample along its move from the resampling (samples of a move are contiguous)."""
         s = samples.s_mm
         mv = samples.move
-        # fraction of each sample along its move from the resampling (samples of a move are contiguous)
         u = np.zeros(len(s))
         starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
         ends = np.r_[starts[1:], len(s)]
@@ -159,21 +248,129 @@ class Execution:
             s0 = s[a - 1] if a > 0 and not samples.segment_start[a] else s[a]
             span = s[b - 1] - s0
             u[a:b] = (s[a:b] - s0) / span if span > 0 else 1.0
-        return self.speed_at(mv, u)
+        return u
+
+    def time_at_samples(self, samples: Samples) -> np.ndarray:
+        """Time (s) at which the tool passes every sample (motion only: no dwells or tool changes)."""
+        return self.time_at(samples.move, self._sample_fractions(samples))
 
 
-def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Execution:
+def pauses_s(program, model: ControllerModel) -> np.ndarray:
+    """Per junction of the program's toolpath (len(moves)+1; index i = before move i): the time the
+    controller stands still there for the program's commands, nan where nothing waits for the motion
+    to end. Dwells last their P; a spindle start `spindle_start_s`, other spindle commands
+    `command_s`; a tool change `tool_change_s`; coolant `coolant_s`; tool length and user M codes
+    `command_s`."""
+    out = np.full(len(program.toolpath) + 1, np.nan)
+    for e in program.events:
+        if e.kind == "spindle":
+            cost = model.spindle_start_s if e.value[0] in ("cw", "ccw") else model.command_s
+        elif e.kind in PAUSE_KINDS:
+            name = PAUSE_KINDS[e.kind]
+            cost = float(e.value) if e.kind == "dwell" else getattr(model, name) if name else 0.0
+        else:
+            continue
+        out[e.move] = np.nan_to_num(out[e.move]) + cost
+    return out
+
+
+EXACT_PATH, EXACT_STOP = -1.0, -2.0  # path modes in a blend-tolerance array: G61, G61.1
+
+
+def path_modes(program, model: ControllerModel) -> np.ndarray:
+    """Per move: the blend tolerance in effect (mm; G64 P, 0 for a G64 without P) or EXACT_PATH (G61:
+    stop at corners) or EXACT_STOP (G61.1: stop after every move); before the program sets one, the
+    controller's own `blend_tolerance_mm`."""
+    out = np.full(len(program.toolpath), model.blend_tolerance_mm)
+    inch = np.asarray(program.move_inch, bool)
+    for e in program.events:
+        if e.kind != "path_mode" or e.move >= len(out):
+            continue
+        name, p = e.value
+        if name == "blend":
+            out[e.move:] = 0.0 if p is None else p * (25.4 if inch[e.move] else 1.0)
+        else:
+            out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP
+    return out
+
+
+def program_time(program, model: ControllerModel) -> float:
+    """Cycle time of an interpreted program (s): motion and the pauses between its first and last
+    move, in the path modes (G61/G64) the program sets."""
+    return execute(program.toolpath, model, pauses=pauses_s(program, model),
+                   blend_mm=path_modes(program, model)).time_s
+
+
+def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
+            pauses: np.ndarray | None = None, blend_mm: np.ndarray | None = None) -> Execution:
     """Plan and time the whole program (rapids at the axis rates). feed_mm_min overrides the
-    programmed feed per move."""
+    programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
+    blend_mm (see `path_modes`, per move) sets the LinuxCNC planner's path mode."""
+    if model.planner == "linuxcnc":
+        L, vnom, acc, vj2, move, u_end, ramps, split = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
+    else:
+        split = []
+        L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
+    vj2 = vj2.copy()
+    vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
+    n = len(L)
+    v2 = _plan(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
+    ve = np.sqrt(np.maximum(v2, 0))
+    t = _trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
+    if model.planner == "linuxcnc":
+        # a feed segment run in less than RAMP_TIME_S that flows into the next changes speed linearly
+        # from end to end (no cruise above both ends); one ending at rest ends half a period late
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_ramp = np.where(ve[:-1] + ve[1:] > 0, 2.0 * L / (ve[:-1] + ve[1:]), np.inf)
+            v_end = ve[:-1] + np.minimum(ve[1:], vnom)
+            t_est = np.where(v_end > 0, 2.0 * L / v_end, np.inf)
+        ramp = ramps & (ve[1:] > 0) & (t_est < RAMP_TIME_S)
+        t = np.where(ramp, t_ramp, t) + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
+    pause = 0.0
+    if pauses is not None and n:
+        first, last = move[0], move[-1]
+        inside = np.arange(len(pauses))
+        pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
+    if split:  # blend arcs as two halves, one on each move they join, for speeds along the program
+        k = np.array([b[0] for b in split])
+        mid = np.minimum.reduce([np.sqrt(ve[k] ** 2 + acc[k] * L[k]), vnom[k], np.sqrt(ve[k + 1] ** 2 + acc[k] * L[k])])
+        at = k + 1
+        t[k] *= 0.5
+        L = L.copy()
+        L[k] *= 0.5
+        t, L, vnom, acc = (np.insert(x, at, x[k]) for x in (t, L, vnom, acc))
+        ve = np.insert(ve, at, mid)
+        move = np.insert(move, at, [b[1] for b in split])
+        u_end = np.insert(u_end, at, [b[2] for b in split])
+    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, pause)
+
+
+def _stops(tp: Toolpath, pauses: np.ndarray | None) -> np.ndarray:
+    """Per move: whether the motion must stop before it (a pause or a jump in position)."""
+    stop = np.zeros(len(tp), bool)
+    if pauses is not None:
+        stop |= np.isfinite(np.asarray(pauses, float)[:len(tp)])
+    if len(tp) > 1:
+        stop[1:] |= np.linalg.norm(tp.start[1:] - tp.end[:-1], axis=1) > 1e-6
+    return stop
+
+
+def _axis_limited(u: np.ndarray, limits) -> np.ndarray:
+    """Largest path rate (speed or acceleration) along unit directions u that no axis exceeds."""
+    au = np.abs(u)
+    with np.errstate(divide="ignore"):
+        return np.min(np.where(au > 1e-12, np.asarray(limits, float) / np.maximum(au, 1e-300), np.inf), axis=1)
+
+
+def _grbl_blocks(tp, model, feed_mm_min, pauses):
+    """Chord blocks with grbl's junction-deviation corner speeds."""
     blk = to_blocks(tp, model, feed_mm_min)
     d = blk.end - blk.start
     L = np.linalg.norm(d, axis=1)
     u = d / np.maximum(L, 1e-300)[:, None]
-    vmax, amax = np.asarray(model.max_rate_mm_s), np.asarray(model.accel_mm_s2)
-    au = np.abs(u)
-    with np.errstate(divide="ignore"):
-        axis_rate = np.min(np.where(au > 1e-12, vmax / au, np.inf), axis=1)
-        acc = np.min(np.where(au > 1e-12, amax / au, np.inf), axis=1)
+    amax = np.asarray(model.accel_mm_s2)
+    axis_rate = _axis_limited(u, model.max_rate_mm_s)
+    acc = _axis_limited(u, amax)
     rapid = tp.kind[blk.move] == RAPID
     vnom = np.where(rapid | ~np.isfinite(blk.feed_mm_s), axis_rate, np.minimum(blk.feed_mm_s, axis_rate))
     vnom = np.minimum(vnom, L * model.block_rate_hz)
@@ -184,16 +381,252 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         cos_t = np.clip(-(u0 * u1).sum(1), -1, 1)  # grbl: cos of the angle between reversed in and out
         jv = u1 - u0
         jv /= np.maximum(np.linalg.norm(jv, axis=1), 1e-300)[:, None]
-        aj = np.min(np.where(np.abs(jv) > 1e-12, amax / np.maximum(np.abs(jv), 1e-300), np.inf), axis=1)
+        aj = _axis_limited(jv, amax)
         sin_half = np.sqrt(np.maximum(0.5 * (1 - cos_t), 0))
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             v2 = np.where(cos_t < -0.999999, np.inf,  # grbl: collinear
                           np.where(cos_t > 0.999999, 0.0,  # grbl: reversal
                                    aj * model.junction_deviation_mm * sin_half / (1 - sin_half)))
-        # a jump between blocks (not contiguous: e.g. program discontinuity) is a stop
+        # a jump between blocks or a pause before the next move is a stop
         cont = np.linalg.norm(blk.start[1:] - blk.end[:-1], axis=1) < 1e-6
-        vj[1:-1] = np.where(cont, np.minimum(v2, np.minimum(vnom[:-1], vnom[1:]) ** 2), 0.0)
-    v2 = _plan(L, vnom, acc, vj, int(model.lookahead_blocks)) if n else np.zeros(1)
-    ve = np.sqrt(np.maximum(v2, 0))
-    t = _trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
-    return Execution(float(t.sum()), t, blk, L, vnom, acc, ve)
+        first_of_move = np.r_[True, blk.move[1:] != blk.move[:-1]][1:]
+        paused = _stops(tp, pauses)[blk.move[1:]] & first_of_move
+        vj[1:-1] = np.where(cont & ~paused, v2, 0.0)
+    return L, vnom, acc, vj, blk.move, blk.u_end
+
+
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _inscribed(normal, limits) -> float:
+    """LinuxCNC's calculateInscribedDiameter: the largest rate every direction of the plane with this
+    normal allows (axis limit over the axis's share of the plane)."""
+    best = math.inf
+    for i in range(3):
+        share = math.sqrt(max(1.0 - normal[i] ** 2, 0.0))
+        best = min(best, limits[i] / max(share, 1e-12))
+    return best
+
+
+class _Segment:
+    """One LinuxCNC trajectory segment while the queue is built (lengths mm, speeds mm/s)."""
+
+    __slots__ = ("move", "length", "nominal", "trim_end", "req", "maxvel", "acc", "arc",
+                 "rapid", "t0", "t1", "normal", "radius", "angle", "halved", "kink_share", "tolerance")
+
+
+def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, blend_mm) -> list[_Segment]:
+    """Segments of LinuxCNC's queue for the non-empty moves, with the limits emccanon gives them."""
+    feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
+    vax, aax = np.asarray(model.max_rate_mm_s, float), np.asarray(model.accel_mm_s2, float)
+    L = tp.lengths()
+    idx = np.flatnonzero(L > 1e-9)
+    if not len(idx):
+        return []
+    sub = tp.subset(idx)
+    _, t0, _ = sub.points(np.arange(len(idx)), np.zeros(len(idx)), derivatives=True)
+    _, t1, _ = sub.points(np.arange(len(idx)), np.ones(len(idx)), derivatives=True)
+    arc = sub.kind >= ARC_CW
+    vmax = _axis_limited(t0, vax)
+    acc = _axis_limited(t0, aax)
+    radius = np.full(len(idx), np.inf)
+    angle = np.zeros(len(idx))
+    normal = np.zeros((len(idx), 3))
+    if arc.any():
+        r0, r1, _, sweep, dn, ax = sub.subset(arc)._arc_params()
+        planar = np.abs(sweep) * 0.5 * (r0 + r1)
+        length = np.hypot(planar, dn)
+        c, s = planar / length, np.abs(dn) / length
+        a1, a2, an = ax[:, 0], ax[:, 1], ax[:, 2]
+        v_plane, a_plane = np.minimum(vax[a1], vax[a2]), np.minimum(aax[a1], aax[a2])
+        # a helix: the plane's share c and the normal axis's share s of the path (emccanon's ARC_FEED)
+        c, s = np.maximum(c, 1e-12), np.maximum(s, 1e-12)
+        vmax[arc] = np.minimum(v_plane / c, np.where(s > 1e-12, vax[an] / s, np.inf))
+        acc[arc] = np.minimum(a_plane / c, np.where(s > 1e-12, aax[an] / s, np.inf))
+        rmin = np.minimum(r0, r1)
+        spiral = (r1 - r0) / np.maximum(np.abs(sweep), 1e-12)
+        radius[arc] = np.sqrt(rmin**2 + spiral**2)  # pmCircleEffectiveMinRadius
+        vmax[arc] = np.minimum(vmax[arc], np.sqrt(NORMAL_SHARE * acc[arc] * radius[arc]))  # pmCircleActualMaxVel
+        angle[arc] = np.abs(sweep)
+        nrm = np.zeros((arc.sum(), 3))
+        nrm[np.arange(arc.sum()), an] = 1.0
+        normal[arc] = nrm
+    rapid = sub.kind == RAPID
+    f = feed[idx] / 60.0
+    req = np.where(rapid | ~np.isfinite(f), vmax, np.minimum(f, vmax))
+    segs = []
+    for k in range(len(idx)):
+        s = _Segment()
+        s.move, s.length, s.nominal = int(idx[k]), float(L[idx[k]]), float(L[idx[k]])
+        s.trim_end = 0.0
+        s.req, s.maxvel, s.acc = float(req[k]), float(vmax[k]), float(acc[k])
+        s.arc, s.rapid = bool(arc[k]), bool(rapid[k])
+        s.t0, s.t1, s.normal = tuple(t0[k].tolist()), tuple(t1[k].tolist()), tuple(normal[k].tolist())
+        s.radius, s.angle = float(radius[k]), float(angle[k])
+        s.halved, s.kink_share = False, 0.0
+        s.tolerance = model.blend_tolerance_mm if blend_mm is None else float(blend_mm[idx[k]])
+        segs.append(s)
+    return segs
+
+
+def _arc_maxvel(s: _Segment, halved: bool) -> float:
+    """pmCircleActualMaxVel: an arc's speed keeps the normal acceleration v²/r within 87 % of a."""
+    a = s.acc * (0.5 if halved else 1.0)
+    return min(s.maxvel, math.sqrt(NORMAL_SHARE * a * s.radius))
+
+
+def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
+    """LinuxCNC's blend arc between two segments (blendmath.c: blendInit3From*, blendParamKinematics,
+    blendComputeParameters): (trim of each segment, arc length, arc speed, arc acceleration), or None."""
+    u1, u2 = prev.t1, cur.t0
+    dot = min(max(_dot(u1, u2), -1.0), 1.0)
+    theta = math.acos(-dot) / 2.0
+    if math.pi / 2 - theta < ANGLE_EPS or theta < ANGLE_EPS:
+        return None
+    b = (u1[1] * u2[2] - u1[2] * u2[1], u1[2] * u2[0] - u1[0] * u2[2], u1[0] * u2[1] - u1[1] * u2[0])
+    nb = math.sqrt(_dot(b, b))
+    binormal = (b[0] / nb, b[1] / nb, b[2] / nb)
+    for s in (prev, cur):  # a blend arc lies in the plane of an arc it touches
+        if s.arc and abs(abs(_dot(binormal, s.normal)) - 1.0) > 1e-6:
+            return None
+    if prev.arc and cur.arc and theta < math.pi / 12:
+        return None
+    phi = math.pi - 2.0 * theta
+    t1 = prev.tolerance if prev.tolerance > 0 else 0.25 * prev.nominal
+    t2 = cur.tolerance if cur.tolerance > 0 else 0.25 * cur.nominal
+    tol = min(t1, t2, 0.25 * prev.nominal, 0.25 * cur.nominal)
+    # how much of each segment the arc may use: half a line, up to a third (next) or two thirds (previous)
+    # of an arc's sweep and at most a quarter turn (blendInit3From*)
+    if prev.arc:
+        L1 = min(prev.angle * 2.0 / 3.0, math.pi / 2) * prev.radius
+    else:
+        L1 = 0.5 * prev.nominal
+    L1 = min(L1, prev.length)
+    L2 = min(cur.angle / 3.0, math.pi / 2) * cur.radius if cur.arc else 0.5 * cur.length
+    a_max = _inscribed(binormal, model.accel_mm_s2)
+    a_n = a_max * NORMAL_SHARE
+    v_req = max(prev.req, cur.req)
+    v_planar = _inscribed(binormal, model.max_rate_mm_s)
+    phi_eff = min(phi, math.pi * 0.49)
+    vm1 = min(prev.maxvel, cur.maxvel / math.cos(phi_eff))
+    vm2 = min(cur.maxvel, prev.maxvel / math.cos(phi_eff))
+    v_alt = 0.0
+    if not prev.arc and not cur.arc:
+        base = math.sqrt(sum((u2[i] * vm2 - u1[i] * vm1) ** 2 for i in range(3)))
+        v_alt = vm1 * vm2 * math.sin(phi) / base if base > 0 else 0.0
+    v_goal = min(v_req, max(v_alt, v_planar))
+    d_tol = math.cos(theta) * tol / (1.0 - math.sin(theta))
+    d_geom = min(L1, L2, d_tol)
+    r_geom = math.tan(theta) * d_geom
+    v_plan = min(math.sqrt(a_n * r_geom), v_goal)
+    a_par = 0.5 * a_max
+    t_blend = min(math.sqrt(2.0 * a_par * d_geom), v_plan) / a_par
+    r_blend = min(t_blend * v_plan / phi, r_geom)
+    r_plan = max(v_plan**2 / a_n, r_blend)
+    d_plan = r_plan / math.tan(theta)
+    s_arc = r_plan * phi
+    if r_plan < 1e-12 or s_arc < 1e-6:
+        return None
+    return d_plan, s_arc, min(v_plan, v_req), a_max * TANGENTIAL_SHARE
+
+
+def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, blend_mm):
+    """LinuxCNC 2.9's queue: segments, blend arcs and the speed caps at their junctions."""
+    segs = _segments(tp, model, feed_mm_min, blend_mm)
+    stop = _stops(tp, pauses).tolist()
+    dt = model.servo_period_s
+    amax = model.accel_mm_s2
+    exact = model.exact_stop
+    # per junction between segments j-1 and j: ("stop"|"tangent"|"blend"|"parabolic", cap, blend)
+    joints: list = [None] * len(segs)
+    for j in range(1, len(segs)):
+        prev, cur = segs[j - 1], segs[j]
+        if any(stop[prev.move + 1:cur.move + 1]):
+            joints[j] = ("pause", 0.0, None)
+            continue
+        if exact or prev.rapid != cur.rapid or prev.tolerance == EXACT_STOP:
+            joints[j] = ("stop", 0.0, None)
+            continue
+        if _dot(prev.t1, cur.t0) < SHARP_CORNER_COS:
+            joints[j] = ("stop", 0.0, None)
+            continue
+        v_max = min(prev.maxvel, prev.req, cur.maxvel, cur.req)
+        share = max(abs(cur.t0[i] - prev.t1[i]) / amax[i] for i in range(3)) * v_max / dt
+        share /= TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0
+        if share < KINK_RATIO:
+            joints[j] = ("tangent", v_max, None)
+            prev.kink_share = max(prev.kink_share, share)
+            cur.kink_share = max(cur.kink_share, share)
+            continue
+        if prev.tolerance == EXACT_PATH:  # G61: no blending, a stop at every corner
+            joints[j] = ("stop", 0.0, None)
+            continue
+        kink_vel = v_max * KINK_RATIO / share
+        blend = _blend(prev, cur, model)
+        if blend is not None and min(blend[2], blend[1] / dt) < kink_vel:
+            joints[j] = ("tangent", kink_vel, None)
+            prev.kink_share = max(prev.kink_share, KINK_RATIO)
+            cur.kink_share = max(cur.kink_share, KINK_RATIO)
+        elif blend is not None:
+            joints[j] = ("blend", 0.0, blend)
+            prev.trim_end = blend[0]
+            prev.length -= blend[0]
+            cur.length -= blend[0]
+        else:
+            joints[j] = ("parabolic", 0.0, None)
+            prev.halved = cur.halved = True
+    for j, s in enumerate(segs):  # the last queued segment before a pause keeps its parabolic term
+        if j + 1 == len(segs) or joints[j + 1][0] == "pause":
+            s.halved = True
+    L, vnom, acc, vj2, move, u_end, ramps, split = [], [], [], [], [], [], [], []
+    for j, s in enumerate(segs):
+        joint = joints[j]
+        if joint is not None and joint[0] == "blend":  # the arc; its second half lies on the next move
+            d, s_arc, v, a = joint[2]
+            vj2.append(np.inf)
+            L.append(s_arc)
+            vnom.append(min(v, s_arc / dt))
+            acc.append(a)
+            move.append(segs[j - 1].move)
+            u_end.append(1.0)
+            ramps.append(True)
+            split.append((len(L) - 1, s.move, d / s.nominal))
+        if joint is None or joint[0] in ("stop", "pause"):
+            vj2.append(0.0)
+        elif joint[0] == "blend":
+            vj2.append(np.inf)
+        elif joint[0] == "tangent":
+            vj2.append(joint[1] ** 2)
+        else:
+            vj2.append(_parabolic_speed(segs[j - 1], s) ** 2)
+        a = s.acc * (0.5 if s.halved else 1.0) * (1.0 - s.kink_share)
+        vmax = min(s.req, _arc_maxvel(s, s.halved) if s.arc else s.maxvel, s.nominal * model.block_rate_hz)
+        if s.length >= GAP_CYCLES * dt * vmax or s.length == s.nominal:  # shorter rests join the blend arc
+            vmax = min(vmax, s.length / dt)
+        if s.arc:
+            a *= TANGENTIAL_SHARE
+        L.append(max(s.length, 0.0))
+        vnom.append(vmax)
+        acc.append(a)
+        move.append(s.move)
+        u_end.append((s.nominal - s.trim_end) / s.nominal)
+        ramps.append(not s.rapid)
+    vj2.append(0.0)
+    return (np.asarray(L, float), np.asarray(vnom, float), np.asarray(acc, float), np.asarray(vj2, float),
+            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool), split)
+
+
+def _parabolic_speed(prev: _Segment, cur: _Segment) -> float:
+    """tpComputeBlendVelocity: the speed at which two segments overlap in a parabolic blend (each at
+    half acceleration, over at most half of each)."""
+    out = []
+    acc = []
+    for s in (prev, cur):
+        a = s.acc * 0.5 * (TANGENTIAL_SHARE if s.arc else 1.0)
+        v_target = min(s.req, _arc_maxvel(s, True) if s.arc else s.maxvel)
+        out.append(min(math.sqrt(a * s.length), v_target))
+        acc.append(a)
+    t_max = min(prev.length / max(out[0], 1e-12), cur.length / max(out[1], 1e-12))
+    t_blend = min(t_max, max(out[0] / acc[0], out[1] / acc[1]))
+    return min(min(out[0], t_blend * acc[0]), min(out[1], t_blend * acc[1]))

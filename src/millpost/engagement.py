@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._kernels import engage as _k
-from .errors import MillpostError
+from .errors import CrashError, MillpostError
 from .progress import Progress, resolve
 from .toolpath import RAPID, Samples
 from .tools import Tool
@@ -38,7 +38,8 @@ class Engagement:
     From `simulate` also (None otherwise): arc_rad (N, K) engaged angular measure of each slice
     (≤ phi_ex − phi_st when the arc has gaps); step_mm (N,) path length of the step;
     descending (N,) the step moves down (its area comes from the removed cells, not the ring);
-    move, line (N,) the toolpath move and source line of each sample.
+    move, line (N,) the toolpath move and source line of each sample; depth_mm (N,) the depth of
+    material the step meets below its old top, not clipped to the flute length (ap_mm is).
     """
 
     phi_st: np.ndarray
@@ -57,6 +58,7 @@ class Engagement:
     descending: np.ndarray | None = None
     move: np.ndarray | None = None
     line: np.ndarray | None = None
+    depth_mm: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ap_mm)
@@ -157,7 +159,7 @@ def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: 
 
 def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices: int = 8,
              ring_samples: int = 180, look_ahead_mm: float | None = None, smooth_steps: float = 1.0,
-             progress: Progress | bool | None = None) -> Engagement:
+             progress: Progress | bool | None = None, start: int | None = None) -> Engagement:
     """Step the tool(s) through `stock` (cut in place) along `samples` and return the engagement.
 
     tool: one Tool, or tools by number (samples.tool picks one; a change restarts the footprint).
@@ -168,8 +170,9 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     reported engagement is thus the one the tool meets that distance later.
     smooth_steps: σ (in samples) of the zero-phase Gaussian low-pass applied to area and ae, which
     damps the cell-quantisation noise at a bandwidth tied to the step.
-    Rapids that would remove material raise MillpostError naming the source line, except the
-    leading rapids before the first feed move, which start from an unknown position and are skipped.
+    Rapids that would remove material raise CrashError naming the source line. start: the first
+    sample whose position is known (`millpost.safety.known_start`); the samples before it start
+    from an unknown position and are neither cut nor checked (default: the first feed move's).
     progress: a `millpost.progress` callback (stages "compile kernels" on the first run, "engagement"
     in steps), or True/False/None as `millpost.progress.resolve` reads it.
     """
@@ -188,6 +191,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     # the leading rapids start wherever the machine stands (the reader assumes a start point for the
     # axes not yet programmed): they are neither cut nor checked; the path starts after them
     skip = (int(np.argmax(~rapid)) if not rapid.all() else n) if n else 0
+    if start is not None:
+        skip = min(max(int(start), 0), n)
     if skip < n:
         fresh[skip] = True
     K, M = int(slices), int(ring_samples)
@@ -195,7 +200,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
     out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
                rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
-               area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool))
+               area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool), depth=np.zeros(n))
     top = stock.top.reshape(-1)
     prev_f = np.array([1.0, 0.0])
     moving = steps[steps > 0]
@@ -224,10 +229,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                          ring_at, shape != _k.FLAT, 1e-3, *(v[a:b] for v in out.values()))
             if bad != _k.OK:
                 bad += a
-                p = xyz[bad]
-                raise MillpostError(
-                    f"line {int(samples.line[bad])}: rapid move runs into the stock at "
-                    f"X{p[0]:.3f} Y{p[1]:.3f} Z{p[2]:.3f} (a crash; use a feed move to cut)")
+                raise CrashError(int(samples.line[bad]), xyz[bad])
             if compiling:
                 report("compile kernels", 1.0, 1.0)
                 compiling = False
@@ -240,4 +242,5 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         phi_st=out["phi_st"], phi_ex=out["phi_ex"], dz_mm=out["dz"], z_mm=out["zmid"], r_mm=out["rad"],
         kappa=kappa, feed_dir=feed3, ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
         volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
-        step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line))
+        step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
+        depth_mm=out["depth"])

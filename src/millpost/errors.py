@@ -40,3 +40,24 @@ class ConfigError(MillpostError):
 
 class SolverError(MillpostError):
     """The feed schedule could not be solved; callers keep the programmed feeds."""
+
+
+class SafetyError(MillpostError):
+    """millpost will not write this: the program or the job looks dangerous (a crash, a cut below the
+    stock, no material where the stock should be) or an output would replace an input. `gate` names
+    the check; when it may be overridden the message says how."""
+
+    def __init__(self, message: str, gate: str = "") -> None:
+        self.gate = gate
+        super().__init__(message)
+
+
+class CrashError(SafetyError):
+    """A rapid move runs into material at `xyz` (mm, program frame), on source `line` of `file`."""
+
+    def __init__(self, line: int, xyz, file: str | None = None) -> None:
+        self.line, self.xyz, self.file = line, tuple(float(v) for v in xyz), file
+        x, y, z = self.xyz
+        where = f"{file}:{line}" if file else f"line {line}"
+        super().__init__(f"{where}: rapid move runs into the stock at X{x:.3f} Y{y:.3f} Z{z:.3f} "
+                         "(a crash; use a feed move to cut, or correct the stock)", gate="rapid")

@@ -11,12 +11,15 @@
     [limits]                          # optional: deflection_mm, feed_max_mm_min,
                                       # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle"),
                                       # lower ("hard"|"all"), feed_step (relative, 0.05)
+    [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
 
-A folder stands for the `job.toml` inside it.
+A folder stands for the `job.toml` inside it. Every number must be finite and inside its stated
+range (`LIMIT_RANGES`, stock sizes): a value outside is a slip, refused naming the file and the key.
 """
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -25,6 +28,7 @@ from .errors import ConfigError
 from .machine import Machine
 from .materials import Material
 from .registry import plugins
+from .gcode import ReaderOptions
 from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
@@ -32,6 +36,13 @@ from .tools.library import load_tool, tool_from_table
 _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
                "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "lower": "hard", "feed_step": 0.05}
 _CHOICES = {"lower": ("hard", "all")}
+# the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
+# a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
+# budget of 5 mm or a feed of 1000 m/min is no limit at all.
+LIMIT_RANGES = {"deflection_mm": (1e-4, 5.0), "feed_max_mm_min": (1.0, 1e6), "tool_safety_factor": (1.0, 100.0),
+                "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9)}
+CELL_RANGE_MM = (1e-3, 10.0)
+STOCK_SPAN_MM = 1e5  # no stock corner is 100 m from the work zero
 
 
 @dataclass
@@ -49,6 +60,12 @@ class Job:
     cell_mm: float | None = None
     dialect: str | None = None
     limits: dict = field(default_factory=lambda: dict(_LIMIT_KEYS))
+    allow: frozenset[str] = frozenset()  # safety gates the user overrides ([safety] allow)
+    inputs: tuple[Path, ...] = ()  # every file the job reads (outputs must not replace one)
+
+    def reader_options(self) -> ReaderOptions:
+        """How to read the program: the job's dialect, and its tools' diameters for cutter compensation."""
+        return ReaderOptions(dialect=self.dialect, tool_diameters_mm={n: t.diameter_mm for n, t in self.tools.items()})
 
     def stock(self):
         """Build the stock height field (mm, program frame)."""
@@ -77,16 +94,28 @@ def load_job(path: str | Path) -> Job:
             raise ConfigError(key, None, "is required", file=f)
         return data[key]
 
-    unknown = set(data) - {"program", "output", "dialect", "material", "machine", "stock", "tools", "limits"}
+    unknown = set(data) - {"program", "output", "dialect", "material", "machine", "stock", "tools", "limits",
+                           "safety"}
     if unknown:
         raise ConfigError(sorted(unknown)[0], data[sorted(unknown)[0]], "unknown field", file=f)
     program = base / str(need("program"))
     if not program.exists():
         raise ConfigError("program", str(program), "file not found", file=f)
-    output = base / data["output"] if "output" in data else program.with_name(
+    output = base / str(data["output"]) if "output" in data else program.with_name(
         f"{program.stem}.millpost{program.suffix}")
-    material = Material.load(_resolve(base, str(need("material"))))
-    machine = Machine.load(_resolve(base, str(need("machine"))))
+    inputs = [path, program]
+    described = []
+    for key in ("material", "machine"):
+        where = _resolve(base, str(need(key)))
+        if isinstance(where, Path):
+            inputs.append(where)
+        described.append(where)
+    try:
+        material, machine = Material.load(described[0]), Machine.load(described[1])
+    except ConfigError as exc:
+        if exc.file:
+            raise
+        raise ConfigError(exc.field, exc.value, exc.rule, file=f) from None
     stock = need("stock")
     if not isinstance(stock, dict):
         raise ConfigError("stock", stock, "must be a table with box = [[...],[...]] or file = ...", file=f)
@@ -96,30 +125,40 @@ def load_job(path: str | Path) -> Job:
     if "box" in stock:
         b = stock["box"]
         ok = (isinstance(b, list) and len(b) == 2 and all(isinstance(r, list) and len(r) == 3 for r in b)
+              and all(_number(v) and abs(v) <= STOCK_SPAN_MM for r in b for v in r)
               and all(float(b[1][i]) > float(b[0][i]) for i in range(3)))
         if not ok:
-            raise ConfigError("stock.box", b, "[[xmin, ymin, zmin], [xmax, ymax, zmax]] in mm with max > min", file=f)
+            raise ConfigError("stock.box", b, "[[xmin, ymin, zmin], [xmax, ymax, zmax]] in mm with max > min, "
+                              f"finite numbers within {STOCK_SPAN_MM:g} mm of the work zero", file=f)
         box = (tuple(map(float, b[0])), tuple(map(float, b[1])))
     else:
-        file = base / stock["file"]
-        if not file.exists():
+        file = base / str(stock["file"])
+        if not file.is_file():
             raise ConfigError("stock.file", str(file), "file not found", file=f)
+        inputs.append(file)
     cell = stock.get("cell_mm")
-    if cell is not None and not (isinstance(cell, (int, float)) and cell > 0):
-        raise ConfigError("stock.cell_mm", cell, "must be a positive number (mm)", file=f)
+    if cell is not None and not (_number(cell) and CELL_RANGE_MM[0] <= cell <= CELL_RANGE_MM[1]):
+        raise ConfigError("stock.cell_mm", cell, f"must be a number in [{CELL_RANGE_MM[0]:g}, {CELL_RANGE_MM[1]:g}] mm",
+                          file=f)
     tools = {}
-    for key, spec in dict(need("tools")).items():
+    for key, spec in _table(need("tools"), "tools", f).items():
         if not str(key).isdigit():
             raise ConfigError(f"tools.{key}", spec, "tool tables are named by tool number, e.g. [tools.1]", file=f)
         n = int(key)
         if not isinstance(spec, dict):
             raise ConfigError(f"tools.{key}", spec, "must be a table", file=f)
-        if "file" in spec:
-            tools[n] = replace(load_tool(base / spec["file"], number=n), number=n)
-        else:
-            tools[n] = replace(tool_from_table(Table(spec, f"tools.{key}", f)), number=n)
+        try:
+            if "file" in spec:
+                inputs.append(base / str(spec["file"]))
+                tools[n] = replace(load_tool(base / str(spec["file"]), number=n), number=n)
+            else:
+                tools[n] = replace(tool_from_table(Table(spec, f"tools.{key}", f)), number=n)
+        except ConfigError as exc:
+            if exc.file:
+                raise
+            raise ConfigError(f"tools.{key}.{exc.field}", exc.value, exc.rule, file=f) from None
     limits = dict(_LIMIT_KEYS)
-    for key, value in dict(data.get("limits", {})).items():
+    for key, value in _table(data.get("limits", {}), "limits", f).items():
         if key not in _LIMIT_KEYS:
             raise ConfigError(f"limits.{key}", value, f"unknown limit; known: {', '.join(_LIMIT_KEYS)}", file=f)
         if key == "model":
@@ -129,10 +168,54 @@ def load_job(path: str | Path) -> Job:
         elif key in _CHOICES:
             if value not in _CHOICES[key]:
                 raise ConfigError(f"limits.{key}", value, " or ".join(_CHOICES[key]), file=f)
-        elif not (isinstance(value, (int, float)) and value >= 0):
-            raise ConfigError(f"limits.{key}", value, "must be a number >= 0", file=f)
+        elif key == "feed_step":
+            if not (_number(value) and 0 <= value <= 1):
+                raise ConfigError("limits.feed_step", value, "must be a number in [0, 1] (relative)", file=f)
+        else:
+            lo, hi = LIMIT_RANGES[key]
+            if not (_number(value) and lo <= value <= hi):
+                raise ConfigError(f"limits.{key}", value, f"must be a number in [{lo:g}, {hi:g}]", file=f)
         limits[key] = value
-    return Job(path, program, output, material, machine, tools, box, file, cell, data.get("dialect"), limits)
+    dialect = data.get("dialect")
+    if dialect is not None:
+        from .errors import MillpostError
+        from .gcode import dialects
+        try:
+            if not isinstance(dialect, str):
+                raise MillpostError("not a name")
+            dialects.get(dialect)
+        except MillpostError:
+            raise ConfigError("dialect", dialect, f"one of {', '.join(dialects.names())} (haas = fanuc)",
+                              file=f) from None
+    return Job(path, program, output, material, machine, tools, box, file, cell, dialect, limits,
+               _allowed(data.get("safety", {}), f), tuple(inputs))
+
+
+def _table(value: object, key: str, f: str) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(key, value, "must be a table", file=f)
+    return value
+
+
+def _number(value: object) -> bool:
+    """A finite int or float (TOML's nan, inf and booleans are not numbers here)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _allowed(table: object, f: str) -> frozenset[str]:
+    """The gates named in [safety] allow = [...] (names checked against `millpost.safety.GATES`)."""
+    from .safety import GATES
+
+    if not isinstance(table, dict) or set(table) - {"allow"}:
+        raise ConfigError("safety", table, "must be a table holding only allow = [gate names]", file=f)
+    names = table.get("allow", [])
+    if not isinstance(names, list):
+        raise ConfigError("safety.allow", names, "must be a list of gate names", file=f)
+    for name in names:
+        if name not in GATES or not GATES[name].overridable:
+            raise ConfigError("safety.allow", name, "unknown gate; these may be overridden: "
+                              + ", ".join(g for g in GATES if GATES[g].overridable), file=f)
+    return frozenset(names)
 
 
 def _resolve(base: Path, name: str) -> str | Path:

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import controller, engagement
-from .emit import FeedPlan, write_feeds
-from .gcode import ReaderOptions, read_program, read_text
+from . import controller, safety
+from .emit import FeedPlan, whole_compensated_moves, write_feeds
+from .gcode import read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
 from .progress import Progress, resolve, stage
@@ -79,13 +79,14 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     t_start = time.perf_counter()
     report = resolve(progress)
     with stage(report, "read program"):
-        program = read_program(job.program, ReaderOptions(dialect=job.dialect))
-        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+        program = read_program(job.program, job.reader_options())
     with stage(report, "stock"):
         stock = job.stock()
-    eng = engagement.simulate(stock, dict(job.tools), samples, progress=report)
+    samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                                        progress=report)
     with stage(report, "forces, schedule, emit"):
         result = schedule_program(job, program, samples, eng, options)
+    result.summary["notes"] += notes
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
@@ -113,12 +114,13 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
-        fragments = piecewise_feeds(samples, limit_mm_s, step=float(job.limits["feed_step"]),
-                                    accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz"))
+        fragments = whole_compensated_moves(program, piecewise_feeds(
+            samples, limit_mm_s, step=float(job.limits["feed_step"]),
+            accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
         plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
         status, message = "solved", ""
     text = write_feeds(program, plan)
-    emitted_tp = read_text(text, str(job.program), ReaderOptions(dialect=job.dialect)).toolpath  # what will run
+    emitted_tp = read_text(text, str(job.program), job.reader_options()).toolpath  # what will run
     after = controller.execute(emitted_tp, model)
     if status == "solved" and after.time_s > before.time_s * (1 + 1e-3):
         status = "slower"

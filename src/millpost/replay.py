@@ -8,8 +8,6 @@ a·v + b, compared with the bound the schedule was given (after the feed policy 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .gcode.interpret import Program
@@ -29,7 +27,10 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     per_tool = {}
     for number in np.unique(tp.tool[tp.kind != RAPID]):
         sel = (samples.tool == number) & (samples.kind != RAPID)
-        f = float(np.floor(cap[sel].min())) if sel.any() else math.nan
+        if not sel.any():  # no move of this tool is long enough to be sampled: its feeds stay
+            per_tool[int(number)] = None
+            continue
+        f = float(np.floor(cap[sel].min()))
         per_tool[int(number)] = f
         feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
     return feeds, per_tool

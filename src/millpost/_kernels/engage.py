@@ -537,11 +537,12 @@ def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
 @njit(cache=True)
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
-        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o):
+        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o):
     """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
     ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
-    of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place)."""
+    of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place).
+    depth_o[k]: the depth of material the step meets, before ap is clipped to the flute length."""
     dphi = math.pi / M
     sin_t = np.sin(np.arange(M + 1) * dphi)
     cos_t = np.cos(np.arange(M + 1) * dphi)
@@ -598,6 +599,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
             prev_f[0], prev_f[1] = fx, fy
             return k
         vol_o[k] = rem * h * h
+        depth_o[k] = ap
         ap = min(ap, flute)
         ap_o[k] = ap
         if ap <= 1e-6 or step == 0.0:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from dataclasses import dataclass
 
+from ..files import json_text
 from ..errors import ConfigError, MillpostError
 from ..forces import (Kienzle, Mechanistic, chip_thinning_factor, given_cut, immersion, max_chip_mm,
                       mean_chip_mm)
@@ -189,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
                        machine=machine, safety_factor=args.safety_factor)
     out = {"model": model.name, **res.__dict__, "F_avg_N": list(res.F_avg_N)}
     if args.json:
-        print(json.dumps(out, indent=2))
+        print(json_text(out))
     else:
         for key, value in out.items():
             if value is None:

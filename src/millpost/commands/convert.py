@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 
-from ..files import write_atomic
 from ..errors import MillpostError
+from ..files import write_atomic
 from ..gcode import ReaderOptions, dialects, read_program, read_text
 from ..gcode.convert import convert, same_path
 from ..progress import Bars, stage
+from ..safety import check_outputs
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,6 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     target = dialects.get(args.to)
+    check_outputs({"-o": args.output}, [args.program])
     with Bars() as bars:
         with stage(bars, "read program"):
             program = read_program(args.program, ReaderOptions(dialect=args.source))

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
+from ..files import json_text
 from ..gcode import ReaderOptions, read_program
 from ..gcode.summary import moves_csv, summary
 from ..progress import Bars, stage
@@ -22,6 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dialect", help="controller dialect (default: detected from the text)")
     p.add_argument("--linuxcnc-frame", action="store_true",
                    help="assume LinuxCNC's frame: G28/G30 homes and G53 at machine zero (as `rs274` does)")
+    p.add_argument("--tool-table", metavar="FILE",
+                   help="LinuxCNC tool table (T P Z D): tool lengths for G43 and diameters for G41/G42")
+    p.add_argument("--tool-table-units", choices=("mm", "inch"), default="mm", help="units of the tool table")
     p.set_defaults(func=run)
 
 
@@ -29,10 +32,12 @@ def run(args: argparse.Namespace) -> int:
     opts = ReaderOptions.linuxcnc() if args.linuxcnc_frame else ReaderOptions()
     if args.dialect:
         opts.dialect = args.dialect
+    if args.tool_table:
+        opts.use_tool_table(args.tool_table, args.tool_table_units)
     with Bars() as bars, stage(bars, "read program"):
         program = read_program(args.program, opts)
     if args.moves:
         sys.stdout.write(moves_csv(program))
     else:
-        print(json.dumps(summary(program), indent=2))
+        print(json_text(summary(program), f"{args.program}: summary"))
     return 0

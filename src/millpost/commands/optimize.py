@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from ..files import write_atomic, write_csv
+from ..files import json_text, write_atomic, write_csv
 from ..job import load_job
 from ..optimize import optimize
 from ..progress import Bars, stage
 from ..report.page import headline
+from ..safety import check_outputs
+from . import add_allow_argument
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,17 +27,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trace", metavar="CSV", help="write per-sample engagement, loads and feeds as CSV")
     p.add_argument("--report", metavar="HTML", help="write the job report (one HTML page that opens offline)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars and no summary line")
+    add_allow_argument(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     job = load_job(args.job)
+    job.allow = job.allow | set(args.allow)
+    output = Path(args.output) if args.output else job.output
+    check_outputs({"output": output, "--json": args.json, "--trace": args.trace, "--report": args.report},
+                  job.inputs)
     with Bars(enabled=False if args.quiet else None) as bars:
         result = optimize(job, progress=bars)
-        output = Path(args.output) if args.output else job.output
-        write_atomic(output, result.text)
         result.summary["output"] = str(output)
-        text = json.dumps(result.summary, indent=2)
+        text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
+        write_atomic(output, result.text)
         if args.json == "-":
             print(text)
         elif args.json:
@@ -48,6 +53,9 @@ def run(args: argparse.Namespace) -> int:
             with stage(bars, "report"):
                 write_report(args.report, collect(result.summary, result.trace, job))
     if not args.quiet:
+        for note in result.summary["notes"]:
+            if note.startswith(("warning", "note:")):
+                print(f"millpost: {note}", file=sys.stderr)
         print(report(result.summary, output), file=sys.stderr)
     return 0
 

@@ -3,17 +3,18 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import asdict
+from pathlib import Path
 
 from ..errors import ConfigError
-from ..files import atomic_path
+from ..files import atomic_path, json_text
 from ..heuristics import Limits, Recommendation, recommend, sweep_ae
 from ..machine import Machine
 from ..materials import STRATEGIES, Material
 from ..progress import Bars, stage
 from ..registry import plugins
+from ..safety import check_outputs
 from .calc import add_tool_arguments, tool_from_args
 
 HELP = """\
@@ -124,6 +125,9 @@ def _write_plot(path: str, recs: list[Recommendation], chosen: Recommendation, t
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.plot:
+        check_outputs({"--plot": args.plot}, [p for p in (args.tool, args.material, args.machine)
+                                              if p and Path(p).is_file()])
     tool = tool_from_args(args)
     material, machine = Material.load(args.material), Machine.load(args.machine)
     limits = limits_from_args(args)
@@ -140,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
         if args.plot:
             _write_plot(args.plot, recs, rec, f"D{tool.diameter_mm:g} {tool.flutes}FL, {material.name}, {machine.name}")
         if args.json:
-            print(json.dumps([as_dict(r) for r in recs], indent=2))
+            print(json_text([as_dict(r) for r in recs]))
         else:
             print(",".join(KEYS) + ",binding")
             for r in recs:
@@ -149,13 +153,13 @@ def run(args: argparse.Namespace) -> int:
     if args.format != "table":
         values = cam_values(rec, args.format, tool.diameter_mm)
         if args.json:
-            print(json.dumps({k: v for k, (v, _) in values.items()}, indent=2))
+            print(json_text({k: v for k, (v, _) in values.items()}))
         else:
             for name, (value, unit) in values.items():
                 print(f"{name:>26}  {value:.6g} {unit}")
         return 0
     if args.json:
-        print(json.dumps(as_dict(rec), indent=2))
+        print(json_text(as_dict(rec)))
         return 0
     out = sys.stdout
     for key in ("ap_mm", "ae_mm", "rpm", "vc_m_min", "fz_mm", "h_max_mm", "chip_target_mm", "feed_mm_min",

@@ -28,6 +28,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..report import collect, read_trace, write_report
+    from ..safety import check_outputs
+    check_outputs({"-o": args.output}, [p for p in (args.trace, args.summary, args.job) if p])
     summary = json.loads(open(args.summary).read()) if args.summary else {}
     job = load_job(args.job) if args.job else None
     write_report(args.output, collect(summary, read_trace(args.trace), job))

@@ -6,7 +6,6 @@ PROGRAM takes stock and tool from the flags."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -14,8 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, MillpostError
-from ..files import atomic_path, write_csv
+from ..files import atomic_path, json_text, write_csv
 from ..progress import Bars
+from ..safety import check_outputs
+from . import add_allow_argument
 
 TRACE_COLUMNS = ("sample", "s_mm", "x_mm", "y_mm", "z_mm", "move", "line", "kind", "tool", "feed_mm_min",
                  "volume_mm3", "area_mm2", "ap_mm", "ae_mm", "phi_st_deg", "phi_ex_deg", "engaged_deg", "descending")
@@ -47,6 +48,7 @@ def register(subparsers) -> None:
     p.add_argument("--trace", required=True, help="output trace: .csv (per sample) or .npz (all arrays)")
     p.add_argument("--stock-stl", help="write the final stock as STL")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    add_allow_argument(p)
     p.set_defaults(func=run)
 
 
@@ -61,7 +63,8 @@ def _box(text: str) -> tuple[list[float], list[float]]:
 
 
 def _inputs(args: argparse.Namespace):
-    """(program path, stock, tools by number or one tool, step mm, dialect) from a job or the flags."""
+    """(program path, stock, tools by number or one tool, step mm, dialect, gates allowed, input files)
+    from a job or the flags. Outputs are checked before the stock is built."""
     from .. import stock as stk
     from ..job import load_job
     from ..tools import Tool
@@ -73,14 +76,17 @@ def _inputs(args: argparse.Namespace):
                 raise ConfigError(flag.replace("_", "-"), getattr(args, flag),
                                   "comes from the job file; give it only with a bare PROGRAM")
         job = load_job(target)
+        check_outputs({"--trace": args.trace, "--stock-stl": args.stock_stl}, job.inputs)
         if args.cell is not None:
             job.cell_mm = args.cell
         step = args.step if args.step is not None else float(job.limits["ds_mm"])
-        return job.program, job.stock(), dict(job.tools), step, job.dialect
+        return job.program, job.stock(), dict(job.tools), step, job.dialect, job.allow
     if args.stock_box is None and args.stock is None:
         raise ConfigError("stock", None, "a bare PROGRAM needs --stock-box or --stock (or give a job)")
     if args.tool_diameter is None:
         raise ConfigError("tool-diameter", None, "a bare PROGRAM needs the tool (or give a job)")
+    check_outputs({"--trace": args.trace, "--stock-stl": args.stock_stl},
+                  [target] + ([Path(args.stock)] if args.stock else []))
     tool = Tool(args.tool_diameter, shape=args.shape, corner_radius_mm=args.corner_radius,
                 tip_angle_deg=args.tip_angle, tip_diameter_mm=args.tip_diameter, flute_length_mm=args.flute_length)
     if args.stock_box:
@@ -89,7 +95,7 @@ def _inputs(args: argparse.Namespace):
         if not Path(args.stock).is_file():
             raise MillpostError(f"{args.stock}: no such stock file")
         stock = stk.load(args.stock, args.cell)
-    return target, stock, tool, args.step if args.step is not None else 0.1, None
+    return target, stock, tool, args.step if args.step is not None else 0.1, None, frozenset()
 
 
 def write_trace(path: str, samples, eng) -> None:
@@ -117,18 +123,23 @@ def write_trace(path: str, samples, eng) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..engagement import simulate
     from ..gcode import ReaderOptions, read_program
+    from ..job import LIMIT_RANGES
+    from ..safety import engage
 
-    if args.step is not None and args.step <= 0:
-        raise ConfigError("step", args.step, "must be > 0 mm")
+    lo, hi = LIMIT_RANGES["ds_mm"]
+    if args.step is not None and not lo <= args.step <= hi:
+        raise ConfigError("step", args.step, f"must be in [{lo:g}, {hi:g}] mm")
+    if not 1 <= args.slices <= 64:
+        raise ConfigError("slices", args.slices, "must be in 1..64")
     t0 = time.perf_counter()
-    program_path, stock, tools, step, dialect = _inputs(args)
-    program = read_program(program_path, ReaderOptions(dialect=dialect))
+    program_path, stock, tools, step, dialect, allow = _inputs(args)
+    diameters = {n: t.diameter_mm for n, t in tools.items()} if isinstance(tools, dict) else {}  # for G41/G42
+    program = read_program(program_path, ReaderOptions(dialect=dialect, tool_diameters_mm=diameters))
     v0 = stock.volume_mm3()
-    samples = program.toolpath.resample(step)
     with Bars() as bars:
-        eng = simulate(stock, tools, samples, slices=args.slices, progress=bars)
+        samples, eng, notes = engage(program, stock, tools, step, allow | set(args.allow), stage="simulate",
+                                     slices=args.slices, progress=bars)
     write_trace(args.trace, samples, eng)
     if args.stock_stl:
         stock.export_stl(args.stock_stl)
@@ -141,14 +152,14 @@ def run(args: argparse.Namespace) -> int:
         "max_ae_mm": round(float(eng.ae_mm.max(initial=0.0)), 4),
         "max_area_mm2": round(float(eng.area_mm2.max(initial=0.0)), 4),
         "trace": args.trace, "stock_stl": args.stock_stl, "seconds": round(time.perf_counter() - t0, 2),
-        "notes": program.notes,
+        "notes": program.notes + notes,
     }
     if args.json:
-        print(json.dumps(summary, indent=1))
+        print(json_text(summary))
     else:
         print(f"{summary['samples']} samples ({summary['cutting_samples']} cutting) at {stock.cell_mm * 1000:g} µm: "
               f"removed {summary['removed_mm3']:.1f} mm³, max ap {summary['max_ap_mm']:.3f} mm, "
               f"max ae {summary['max_ae_mm']:.3f} mm; trace {args.trace} ({summary['seconds']} s)")
-        for note in program.notes:
+        for note in program.notes + notes:
             print(f"note: {note}", file=sys.stderr)
     return 0

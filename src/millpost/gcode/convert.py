@@ -1,29 +1,98 @@
-"""Re-posting an interpreted program for another controller: same toolpath, the target's dialect.
+"""Re-posting an interpreted program for another controller: same machine motion, the target's dialect.
 
 The output is written from the interpreted moves and events, not by editing text: canned cycles
 come out expanded (every controller runs lines), arcs as centre-format IJK relative to the start
 (every dialect reads them; no R ambiguity), numbers in the target's format, units as programmed,
 feeds in units per minute (G93/G95 converted to the equivalent G94 feed), and N numbers where the
-dialect numbers its lines. Offsets set by G92/G52/G10 are not re-posted: coordinates are written in
-the program frame the original ran in, after selecting its work offset (G54...).
+dialect numbers its lines.
+
+What depends on the machine rather than the program is re-posted as the source wrote it, so the
+controller resolves it the same way: tool length compensation (G43 H / G43.1 / G43.2 / G49, where
+the target runs it; else refused), G28/G30 (through the same intermediate point to the controller's
+stored position) and G53 moves (the same machine coordinates). An axis is written only once the
+source has named it: the reader's assumed start point and the positions it assumes after a home or
+G53 retract are never posted as moves. Programs that set offsets (G10, G52, G92, G28.1, G30.1) are
+refused: their frame depends on where the machine stands when they run.
 """
 
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
+from ..errors import ParseError
 from ..toolpath import ARC_CW, PLANE_AXES, RAPID
 from .dialects import Dialect
 from .interpret import INCH, Program
+from .lexer import Block, lex_line
 
 _WCS = {1: "G54", 2: "G55", 3: "G56", 4: "G57", 5: "G58", 6: "G59", 7: "G59.1", 8: "G59.2", 9: "G59.3"}
 
 
+_FRAME_SETTING = re.compile(r"(?<![A-Z])G\s*0*(10|52|92(?:\.[0-3])?|28\.1|30\.1)(?![\d.])")
+_COMMENT = re.compile(r"\([^)]*\)|;.*")
+_FRAME_CODES = {10.0, 52.0, 92.0, 92.1, 92.2, 92.3, 28.1, 30.1}
+
+
+class SourceBlocks:
+    """The words of a program's source lines as written, lexed on demand and kept: `blocks[line]` is
+    the `Block` of 1-based `line`, or None when the line needs the interpreter's parameters to be
+    read (values of parameter words are not evaluated: check `Word.text`)."""
+
+    def __init__(self, program: Program) -> None:
+        self.lines, self.file = program.text.splitlines(), program.path
+        self._cache: dict[int, Block | None] = {}
+
+    def __getitem__(self, line: int) -> Block | None:
+        if line not in self._cache:
+            try:
+                text = self.lines[line - 1] if 0 < line <= len(self.lines) else ""
+                self._cache[line] = lex_line(text, line, self.file, {})
+            except ParseError:
+                self._cache[line] = None
+        return self._cache[line]
+
+
+def _g_codes(block: Block | None) -> set[float]:
+    return {round(w.value, 1) for w in block.words if w.letter == "G"} if block is not None else set()
+
+
+def _refuse(program: Program, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
+    return ParseError(f"convert: {message}", file=program.path, line=line, column=column, word=word,
+                      expected=expected)
+
+
+def _frame_setting(program: Program, blocks: SourceBlocks) -> None:
+    """Refuse offsets set in the program (G10, G52, G92..., G28.1, G30.1): re-posted coordinates would
+    land elsewhere on the machine. (A text scan finds the candidate lines; the lexer confirms.)"""
+    for n, text in enumerate(blocks.lines, 1):
+        if "G" not in text.upper():
+            continue
+        clean = _COMMENT.sub(lambda m: " " * len(m.group()), text.upper())
+        if not _FRAME_SETTING.search(clean):
+            continue
+        block = blocks[n]
+        words = [w for w in block.words if w.letter == "G" and round(w.value, 1) in _FRAME_CODES] if block else []
+        if block is None or words:
+            column = words[0].column if words else _FRAME_SETTING.search(clean).start() + 1
+            raise _refuse(program, n, column, words[0].text if words else "",
+                          "offsets set in the program are not re-posted (the converted motion would differ)",
+                          "a program without G10, G52, G92, G28.1 or G30.1 (set them on the controller)")
+
+
 def convert(program: Program, dialect: Dialect) -> str:
-    """The program as `dialect` writes it. Geometry is unchanged to the target's number precision."""
+    """The program as `dialect` writes it: the same machine motion, to the target's number precision."""
     tp = program.toolpath
+    if program.compensated.any():  # the moves are tool-centre paths: re-posting would drop the machine's offset
+        line = int(tp.line[np.flatnonzero(program.compensated)[0]])
+        raise _refuse(program, line, 1, "", "cutter radius compensation (G41/G42) cannot be re-posted: convert "
+                      "writes the interpreted tool-centre path, which would bypass the machine's tool diameter "
+                      "and wear offsets", "a program without compensation")
+    blocks = SourceBlocks(program)
+    _frame_setting(program, blocks)
+    block = blocks.__getitem__
     out: list[str] = []
     seq = [0]
 
@@ -41,8 +110,6 @@ def convert(program: Program, dialect: Dialect) -> str:
         out.append("%")
         out.append("O1000")
     comment(f"converted by millpost from {program.path} ({program.dialect} to {dialect.name})")
-    if any(k in n for n in program.notes for k in ("G92", "G52")):
-        comment("note: G92/G52 offsets were not re-posted; coordinates are in the original program frame")
     inch = None
     plane = None
     feed = None
@@ -50,22 +117,83 @@ def convert(program: Program, dialect: Dialect) -> str:
     emit(f"{g(90)} {g(94)} {g(17)}")
     events = program.events  # in the order they ran (a line in a loop or subroutine runs again)
     ev = 0
-    for i in range(len(tp)):
-        while ev < len(events) and events[ev].move <= i:
-            _event(events[ev], dialect, emit, comment, g)
-            ev += 1
+    known = [False, False, False]  # axes the source has named: only those are written
+    tool = [-1]
+    prefix: list[tuple[int, str]] = []  # (line, words) to put in front of that line's next move
+    i = 0
+    while i < len(tp):
         move_inch = bool(program.move_inch[i])
-        scale = INCH if move_inch else 1.0
-        dec = dialect.decimals_inch if move_inch else dialect.decimals_mm
-        if move_inch != inch:
+        if move_inch != inch:  # units first: a block's G43 and dwell are read in its units
             emit(g(20) if move_inch else g(21))
             inch = move_inch
+        changed_at = -1  # source line of the tool change just written (its G43 joins that block)
+        while ev < len(events) and events[ev].move <= i:
+            e = events[ev]
+            if e.kind == "tool_length":
+                words = _tool_length(program, block(e.line), e.line, dialect, tool[0], move_inch, g)
+                if int(tp.line[i]) == e.line:
+                    prefix.append((e.line, words))
+                elif changed_at == e.line:
+                    out[-1] += f" {words}"  # LinuxCNC applies a G43 beside M6 after the change
+                else:
+                    emit(words)
+            else:
+                _event(e, dialect, emit, comment, g)
+                if e.kind == "tool_change":
+                    tool[0], changed_at = int(e.value), e.line
+            ev += 1
+        line = int(tp.line[i])
+        lead = " ".join(w for ln, w in prefix if ln == line)
+        for ln, w in prefix:
+            if ln != line:
+                emit(w)
+        prefix.clear()
+        scale = INCH if move_inch else 1.0
+        dec = dialect.decimals_inch if move_inch else dialect.decimals_mm
         num = lambda v: dialect.number(v / scale, move_inch, dec)  # noqa: E731
+        src = block(line)
+        codes = _g_codes(src)
+        named = {w.letter for w in src.words} & set("XYZ") if src is not None else set()
+        if 28.0 in codes or 30.0 in codes:  # to the stored position, through the same intermediate point
+            code = 28 if 28.0 in codes else 30
+            axes = [a for a in range(3) if "XYZ"[a] in named]
+            words = " ".join(f"{'XYZ'[a]}{num(tp.end[i, a])}" for a in axes)
+            emit(" ".join(w for w in (lead, g(code), words) if w))
+            for a in axes or range(3):
+                known[a] = False  # the stored position is the controller's, not the program's
+            i += 2 if axes else 1
+            continue
+        if 53.0 in codes:  # machine coordinates as the source wrote them
+            words = []
+            for w in src.words:
+                if w.letter in "XYZ":
+                    if any(c in w.text for c in "#["):
+                        raise _refuse(program, line, w.column, w.text, "G53 with a parameter word cannot be re-posted",
+                                      "a number")
+                    words.append(f"{w.letter}{dialect.number(w.value, move_inch, dec)}")
+                    known["XYZ".index(w.letter)] = False
+            motion = g(0) if int(tp.kind[i]) == RAPID else g(1)
+            fw = ""
+            if int(tp.kind[i]) != RAPID:
+                feed = tp.feed_mm_min[i] / scale
+                fw = f" F{dialect.number(feed, move_inch, 3)}"
+            emit(" ".join(w for w in (lead, "G53", motion, *words) if w) + fw)
+            i += 1
+            continue
         end = tp.end[i]
-        words = [f"X{num(end[0])}", f"Y{num(end[1])}", f"Z{num(end[2])}"]
+        moved = np.abs(end - tp.start[i]) > 1e-12
+        for a in range(3):
+            touched = "XYZ"[a] in named or bool(moved[a])
+            if touched and not known[a] and program.incremental[i]:
+                raise _refuse(program, line, 1, "", f"an incremental (G91) move of {'XYZ'[a]}, whose position is not "
+                              "known (program start, home or G53), has no absolute equivalent",
+                              f"an absolute {'XYZ'[a]} move before it")
+            known[a] = known[a] or touched
+        words = [f"{'XYZ'[a]}{num(end[a])}" for a in range(3) if known[a]]
         kind = int(tp.kind[i])
         if kind == RAPID:
-            emit(f"{g(0)} " + " ".join(words))
+            emit(" ".join(w for w in (lead, g(0), *words) if w))
+            i += 1
             continue
         if kind >= ARC_CW and int(tp.plane[i]) != plane:
             plane = int(tp.plane[i])
@@ -84,16 +212,53 @@ def convert(program: Program, dialect: Dialect) -> str:
             words += [f"{letters[a1]}{num(c[0])}", f"{letters[a2]}{num(c[1])}"]
             if tp.turns[i]:
                 words.append(f"P{int(tp.turns[i]) + 1}")
-            emit(f"{g(2) if kind == ARC_CW else g(3)} " + " ".join(words) + fw)
+            emit(" ".join(w for w in (lead, g(2) if kind == ARC_CW else g(3), *words) if w) + fw)
         else:
-            emit(f"{g(1)} " + " ".join(words) + fw)
+            emit(" ".join(w for w in (lead, g(1), *words) if w) + fw)
+        i += 1
+    for ln, w in prefix:
+        emit(w)
     for e in events[ev:]:
-        _event(e, dialect, emit, comment, g)
+        if e.kind == "tool_length":
+            emit(_tool_length(program, block(e.line), e.line, dialect, tool[0], bool(inch), g))
+        else:
+            _event(e, dialect, emit, comment, g)
     if not any(e.kind == "end" for e in program.events):
         emit(dialect.end_code)
     if dialect.percent:
         out.append("%")
     return "\n".join(out) + "\n"
+
+
+def _tool_length(program: Program, src: Block | None, line: int, dialect: Dialect, tool: int, inch: bool, g) -> str:
+    """The tool length words of source line `line` in the target's form; refused where the target
+    has no such code or the words need parameters to be read."""
+    if src is None:
+        raise _refuse(program, line, 1, "", "tool length compensation with parameter words cannot be re-posted",
+                      "G43 H<number>, G43.1 Z<number>, G43.2 H<number> or G49")
+    word = next(w for w in src.words if w.letter == "G" and round(w.value, 1) in (43.0, 43.1, 43.2, 49.0))
+    code = {43.0: "G43", 43.1: "G43.1", 43.2: "G43.2", 49.0: "G49"}[round(word.value, 1)]
+    if code not in dialect.tool_length_codes:
+        raise _refuse(program, line, word.column, word.text,
+                      f"{dialect.name} has no {code}: tool length compensation would be lost",
+                      f"a target that runs it ({code}), or a program without it")
+    if code == "G49":
+        return g(49)
+    args = {w.letter: w for w in src.words if w.letter in "HZK"}
+    for w in args.values():
+        if any(c in w.text for c in "#["):
+            raise _refuse(program, line, w.column, w.text, f"{code} with a parameter word cannot be re-posted",
+                          "a number")
+    if code == "G43.1":
+        w = args.get("Z") or args.get("K")
+        return f"G43.1 Z{dialect.number(w.value, inch)}"
+    h = int(args["H"].value) if "H" in args else tool
+    if h < 0:
+        if dialect.name != "linuxcnc":
+            raise _refuse(program, line, word.column, word.text, f"{code} without H and no tool loaded",
+                          f"{code} H<tool number>")
+        return code
+    return f"{g(43)} H{h}" if code == "G43" else f"{code} H{h}"
 
 
 def _event(e, dialect: Dialect, emit, comment, g) -> None:
@@ -123,9 +288,6 @@ def _event(e, dialect: Dialect, emit, comment, g) -> None:
         comment(str(e.value))
     elif e.kind == "m_code":
         emit(f"M{e.value}")
-    elif e.kind == "tool_length" and dialect.name != "grbl":
-        if e.value == 0.0:
-            emit(g(49))
     elif e.kind == "path_mode" and dialect.name != "grbl":
         name, p = e.value
         emit({"exact path": g(61), "exact stop": "G61.1", "blend": g(64) + (f" P{p:g}" if p else "")}[name])

@@ -25,6 +25,8 @@ class Dialect:
     line_numbers: N-number step when writing a program from scratch (0: none).
     comment: "paren" or "semicolon". dwell_ms: dwell P in milliseconds (Fanuc).
     percent: wrap programs in % lines (tape format) with an O number.
+    tool_length_codes: the tool length compensation codes the controller runs (G43 H from its tool
+    table, G43.1 dynamic, G43.2 additional, G49 cancel); `convert` refuses the others.
     """
 
     name: str
@@ -38,6 +40,7 @@ class Dialect:
     percent: bool = False
     end_code: str = "M2"
     markers: tuple[str, ...] = ()
+    tool_length_codes: frozenset[str] = frozenset({"G43", "G43.1", "G43.2", "G49"})
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""
@@ -59,15 +62,15 @@ class Dialect:
         return sum(len(re.findall(m, head, flags=re.IGNORECASE | re.MULTILINE)) for m in self.markers)
 
 
-GRBL = Dialect("grbl", canned_cycles=False, end_code="M30",
+GRBL = Dialect("grbl", canned_cycles=False, end_code="M30", tool_length_codes=frozenset({"G43.1", "G49"}),
                markers=(r"^\s*\$[A-Z0-9]", r"grbl", r"^G90 G94$", r"^\(When using Fusion 360 for Personal Use"))
 LINUXCNC = Dialect("linuxcnc", markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P",
                                         r"linuxcnc", r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
 FANUC = Dialect("fanuc", trailing_point=True, line_numbers=5, dwell_ms=True,
-                percent=True, end_code="M30",
+                percent=True, end_code="M30", tool_length_codes=frozenset({"G43", "G49"}),
                 markers=(r"^%\s*$", r"^O\d{3,5}", r"G28\s*G91", r"G43\s*Z[-\d.]+\s*H\d+", r"\bM29\b", r"\bM30\b",
                          r"haas", r"fanuc", r"G53\s*G0?0\s*Z"))
-MACH3 = Dialect("mach3", end_code="M30",
+MACH3 = Dialect("mach3", end_code="M30", tool_length_codes=frozenset({"G43", "G49"}),
                 markers=(r"mach\s*3", r"vectric", r"^G00 G2[01] G17 G90 G40 G49 G80", r"^\( VECTRIC", r"\bG00\b"))
 
 

@@ -136,8 +136,8 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
         data.operations = operations_from_lines(np.zeros(n, int), trace["tool"], [])
         data.binding = _binding(data, feed_cap=None)
         return data
-    from ..gcode import ReaderOptions, read_program
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
+    from ..gcode import read_program
+    program = read_program(job.program, job.reader_options())
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     if len(samples) != n:
         raise MillpostError(f"the trace has {n} samples but {job.program} resamples to {len(samples)}: "

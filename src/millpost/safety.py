@@ -1,0 +1,255 @@
+"""Safety gates: what millpost checks before it writes anything, because what it writes runs on a
+real machine.
+
+Each gate has a name. A gate that fires refuses (the CLI exits 2 with the message) unless the user
+overrides it by name — `--allow NAME` on the command line or ``[safety] allow = ["NAME"]`` in the
+job — in which case its message becomes a warning in the notes. Two gates cannot be overridden:
+a rapid into material is a crash whatever the user says, and an output must never replace an input.
+
+- ``rapid`` (always refused): a rapid move runs into material, checked from the first point whose
+  position is known (every axis named by a move, or the first feed move), before and after cutting.
+- ``no-cut``: the feed moves remove no material at all: the stock is open (an STL missing a face) or
+  not where the program's work zero puts it (a misplaced box), so every limit would read zero.
+- ``below-stock``: a feed move takes the tool tip more than `THROUGH_CUT_MM` below the stock's bottom
+  where the tool overlaps the stock (into the table or vise); less than that is a through-cut into a
+  spoilboard, noted.
+- ``flute-length``: the tool meets material deeper than its flute length (the shank rubs, chips
+  cannot leave).
+- ``large``: the resampled path would need more than `MAX_SAMPLES` samples, or more than 80 % of the
+  memory free now (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
+- ``clobber`` (always refused): an output path is an input (program, job, stock, tool, material or
+  machine file), another output, or a folder that does not exist.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import engagement
+from .errors import CrashError, MillpostError, SafetyError
+from .files import check_writable
+from .gcode.convert import SourceBlocks
+from .gcode.interpret import Program
+from .progress import Progress
+from .toolpath import RAPID, Samples
+from .tools import Tool
+
+THROUGH_CUT_MM = 1.0  # below the stock bottom by at most this: a through-cut (noted), beyond: refused
+MAX_SAMPLES = 10_000_000  # path samples of one run, whatever the memory
+# peak bytes per path sample at 8 axial slices, measured with tracemalloc on the sample jobs: the
+# engagement 1.1-1.4 kB; optimize adds loads, schedule and replay (4.6 kB), rounded up for what the
+# solver allocates outside Python's view
+BYTES_PER_SAMPLE = {"simulate": 1_500, "optimize": 8_000}
+
+
+@dataclass(frozen=True)
+class Gate:
+    """One check: its name (for --allow and [safety] allow) and whether the user may override it."""
+
+    name: str
+    overridable: bool
+    what: str
+
+
+GATES = {g.name: g for g in (
+    Gate("rapid", False, "a rapid move runs into material"),
+    Gate("no-cut", True, "the feed moves remove no material"),
+    Gate("below-stock", True, f"the tool goes more than {THROUGH_CUT_MM:g} mm below the stock bottom"),
+    Gate("flute-length", True, "the tool meets material deeper than its flute length"),
+    Gate("large", True, "the path needs more samples or memory than stated"),
+    Gate("clobber", False, "an output would replace an input or another output"),
+)}
+
+
+def refuse_or_note(gate: str, message: str, allow: Iterable[str], notes: list[str]) -> None:
+    """Raise SafetyError for a gate the user has not overridden; else keep the message as a warning."""
+    if gate in allow and GATES[gate].overridable:
+        notes.append(f"warning ({gate}, allowed): {message}")
+        return
+    hint = (f"; if this is intended, rerun with --allow {gate} (or [safety] allow = [\"{gate}\"] in the job)"
+            if GATES[gate].overridable else "")
+    raise SafetyError(f"{message} (refused{hint})", gate=gate)
+
+
+# --- files --------------------------------------------------------------------------------------
+def check_outputs(outputs: Mapping[str, str | os.PathLike | None], inputs: Iterable[str | os.PathLike]) -> None:
+    """Before any work: every output can be written (its folder exists) and none replaces an input
+    or another output (same file by path, symlink or hard link). `outputs` maps a label (the flag
+    or key that named it) to its path, None when not given."""
+    ins = [Path(p) for p in inputs]
+    seen: dict[str, Path] = {}
+    for label, out in outputs.items():
+        if out is None or str(out) == "-":
+            continue
+        out = Path(out)
+        for other_label, other in [(f"input {p}", p) for p in ins] + [(f"{k} {v}", v) for k, v in seen.items()]:
+            if _same_file(out, other):
+                raise SafetyError(f"{label} {out} is the same file as the {other_label}: millpost never replaces "
+                                  "an input or writes two outputs to one file; choose another output path "
+                                  "(refused)", gate="clobber")
+        check_writable(out, label)
+        seen[label] = out
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if a.exists() and b.exists():
+        return os.path.samefile(a, b)
+    return a.resolve() == b.resolve()
+
+
+# --- the program and its samples ----------------------------------------------------------------
+def check_program(program: Program) -> None:
+    """A program with no motion has nothing to simulate or optimize, and one with a non-finite
+    coordinate or feed cannot be run: say so instead of failing later."""
+    tp = program.toolpath
+    if len(tp) == 0:
+        raise MillpostError(f"{program.path}: the program has no moves (nothing to simulate or optimize)")
+    bad = ~(np.isfinite(tp.start).all(axis=1) & np.isfinite(tp.end).all(axis=1)
+            & (np.isfinite(tp.feed_mm_min) | (tp.kind == RAPID)))
+    if bad.any():
+        raise MillpostError(f"{program.path}:{int(tp.line[np.argmax(bad)])}: a coordinate or feed of this move is "
+                            "not a finite number")
+
+
+def estimate_samples(program: Program, ds_mm: float) -> int:
+    """How many samples `Toolpath.resample(ds_mm)` will make, without making them."""
+    L = program.toolpath.lengths()
+    L = L[L > 1e-9]
+    if not len(L):
+        return 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        n = np.maximum(np.ceil(L / ds_mm - 1e-9), 1.0)
+    return int(min(float(n.sum()) + 1.0, 1e18)) if np.all(np.isfinite(n)) else 10**18
+
+
+def resample(program: Program, ds_mm: float, allow: Iterable[str], notes: list[str], *,
+             stage: str = "optimize") -> Samples:
+    """The program's path resampled at `ds_mm` after the ``large`` gate: the number of samples and
+    their memory are estimated first, and refused beyond `MAX_SAMPLES` or the free memory."""
+    import psutil
+
+    n = estimate_samples(program, ds_mm)
+    need = n * BYTES_PER_SAMPLE[stage]
+    room = 0.8 * psutil.virtual_memory().available  # as the stock grid's cell choice allows itself
+    if n > MAX_SAMPLES or need > room:
+        refuse_or_note("large", f"{program.path}: {n:,} path samples at ds_mm = {ds_mm:g} would need about "
+                       f"{need / 1e9:.1f} GB ({stage}; ceiling {MAX_SAMPLES:,} samples and 80 % of the "
+                       f"{room / 0.8e9:.1f} GB free): raise ds_mm, or split the program", allow, notes)
+    return program.toolpath.resample(ds_mm)
+
+
+def known_start(program: Program, samples: Samples) -> int:
+    """The first sample whose position is known: the end of the first move by which every axis has
+    been named in a block (the reader assumes a start for the others), or the first feed move's
+    first sample if that comes earlier, and not before the first tool is loaded when any is."""
+    tp = program.toolpath
+    if not len(samples):
+        return 0
+    blocks = SourceBlocks(program)
+    named: set[str] = set()
+    known = len(tp)
+    for i in range(len(tp)):
+        if tp.kind[i] != RAPID:
+            break
+        block = blocks[int(tp.line[i])]
+        for w in block.words if block is not None else ():
+            if w.letter in "XYZ@^":
+                named.update("XY" if w.letter in "@^" else w.letter)
+        if named >= {"X", "Y", "Z"}:
+            known = i
+            break
+    move = np.asarray(samples.move)
+    first_feed = np.flatnonzero(np.asarray(samples.kind) != RAPID)
+    start = len(samples) if not len(first_feed) else int(first_feed[0])
+    if known < len(tp):
+        start = min(start, max(int(np.searchsorted(move, known, side="right")) - 1, 0))
+    loaded = np.flatnonzero(np.asarray(samples.tool) >= 0)
+    if len(loaded):
+        start = max(start, int(loaded[0]))
+    return start
+
+
+def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: float, allow: Iterable[str],
+           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None
+           ) -> tuple[Samples, "engagement.Engagement", list[str]]:
+    """Resample (``large`` gate), step the tools through `stock` (cut in place; ``rapid`` gate from the
+    first known position) and check the cut (``no-cut``, ``below-stock``, ``flute-length``).
+    Returns the samples, the engagement and the warnings/notes the gates left."""
+    notes: list[str] = []
+    check_program(program)
+    samples = resample(program, ds_mm, allow, notes, stage=stage)
+    bounds = stock.bounds()
+    try:
+        eng = engagement.simulate(stock, tools, samples, slices=slices, progress=progress,
+                                  start=known_start(program, samples))
+    except CrashError as exc:
+        raise CrashError(exc.line, exc.xyz, file=program.path) from None
+    check_cut(program, bounds, tools, samples, eng, allow, notes)
+    return samples, eng, notes
+
+
+def _per_sample(tools: Tool | Mapping[int, Tool], numbers: np.ndarray, attr: str, missing: float) -> np.ndarray:
+    """A tool attribute (mm) at each sample from its tool number (`missing` where no tool is described)."""
+    if isinstance(tools, Tool):
+        return np.full(len(numbers), float(getattr(tools, attr)))
+    out = np.full(len(numbers), missing)
+    for n, t in tools.items():
+        out[numbers == n] = float(getattr(t, attr))
+    return out
+
+
+def check_cut(program: Program, bounds: np.ndarray, tools: Tool | Mapping[int, Tool], samples: Samples, eng,
+              allow: Iterable[str], notes: list[str]) -> None:
+    """The gates on the simulated cut: ``no-cut``, ``below-stock`` and ``flute-length``. `bounds` is the
+    stock's [[x0, y0, z_bottom], [x1, y1, z_top]] (mm) before cutting."""
+    f = program.path
+    feed = np.asarray(samples.kind) != RAPID
+    xyz = samples.xyz_mm
+    R = _per_sample(tools, np.asarray(samples.tool), "radius_mm", 0.0)
+    (x0, y0, zb), (x1, y1, zt) = bounds
+    over = ((xyz[:, 0] > x0 - R) & (xyz[:, 0] < x1 + R) & (xyz[:, 1] > y0 - R) & (xyz[:, 1] < y1 + R))
+    removed = float(np.nansum(np.where(feed, eng.volume_mm3, 0.0)))
+    if removed <= 0.0:
+        inside = feed & over & (xyz[:, 2] < zt)
+        stock_text = f"X {x0:g}..{x1:g} Y {y0:g}..{y1:g} Z {zb:g}..{zt:g} mm"
+        if not feed.any():
+            msg = f"{f}: the program has no feed moves: nothing is cut"
+        elif zt <= zb:
+            msg = (f"{f}: the stock holds no material at all ({stock_text}): an open mesh (an STL missing a face) "
+                   "or a solid that did not rasterise")
+        elif inside.any():
+            msg = (f"{f}:{int(samples.line[np.argmax(inside)])}: the feed moves pass through the stock's bounds "
+                   f"({stock_text}) but remove no material: the stock is empty where the tool goes (an STL "
+                   "missing a face, or a solid in another frame)")
+        else:
+            p = xyz[feed]
+            msg = (f"{f}: no feed move reaches the stock: the feed moves span X {p[:, 0].min():g}..{p[:, 0].max():g} "
+                   f"Y {p[:, 1].min():g}..{p[:, 1].max():g} Z {p[:, 2].min():g}..{p[:, 2].max():g} mm, the stock "
+                   f"is {stock_text} (is it where the program's work zero puts it?)")
+        refuse_or_note("no-cut", msg, allow, notes)
+    below = np.where(feed & over, zb - xyz[:, 2], 0.0)
+    if below.max(initial=0.0) > 1e-3:
+        k = int(np.argmax(below))
+        msg = (f"{f}:{int(samples.line[k])}: the tool tip goes {below[k]:.3f} mm below the stock bottom "
+               f"(Z {xyz[k, 2]:.3f} mm, bottom at Z {zb:g} mm) on {len(np.unique(samples.line[below > 1e-3]))} line(s)")
+        if below[k] > THROUGH_CUT_MM:
+            refuse_or_note("below-stock", msg + ": into the table or the vise", allow, notes)
+        else:
+            notes.append(f"note: {msg}: a through-cut (within {THROUGH_CUT_MM:g} mm)")
+    if eng.depth_mm is not None:
+        flute = _per_sample(tools, np.asarray(samples.tool), "flute_len", math.inf)
+        deep = feed & (eng.depth_mm > flute + 1e-3)
+        if deep.any():
+            k = int(np.flatnonzero(deep)[np.argmax((eng.depth_mm - flute)[deep])])
+            tool = tools if isinstance(tools, Tool) else tools[int(samples.tool[k])]
+            given = "" if tool.flute_length_mm is not None else " (3·D assumed: give flute_length_mm)"
+            msg = (f"{f}:{int(samples.line[k])}: the tool meets material {eng.depth_mm[k]:.3f} mm deep, deeper than "
+                   f"its flute length {flute[k]:g} mm{given} (T{int(samples.tool[k])}, "
+                   f"{len(np.unique(samples.line[deep]))} line(s)): the shank would rub and chips cannot leave")
+            refuse_or_note("flute-length", msg, allow, notes)
