@@ -190,7 +190,7 @@ def _tool_table(tp, emitted_tp, before: controller.Execution, after: controller.
     for number in np.unique(tp.tool[tp.kind != RAPID]):
         row = {}
         for key, path, run in (("programmed", tp, before), ("optimized", emitted_tp, after)):
-            mine = path.tool[run.blocks.move] == number
+            mine = path.tool[run.move] == number
             feeds = path.feed_mm_min[(path.tool == number) & (path.kind != RAPID)]
             row[f"{key}_s"] = round(float(run.block_time_s[mine].sum()), 3)
             row[f"{key}_feed_mm_min"] = [round(float(np.nanmin(feeds)), 1), round(float(np.nanmax(feeds)), 1)]
