@@ -40,9 +40,9 @@ _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_fact
 _CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel")}
 # the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
 # a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
-# budget of 5 mm or a feed of 1000 m/min is no limit at all; a feed step of 100 % settles nothing.
+# budget of 5 mm or a feed of 1000 m/min is no limit at all.
 LIMIT_RANGES = {"deflection_mm": (1e-4, 5.0), "feed_max_mm_min": (1.0, 1e6), "tool_safety_factor": (1.0, 100.0),
-                "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9), "feed_step": (0.0, 1.0)}
+                "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9)}
 CELL_RANGE_MM = (1e-3, 10.0)
 STOCK_SPAN_MM = 1e5  # no stock corner is 100 m from the work zero
 
@@ -170,6 +170,9 @@ def load_job(path: str | Path) -> Job:
         elif key in _CHOICES:
             if value not in _CHOICES[key]:
                 raise ConfigError(f"limits.{key}", value, " or ".join(_CHOICES[key]), file=f)
+        elif key == "feed_step":
+            if not (_number(value) and 0 <= value <= 1):
+                raise ConfigError("limits.feed_step", value, "must be a number in [0, 1] (relative)", file=f)
         else:
             lo, hi = LIMIT_RANGES[key]
             if not (_number(value) and lo <= value <= hi):

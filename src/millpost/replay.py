@@ -8,8 +8,6 @@ a·v + b, compared with the bound the schedule was given (after the feed policy 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .gcode.interpret import Program
