@@ -118,6 +118,7 @@ def random_engagement(rng: np.random.Generator, samples, tool: Tool) -> Engageme
 def random_job(rng: np.random.Generator) -> tuple[Job, str]:
     limits = dict(_LIMIT_KEYS)
     limits["deflection_mm"] = float(rng.choice([0.01, 0.025, 0.05, 0.1]))
+    limits["lower"] = "all"  # every limit enforced: the replay checks them all
     limits["ds_mm"] = float(rng.uniform(0.15, 0.5))
     limits["model"] = str(rng.choice(["mechanistic", "kienzle"]))
     if rng.random() < 0.3:

@@ -136,3 +136,37 @@ def test_write_atomic_leaves_no_partial_file(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["out.nc"]
     write_atomic(target, "new")
     assert target.read_text() == "new"
+
+
+@pytest.mark.parametrize("line,pieces", [
+    ("X10 Y3 Z-1", ["X3.3333 Y1 Z-1 F50", "X6.6667 Y2 Z-1 F80", "X10 Y3 Z-1 F100"]),  # no G: pieces without
+    ("g1y3x10", ["g1y1x3.3333f50", "g1y2x6.6667f80", "g1y3x10f100"]),  # unspaced, lower case, Y before X
+    ("G01 Y3 X10 F100", ["G01 Y1 X3.3333 F50", "G01 Y2 X6.6667 F80", "G01 Y3 X10 F100"]),
+])
+def test_split_pieces_follow_the_source_line_style(line, pieces):
+    text = f"G21 G90 G17\nG0 X0 Y0 Z-1\nG1 F100\n{line}\nM2\n"
+    prog = read_text(text)
+    plan = FeedPlan.programmed(prog)
+    i = int(np.flatnonzero(prog.toolpath.line == 4)[0])
+    plan.fragments[i] = [(1 / 3, 50.0), (2 / 3, 80.0), (1.0, 100.0)]
+    out = write_feeds(prog, plan).splitlines()
+    assert out[3:6] == pieces
+
+
+def test_split_points_take_one_more_digit_and_stay_on_the_path():
+    # 3 decimals in the program: split points get 4 (mm), within 1e-4 mm of the original line
+    text = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X1.234 Y5.678 Z-0.333 F100\nM2\n"
+    prog = read_text(text)
+    plan = FeedPlan.programmed(prog)
+    plan.fragments[1] = [(1 / 7, 50.0), (1.0, 100.0)]
+    out = write_feeds(prog, plan).splitlines()
+    assert out[2] == "G1 X0.1763 Y0.8111 Z-0.0476 F50"
+    p = read_text("\n".join(out)).toolpath.end[1]
+    d = np.array([1.234, 5.678, -0.333])
+    off = p - d * (p @ d) / (d @ d)
+    assert np.linalg.norm(off) < 1e-4
+    inch = "G20 G90 G17\nG0 X0 Y0 Z0\nG1 X1.2345 Y0.5 F10\nM2\n"
+    prog = read_text(inch)
+    plan = FeedPlan.programmed(prog)
+    plan.fragments[1] = [(1 / 3, 127.0), (1.0, 254.0)]
+    assert write_feeds(prog, plan).splitlines()[2] == "G1 X0.4115 Y0.16667 F5"

@@ -124,3 +124,22 @@ def test_bad_job_files_name_the_field(tmp_path, text, field):
     with pytest.raises(ConfigError) as info:
         load_job(tmp_path)
     assert info.value.field == field
+
+
+def test_cli_report_says_why_slower():
+    from millpost.commands.optimize import report
+    s = {"status": "slower", "message": "", "cycle_time_before_s": 18.1, "cycle_time_after_s": 26.5,
+         "cycle_time_baseline_s": 28.7, "binding": {"cutting force": 0.98}, "f_words": {"programmed": 7, "optimized": 9},
+         "hard_limits": ["cutting_force", "feed"], "binding_limits": {"cutting_force": 0.98, "junction": 0.01},
+         "limits_programmed": {"cutting_force": 1.56, "deflection": 2.0},
+         "defaults_binding": {"cutting_force": "tool safety factor 3"},
+         "held": {"deflection": {"kind": "quality", "lines": [20, 21], "line_count": 2, "reason": "reported"}},
+         "tools": {1: {"programmed_s": 18.1, "optimized_s": 26.5, "programmed_feed_mm_min": [333.3, 1000.0],
+                       "optimized_feed_mm_min": [594.9, 20000.0]}}}
+    text = report(s, Path("out.nc"))
+    assert text.startswith("millpost: slower: cycle time 18.1 s programmed → 26.5 s optimized")
+    assert "F words 7 -> 9" in text.splitlines()[0]
+    assert "cutting_force 98% (hard)" in text and "cutting_force 1.56; feeds lowered there, hence slower" in text
+    assert "deflection 2.00" not in text  # a quality limit the program exceeds does not make it slower
+    assert "default cutting_force: tool safety factor 3" in text and "deflection (quality) held on 2 lines" in text
+    assert "T1" in text and "333.3-1000" in text and "594.9-20000" in text

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from millpost.gcode import read_text
-from millpost.optimize import spindle_rpm
+from millpost.limits import spindle_rpm
 from millpost.toolpath import RAPID
 from millpost.tools.beam import ToolBeam
 from random_jobs import run_job
@@ -28,12 +28,12 @@ TOL = 1.005
 def _check(seed: int) -> dict:
     job, eng, result = run_job(seed)
     s = result.summary
-    out = {"seed": seed, "status": s["status"], "limits": s["limits"], "unavoidable": s["unavoidable_samples"]}
+    out = {"seed": seed, "status": s["status"], "limits": s["limits"], "held": s["held"]}
     emitted = read_text(result.text, "emitted.nc").toolpath
     feeds = emitted.feed_mm_min[emitted.kind != RAPID]
     out["feed_over"] = float(np.nanmax(feeds, initial=0.0)) / min(job.machine.feed_max_mm_min,
                                                                    job.limits["feed_max_mm_min"] or np.inf)
-    if seed % 10 == 0 and s["status"] == "solved":
+    if seed % 10 == 0 and s["status"] in ("solved", "slower"):
         out["independent"] = _independent(job, eng, result)
     return out
 
@@ -57,8 +57,8 @@ def _independent(job, eng, result) -> dict:
     }
     out = {}
     for name, r in ratios.items():
-        # where the edge forces alone exceed the bound the pipeline holds the feed and reports it
-        keep = cut & (tr[f"unavoidable_{name}"] == 0)
+        # where the policy held the bound (min-chip feed) the pipeline reports it
+        keep = cut & (tr[f"held_{name}"] == 0)
         out[name] = float(np.max(r[keep], initial=0.0))
     return out
 
@@ -81,7 +81,7 @@ def test_emitted_feeds_within_machine_and_user_limits(outcomes):
 
 
 def test_solver_does_not_fall_back(outcomes):
-    failed = [o["seed"] for o in outcomes if o["status"] != "solved"]
+    failed = [o["seed"] for o in outcomes if o["status"].startswith("fallback")]
     assert len(failed) <= 0.01 * COUNT, failed[:10]
 
 

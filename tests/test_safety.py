@@ -240,6 +240,9 @@ def test_interrupted_write_leaves_nothing(tmp_path):
 def test_ctrl_c_prints_interrupted_and_exits_130(tmp_path):
     """A real SIGINT in the middle of `optimize`: exit 130, one line, no traceback, no output file."""
     job = job_copy(tmp_path, "adaptive_pocket")
+    # a fine sampling step, so that the run (2.5 s at the sample's step) is still busy after 4 s
+    with open(job / "job.toml", "a") as fh:
+        fh.write("\n[limits]\nds_mm = 0.005\n")
     out = tmp_path / "out.nc"
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     proc = subprocess.Popen([sys.executable, "-m", "millpost.cli", "optimize", str(job), "-o", str(out)],

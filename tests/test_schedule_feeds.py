@@ -9,8 +9,9 @@ from test_schedule import AMAX, VMAX, make_toolpath, pocket_toolpath
 
 from millpost.controller import ControllerModel, execute
 from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, schedule_samples
-from millpost.schedule.feeds import emission_limit, piecewise_feeds, split_toolpath
+from millpost.schedule.feeds import Fragment, emission_limit, piecewise_feeds
 from millpost.schedule.rows import PathGrid
+from millpost.toolpath import ARC_CW, PLANE_AXES, Toolpath
 
 
 def fragment_feed_at_samples(samples, fragments, tp):
@@ -30,13 +31,49 @@ def fragment_feed_at_samples(samples, fragments, tp):
     return out
 
 
+def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
+    """Test helper: the program with each fragmented move split at its fragment ends (arcs as arcs about the same
+    centre) and the fragment feeds; other moves unchanged. Keeps line and block of the source."""
+    by_move: dict[int, list[Fragment]] = {}
+    for f in fragments:
+        by_move.setdefault(f.move, []).append(f)
+    idx, u0, u1, feed = [], [], [], []
+    for m in range(len(tp)):
+        frs = by_move.get(m)
+        if not frs:
+            idx.append(m), u0.append(0.0), u1.append(1.0), feed.append(tp.feed_mm_min[m])
+            continue
+        for f in sorted(frs, key=lambda f: f.u_start):
+            idx.append(m), u0.append(f.u_start), u1.append(f.u_end), feed.append(f.feed_mm_min)
+    idx, u0, u1 = np.array(idx), np.array(u0), np.array(u1)
+    out = tp.subset(idx)
+    out.start = tp.points(idx, u0)
+    out.end = tp.points(idx, u1)
+    out.feed_mm_min = np.array(feed, float)
+    arc = out.kind >= ARC_CW
+    if arc.any():
+        _, _, _, sweep, _, _ = tp.subset(idx[arc])._arc_params()
+        sw = np.abs(sweep) * (u1[arc] - u0[arc])
+        full = np.floor(sw / (2 * np.pi) + 1e-9)
+        rem = sw - 2 * np.pi * full
+        out.turns = out.turns.copy()
+        out.turns[arc] = np.where(rem < 1e-9, full - 1, full).astype(np.int32)
+        # the normal-axis component of a centre equals its move's start
+        ax = np.array(PLANE_AXES)[out.plane[arc].astype(int)][:, 2]
+        c = out.center[arc].copy()
+        c[np.arange(len(c)), ax] = out.start[arc][np.arange(len(c)), ax]
+        out.center = out.center.copy()
+        out.center[arc] = c
+    return out
+
+
 def test_fragments_bound_the_limit_and_respect_length_and_count():
     tp = make_toolpath((0, 0, 0), [("line", (40, 0, 0)), ("arc", (40, 20, 0), (40, 10, 0), True),
                                    ("line", (35, 20, 0))])
     smp = tp.resample(0.05)
     rng = np.random.default_rng(5)
     lim = 50 + 30 * np.sin(smp.s_mm / 3.0) + 5 * rng.random(len(smp))
-    frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, resolution_mm_min=1.0)
+    frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, step=0.0)
     fed = fragment_feed_at_samples(smp, frs, tp)
     assert np.all(fed <= lim + 1e-12)
     L = tp.lengths()
@@ -47,7 +84,7 @@ def test_fragments_bound_the_limit_and_respect_length_and_count():
         assert min(lengths) >= min(2.0, L[m]) - 1e-9
         assert sum(lengths) == pytest.approx(L[m])
     # more freedom → closer to the limit: time Σ l/F approaches ∫ ds/limit
-    fine = piecewise_feeds(smp, lim, min_fragment_mm=0.05, max_changes_per_mm=100, resolution_mm_min=0.001)
+    fine = piecewise_feeds(smp, lim, min_fragment_mm=0.05, max_changes_per_mm=100, step=0.0)
     t_fine = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in fine)
     t_coarse = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in frs)
     ideal = np.sum(np.diff(smp.s_mm) / np.minimum(lim[1:], lim[:-1]))
@@ -80,7 +117,7 @@ def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
               SpeedLoad(alpha, np.full(n, 5.0), force_cap, "force")]
     ps = schedule_samples(smp, limits)
     assert ps.ok
-    lim = emission_limit(smp, limits, ps)
+    lim = emission_limit(smp, limits, ps, ("axis_velocity", "axis_acceleration", "junction"))
     assert np.all(lim[np.isfinite(lim)] >= ps.feed_mm_s[np.isfinite(lim)] - 1e-9)
     frs = piecewise_feeds(smp, lim, min_fragment_mm=1.0, max_changes_per_mm=0.5)
     sp = split_toolpath(tp, frs)
@@ -96,3 +133,29 @@ def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
     best_const = (force_cap - 5.0) / alpha.max() * 60
     base = execute(tp, ctl, np.full(len(tp), best_const))
     assert ex.time_s < base.time_s
+
+
+def test_settle_and_cluster_never_raise_and_space_the_feeds():
+    from millpost.schedule.feeds import cluster, settle
+    rng = np.random.default_rng(1)
+    f = 1000 * np.exp(np.cumsum(rng.normal(0, 0.03, 3000)))
+    for out, consecutive in ((settle(f, 0.05), True), (cluster(f, 0.05), False)):
+        assert np.all(out <= f)
+        assert np.all(out >= f.min())
+        v = np.diff(out) if consecutive else np.diff(np.unique(out))
+        base = np.minimum(out[1:], out[:-1]) if consecutive else np.unique(out)[:-1]
+        rel = np.abs(v) / base
+        assert np.all((rel == 0) | (rel >= 0.05 - 1e-12))
+    assert np.array_equal(settle(np.array([100.0, 103.0, 120.0, 119.0]), 0.05), [100.0, 100.0, 119.0, 119.0])
+
+
+def test_reachable_joins_short_peaks_only():
+    from millpost.schedule.feeds import reachable
+    joined = np.array([False, True, True, True])
+    f = np.array([600.0, 660.0, 600.0, 6000.0])  # mm/min; 0.1 mm pieces at 3000 mm/s²
+    out = reachable(f, np.full(4, 0.1), np.full(4, 3000.0), joined, 0.05)
+    # piece 1 peaks at sqrt(10² + 300) = 20 mm/s (1200 mm/min) > 1.05 × 600: it keeps its F
+    np.testing.assert_array_equal(out, f)
+    out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05)
+    # 1 µm: it peaks at sqrt(100 + 3) mm/s = 609 mm/min, within 5 % of 600: joined to its neighbours
+    np.testing.assert_array_equal(out, [600.0, 600.0, 600.0, 6000.0])

@@ -52,3 +52,37 @@ def test_jerk_limited_windows_match_monolithic():
     assert mono.status == win.status == Status.SOLVED and win.windows > 3
     assert mono.time_s * (1 - 1e-6) <= win.time_s <= mono.time_s * 1.001
     assert max(win.excess.values()) <= 1e-5  # jerk evaluated exactly (actual speeds), not linearised
+
+
+def test_processes_do_not_change_the_chunked_solve(long_case):
+    """The chunk cuts depend on the segment only: one process and two give the same b, bit for bit."""
+    grid, blocks, _ = long_case
+    kw = dict(certify_gap=0.0, monolithic_max=1000, window=1000, overlap=100, chunk=2500)
+    one = solve_path(grid, blocks, ScheduleOptions(processes=1, **kw))
+    two = solve_path(grid, blocks, ScheduleOptions(processes=2, **kw))
+    assert one.status == two.status == Status.SOLVED and one.windows > 3
+    np.testing.assert_array_equal(one.b, two.b)
+
+
+def test_segments_in_processes_match_one_process():
+    """Several cutting segments (split by rapids) solved by two worker processes: the same schedule as
+    one process, segment by segment and sample by sample."""
+    from millpost.gcode import read_text
+    from millpost.schedule import schedule_samples
+    lines = ["G21 G90 G17 G94", "G0 X0 Y0 Z1", "G1 Z-1 F600"]
+    for k in range(3):
+        y = 10.0 * k
+        lines += ["G0 Z1", f"G0 X0 Y{y}", "G1 Z-1 F600", f"G1 X40 Y{y} F3000", f"G3 X40 Y{y + 6} I0 J3",
+                  f"G1 X0 Y{y + 6}", f"G1 X0 Y{y + 3}", f"G1 X{30 - 5 * k} Y{y + 3}"]
+    smp = read_text("\n".join(lines) + "\nG0 Z5\nM30\n", "three.nc").toolpath.resample(0.02)
+    n = len(smp)
+    alpha = 1.0 + 0.5 * np.sin(smp.s_mm / 5.0) ** 2
+    limits = [FeedLimit(60.0), AxisVelocity(VMAX), AxisAcceleration(AMAX), Junction(AMAX, 0.02),
+              SpeedLoad(alpha, np.full(n, 2.0), 90.0, "force")]
+    kw = dict(certify_gap=0.0, monolithic_max=1500, window=1000, overlap=100, chunk=3000)
+    one = schedule_samples(smp, limits, ScheduleOptions(processes=1, **kw))
+    two = schedule_samples(smp, limits, ScheduleOptions(processes=2, **kw))
+    assert len(one.segments) >= 3 and one.ok and two.ok
+    assert max(hi - lo for lo, hi, _ in one.segments) > kw["monolithic_max"]  # some segments are windowed
+    np.testing.assert_array_equal(one.feed_mm_s, two.feed_mm_s)
+    assert [(lo, hi, s.windows) for lo, hi, s in one.segments] == [(lo, hi, s.windows) for lo, hi, s in two.segments]

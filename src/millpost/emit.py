@@ -74,12 +74,17 @@ def _fmt(value: float, decimals: int, trailing_point: bool) -> str:
     return text
 
 
+_SPACED = r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]"  # a word, blanks, the next word
+
+
 class _LineWriter:
     """Edits one source line: replace or add words, keeping every other byte."""
 
-    def __init__(self, raw: str, block: Block) -> None:
+    def __init__(self, raw: str, block: Block, spaced: bool) -> None:
         self.raw, self.block = raw, block
-        self.sep = " " if re.search(r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]", raw) else ""
+        self.lower = bool(block.words) and all(w.text[0].islower() for w in block.words if w.text[0].isalpha())
+        one_word = len(block.words) + (block.number is not None) < 2
+        self.sep = " " if (spaced if one_word else re.search(_SPACED, raw)) else ""
 
     def replace(self, new: dict[str, str], drop: set[str] = frozenset()) -> str:
         """Words by letter set to new text (added after the last word when absent); `drop` removed."""
@@ -100,7 +105,8 @@ class _LineWriter:
         if missing:
             anchor = [w.end for w in self.block.words if w.letter in "GXYZIJKR" and w.letter not in drop]
             at = max(anchor) if anchor else self.block.code_end
-            edits.append((at, at, "".join(self.sep + L + new[L] if (at > 0 or i) else L + new[L]
+            case = str.lower if self.lower else str.upper
+            edits.append((at, at, "".join(self.sep + case(L) + new[L] if (at > 0 or i) else case(L) + new[L]
                                           for i, L in enumerate(missing))))
         for s, e, rep in sorted(edits, key=lambda t: (t[0], t[1]), reverse=True):
             text = text[:s] + rep + text[e:]
@@ -121,6 +127,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     for i in np.flatnonzero(cutting):
         by_line.setdefault(int(tp.line[i]), []).append(int(i))
     out: list[str] = []
+    # the style of a line too short to show its own: the program's (comments aside)
+    spaced = bool(re.search(_SPACED, re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)))
     modal_f: float | None = None  # F in force in the output (program units)
     # With O-word control flow a line may run several times, with other parameters and after other
     # lines than the text shows: every line that feeds gets its own F (the lowest any run of it
@@ -152,9 +160,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         block = lex_line(body, n, program.path, params)
         params.update(block.assigns)
         inch = bool(program.move_inch[moves[0]])
-        decimals = _decimals(block, 4 if inch else 3)
         trailing_point = _trailing_point(block, default_trailing)
-        writer = _LineWriter(body, block)
+        writer = _LineWriter(body, block, spaced)
         f_word = next((w for w in block.words if w.letter == "F"), None)
 
         def f_value(i: int, feed_mm_min: float, length_mm: float) -> float:
@@ -178,8 +185,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]]
         if split and len(moves) == 1:
             i = moves[0]
-            new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, decimals,
-                                             trailing_point, lambda j, f, L: f_text(f_value(j, f, L)), lengths[i])
+            new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, trailing_point,
+                                             lambda j, f, L: f_text(f_value(j, f, L)), lengths[i])
             out.extend(new_lines)
             continue
         wanted = [plan.feed_mm_min[i] for i in moves if not math.isnan(plan.feed_mm_min[i])]
@@ -200,7 +207,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             continue
         if f_word is not None and _same(f_word.value, value):
             out.append(raw)  # the program's own F still holds: keep its bytes
-        elif f_word is None and modal_f is not None and _same(modal_f, value) and program.feed_mode[k] != 930:
+        elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
+              and (_same(modal_f, value) or _same(modal_f, float(f_text(value))))):
             out.append(raw)
         else:
             out.append(writer.replace({"F": f_text(value)}) + ending)
@@ -209,23 +217,32 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     return "".join(out)
 
 
+def split_decimals(block: Block, inch: bool) -> int:
+    """Decimals of a split point: the line's own precision plus one digit, at least 4 in mm and 5 in
+    inch, so that a rounded split point lies within 1e-4 mm of the original path (half a unit of
+    the last digit per axis: at most 0.87e-4 mm in 3D, 0.22e-4 mm in inch)."""
+    return max(_decimals(block, 0) + 1, 5 if inch else 4)
+
+
 def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
-                decimals: int, trailing_point: bool, f_text, length_mm: float) -> tuple[list[str], str]:
+                trailing_point: bool, f_text, length_mm: float) -> tuple[list[str], float]:
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
-    words changed; later pieces are new lines with the motion word, end point, arc centre and F."""
+    words changed; later pieces are new lines in the style of the original (its motion word as written
+    or none when it had none, its word order, letter case and spacing) with the end point, arc centre
+    and F. Split points take `split_decimals`."""
     tp = program.toolpath
     inch = bool(program.move_inch[i])
     scale = INCH if inch else 1.0
+    decimals = split_decimals(block, inch)
     incremental = bool(program.incremental[i])
     arc = tp.kind[i] >= ARC_CW
     uses_r = any(w.letter == "R" for w in block.words)
     g_word = next((w for w in block.words if w.letter == "G" and int(round(w.value)) in (1, 2, 3)), None)
-    two_digit = g_word.text.strip()[1:].lstrip(" \t").startswith("0") if g_word is not None else trailing_point
-    code = 1 if not arc else (2 if tp.kind[i] == ARC_CW else 3)
-    g_text = f"G{'0' if two_digit else ''}{code}"
+    order = [w.letter for w in block.words if w.letter in _AXIS_LETTERS + _ARC_LETTERS + "RF" or w is g_word]
     us = np.array([0.0] + [u for u, _ in fragments])
     points = tp.points(np.full(len(us), i), us)
     a1, a2, an = PLANE_AXES[int(tp.plane[i])]
+    written_axes = {w.letter for w in block.words if w.letter in _AXIS_LETTERS}
     out = []
     modal = None
     for k, (u_end, feed) in enumerate(fragments):
@@ -234,8 +251,10 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
         words: dict[str, str] = {}
         for ax in range(3):
             value = (end[ax] - start[ax]) if incremental else end[ax]
-            if k == 0 or abs(end[ax] - start[ax]) > 0 or not incremental:
-                words[_AXIS_LETTERS[ax]] = _fmt(value / scale, decimals, trailing_point)
+            moves_here = abs(end[ax] - start[ax]) > 1e-9
+            if _AXIS_LETTERS[ax] in written_axes or moves_here:
+                if k == 0 or moves_here or not incremental:
+                    words[_AXIS_LETTERS[ax]] = _fmt(value / scale, decimals, trailing_point)
         if arc:
             if uses_r:
                 r = math.hypot(start[a1] - tp.center[i, a1], start[a2] - tp.center[i, a2])
@@ -252,9 +271,13 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
             drop = set(_AXIS_LETTERS + _ARC_LETTERS + "R") - set(words)
             out.append(writer.replace(words, drop=drop) + ending)
         else:
+            ranked = sorted(words, key=lambda L: order.index(L) if L in order else len(order) + "XYZIJKRF".index(L))
+            texts = [(L.lower() if writer.lower else L) + words[L] for L in ranked]
+            if g_word is not None:
+                at = order.index("G") if "G" in order else 0
+                texts.insert(min(at, len(texts)), g_word.text.strip())
             sep = writer.sep
-            out.append(g_text + "".join(sep + L + v if j or sep else L + v for j, (L, v) in enumerate(words.items()))
-                       + ending)
+            out.append(sep.join(texts) + ending)
         modal = float(f)
     return out, modal
 

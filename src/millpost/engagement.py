@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._kernels import announce_compile
 from ._kernels import engage as _k
 from .errors import CrashError, MillpostError
 from .progress import Progress, resolve
@@ -224,6 +225,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     chunk = 50_000
     # runs of one tool, cut into chunks for the progress display
     bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
+    announce_compile(_k.run)
     runs = []
     for a, b in zip(bounds[:-1], bounds[1:]):
         t = tools.get(int(tool_no[a])) if tools is not None else tool

@@ -11,7 +11,9 @@
     [limits]                          # optional: deflection_mm, feed_max_mm_min,
                                       # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle"),
                                       # plunge_feed_max_mm_min (cap on the feed of moves going down
-                                      # into material: plunges, drilling, ramps)
+                                      # into material: plunges, drilling, ramps),
+                                      # lower ("hard"|"all"), feed_step (relative, 0.05),
+                                      # solver ("auto"|"clarabel": Clarabel on every segment)
     [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
 
 A folder stands for the `job.toml` inside it. Every number must be finite and inside its stated
@@ -34,8 +36,10 @@ from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
 
-_LIMIT_KEYS = {"deflection_mm": 0.025, "feed_max_mm_min": None, "tool_safety_factor": None,
-               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None}
+_LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
+               "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None,
+               "lower": "hard", "feed_step": 0.05, "solver": "auto"}
+_CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel")}
 # the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
 # a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
 # budget of 5 mm or a feed of 1000 m/min is no limit at all.
@@ -165,6 +169,12 @@ def load_job(path: str | Path) -> Job:
             if value not in plugins("force_models"):
                 raise ConfigError("limits.model", value, f"one of {', '.join(sorted(plugins('force_models')))}",
                                   file=f)
+        elif key in _CHOICES:
+            if value not in _CHOICES[key]:
+                raise ConfigError(f"limits.{key}", value, " or ".join(_CHOICES[key]), file=f)
+        elif key == "feed_step":
+            if not (_number(value) and 0 <= value <= 1):
+                raise ConfigError("limits.feed_step", value, "must be a number in [0, 1] (relative)", file=f)
         else:
             lo, hi = LIMIT_RANGES[key]
             if not (_number(value) and lo <= value <= hi):

@@ -12,6 +12,7 @@ from ..optimize import optimize
 from ..progress import Bars, stage
 from ..report.page import headline
 from ..safety import check_outputs
+from ..schedule import ScheduleOptions
 from . import add_allow_argument
 
 
@@ -27,8 +28,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trace", metavar="CSV", help="write per-sample engagement, loads and feeds as CSV")
     p.add_argument("--report", metavar="HTML", help="write the job report (one HTML page that opens offline)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars and no summary line")
+    p.add_argument("--solver", choices=ScheduleOptions.SOLVERS,
+                   help="auto: the certified O(N) profile where its proven gap is within 0.1 %%, Clarabel "
+                        "elsewhere; clarabel: Clarabel everywhere, for comparison (default: the job's "
+                        "[limits] solver, else auto)")
+    p.add_argument("--jobs", type=_positive_int, metavar="N", help="worker processes (default: all cores)")
     add_allow_argument(p)
     p.set_defaults(func=run)
+
+
+def _positive_int(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number >= 1")
+    return int(text)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,8 +49,9 @@ def run(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output else job.output
     check_outputs({"output": output, "--json": args.json, "--trace": args.trace, "--report": args.report},
                   job.inputs)
+    options = ScheduleOptions.from_choices(solver=args.solver or job.limits["solver"], jobs=args.jobs)
     with Bars(enabled=False if args.quiet else None) as bars:
-        result = optimize(job, progress=bars)
+        result = optimize(job, progress=bars, options=options)
         result.summary["output"] = str(output)
         text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
         write_atomic(output, result.text)
@@ -56,5 +69,36 @@ def run(args: argparse.Namespace) -> int:
         for note in result.summary["notes"]:
             if note.startswith(("warning", "note:")):
                 print(f"millpost: {note}", file=sys.stderr)
-        print(f"millpost: {headline(result.summary)}; wrote {output}", file=sys.stderr)
+        print(report(result.summary, output), file=sys.stderr)
     return 0
+
+
+def report(s: dict, output: Path) -> str:
+    """What a machinist reads after a run: the outcome, why (the limits that bound the feeds and for
+    which share of the cutting time, limits the program already exceeds, defaults that bound), the
+    feeds held by the policy, and per tool the programmed and optimized time and feed range."""
+    out = [f"millpost: {headline(s)}; F words {s['f_words']['programmed']} -> {s['f_words']['optimized']}; "
+           f"wrote {output}"]
+    if s["message"]:
+        out.append(f"  {s['message']}")
+    hard = set(s.get("hard_limits", ()))
+    if s.get("binding_limits"):
+        out.append("  limits that set the feed (share of cutting time): " + ", ".join(
+            f"{k} {v:.0%}{' (hard)' if k in hard else ''}" for k, v in
+            sorted(s["binding_limits"].items(), key=lambda kv: -kv[1]) if v >= 0.005))
+    over = {k: v for k, v in s.get("limits_programmed", {}).items() if v > 1.005 and k in hard}
+    if over:
+        out.append("  the programmed feeds exceed hard limits (x bound): " +
+                   ", ".join(f"{k} {v:.2f}" for k, v in sorted(over.items())) +
+                   ("; feeds lowered there, hence slower" if s["status"] == "slower" else ""))
+    for name, why in s.get("defaults_binding", {}).items():
+        out.append(f"  default {name}: {why}")
+    for name, h in s.get("held", {}).items():
+        lines = ", ".join(map(str, h["lines"])) + (" ..." if h["line_count"] > len(h["lines"]) else "")
+        out.append(f"  {name} ({h['kind']}) held on {h['line_count']} lines [{lines}]: {h['reason']}")
+    out.append("  tool  programmed s  optimized s  programmed F  optimized F (mm/min)")
+    for number, row in s.get("tools", {}).items():
+        out.append(f"  T{number:<4} {row['programmed_s']:12.1f} {row['optimized_s']:12.1f}  "
+                   f"{row['programmed_feed_mm_min'][0]:g}-{row['programmed_feed_mm_min'][1]:g}  "
+                   f"{row['optimized_feed_mm_min'][0]:g}-{row['optimized_feed_mm_min'][1]:g}")
+    return "\n".join(out)

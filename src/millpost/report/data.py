@@ -172,7 +172,7 @@ def _derive_limits(data: ReportData, job, samples) -> None:
     data.limits["peak_force_N"] = force_lim
     data.limits["power_W"] = np.where(samples.rpm > 0, m.spindle.power_available_W(rpm), np.nan)
     data.signals["deflection_mm"] = tr["peak_force_N"] * compliance
-    data.limits["deflection_mm"] = np.full(n, float(job.limits["deflection_mm"]))
+    data.limits["deflection_mm"] = tr["deflection_limit_mm"]
     # chip thickness h_max = f_z·sin φ_max with sin φ_max = 2·√(a_e/D·(1 − a_e/D)) below half immersion
     # (1 above): the flank edge of a flat tool (an upper bound of h on ball and bull noses)
     chip, chip_lim = np.full(n, np.nan), np.full(n, np.nan)
@@ -230,8 +230,8 @@ def _binding(data: ReportData, feed_cap: float | None) -> np.ndarray:
         hit = cut & (r >= TIGHT) & (r > best)
         out[hit], best[hit] = LABELS[key], r[hit]
     for key in tr:
-        if key.startswith("unavoidable_"):
-            out[cut & (tr[key] > 0)] = f"{key[12:].replace('_', ' ')} (cut too heavy: held)"
+        if key.startswith("held_"):
+            out[cut & (tr[key] > 0)] = f"{key[5:].replace('_', ' ')} (held by the feed policy)"
     return out
 
 

@@ -77,9 +77,9 @@ def render(data: ReportData) -> str:
     if data.stock is not None:
         parts += ["<h2>Final stock</h2>", f"<figure>{figures.stock_map(data)}</figure>"]
     notes = list(s.get("notes", []))
-    if s.get("unavoidable_samples"):
-        notes.append("cuts too heavy at any feed (held at the programmed feed; reduce depth or width there): "
-                     + ", ".join(f"{k}: {v} samples" for k, v in s["unavoidable_samples"].items()))
+    for name, h in s.get("held", {}).items():
+        notes.append(f"{name} ({h['kind']}) held by the feed policy on {h['line_count']} lines "
+                     f"(from line {h['lines'][0]}): {h['reason']}")
     if s.get("chip_floor_unmet_samples"):
         notes.append(f"{s['chip_floor_unmet_samples']} samples cannot reach the material's minimum chip "
                      "(the tool rubs there)")

@@ -199,10 +199,14 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
     prob.add(SOC, sp.csr_matrix((vals, (rows, cols)), shape=(3 * m, lay.nvar)), np.tile([0.0, 0.0, 2.0], m), 3)
 
     # speed bounds
-    fin = np.flatnonzero(np.isfinite(b_hi))
+    # Rows whose every variable is fixed are constants: the window before already obeyed them, and
+    # its solution's round-off (≤ the accepted residual) must not make this window infeasible.
+    fixed = np.zeros(n, bool)
+    fixed[fi] = True
+    fin = np.flatnonzero(np.isfinite(b_hi) & ~fixed)
     prob.add_le(sp.csr_matrix((np.ones(len(fin)), (np.arange(len(fin)), fin)), shape=(len(fin), lay.nvar)),
                 b_hi[fin] / v2)
-    pos = np.flatnonzero(b_lo > 0)
+    pos = np.flatnonzero((b_lo > 0) & ~fixed)
     prob.add_le(sp.csr_matrix((-np.ones(len(pos)), (np.arange(len(pos)), pos)), shape=(len(pos), lay.nvar)),
                 -b_lo[pos] / v2)
     if len(soft_idx):
@@ -231,7 +235,8 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
         cc = np.r_[cc, lay.c0 + idx[neg]]
         vv = np.r_[vv, g[neg] * vref]
         h = H.ravel()
-        active = np.isfinite(h)
+        uses_next = (U != 0).ravel() & (idx < n - 1)
+        active = np.isfinite(h) & ~(fixed[idx] & (~uses_next | fixed[np.minimum(idx + 1, n - 1)]))
         if not active.all():
             sel = np.flatnonzero(active)
             remap = -np.ones(len(h), int)

@@ -1,18 +1,25 @@
 """An O(N) schedule with a certified optimality gap, for problems the reachability pass can solve.
 
-With only speed bounds and linear rows u·a_i + w·b_i ≤ h (no jerk/slew rows, no √b terms, no
-floors), a row in the neighbouring states reads α·b_{i+1} + β·b_i ≤ h with α = u/(2·ds_i),
-β = w − α. If α·β ≤ 0 for every row the feasible set is a lattice (closed under componentwise
-max), its componentwise-largest element exists, and since the traversal time decreases in every b
-it is the optimum; the greedy reachability (TOPP-RA) profile is that element. Rows with α, β > 0
-(tight curvature against a small tangent component, 2·ds·κ_k > t_k) break this. Two lattice
-problems bracket the optimum T*:
-- restriction: the row replaced by b_i, b_{i+1} ≤ h/(α + β) (implies the row); its greedy profile
-  is feasible, T_R ≥ T*;
-- relaxation: the row replaced by b_i ≤ h/β, b_{i+1} ≤ h/α (implied by the row, b ≥ 0); its greedy
-  profile is optimal for it, T_X ≤ T*.
-The restricted profile is returned with the proven gap T_R/T_X − 1 (0 when no such row binds).
-Rows with α, β < 0 and h ≥ 0 hold for every b ≥ 0 and are dropped.
+Two problems made only of speed bounds and linear rows u·a_i + w·b_i ≤ h bracket the schedule's
+problem: a restriction (every feasible point of it is feasible) and a relaxation (every feasible
+point of the problem is feasible for it):
+- LocalRows u·a + w·b + g·√b ≤ h: for b ≤ b_hi, b/√b_hi ≤ √b ≤ (b + v0²)/(2·v0) (chord and tangent
+  at v0 = √b_hi). The restriction takes the upper side where g > 0 and the lower where g < 0, the
+  relaxation the other way round.
+- StepRows (current slew, jerk): the relaxation drops them; the restriction keeps them by checking
+  them exactly (√b, not linearised) on the restricted profile, which is then feasible, or gives up.
+- SoftFloor: the relaxation drops them; unmet floors on the restricted profile add their penalty
+  `floor_penalty`·Σ node length·(floor − b)/vref³ (s; the conic objective's own weight) to its cost.
+
+A problem of linear rows in the neighbouring states reads α·b_{i+1} + β·b_i ≤ h with α = u/(2·ds_i),
+β = w − α. If α·β ≤ 0 for every row the feasible set is a lattice (closed under componentwise max),
+its componentwise-largest element exists, and since the traversal time decreases in every b it is
+the optimum; the greedy reachability (TOPP-RA) profile is that element. Rows with α, β > 0 (tight
+curvature against a small tangent component, 2·ds·κ_k > t_k) break this and are bracketed again:
+in the restriction by b_i, b_{i+1} ≤ h/(α + β) (implies the row), in the relaxation by b_i ≤ h/β,
+b_{i+1} ≤ h/α (implied by the row, b ≥ 0). Rows with α, β < 0 and h ≥ 0 hold for every b ≥ 0 and
+are dropped. The restricted greedy profile costs J_R ≥ J*, the relaxed greedy one T_X ≤ J*; the
+restricted profile is returned with the proven gap J_R/T_X − 1.
 """
 
 from __future__ import annotations
@@ -24,42 +31,84 @@ from millpost.schedule.reach import reach, traversal_time
 from millpost.schedule.rows import Block, LocalRows, PathGrid, StepRows
 
 
-def certified_reach(grid: PathGrid, blocks: list[Block]) -> tuple[np.ndarray, float] | None:
-    """(b, gap bound) for a rest-to-rest segment, or None when the problem is not of this kind."""
-    n = len(grid)
-    if any(isinstance(blk, StepRows) for blk in blocks):
+def _relaxed_rows(blocks: list[Block], b_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """LocalRows with g·√b bounded from below for b ≤ b_hi: chord where g > 0, tangent at √b_hi where g < 0."""
+    rows = [blk for blk in blocks if isinstance(blk, LocalRows)]
+    if not rows:
+        z = np.zeros((0, len(b_hi)))
+        return z, z, z
+    U, W, _, H = linear_rows(rows, b_hi, np.sqrt(b_hi), convex_exact=True)  # g > 0 → tangent (undone below)
+    G = np.concatenate([r.g for r in rows]).astype(float)
+    v = np.broadcast_to(np.sqrt(b_hi), G.shape)
+    ok = np.isfinite(v) & (v > 0)
+    pos, neg = (G > 0) & ok, (G < 0) & ok
+    W, H = W.copy(), H.copy()
+    # undo the tangent of linear_rows where g > 0, then put the chord g·b/√b_hi
+    W[pos] += G[pos] / v[pos] - G[pos] / (2 * v[pos])
+    H[pos] += G[pos] * v[pos] / 2
+    W[neg] += G[neg] / (2 * v[neg])
+    H[neg] -= G[neg] * v[neg] / 2
+    return U, W, H
+
+
+def _lattice(ds: np.ndarray, b_hi: np.ndarray, U: np.ndarray, W: np.ndarray, H: np.ndarray, restrict: bool):
+    """The rows with α, β > 0 replaced by speed caps (restriction or relaxation, see the module
+    docstring). Returns (cap, U, W, H) or None when such a row has h < 0."""
+    cap = b_hi.copy()
+    if not len(U):
+        return cap, U, W, H
+    U, W, H = U.copy(), W.copy(), H.copy()
+    al = U[:, :-1] / (2 * ds)
+    be = W[:, :-1] - al
+    bad = al * be > 0
+    if (bad & (H[:, :-1] < 0)).any():
         return None
-    if any(isinstance(blk, LocalRows) and (blk.g != 0).any() for blk in blocks):
-        return None
-    b_lo, b_hi = merged_bounds(blocks, n)
-    if (b_lo > 0).any() or (soft_floor(blocks, n) > 0).any():
-        return None
-    U, W, _, H = linear_rows(blocks, b_hi, np.sqrt(b_hi), convex_exact=False)
-    ds = grid.ds
-    cap_r, cap_x = b_hi.copy(), b_hi.copy()
-    Ur, Wr, Hr = U.copy(), W.copy(), H.copy()
-    if len(U):
-        al = U[:, :-1] / (2 * ds)
-        be = W[:, :-1] - al
-        bad = al * be > 0
-        if (bad & (H[:, :-1] < 0)).any():
-            return None
-        pos = bad & (al > 0)
-        h = H[:, :-1]
-        with np.errstate(divide="ignore", invalid="ignore"):
+    pos = bad & (al > 0)
+    h = H[:, :-1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if restrict:
             both = np.where(pos, h / (al + be), np.inf).min(axis=0)
-            cap_r[:-1] = np.minimum(cap_r[:-1], both)
-            cap_r[1:] = np.minimum(cap_r[1:], both)
-            cap_x[:-1] = np.minimum(cap_x[:-1], np.where(pos, h / be, np.inf).min(axis=0))
-            cap_x[1:] = np.minimum(cap_x[1:], np.where(pos, h / al, np.inf).min(axis=0))
-        Ur[:, :-1][bad] = 0.0
-        Wr[:, :-1][bad] = 0.0
-        Hr[:, :-1][bad] = np.inf
-    restricted = reach(ds, b_lo, cap_r, Ur, Wr, Hr)
-    relaxed = reach(ds, b_lo, cap_x, Ur, Wr, Hr)
+            cap[:-1] = np.minimum(cap[:-1], both)
+            cap[1:] = np.minimum(cap[1:], both)
+        else:
+            cap[:-1] = np.minimum(cap[:-1], np.where(pos, h / be, np.inf).min(axis=0))
+            cap[1:] = np.minimum(cap[1:], np.where(pos, h / al, np.inf).min(axis=0))
+    U[:, :-1][bad] = 0.0
+    W[:, :-1][bad] = 0.0
+    H[:, :-1][bad] = np.inf
+    return cap, U, W, H
+
+
+def certified_reach(grid: PathGrid, blocks: list[Block], floor_penalty: float = 10.0
+                    ) -> tuple[np.ndarray, float] | None:
+    """(b, gap bound) for a rest-to-rest segment, or None when the bracket does not close (hard speed
+    floors, a slew or jerk row the restricted profile breaks, an infeasible restriction)."""
+    n = len(grid)
+    b_lo, b_hi = merged_bounds(blocks, n)
+    if (b_lo > 0).any():
+        return None
+    ds = grid.ds
+    U, W, _, H = linear_rows(blocks, b_hi, np.sqrt(b_hi), convex_exact=False)
+    lat_r = _lattice(ds, b_hi, U, W, H, restrict=True)
+    lat_x = _lattice(ds, b_hi, *_relaxed_rows(blocks, b_hi), restrict=False)
+    if lat_r is None or lat_x is None:
+        return None
+    restricted, relaxed = reach(ds, b_lo, *lat_r), reach(ds, b_lo, *lat_x)
     if not (restricted.feasible and relaxed.feasible):
         return None
-    t_r, t_x = traversal_time(ds, restricted.b), traversal_time(ds, relaxed.b)
+    b = restricted.b
+    a = np.diff(b) / (2 * ds)
+    for blk in blocks:
+        if isinstance(blk, StepRows) and n > 2 and blk.excess(grid, b, a).max() > 0:
+            return None
+    t_r, t_x = traversal_time(ds, b), traversal_time(ds, relaxed.b)
     if not (np.isfinite(t_r) and t_x > 0):
         return None
-    return restricted.b, max(t_r / t_x - 1, 0.0)
+    floor = soft_floor(blocks, n)
+    if (floor > 0).any():
+        node_len = np.zeros(n)
+        node_len[:-1] += ds / 2
+        node_len[1:] += ds / 2
+        vref = float(np.sqrt(b_hi.max())) or 1.0
+        t_r += floor_penalty * float(np.sum(node_len * np.maximum(floor - b, 0.0))) / vref**3
+    return b, max(t_r / t_x - 1, 0.0)

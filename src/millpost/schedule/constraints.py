@@ -224,6 +224,18 @@ class ChipLoad:
 
 
 @dataclass(frozen=True)
+class MinSpeed:
+    """Path speed ≥ v_min_mm_s per sample where the dynamics allow it (a soft floor, reported where
+    not met): e.g. the minimum-chip feed, below which the edge rubs instead of cutting."""
+
+    v_min_mm_s: np.ndarray
+    name: str = "min_speed"
+
+    def blocks(self, grid: PathGrid) -> list[Block]:
+        return [SoftFloor(self.name, _per_sample(self.v_min_mm_s, len(grid)) ** 2)]
+
+
+@dataclass(frozen=True)
 class MotorCurrent:
     """|i_k| ≤ current_limit_A per axis with
         i_k·kf_k = m_k·1e-3·(t_k·a + κ_k·b) + (cut_alpha_k + viscous_k·t_k)·v

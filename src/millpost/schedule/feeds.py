@@ -22,7 +22,7 @@ from millpost.schedule.assemble import merged_bounds
 from millpost.schedule.constraints import path_blocks
 from millpost.schedule.rows import PathGrid, SpeedBounds
 from millpost.schedule.solve import ProgramSchedule
-from millpost.toolpath import ARC_CW, PLANE_AXES, RAPID, Samples, Toolpath
+from millpost.toolpath import RAPID, Samples
 
 
 @dataclass(frozen=True)
@@ -56,16 +56,77 @@ def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarra
     return L, V
 
 
-SLOWEST_FEED_MM_MIN = 1.0  # feed resolution of the emitted F words, and the slowest one written
+SLOWEST_FEED_MM_MIN = 1.0  # the slowest feed written (F0 would be no feed at all)
+
+
+def settle(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
+    """Feeds in program order lowered into runs of one feed each, so that F words change only where
+    the feed changes meaningfully: a feed joins the current run while the run's largest member stays
+    within `step` (relative) of its smallest, and the run takes its smallest (never above any
+    member's limit). Repeated until no two neighbouring runs lie within `step` of each other (a run
+    pulled down by a later member may land next to the one before)."""
+    out = np.asarray(feeds_mm_min, float).copy()
+    if step <= 0 or len(out) == 0:
+        return out
+    while True:
+        prev = out.copy()
+        start, lo, hi = 0, out[0], out[0]
+        for i in range(1, len(out) + 1):
+            if i < len(out) and max(hi, out[i]) <= min(lo, out[i]) * (1 + step):
+                lo, hi = min(lo, out[i]), max(hi, out[i])
+                continue
+            out[start:i] = lo
+            if i < len(out):
+                start, lo, hi = i, out[i], out[i]
+        if np.array_equal(out, prev):
+            return out
+
+
+def cluster(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
+    """Feeds in any order lowered to the smallest of their cluster: ascending, a cluster holds the
+    feeds within `step` (relative) of its smallest; so any two different results differ by more
+    than `step`."""
+    f = np.asarray(feeds_mm_min, float)
+    order = np.argsort(f)
+    out = f.copy()
+    lo = -np.inf
+    for k in order:
+        if not f[k] <= lo * (1 + step):
+            lo = f[k]
+        out[k] = lo
+    return out
+
+
+def reachable(feeds_mm_min: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.ndarray, joined: np.ndarray,
+              step: float) -> np.ndarray:
+    """Feeds of pieces too short to reach them taken down to their faster neighbour's: a piece of
+    length L between neighbours at lower feeds v_prev, v_next, accelerating and braking at most at a,
+    peaks at v² = (v_prev² + v_next²)/2 + a·L; where that is within `step` of the faster neighbour the
+    piece's own F changes nothing meaningful on the machine and is not written (a bounds the path
+    acceleration from above, so the loss is under `step`). joined[i]: piece i continues piece i − 1."""
+    v = np.asarray(feeds_mm_min, float) / 60.0
+    nxt_joined = np.r_[joined[1:], False]
+    prev = np.r_[np.inf, v[:-1]]
+    nxt = np.r_[v[1:], np.inf]
+    inner = joined & nxt_joined & (v > prev) & (v > nxt)
+    peak = np.sqrt((prev**2 + nxt**2) / 2 + accel_mm_s2 * length_mm)
+    faster = np.maximum(prev, nxt)
+    take = inner & (peak <= faster * (1 + step))
+    return np.where(take, faster, v) * 60.0
 
 
 def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm: float = 2.0,
-                    max_changes_per_mm: float = 0.2, resolution_mm_min: float = SLOWEST_FEED_MM_MIN) -> list[Fragment]:
-    """Fragments of every cutting move whose samples carry a finite limit (mm/s). Feeds are rounded
-    down to `resolution_mm_min`, and never below it: a limit under the slowest feed a program can
-    state gets that feed (F0 would be no feed at all)."""
+                    max_changes_per_mm: float = 0.2, step: float = 0.05,
+                    accel_mm_s2: tuple[float, float, float] | None = None) -> list[Fragment]:
+    """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
+    and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`) and, with the axes'
+    accelerations (mm/s²), short peaks the controller cannot reach joined to their neighbours
+    (`reachable`), repeated until stable; equal neighbours within a move merged."""
     lim = np.asarray(limit_mm_s, float)
     out: list[Fragment] = []
+    length: list[float] = []
+    accel: list[float] = []
+    amax = np.asarray(accel_mm_s2 if accel_mm_s2 is not None else (np.inf,) * 3, float)
     mv = samples.move
     starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
     ends = np.r_[starts[1:], len(mv)]
@@ -86,63 +147,42 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
         hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
         cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
         cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
-        q = np.maximum(np.floor(cell_v * 60.0 / resolution_mm_min), 1.0) * resolution_mm_min / 60.0
+        q = np.maximum(cell_v * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
         Lf, Vf = _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
         u = np.r_[0.0, np.cumsum(Lf) / L]
         u[-1] = 1.0
         out.extend(Fragment(m, float(u[k]), float(u[k + 1]), float(Vf[k] * 60.0)) for k in range(len(Vf)))
-    return out
-
-
-def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
-    """The program with each fragmented move split at its fragment ends (arcs as arcs about the same
-    centre) and the fragment feeds; other moves unchanged. Keeps line and block of the source."""
-    by_move: dict[int, list[Fragment]] = {}
-    for f in fragments:
-        by_move.setdefault(f.move, []).append(f)
-    idx, u0, u1, feed = [], [], [], []
-    for m in range(len(tp)):
-        frs = by_move.get(m)
-        if not frs:
-            idx.append(m), u0.append(0.0), u1.append(1.0), feed.append(tp.feed_mm_min[m])
-            continue
-        for f in sorted(frs, key=lambda f: f.u_start):
-            idx.append(m), u0.append(f.u_start), u1.append(f.u_end), feed.append(f.feed_mm_min)
-    idx, u0, u1 = np.array(idx), np.array(u0), np.array(u1)
-    out = tp.subset(idx)
-    out.start = tp.points(idx, u0)
-    out.end = tp.points(idx, u1)
-    out.feed_mm_min = np.array(feed, float)
-    arc = out.kind >= ARC_CW
-    if arc.any():
-        _, _, _, sweep, _, _ = tp.subset(idx[arc])._arc_params()
-        sw = np.abs(sweep) * (u1[arc] - u0[arc])
-        full = np.floor(sw / (2 * np.pi) + 1e-9)
-        rem = sw - 2 * np.pi * full
-        out.turns = out.turns.copy()
-        out.turns[arc] = np.where(rem < 1e-9, full - 1, full).astype(np.int32)
-        # the normal-axis component of a centre equals its move's start
-        ax = np.array(PLANE_AXES)[out.plane[arc].astype(int)][:, 2]
-        c = out.center[arc].copy()
-        c[np.arange(len(c)), ax] = out.start[arc][np.arange(len(c)), ax]
-        out.center = out.center.copy()
-        out.center[arc] = c
-    return out
-
-
-CONTROLLER_ENFORCED = ("axis_velocity", "axis_acceleration", "junction", "jerk")
-# limits on the drives' current: while the schedule ramps, what binds is the acceleration, which the
-# controller plans itself (F words cannot shape a ramp; a ladder of them only ends in F≈0 at a stop)
-RAMP_OWNED = ("current", "current_slew")
+        length.extend(Lf)
+        t = np.abs(samples.tangent[a:b])
+        with np.errstate(divide="ignore"):  # the path acceleration the axes allow along the move, at most
+            accel.extend([float(np.max(np.min(np.where(t > 1e-12, amax / np.maximum(t, 1e-12), np.inf), axis=1)))]
+                         * len(Lf))
+    feeds = np.array([f.feed_mm_min for f in out])
+    move = np.array([f.move for f in out])
+    joined = np.r_[False, (move[1:] == move[:-1]) | (move[1:] == move[:-1] + 1)]
+    for _ in range(20):
+        before = feeds
+        feeds = reachable(settle(feeds, step), np.array(length), np.array(accel), joined, step)
+        if np.array_equal(feeds, before):
+            break
+    merged: list[Fragment] = []
+    for f, v in zip(out, feeds):
+        if merged and merged[-1].move == f.move and merged[-1].feed_mm_min == v:
+            merged[-1] = Fragment(f.move, merged[-1].u_start, f.u_end, float(v))
+        else:
+            merged.append(Fragment(f.move, f.u_start, f.u_end, float(v)))
+    return merged
 
 
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
-                   controller_enforced: tuple[str, ...] = CONTROLLER_ENFORCED) -> np.ndarray:
+                   controller_enforced: tuple[str, ...], ramp_owned: tuple[str, ...] = ()) -> np.ndarray:
     """Per-sample feed limit (mm/s) for `piecewise_feeds`: the schedule's speed where a limit the
     controller does not know binds (loads, chip load, current at steady speed...), and the speed caps
     of the limits it does not enforce itself where only its own dynamics (named in
-    controller_enforced, and the current limits while ramping) bind — the controller ramps there on
-    its own, and programming the ramp as F words would only slow it. nan on rapids."""
+    controller_enforced, and those in ramp_owned while the schedule ramps: the drives' current, whose
+    binding share during a ramp is the acceleration) bind — the controller ramps there on its own,
+    and programming the ramp as F words would only slow it (a ladder of them ends in F≈0 at a
+    stop). nan on rapids."""
     grid = PathGrid.from_samples(samples)
     caps = [blk for blk in path_blocks(grid, limits)
             if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
@@ -153,6 +193,6 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
         a = np.abs(sch.a)
         a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)
         ramping = np.r_[a > a_ref, False] | np.r_[False, a > a_ref]
-        own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, RAMP_OWNED) & ramping)
+        own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, ramp_owned) & ramping)
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
     return out

@@ -5,13 +5,16 @@ committed b (two samples when StepRows need a fixed a) and ends inside the contr
 b ≤ K_hi of the reachability pass, which keeps every later window feasible (notes/SCHEDULE-PROTOTYPE
 §4.8). With several processes the segment is first cut at cruise anchors (samples where the greedy
 profile sits on the speed cap over ±3 samples, so the optimum does too) and the chunks are solved
-independently with b fixed at the anchors.
+independently with b fixed at the anchors. The cuts depend only on the segment (about one per
+`chunk` samples), never on the number of processes, so that any number of processes gives the same
+schedule; `schedule_samples` hands whole segments to the processes when there are several.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import multiprocessing
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -38,18 +41,38 @@ class ScheduleOptions:
     Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
     normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it;
     after the retries the best solution is kept if its violation is within `accept_residual` (1e-4 of
-    the top speed squared: far inside the 0.5 % the replay check allows)."""
+    the top speed squared: far inside the 0.5 % the replay check allows).
+    `chunk`: samples per independently solved chunk of a long segment (cut at cruise anchors).
+    `processes`: worker processes for segments and chunks (default: all cores; one inside a daemonic
+    process such as a multiprocessing pool's worker, which may not start processes); the result
+    does not depend on it (the chunks are cut the same way whatever the count).
+    Build from the user's words with `from_choices`."""
 
     window: int = 2000
     overlap: int = 100
     monolithic_max: int = 4000
-    processes: int = 1
+    chunk: int = 8000
+    processes: int = field(default_factory=lambda: 1 if multiprocessing.current_process().daemon else os.cpu_count() or 1)
     relinearize: int = 1
     floor_penalty: float = 10.0
     max_residual: float = 1e-6
     accept_residual: float = 1e-4
     certify_gap: float = 1e-3
     solver: SolverOptions = field(default_factory=lambda: SolverOptions(iterative_refinement=False))
+
+    SOLVERS = ("auto", "clarabel")
+
+    @classmethod
+    def from_choices(cls, *, solver: str | None = None, jobs: int | None = None) -> "ScheduleOptions":
+        """solver "auto" (certified O(N) profile where its proven gap is within `certify_gap`,
+        Clarabel elsewhere) or "clarabel" (Clarabel on every segment, for comparison); jobs: worker
+        processes (None: all cores)."""
+        if solver not in (None, *cls.SOLVERS):
+            raise ValueError(f"solver {solver!r}: expected one of {', '.join(cls.SOLVERS)}")
+        if jobs is not None and jobs < 1:
+            raise ValueError(f"jobs {jobs}: expected a whole number >= 1")
+        opts = cls() if jobs is None else cls(processes=jobs)
+        return dataclasses.replace(opts, certify_gap=0.0) if solver == "clarabel" else opts
 
 
 @dataclass
@@ -79,6 +102,11 @@ class Schedule:
     @property
     def feed_mm_s(self) -> np.ndarray:
         return np.sqrt(np.maximum(self.b, 0.0))
+
+
+def _parallel(opts: ScheduleOptions) -> bool:
+    """Whether to use worker processes (a daemonic process may not start any: then one, same result)."""
+    return opts.processes > 1 and not multiprocessing.current_process().daemon
 
 
 def _window_blocks(blocks: list[Block], lo: int, hi: int) -> list[Block]:
@@ -212,11 +240,12 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
         raise ValueError("every sample needs a finite speed cap (add a FeedLimit)")
     if opts.certify_gap > 0 and b_start == 0 and b_end == 0:
         t0 = time.perf_counter()
-        cert = certified_reach(grid, blocks)
+        cert = certified_reach(grid, blocks, opts.floor_penalty)
         if cert is not None and cert[1] <= opts.certify_gap:
             b = cert[0]
             a = np.diff(b) / (2 * ds)
-            return Schedule(b, a, Status.SOLVED, traversal_time(ds, b), "", np.zeros(n, bool),
+            floor_unmet = soft_floor(blocks, n) > b * (1 + 1e-6) + 1e-9
+            return Schedule(b, a, Status.SOLVED, traversal_time(ds, b), "", floor_unmet,
                             _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), time.perf_counter() - t0, 0,
                             "reach", cert[1])
     vref = float(np.sqrt(b_hi.max())) or 1.0
@@ -242,6 +271,8 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
         if b_new is None:
             break
         result_b, result_slack = b_new, slack
+        if not _tangents_bind(grid, blocks, result_b, v0):
+            break  # re-taking the tangents cannot move the optimum: no linearised row is active off its tangent
         v0 = np.maximum(np.sqrt(result_b), 0.05 * vref)  # tangent point of the next linearisation
     floor = soft_floor(blocks, n)
     if result_b is None:
@@ -256,6 +287,33 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
                     _binding(grid, blocks, b, a), secs, windows)
 
 
+def _tangents_bind(grid: PathGrid, blocks: list[Block], b: np.ndarray, v0: np.ndarray, tol: float = 1e-3) -> bool:
+    """Whether a row linearised at the tangent speeds v0 (LocalRows with g > 0, StepRows) is active
+    (within `tol` of its right-hand side, relative to it) at a sample whose speed differs from its
+    tangent point by more than 1 %. Only there is the linearisation tighter than the row itself, so
+    only then can another pass at the solution's speeds gain time."""
+    v = np.sqrt(np.maximum(b, 0.0))
+    off = np.abs(v - v0) > 1e-2 * v0
+    a = np.diff(b) / (2 * grid.ds)
+    aa = np.append(a, 0.0)
+    for blk in blocks:
+        if isinstance(blk, LocalRows) and (blk.g > 0).any():
+            pos = blk.g > 0
+            w = blk.w + np.where(pos, blk.g / (2 * v0), 0.0)
+            h = blk.h - np.where(pos, blk.g * v0 / 2, 0.0)
+            lin = blk.u * aa + w * b + np.where(pos, 0.0, blk.g) * v
+            active = lin >= h - tol * np.maximum(np.abs(h), blk.scale)
+            if (active & pos & off).any():
+                return True
+        elif isinstance(blk, StepRows) and len(b) > 2:
+            kb, rhs = blk.linearised(grid, v0)
+            e = blk.u[:, :-1] * a + blk.w[:, :-1] * b[:-1]
+            lin = np.abs(np.diff(e, axis=1)) + kb * b[1:-1]
+            if ((lin >= rhs - tol * np.abs(rhs)) & off[1:-1]).any():
+                return True
+    return False
+
+
 def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, v0: np.ndarray, vref: float,
                       rc: Reach, rows: tuple, b_lo: np.ndarray, b_hi: np.ndarray, b_start: float, b_end: float,
                       nfix: int) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
@@ -267,7 +325,7 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
     if n <= opts.monolithic_max:
         bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, np.array([b_start]), (b_end, b_end))
         return bw, sw, sol.solve_s, 1, "" if bw is not None else f"conic solve: {sol.raw_status}"
-    parts = 2 * opts.processes if opts.processes > 1 else 1
+    parts = max(1, round(n / opts.chunk))
     cuts = [0, *_anchors(rc, b_hi, parts, margin=opts.window // 4 + nfix), n - 1]
     jobs = []
     for k in range(len(cuts) - 1):
@@ -279,7 +337,7 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
                    b_start=float(first[-1]), b_end_max=float(last[-1]), b_end_min=float(last[-1]))
         jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
                      rk.k_lo, rk.k_hi, first, last, nfix))
-    if opts.processes > 1 and len(jobs) > 1:
+    if _parallel(opts) and len(jobs) > 1:
         ctx = multiprocessing.get_context("fork")
         with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
             outs = list(ex.map(_solve_chunk, jobs))
@@ -334,12 +392,27 @@ class ProgramSchedule:
 def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | None = None) -> ProgramSchedule:
     """Schedule every cutting segment of `samples` rest to rest. `limits` are constraint objects
     whose per-sample arrays span all samples."""
+    opts = options or ScheduleOptions()
     grid = PathGrid.from_samples(samples)
     blocks = [blk for lim in limits for blk in lim.blocks(grid)]
+    ranges = cutting_segments(samples)
+    tasks = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi)) for lo, hi in ranges]
+    big = sorted(range(len(tasks)), key=lambda k: -len(tasks[k][0]))
+    if _parallel(opts) and len(tasks) > 1 and sum(len(g) for g, _ in tasks) > 2 * opts.monolithic_max:
+        # whole segments to the workers, largest first; each solves its chunks in turn
+        one = dataclasses.replace(opts, processes=1)
+        with ProcessPoolExecutor(max_workers=min(opts.processes, len(tasks)),
+                                 mp_context=multiprocessing.get_context("fork")) as ex:
+            done = dict(zip(big, ex.map(_solve_segment, [(*tasks[k], one) for k in big],
+                                                  chunksize=max(1, len(big) // (8 * opts.processes)))))
+        schedules = [done[k] for k in range(len(tasks))]
+    else:  # one long segment (its chunks in parallel), or only short ones
+        schedules = [solve_path(g, b, opts) for g, b in tasks]
     feed = np.full(len(samples), np.nan)
-    segs = []
-    for lo, hi in cutting_segments(samples):
-        sch = solve_path(grid.window(lo, hi), _window_blocks(blocks, lo, hi), options)
+    for (lo, hi), sch in zip(ranges, schedules):
         feed[lo:hi] = sch.feed_mm_s
-        segs.append((lo, hi, sch))
-    return ProgramSchedule(feed, segs)
+    return ProgramSchedule(feed, [(lo, hi, sch) for (lo, hi), sch in zip(ranges, schedules)])
+
+
+def _solve_segment(args: tuple) -> Schedule:
+    return solve_path(*args)

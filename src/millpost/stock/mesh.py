@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._kernels import raster
+from .._kernels import announce_compile, raster
 from ..errors import MillpostError
 from .grid import Stock, choose_cell, grid_shape
 
@@ -39,6 +39,7 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     tol = 1e-3 * h
     top = np.full((ny, nx), np.float32(zf), np.float32)
     count = np.zeros(nx * ny, np.uint8)
+    announce_compile(raster.first_pass, raster.second_pass)
     raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
     multi_ids = raster.multi_columns(count)
     ptr = np.zeros(len(multi_ids) + 1, np.int64)

@@ -1,0 +1,307 @@
+"""The limits a job's feeds obey, each with its identity, and the feed policy that sets their bounds.
+
+A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus what it is:
+- `kind`: "hard" (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
+  the end's thrust and torque on the tool, drive current, the machine's and the user's maxima (the
+  plunge feed cap included), the controller's block rate) or "quality" (exceeding it spoils the part
+  or the tool's life: deflection, maximum chip load, the chip floor);
+- `effect`: the physical effect the summary groups it under;
+- `controller`: the controller holds it by itself while it runs the program (axis rates,
+  accelerations, corners, jerk), so the baseline program's single F need not;
+- `f_word`: the emitted F words obey its speed cap (false for accelerations, jerk and corner caps,
+  which the controller ramps to on its own);
+- `default`: how its bound was chosen when the job did not give one (named in the summary where the
+  limit binds).
+
+The feed policy (`[limits] lower`): millpost raises feeds freely under every limit. With
+lower = "hard" (the default) it lowers a feed below the programmed one only where a hard limit
+would be exceeded, and only as far as that limit needs; a quality limit that the programmed feed
+already exceeds is held at the programmed feed's load and reported. With lower = "all" quality
+limits may lower the feed too. Either way no limit lowers a feed below the minimum-chip feed
+f_min = z·n·h_min / max(sin φ·sin κ) (below it the edge rubs and wood burns) or the programmed
+feed if that is lower: where a limit would need less, its bound is held at the load of that feed
+and the samples are listed (for a hard limit: the cut itself, not the feed, is too heavy for the
+tool). The bound therefore gives the feed max(v_cap, v_keep), v_cap the speed where the load
+reaches the limit: never increasing in the load, so a heavier cut never gets a higher feed than a
+lighter one for the same reason.
+
+End cutting: where the tool moves down into material (plunges, ramps, helices, drilling, pecks) its
+end cuts too (`millpost.forces.endcut`). Its thrust and torque add to the axial force (so to the Z
+drive's current) and to the spindle torque and power; the thrust stays under the tool's Euler
+buckling load and the torque under its torsional strength, both over the tool safety factor (hard:
+"thrust", "tool_torque"). The end's axial chip f_z·descent·sin κ joins the chip-load limit (quality),
+up to the material's `plunge_fz_ratio` of the chip load for a milling cutter entering along its axis
+with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there (hard, "plunge_feed",
+a cap like the maximum feed: never held by the policy); a material without end-cutting data keeps
+the programmed feed there (its end loads are unknown).
+
+Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
+the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
+(0.025 mm) as suitable for roughing with a 1/8 in end mill and 0.0002 in (0.005 mm) for
+finishing; from 1/4 in (6.35 mm) up the limit grows with the diameter, 0.001 in per 1/4 in
+(engineering judgement: a larger tool leaves a proportionally larger finishing allowance). It is a
+quality limit, so on small tools it never lowers a programmed feed. A single sample cannot tell a
+finishing pass from adaptive roughing (both cut a narrow width), so finishing accuracy is the
+user's `deflection_mm`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import MillpostError
+from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
+from .job import Job
+from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CurrentSlew, FeedLimit, Junction, MinSpeed,
+                       MotorCurrent, PathGrid, PathJerk, SpeedLoad)
+from .schedule.assemble import merged_bounds
+from .schedule.rows import SpeedBounds
+from .toolpath import RAPID, Samples, Toolpath
+from .tools.beam import ToolBeam, default_safety_factor
+
+HARD, QUALITY = "hard", "quality"
+DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
+DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
+LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
+
+
+@dataclass(frozen=True)
+class Limit:
+    """A constraint with its identity (see the module docstring)."""
+
+    constraint: Any
+    kind: str
+    effect: str
+    controller: bool = False
+    f_word: bool = True
+    default: str = ""
+
+    @property
+    def name(self) -> str:
+        return self.constraint.name
+
+    def blocks(self, grid: PathGrid) -> list:
+        return self.constraint.blocks(grid)
+
+
+@dataclass
+class JobLimits:
+    """The limits of a whole resampled program and what the replay and summary need about them.
+
+    loads: per-sample loads as affine functions of the path speed v (mm/s): peak_a/_b (N),
+    power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3). held: {limit name: samples where the
+    policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
+    hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
+    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut)."""
+
+    limits: list[Limit]
+    loads: dict
+    held: dict[str, np.ndarray]
+    forced: dict[str, np.ndarray]
+    floor_mm_s: np.ndarray
+    deflection_mm: np.ndarray
+    lower: str = HARD
+    defaults: dict[str, str] = field(default_factory=dict)
+
+    def __iter__(self):
+        return iter(self.limits)
+
+    def by_block(self, grid: PathGrid) -> dict[str, Limit]:
+        """The limit each row block (by its name) comes from."""
+        return {blk.name: lim for lim in self.limits for blk in lim.blocks(grid)}
+
+    def names(self, **identity) -> tuple[str, ...]:
+        """Names of the limits (and of their row blocks) whose identity fields have these values."""
+        return tuple(lim.name for lim in self.limits if all(getattr(lim, k) == v for k, v in identity.items()))
+
+
+def max_sin(eng) -> np.ndarray:
+    """Per sample: the largest sin φ·sin κ over the engaged arcs (0 where nothing cuts): the chip
+    thickness per unit feed per tooth (chip thinning)."""
+    st, ex = eng.phi_st, eng.phi_ex
+    cuts = np.isfinite(st) & np.isfinite(ex) & (eng.dz_mm > 0)
+    s = np.where((st <= np.pi / 2) & (ex >= np.pi / 2), 1.0, np.maximum(np.sin(np.nan_to_num(st)),
+                                                                         np.sin(np.nan_to_num(ex))))
+    return np.where(cuts, s * np.sin(eng.kappa), 0.0).max(axis=1, initial=0.0)
+
+
+def spindle_rpm(job: Job, programmed_rpm: np.ndarray) -> np.ndarray:
+    """The speed the spindle turns at (rpm): the programmed S clamped to the machine's range."""
+    return np.clip(programmed_rpm, job.machine.spindle.rpm_min, job.machine.spindle.rpm_max)
+
+
+def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bound of a load a·v + b ≤ bound after the policy: where the load reaches its bound below
+    v_keep (mm/s), the bound becomes the load at v_keep. Returns (bound, held)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_cap = np.where(a > 0, (bound - b) / a, np.where(b <= bound, np.inf, -np.inf))
+    held = v_cap < v_keep
+    return np.where(held, a * v_keep + b, bound), held
+
+
+def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimits:
+    """Every limit of the job over the resampled program, with the feed policy applied."""
+    n = len(samples)
+    m = job.machine
+    lower = str(job.limits["lower"])
+    ax = [m.axes[a] for a in "xyz"]
+    amax = tuple(a.amax_mm_s2 for a in ax)
+    feed_max = m.feed_max_mm_min
+    if job.limits["feed_max_mm_min"]:
+        feed_max = min(feed_max, float(job.limits["feed_max_mm_min"]))
+    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate
+    move_len = toolpath.lengths()[samples.move]
+    block_cap = np.where(samples.kind != RAPID, move_len * m.controller.block_rate_Hz, np.inf)
+    limits = [Limit(FeedLimit(np.minimum(feed_max / 60.0, block_cap)), HARD, "feed"),
+              Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
+              Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
+              Limit(Centripetal(amax), HARD, "inertia", controller=True),
+              Limit(Junction(amax, m.controller.junction_deviation_mm), HARD, "inertia", controller=True,
+                    f_word=False)]
+    if job.limits.get("jerk_mm_s3"):
+        limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
+                            f_word=False))
+    model = job.material.force_model(job.limits["model"])
+    end_model = EndCut.from_material(job.material)
+    cutting = samples.kind != RAPID
+    engaged = eng.ap_mm > 1e-9
+    spin = samples.rpm > 0
+    if np.any(engaged & ~spin):
+        k = int(np.flatnonzero(engaged & ~spin)[0])
+        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+    loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
+    loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
+    rpm = np.where(spin, spindle_rpm(job, samples.rpm), 1.0)
+    k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
+    peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
+    chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
+    # chip thickness per unit feed per tooth: flank (chip thinning) and end (axial chip over its share)
+    sin_max, sin_end, chip_factor = max_sin(eng), np.zeros(n), np.zeros(n)
+    thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
+    defaults: dict[str, str] = {}
+    rough_by_tool: dict[int, float] = {}
+    for number in np.unique(samples.tool[cutting]):
+        tool = job.tools.get(int(number))
+        if tool is None:
+            line = int(samples.line[np.flatnonzero(cutting & (samples.tool == number))[0]])
+            raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
+        idx = np.flatnonzero(samples.tool == number)
+        h_min, h_chip = job.material.min_chip_mm(tool.edge_radius_mm), job.material.chip_load_mm(tool.diameter_mm)[1]
+        # in chunks: the models' per-slice temporaries (kilobytes a sample) stay bounded by the chunk
+        for part in np.array_split(idx, max(1, -(-len(idx) // LOAD_CHUNK))):
+            eng_p = eng.select(part)
+            # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
+            ll = model.linear_loads(eng_p, tool, rpm[part],
+                                    feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[part], nan=100.0))
+            for key in ("peak", "power", "torque", "force"):
+                loads[f"{key}_a"][part] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
+                loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
+            sin_end[part] = end_chip_factor(eng_p, tool)
+            share = entry_chip_share(eng_p, tool, job.material.strategies.plunge_fz_ratio)
+            chip_factor[part] = np.maximum(sin_max[part], sin_end[part] / share)
+            if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
+                # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
+                # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
+                with np.errstate(divide="ignore"):
+                    fz_cap = np.where(chip_factor[part] > 0, h_chip / chip_factor[part], np.inf)
+                ref = np.minimum(np.nan_to_num(samples.feed_mm_min[part], nan=100.0), fz_cap * tool.flutes * rpm[part])
+                le = end_model.linear_loads(eng_p, tool, rpm[part], feed_ref_mm_min=ref)
+                for key in ("power", "torque", "force"):
+                    loads[f"{key}_a"][part] += getattr(le, f"{key}_a") * 60.0
+                    loads[f"{key}_b"][part] += getattr(le, f"{key}_b")
+        thrust_limit[idx] = thrust_limit_N(tool, job.limits["tool_safety_factor"] or None)
+        tool_torque_limit[idx] = torque_limit_Nm(tool, job.limits["tool_safety_factor"] or None)
+        beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
+        if not job.limits["tool_safety_factor"]:
+            sf = f"T{number} {default_safety_factor(tool):g} (by diameter and slenderness)"
+            defaults.setdefault("cutting_force", f"tool safety factor on the bending strength: {sf}")
+            defaults.setdefault("thrust", f"tool safety factor on the buckling load: {sf}")
+            defaults.setdefault("tool_torque", f"tool safety factor on the torsional strength: {sf}")
+        peak_limit[idx] = beam.breaking_force_N(eng.ap_mm[idx])  # the cut's depth sets the lever arm
+        defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + 1.0 / k_xy
+        if job.limits["deflection_mm"]:
+            defl_limit[idx] = float(job.limits["deflection_mm"])
+        else:
+            defl_limit[idx] = rough_by_tool[int(number)] = max(DEFLECTION_ROUGH_MM,
+                                                               DEFLECTION_ROUGH_RATIO * tool.diameter_mm)
+        cut_here = idx[chip_factor[idx] > 0]
+        per_tooth = tool.flutes * rpm[cut_here] / 60.0  # mm/s per mm of feed per tooth
+        chip_a[cut_here] = chip_factor[cut_here] / per_tooth  # chip thickness (over its share) per mm/s
+        h_max[cut_here] = h_chip
+        # the floor: the thickest chip, flank's or end's, reaches the minimum chip
+        floor[cut_here] = h_min / np.maximum(sin_max[cut_here], sin_end[cut_here]) * per_tooth
+    if rough_by_tool:
+        defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
+                                  + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
+    v_prog = np.where(cutting, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
+    keep_hard = np.minimum(floor, v_prog)
+    keep_quality = v_prog if lower == HARD else keep_hard
+    held, forced = {}, {}
+
+    def load_limit(name: str, kind: str, effect: str, a, b, bound, default: str = "") -> None:
+        bound_eff, h = _policed(a, b, np.broadcast_to(bound, a.shape), keep_hard if kind == HARD else keep_quality)
+        held[name] = held.get(name, np.zeros(n, bool)) | (h & cutting)
+        if kind == HARD:
+            forced[name] = held[name]
+        limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default))
+
+    load_limit("cutting_force", HARD, "cutting force", loads["peak_a"], loads["peak_b"], peak_limit,
+               defaults.get("cutting_force", ""))
+    load_limit("power", HARD, "power", loads["power_a"], loads["power_b"],
+               np.where(spin, m.spindle.power_available_W(rpm), np.inf))
+    load_limit("torque", HARD, "power", loads["torque_a"], loads["torque_b"],
+               np.where(spin, m.spindle.torque_Nm(rpm), np.inf))
+    load_limit("deflection", QUALITY, "deflection", loads["peak_a"] * defl_per_N, loads["peak_b"] * defl_per_N,
+               defl_limit, defaults.get("deflection", ""))
+    load_limit("thrust", HARD, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2], thrust_limit,
+               defaults.get("thrust", ""))
+    load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], tool_torque_limit,
+               defaults.get("tool_torque", ""))
+    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max)
+    plunging = sin_end > 0
+    plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
+                         else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
+    if end_model is None:  # the end's loads are unknown: the programmed feed stays the cap there
+        plunge_cap = np.minimum(plunge_cap, v_prog)
+    limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed"))
+    limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
+    rho = np.array([a.rho_m_per_rad for a in ax])
+    mass = tuple(a.moving_mass_kg + a.motor.rotor_inertia_kgm2 / r**2 for a, r in zip(ax, rho))
+    kf = tuple(a.motor.kt_Nm_per_A * a.efficiency / r for a, r in zip(ax, rho))
+    current = tuple(a.motor.current_limit_A for a in ax)
+    friction = np.array([a.friction_coulomb_N for a in ax])
+    viscous = np.array([a.friction_viscous_N_s_per_mm for a in ax])
+    # Cutting force, friction and drag must leave the drive the current for the controller's own
+    # acceleration (it ramps at a_max whatever the F words say): per axis
+    # |F_b| + f_c + (|F_a| + c_v·|t|)·v ≤ k_f·I_max − m·a_max (N at the carriage), a conservative speed cap.
+    capacity = np.asarray(kf) * np.asarray(current) - np.asarray(mass) * np.asarray(amax) * 1e-3
+    static = np.abs(loads["force_b"]) + friction
+    slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
+    for k in range(3):
+        load_limit("cutting_current", HARD, "current", slope[:, k], static[:, k], np.where(engaged, capacity[k], np.inf))
+    stalled = held["cutting_current"]
+    # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
+    # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
+    v_cap = np.minimum(static_caps(samples, limits), feed_max / 60.0)
+    at_cap = loads["force_a"] * v_cap[:, None] + loads["force_b"]
+    drive_force = -np.where(np.abs(at_cap) > np.abs(loads["force_b"]), at_cap, loads["force_b"])
+    drive_force[stalled] = 0.0  # inertia only there: the cutting share is held at the kept feed (reported)
+    limits.append(Limit(MotorCurrent(mass, kf, current, tuple(friction), tuple(viscous), cut_beta=drive_force),
+                        HARD, "current"))
+    limits.append(Limit(CurrentSlew(mass, kf, current, tuple(a.motor.resistance_ohm for a in ax),
+                                    tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
+                                    min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
+                        HARD, "current"))
+    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
+
+
+def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
+    """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
+    by itself allow (loads, chip load, feed, block rate), of one kind or all."""
+    grid = PathGrid.from_samples(samples)
+    caps = [blk for lim in limits if not lim.controller and kind in (None, lim.kind)
+            for blk in lim.blocks(grid) if isinstance(blk, SpeedBounds)]
+    return np.sqrt(merged_bounds(caps, len(samples))[1])

@@ -1,0 +1,122 @@
+"""The feed policy of `millpost.limits` end to end on cuts of known geometry (full-width slots of
+growing depth, engagement given directly): a heavier cut never gets a higher feed than a lighter one;
+by default only hard limits lower a programmed feed, and only as far as they need; no feed goes below
+the minimum-chip feed unless a hard limit is exceeded there, which the summary lists; every limit
+carries its identity."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from millpost.engagement import Engagement
+from millpost.gcode import read_text
+from millpost.job import _LIMIT_KEYS, Job
+from millpost.limits import HARD, QUALITY, build_limits
+from millpost.machine import Machine
+from millpost.materials import Material
+from millpost.optimize import schedule_program
+from millpost.toolpath import RAPID
+from millpost.tools import Tool
+
+DEPTHS = [0.3, 1.0, 3.0, 6.0, 10.0, 14.0]  # mm, one 10 mm slot each, heavier and heavier
+PROGRAMMED = 1500.0  # mm/min
+
+
+def _job(lower: str, material: str = "al6061", **extra) -> tuple[Job, str]:
+    limits = dict(_LIMIT_KEYS, lower=lower, **extra)
+    tool = Tool(diameter_mm=6.0, flutes=3, flute_length_mm=16.0, stickout_mm=24.0, number=1)
+    job = Job(path=Path("t/job.toml"), program=Path("t/p.nc"), output=Path("t/o.nc"),
+              material=Material.load(material), machine=Machine.load("vmc-small"), tools={1: tool},
+              stock_box=((-5.0, -5.0, -20.0), (80.0, 5.0, 0.0)), limits=limits)
+    lines = ["G21 G90 G94", "T1 M6", "S8000 M3", "G0 X0 Y0 Z1", f"G1 Z0 F{PROGRAMMED:g}"]
+    lines += [f"X{10 * (k + 1)}" for k in range(len(DEPTHS))] + ["G0 Z5", "M30"]
+    return job, "\n".join(lines) + "\n"
+
+
+def _run(lower: str, material: str = "al6061", **extra):
+    job, text = _job(lower, material, **extra)
+    program = read_text(text, "p.nc")
+    samples = program.toolpath.resample(0.1)
+    R = job.tools[1].radius_mm
+    st, ex = np.zeros(len(samples)), np.full(len(samples), math.pi)
+    depth = np.zeros(len(samples))
+    first = int(np.flatnonzero(program.toolpath.line == 6)[0])  # the first slot's move
+    for k, ap in enumerate(DEPTHS):
+        depth[samples.move == first + k] = ap
+    parts = [Engagement.uniform(st[i:i + 1], ex[i:i + 1], max(depth[i], 1e-3), R, slices=4) for i in range(len(st))]
+    eng = Engagement.concatenate(parts)
+    air = depth == 0
+    eng.dz_mm[air], eng.ap_mm[air], eng.ae_mm[air], eng.area_mm2[air] = 0.0, 0.0, 0.0, 0.0
+    eng.feed_dir = np.tile([1.0, 0.0, 0.0], (len(st), 1))
+    result = schedule_program(job, program, samples, eng)
+    emitted = read_text(result.text, "o.nc").toolpath
+    slot_feeds = [float(emitted.feed_mm_min[(emitted.line == 6 + k) & (emitted.kind != RAPID)].min())
+                  for k in range(len(DEPTHS))]
+    return job, program, samples, eng, result, np.array(slot_feeds)
+
+
+@pytest.fixture(scope="module", params=["hard", "all"])
+def run(request):
+    return request.param, _run(request.param)
+
+
+def test_heavier_cut_never_faster(run):
+    lower, (job, program, samples, eng, result, feeds) = run
+    assert result.summary["status"] in ("solved", "slower")
+    assert np.all(np.diff(feeds) <= 1e-6 * feeds[:-1]), feeds
+
+
+def test_only_hard_limits_lower_by_default(run):
+    lower, (job, program, samples, eng, result, feeds) = run
+    lim = build_limits(job, samples, eng, program.toolpath)
+    hard_over = result.summary["limits_programmed"]
+    hard = {k for k in hard_over if k in result.summary["hard_limits"]}
+    cut = samples.kind != RAPID
+    for k, ap in enumerate(DEPTHS):
+        sel = cut & (samples.move == samples.move[np.flatnonzero(samples.line == 6 + k)[0]])
+        v = PROGRAMMED / 60.0
+        over_hard = any(np.any(l.constraint.alpha[sel] * v + l.constraint.beta[sel] > l.constraint.limit[sel] * 1.001)
+                        for l in lim if hasattr(l.constraint, "alpha") and l.kind == HARD)
+        if lower == "hard" and not over_hard:
+            assert feeds[k] >= PROGRAMMED * (1 - 1e-3), (ap, feeds[k])
+    # what was lowered obeys every limit it was lowered for
+    assert all(result.summary["limits"][k] <= 1.005 for k in hard)
+
+
+def test_feeds_not_below_min_chip_unless_hard_listed(run):
+    lower, (job, program, samples, eng, result, feeds) = run
+    floor = result.trace["feed_min_chip_mm_min"]
+    held = result.summary["held"]
+    for k, f in enumerate(feeds):
+        sel = samples.line == 6 + k
+        need = min(float(floor[sel].max()), PROGRAMMED)
+        if f < need * (1 - 1e-3) - 0.1:  # F words are rounded down to 0.1 mm/min
+            assert any(h["kind"] == "hard" and 6 + k in h["lines"] for h in held.values()), (k, f, need)
+
+
+def test_hard_limit_needing_less_than_min_chip_is_held_and_listed():
+    # a tool held to a tenth of its bending strength (safety factor 20) 14 mm deep in stainless steel:
+    # the force is exceeded even at the minimum-chip feed; the feed is held there (min(min-chip,
+    # programmed)), never crawls, and the lines are listed
+    job, program, samples, eng, result, feeds = _run("hard", "ss304", tool_safety_factor=20.0)
+    held = result.summary["held"]
+    assert "cutting_force" in held and held["cutting_force"]["kind"] == "hard"
+    last = 6 + len(DEPTHS) - 1
+    assert last in held["cutting_force"]["lines"]
+    floor = float(result.trace["feed_min_chip_mm_min"][samples.line == last].max())
+    assert feeds[-1] >= min(floor, PROGRAMMED) * (1 - 1e-3) - 0.1
+    assert feeds[-1] <= PROGRAMMED
+
+
+def test_every_limit_carries_its_identity(run):
+    lower, (job, program, samples, eng, result, feeds) = run
+    lim = build_limits(job, samples, eng, program.toolpath)
+    kinds = {l.name: l.kind for l in lim}
+    assert kinds["cutting_force"] == kinds["power"] == kinds["torque"] == kinds["feed"] == HARD
+    assert kinds["deflection"] == kinds["chip_load_max"] == kinds["chip_load_min"] == QUALITY
+    assert {l.name for l in lim if l.controller} >= {"axis_acceleration", "junction"}
+    assert set(result.summary["binding"]) <= {l.effect for l in lim}
