@@ -4,6 +4,8 @@ operators (``**``; ``* / MOD``; ``+ -``; ``EQ NE GT GE LT LE``; ``AND OR XOR``).
 
 `scan_line` reads a whole line that uses them: words with evaluated values, plus the parameter
 assignments, which take effect after the line (as in LinuxCNC: a line reads the old values).
+Every value is finite: a result that overflows or is undefined (``[1/0]``, ``[-8 ** 0.5]``,
+``[#1 * #1]`` beyond 1.8e308) is refused where it arises, as is nesting deeper than `MAX_DEPTH`.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ _BINOPS: list[dict[str, Callable[[float, float], float]]] = [  # lowest preceden
     {"**": lambda a, b: a ** b},
 ]
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
+MAX_DEPTH = 50  # brackets, unary signs and functions nested in one value
 
 
 class _Scanner:
@@ -38,6 +41,7 @@ class _Scanner:
     def __init__(self, text: str, line: int, file: str, params: dict) -> None:
         self.text, self.line, self.file, self.params = text, line, file, params
         self.pos = 0
+        self.depth = 0
 
     def error(self, message: str, expected: str, at: int | None = None) -> ParseError:
         at = self.pos if at is None else at
@@ -65,6 +69,15 @@ class _Scanner:
     # --- grammar ---------------------------------------------------------------------------
     def value(self) -> float:
         """A real value: number, parameter, [expression], unary function, or signed value."""
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            raise self.error(f"expression nested more than {MAX_DEPTH} deep", "a simpler expression")
+        try:
+            return self._value()
+        finally:
+            self.depth -= 1
+
+    def _value(self) -> float:
         self.skip()
         ch = self.text[self.pos:self.pos + 1]
         if ch in "+-" and ch:
@@ -80,8 +93,11 @@ class _Scanner:
             return self.params_get(self.parameter_ref())
         m = _NUM.match(self.text, self.pos)
         if m and ch not in "+-":
+            v = float(m.group(0))
+            if not math.isfinite(v):
+                raise self.error("number too large", "a number below 1.8e308")
             self.pos = m.end()
-            return float(m.group(0))
+            return v
         start = self.pos
         name = re.match(r"[A-Za-z]+", self.text[self.pos:])
         if name:
@@ -103,7 +119,10 @@ class _Scanner:
                     key = self.parameter_ref()
                 except ParseError:  # a number out of range cannot exist
                     key = None
-                    self.pos = self.text.index("]", self.pos)
+                    end = self.text.find("]", self.pos)
+                    if end < 0:
+                        raise self.error("unclosed EXISTS[", "EXISTS[#<name>]") from None
+                    self.pos = end
                 self.expect("]")
                 return float(isinstance(key, int) or (key is not None and key in self.params))
             if fn in _FUNCS:
@@ -111,10 +130,13 @@ class _Scanner:
                 a = self.expression()
                 self.expect("]")
                 try:
-                    return float(_FUNCS[fn](a))
+                    v = float(_FUNCS[fn](a))
                 except (ValueError, OverflowError) as exc:
                     raise self.error(f"{fn} of {a:g} is undefined ({exc})", "an argument in the function's domain",
                                      start) from None
+                if not math.isfinite(v):
+                    raise self.error(f"{fn} of {a:g} overflows", "an argument in the function's domain", start)
+                return v
             self.pos = start
         raise self.error("expected a number, parameter or expression", "a value such as 1.5, #3, #<name> or [1+2]")
 
@@ -154,10 +176,12 @@ class _Scanner:
             at = self.pos
             self.pos += len(op)
             right = self.expression(level + 1)
-            try:
+            try:  # (TypeError: a negative number to a fractional power is complex)
                 left = float(_BINOPS[level][op](left, right))
-            except (ZeroDivisionError, OverflowError, ValueError) as exc:
+            except (ZeroDivisionError, OverflowError, ValueError, TypeError) as exc:
                 raise self.error(f"{op} is undefined here ({exc})", "a defined arithmetic result", at) from None
+            if not math.isfinite(left):
+                raise self.error(f"{op} overflows (the result is beyond 1.8e308)", "a finite arithmetic result", at)
 
 
 def scan_line(code: str, line: int, file: str, params: dict) -> tuple[list[tuple[str, float, int, int, int]], list]:
