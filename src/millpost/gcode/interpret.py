@@ -214,7 +214,7 @@ class Interpreter:
         self.spindle_on = False
         self.tool = -1
         self.selected = -1
-        self.retract_old_z = True
+        self.retract_old_z = dialect != "linuxcnc"  # LinuxCNC starts in G99 (retract to R), Fanuc in G98
         self.cs = 1
         self.g5x = {i: np.array(v, float) for i, v in options.work_offsets_mm.items()}
         self.g92 = np.zeros(3)
@@ -574,8 +574,8 @@ class Interpreter:
             self.motion = self.basic_motion if self.dialect == "fanuc" else None
             self.cycle_il = None
         elif motion_code is not None:
-            if motion_code in _CYCLES and self.motion != motion_code:
-                self.cycle_il = None
+            if motion_code in _CYCLES and self.motion != motion_code:  # another cycle: its words anew, the
+                self.cycle.clear()  # level where the sequence began kept (LinuxCNC)
             if motion_code not in _CYCLES:
                 self.cycle_il = None
                 self.basic_motion = motion_code
@@ -933,6 +933,7 @@ class Interpreter:
             self.emit(RAPID, p, b)
             old = r
         clear = r if not self.retract_old_z else old
+        current = self.pos[an]
         d1 = axis_words.get(_AXES[a1])
         d2 = axis_words.get(_AXES[a2])
         if self.polar_step is not None and self.plane != 0:
@@ -949,8 +950,11 @@ class Interpreter:
             else:
                 p[a1] += d1.value * sc if d1 is not None else 0.0
                 p[a2] += d2.value * sc if d2 is not None else 0.0
+            # LinuxCNC 2.9: the first hole is reached at the current level, if above R; any other at the
+            # clear level; then down to R (back boring goes down to R beside the bore itself)
+            p[an] = current if rep == 0 and current > r else clear
             self.emit(RAPID, p, b)
-            if old != r and code != 870:  # back boring goes down to R beside the bore itself
+            if p[an] > r and code != 870:
                 self.to_depth(RAPID, r, b)
             self.cycle_body(code, b, r, bottom, clear, feed, cyc)
         self.polar_step = None
