@@ -56,6 +56,7 @@ _TAKE_AXES = {100, 280, 300, 520, 920}  # non-modal codes whose axis words are n
 _M_GROUPS = {**dict.fromkeys((0, 1, 2, 30, 60), "stopping"), 6: "tool change", 61: "tool change",
              **dict.fromkeys((3, 4, 5, 19), "spindle"), **dict.fromkeys((7, 8, 9), "coolant"),
              **dict.fromkeys((48, 49, 50, 51, 52, 53), "override")}
+_CHECKED = frozenset("DEHIJKLPQR")  # words a block may only carry when one of its codes reads them
 _WORD_USERS = {
     "D": "D only with G41/G42 (cutter radius compensation)", "E": "E only with M66/M67/M68",
     "H": "H only with G43 or G43.2", "I": "I only with G2/G3, G87 or G10", "J": "J only with G2/G3, G87 or G10",
@@ -605,43 +606,49 @@ class Interpreter:
         D, E, H, I, J, K, L, P, Q, R each need a G or M code of the block, or the motion mode the block
         runs in, that reads them (``G1 X1 Q3`` is an error, not a move). The Fanuc dialect adds P
         (dwell) and K (repeats) on every canned cycle and Q (shift) on G76/G87."""
-        motion = next((c for c in gset if c in _MOTION or c == 800), None)
-        if motion is None and not gset & _TAKE_AXES and not val.keys().isdisjoint("XYZABCUVW@^"):
-            motion = self.motion
-        mset = {c for c, _ in mcodes}
-        cycle = motion in _CYCLES
-        fanuc = self.dialect == "fanuc"
-        comp = bool(gset & {410, 420, 411, 421})
-        user_m = any(100 <= c <= 199 for c in mset)
-        arc_or_g87 = motion in (20, 30, 870)
-        uses = {
-            "D": comp,
-            "E": bool(mset & {66, 67, 68}),
-            "H": bool(gset & {430, 432}),
-            "I": arc_or_g87 or 100 in gset,
-            "J": arc_or_g87 or 100 in gset,
-            "K": arc_or_g87 or (fanuc and cycle),
-            "L": cycle or comp or 100 in gset or bool(mset & {98, 66}),
-            "P": (bool(gset & {40, 100, 640}) or motion in (20, 30, 740, 820, 840, 860, 880, 890) or (fanuc and cycle)
-                  or bool(mset & {19, 50, 51, 52, 53, 62, 63, 64, 65, 66, 98}) or user_m),
-            "Q": (motion in (730, 830) or (fanuc and motion in (760, 870)) or bool(gset & {100, 640})
-                  or bool(mset & {19, 66, 67, 68}) or user_m),
-            "R": motion in (20, 30) or cycle or bool(gset & {100, 411, 421}) or 19 in mset,
-        }
-        for L, w in val.items():
-            if uses.get(L, True):
-                continue
-            raise self.err(f"{L} word with nothing in the block to use it", b, w, _WORD_USERS[L])
+        if 40 in gset or 530 in gset or not val.keys().isdisjoint(_CHECKED):
+            motion = next((c for c in gset if c in _MOTION or c == 800), None)
+            if motion is None and not gset & _TAKE_AXES and not val.keys().isdisjoint("XYZABCUVW@^"):
+                motion = self.motion
+            for L, w in val.items():
+                if L in _CHECKED and not self.word_used(L, motion, gset, {c for c, _ in mcodes}):
+                    raise self.err(f"{L} word with nothing in the block to use it", b, w, _WORD_USERS[L])
+            if motion in _CYCLES:
+                for L in "ABCUVW":
+                    if L in val:
+                        raise self.err(f"{L} word in a canned cycle", b, val[L], "only the plane's axes, R, Q, P, L")
+            if 40 in gset and motion in (20, 30):
+                raise self.err("G4 with G2/G3 (both use P)", b, val.get("P"), "the dwell and the arc on separate lines")
+            if 530 in gset and (910 in gset or (not self.absolute and 900 not in gset)):
+                raise self.err("G53 in incremental mode (G91)", b, None, "G90 with G53")
         if "N" in val:
             raise self.err("N (line number) word not at the start of the block", b, val["N"], "N first, or no N")
-        if cycle:
-            for L in "ABCUVW":
-                if L in val:
-                    raise self.err(f"{L} word in a canned cycle", b, val[L], "only the plane's axes, R, Q, P, L")
-        if 40 in gset and motion in (20, 30):
-            raise self.err("G4 with G2/G3 (both use P)", b, val.get("P"), "the dwell and the arc on separate lines")
-        if 530 in gset and (910 in gset or (not self.absolute and 900 not in gset)):
-            raise self.err("G53 in incremental mode (G91)", b, None, "G90 with G53")
+
+    def word_used(self, L: str, motion: int | None, gset: set, mset: set) -> bool:
+        """Whether a code of the block (or the motion it runs in) reads the word `L` (LinuxCNC's rules)."""
+        cycle = motion in _CYCLES
+        fanuc = self.dialect == "fanuc"
+        comp = not gset.isdisjoint((410, 420, 411, 421))
+        if L in "IJ":
+            return motion in (20, 30, 870) or 100 in gset
+        if L == "K":
+            return motion in (20, 30, 870) or (fanuc and cycle)
+        if L == "R":
+            return motion in (20, 30) or cycle or not gset.isdisjoint((100, 411, 421)) or 19 in mset
+        if L == "P":
+            return (not gset.isdisjoint((40, 100, 640)) or motion in (20, 30, 740, 820, 840, 860, 880, 890)
+                    or (fanuc and cycle) or not mset.isdisjoint((19, 50, 51, 52, 53, 62, 63, 64, 65, 66, 98))
+                    or any(100 <= c <= 199 for c in mset))
+        if L == "Q":
+            return (motion in (730, 830) or (fanuc and motion in (760, 870)) or not gset.isdisjoint((100, 640))
+                    or not mset.isdisjoint((19, 66, 67, 68)) or any(100 <= c <= 199 for c in mset))
+        if L == "L":
+            return cycle or comp or 100 in gset or not mset.isdisjoint((98, 66))
+        if L == "H":
+            return not gset.isdisjoint((430, 432))
+        if L == "D":
+            return comp
+        return not mset.isdisjoint((66, 67, 68))  # E
 
     def tool_length(self, gset: set, b: Block, val: dict) -> None:
         """G43 (H or current tool), G43.1 (dynamic Z/K), G43.2 (additional), G49 (cancel). Lengths come
