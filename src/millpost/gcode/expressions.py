@@ -22,6 +22,14 @@ _FUNCS: dict[str, Callable[[float], float]] = {
     "ROUND": lambda v: float(math.floor(v + 0.5)), "LN": math.log, "SIN": lambda v: math.sin(math.radians(v)),
     "SQRT": math.sqrt, "TAN": lambda v: math.tan(math.radians(v)),
 }
+
+
+def _power(a: float, b: float) -> float:
+    if a < 0 and b != int(b):  # (Python would return a complex number)
+        raise ValueError("a negative number to a fractional power")
+    return a ** b
+
+
 _BINOPS: list[dict[str, Callable[[float, float], float]]] = [  # lowest precedence first
     {"AND": lambda a, b: float(bool(a) and bool(b)), "OR": lambda a, b: float(bool(a) or bool(b)),
      "XOR": lambda a, b: float(bool(a) != bool(b))},
@@ -29,7 +37,7 @@ _BINOPS: list[dict[str, Callable[[float, float], float]]] = [  # lowest preceden
      "GE": lambda a, b: float(a >= b), "LT": lambda a, b: float(a < b), "LE": lambda a, b: float(a <= b)},
     {"+": lambda a, b: a + b, "-": lambda a, b: a - b},
     {"*": lambda a, b: a * b, "/": lambda a, b: a / b, "MOD": lambda a, b: math.fmod(a, b) if a * b >= 0 else a % b},
-    {"**": lambda a, b: a ** b},
+    {"**": _power},
 ]
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
 MAX_DEPTH = 50  # brackets, unary signs and functions nested in one value
@@ -176,9 +184,9 @@ class _Scanner:
             at = self.pos
             self.pos += len(op)
             right = self.expression(level + 1)
-            try:  # (TypeError: a negative number to a fractional power is complex)
+            try:
                 left = float(_BINOPS[level][op](left, right))
-            except (ZeroDivisionError, OverflowError, ValueError, TypeError) as exc:
+            except (ZeroDivisionError, OverflowError, ValueError) as exc:
                 raise self.error(f"{op} is undefined here ({exc})", "a defined arithmetic result", at) from None
             if not math.isfinite(left):
                 raise self.error(f"{op} overflows (the result is beyond 1.8e308)", "a finite arithmetic result", at)
