@@ -198,3 +198,14 @@ def test_fanuc_k_repeats_a_cycle():
     program = read_text(text, "k.nc", ReaderOptions(dialect="fanuc"))
     drilled = program.toolpath.end[program.toolpath.kind == 1]
     assert drilled[:, 0].tolist() == [10.0, 20.0, 30.0]
+
+
+def test_a_program_beyond_the_size_ceiling_is_refused_before_reading(tmp_path, monkeypatch):
+    import millpost.gcode as gcode
+
+    f = tmp_path / "big.nc"
+    f.write_text("G0 X1\n" * 1000)
+    monkeypatch.setattr(gcode, "MAX_PROGRAM_BYTES", 5000)
+    with pytest.raises(ParseError) as info:
+        read_program(f)
+    assert str(f) in str(info.value) and "MB" in info.value.word and info.value.line == 1
