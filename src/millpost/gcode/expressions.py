@@ -39,6 +39,8 @@ _BINOPS: list[dict[str, Callable[[float, float], float]]] = [  # lowest preceden
     {"*": lambda a, b: a * b, "/": lambda a, b: a / b, "MOD": lambda a, b: math.fmod(a, b) if a * b >= 0 else a % b},
     {"**": _power},
 ]
+_LEVEL = {op: level for level, ops in enumerate(_BINOPS) for op in ops}  # precedence of each operator
+_WORD_OPERATORS = sorted((op for op in _LEVEL if op.isalpha()), key=len, reverse=True)
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
 MAX_DEPTH = 50  # brackets, unary signs and functions nested in one value
 
@@ -50,6 +52,7 @@ class _Scanner:
         self.text, self.line, self.file, self.params = text, line, file, params
         self.pos = 0
         self.depth = 0
+        self.upper = text.upper()
 
     def error(self, message: str, expected: str, at: int | None = None) -> ParseError:
         at = self.pos if at is None else at
@@ -60,12 +63,18 @@ class _Scanner:
         while self.pos < len(self.text) and self.text[self.pos] in " \t":
             self.pos += 1
 
-    def peek_word(self, options) -> str | None:
+    def operator(self) -> str | None:
+        """The binary operator at the cursor, if any (``**`` before ``*``)."""
         self.skip()
-        rest = self.text[self.pos:].upper()
-        for op in sorted(options, key=len, reverse=True):
-            if rest.startswith(op):
-                return op
+        ch = self.text[self.pos:self.pos + 1]
+        if ch == "*":
+            return "**" if self.text.startswith("**", self.pos) else "*"
+        if ch in ("+", "-", "/"):
+            return ch
+        if ch.isalpha():
+            for op in _WORD_OPERATORS:
+                if self.upper.startswith(op, self.pos):
+                    return op
         return None
 
     def expect(self, ch: str) -> None:
@@ -174,18 +183,17 @@ class _Scanner:
         raise self.error(f"parameter #<{key}> is used before it is set", "a named parameter assigned earlier")
 
     def expression(self, level: int = 0) -> float:
-        if level == len(_BINOPS):
-            return self.value()
-        left = self.expression(level + 1)
+        """Operators of precedence `level` and above, left to right (precedence climbing)."""
+        left = self.value()
         while True:
-            op = self.peek_word(_BINOPS[level])
-            if op is None:
+            op = self.operator()
+            if op is None or _LEVEL[op] < level:
                 return left
             at = self.pos
             self.pos += len(op)
-            right = self.expression(level + 1)
+            right = self.expression(_LEVEL[op] + 1)
             try:
-                left = float(_BINOPS[level][op](left, right))
+                left = float(_BINOPS[_LEVEL[op]][op](left, right))
             except (ZeroDivisionError, OverflowError, ValueError) as exc:
                 raise self.error(f"{op} is undefined here ({exc})", "a defined arithmetic result", at) from None
             if not math.isfinite(left):
