@@ -22,7 +22,7 @@ REFUSED = [
     ("G1 X1e308 Y2", 4, "X1e308", "exponent", True),
     ("G1 X2 F1.5e3", 7, "F1.5e3", "exponent", True),
     (f"G1 X{NINES}", 4, "X999", "out of range", False),
-    ("G1 X100001", 4, "X100001", "out of range", False),
+    ("G1 X1000001", 4, "X1000001", "out of range", False),
     (f"G{NINES}", 1, "G999", "out of range", True),
     (f"M{NINES}", 1, "M999", "out of range", True),
     (f"T{NINES}", 1, "T999", "out of range", True),

@@ -6,7 +6,7 @@ parentheses and after ``;``, ``N`` line numbers, ``O`` program numbers, ``%`` ta
 interpreter's expression module when present; the fast path here handles plain numbers.
 
 Every value must be finite and within the range of its letter, in program units (mm or inch, rpm,
-degrees): lengths ``X Y Z U V W I J K R Q @`` at most ``LENGTH_LIMIT`` (100 000) in magnitude, ``G``
+degrees): lengths ``X Y Z U V W I J K R Q @`` at most ``LENGTH_LIMIT`` (1 000 000) in magnitude, ``G``
 and ``M`` codes below 1000, any other word (``F S P L T H D N A B C ^`` ...) at most ``NUMBER_LIMIT``
 (1e9; LinuxCNC's example 3D_Chips.ngc feeds at F2 250 000). A value beyond is a mistake, and the
 limits keep every later sum and product finite. Exponents (``1e3``) are not G-code: LinuxCNC reads
@@ -26,7 +26,7 @@ _WORD = re.compile(r"([A-Za-z@^])[ \t]*([-+]?[ \t]*(?:\d+\.?\d*|\.\d+))")
 _PLAIN = re.compile(r"(?:[ \t]*[A-Za-z@^][ \t]*[-+]?[ \t]*(?:\d+\.?\d*|\.\d+))*[ \t]*")
 _COMMENT = re.compile(r"\([^()]*\)")
 _CHECKSUM = re.compile(r"\*[ \t]*\d+[ \t]*$")
-LENGTH_LIMIT = 1e5  # program units (100 m in mm)
+LENGTH_LIMIT = 1e6  # program units (1 km in mm)
 NUMBER_LIMIT = 1e9
 _LIMITS = {**dict.fromkeys("XYZUVWIJKRQ@", LENGTH_LIMIT), "G": 999.9, "M": 999.0}
 
