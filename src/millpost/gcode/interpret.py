@@ -610,8 +610,9 @@ class Interpreter:
             motion = next((c for c in gset if c in _MOTION or c == 800), None)
             if motion is None and not gset & _TAKE_AXES and not val.keys().isdisjoint("XYZABCUVW@^"):
                 motion = self.motion
+            mset = {c for c, _ in mcodes}
             for L, w in val.items():
-                if L in _CHECKED and not self.word_used(L, motion, gset, {c for c, _ in mcodes}):
+                if L in _CHECKED and not self.word_used(L, motion, gset, mset):
                     raise self.err(f"{L} word with nothing in the block to use it", b, w, _WORD_USERS[L])
             if motion in _CYCLES:
                 for L in "ABCUVW":
@@ -626,15 +627,17 @@ class Interpreter:
 
     def word_used(self, L: str, motion: int | None, gset: set, mset: set) -> bool:
         """Whether a code of the block (or the motion it runs in) reads the word `L` (LinuxCNC's rules)."""
+        if motion in (20, 30) and L in "IJKRP":  # arcs: the common case first
+            return True
         cycle = motion in _CYCLES
         fanuc = self.dialect == "fanuc"
         comp = not gset.isdisjoint((410, 420, 411, 421))
         if L in "IJ":
-            return motion in (20, 30, 870) or 100 in gset
+            return motion == 870 or 100 in gset
         if L == "K":
-            return motion in (20, 30, 870) or (fanuc and cycle)
+            return motion == 870 or (fanuc and cycle)
         if L == "R":
-            return motion in (20, 30) or cycle or not gset.isdisjoint((100, 411, 421)) or 19 in mset
+            return cycle or not gset.isdisjoint((100, 411, 421)) or 19 in mset
         if L == "P":
             return (not gset.isdisjoint((40, 100, 640)) or motion in (20, 30, 740, 820, 840, 860, 880, 890)
                     or (fanuc and cycle) or not mset.isdisjoint((19, 50, 51, 52, 53, 62, 63, 64, 65, 66, 98))
