@@ -15,3 +15,12 @@ def shared_data(*parts: str) -> Path:
     if not path.exists():
         pytest.skip(f"{path} is absent (../shared/data holds third-party material, not in the repo)")
     return path
+
+
+@pytest.fixture(scope="session")
+def slotting_result():
+    """The slotting sample job optimized once per session: (job, Result)."""
+    from millpost.job import load_job
+    from millpost.optimize import optimize
+    job = load_job(Path(__file__).resolve().parents[1] / "sample_jobs" / "slotting")
+    return job, optimize(job, progress=False)

@@ -3,6 +3,7 @@ means: runs it and reads the canonical trace into moves comparable with millpost
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -26,13 +27,19 @@ class Trace:
     error: str | None
 
 
-def run(program: Path, timeout: float = 60.0) -> Trace:
-    """Run `rs274 -g` with tools 1..99 of zero length (tool lengths unknown, as millpost assumes)."""
-    with tempfile.NamedTemporaryFile("w", suffix=".tbl") as table:
-        table.write("".join(f"T{i} P{i} Z0 D0\n" for i in range(1, 100)))
-        table.flush()
-        proc = subprocess.run([RS274, "-t", table.name, "-g", str(program)], capture_output=True, text=True,
-                              timeout=timeout, cwd=program.parent, stdin=subprocess.DEVNULL, errors="replace")
+def run(program: Path, timeout: float = 60.0, *, diameters_mm: dict[int, float] | None = None,
+        tool_table: Path | None = None) -> Trace:
+    """Run `rs274 -g` with `tool_table`, or tools 1..99 of zero length (tool lengths unknown, as millpost
+    assumes) and diameters `diameters_mm` (default 0). The standalone rs274 reads a table in inches.
+    rs274 shares its tool data through $HOME/.tool.mmap: each run gets its own HOME, or concurrent runs
+    (other tests, other users) would swap tool tables under each other."""
+    diameters_mm = diameters_mm or {}
+    with tempfile.TemporaryDirectory() as home:
+        table = Path(home) / "tools.tbl"
+        table.write_text("".join(f"T{i} P{i} Z0 D{diameters_mm.get(i, 0.0) / 25.4!r}\n" for i in range(1, 100)))
+        proc = subprocess.run([RS274, "-t", str(tool_table or table), "-g", str(program)], capture_output=True,
+                              text=True, timeout=timeout, cwd=program.parent, stdin=subprocess.DEVNULL,
+                              errors="replace", env={**os.environ, "HOME": home})
     return parse(proc.stdout + proc.stderr)
 
 

@@ -82,7 +82,7 @@ def test_inverse_time_and_per_rev_feeds():
 
 
 @pytest.mark.parametrize("text,line,word,what", [
-    ("G21\nG1 X10 F100 G41 D1\n", 2, "G41", "cutter radius compensation"),
+    ("G21\nG1 X10 F100 G41 D1\n", 2, "D1", "diameter of tool 1"),
     ("G21\nG0 A90\n", 2, "A90", "A axis motion"),
     ("G21\nG68.2 X0 Y0 Z0 I0 J45 K0\n", 2, "G68.2", "tilted work plane"),
     ("G21\nG43.4 H1\n", 2, "G43.4", "tool centre point"),
@@ -103,7 +103,7 @@ def test_refusals_name_line_word_and_expectation(text, line, word, what):
 
 def test_cli_exit_code_and_message(tmp_path, capsys):
     bad = tmp_path / "bad.nc"
-    bad.write_text("G21\nG1 X1 F10 G42\n")
+    bad.write_text("G21\nG1 X1 F10 G42 D3\n")
     assert main(["inspect", str(bad)]) == 2
     assert f"{bad}:2:" in capsys.readouterr().err
 

@@ -48,7 +48,7 @@ def test_kienzle_tangent_bridge_oracle():
     # PHYSICS.md §2.3: tangent at h0 = 0.05 mm of 1500/0.22 → K_tc 2261.58 N/mm², K_te 31.894 N/mm
     steel = Material.load("steel1045")
     assert steel.mechanistic is None
-    k = steel.mechanistic_model(h0_mm=0.05).coef_
+    k = steel.force_model("mechanistic", h0_mm=0.05).coef_
     assert k[0] == pytest.approx(2261.58, abs=0.01)
     assert k[3] == pytest.approx(31.894, abs=1e-3)
     assert k[1] == pytest.approx(0.30 * k[0]) and k[5] == pytest.approx(0.29 * k[3])

@@ -582,3 +582,41 @@ def test_cps_refuses_tilted_work_planes_and_controller_compensation(tmp_path):
     compensated = [{"tool": T1, "initial": [0, 0, 15], "moves": [["compensation", 1], ["onLinear", 5, 0, 0, 100]]}]
     _, report = _run_cps(tmp_path, base=compensated)
     assert any("In computer" in e for e in report["errors"])
+
+
+LEAKY_POST = '''\
+"""Stands in for FreeCAD's linuxcnc_post: options live in module globals that export() sets from the
+arguments and never resets (UNITS as in FreeCAD 0.20's PathScripts/post/linuxcnc_post.py)."""
+import argparse
+UNITS = "G21"
+parser = argparse.ArgumentParser(prog="linuxcnc", add_help=False)
+parser.add_argument("--inches", action="store_true")
+
+
+def export(objectslist, filename, argstring):
+    global UNITS
+    args = parser.parse_args(argstring.split())
+    if args.inches:
+        UNITS = "G20"
+    return UNITS + " G90\\nG0 X1\\nM2\\n"
+'''
+
+
+def test_wrapped_post_options_do_not_leak_between_posts(tmp_path, monkeypatch):
+    """After one --inches post, the next post without it is G21 again: the wrapped post is loaded
+    afresh for each post (its globals keep options otherwise)."""
+    import importlib.util as iu
+    import types
+    (tmp_path / "linuxcnc_post.py").write_text(LEAKY_POST)
+    spec = iu.spec_from_file_location("Path.Post.scripts.linuxcnc_post", tmp_path / "linuxcnc_post.py")
+    leaky = iu.module_from_spec(spec)
+    spec.loader.exec_module(leaky)
+    job, objects = _fake_job(40 * 30 * 10.0, [])
+    console = []
+    _fake_freecad(monkeypatch, job, [], console)
+    monkeypatch.setitem(sys.modules, "Path.Post.scripts", types.SimpleNamespace(linuxcnc_post=leaky))
+    first = fc.export(objects, "-", "--no-optimize --inches")
+    second = fc.export(objects, "-", "--no-optimize")
+    assert first.startswith("G20") and second.startswith("G21")
+    # the module FreeCAD imported is untouched, so its own later uses start clean too
+    assert leaky.UNITS == "G21"

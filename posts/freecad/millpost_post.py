@@ -37,6 +37,7 @@ Everything above ``export`` is plain Python so it can be tested without FreeCAD.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import math
 import os
@@ -275,12 +276,27 @@ def optimize(gcode: str, out_path: Path, stock: tuple | None, stock_writer: Call
 
 # --- FreeCAD side ----------------------------------------------------------------------------------
 
+def _fresh(module: Any) -> Any:
+    """A new copy of a post module, executed from its file. FreeCAD's module posts keep their options
+    in module globals that ``export`` sets from the arguments and never resets (after one ``--inches``
+    post every later one in the session would be G20), so each post gets a module of its own."""
+    path = getattr(module, "__file__", None)
+    if not path:
+        return module
+    spec = importlib.util.spec_from_file_location(module.__name__, path)
+    fresh = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fresh)
+    return fresh
+
+
 def _linuxcnc_gcode(objectslist: list, argstring: str) -> str:
-    """G-code of `objectslist` from FreeCAD's LinuxCNC post (1.0 module, 0.2x module or 1.1 class)."""
+    """G-code of `objectslist` from FreeCAD's LinuxCNC post (1.0 module, 0.2x module or 1.1 class),
+    loaded afresh for this post."""
     try:
         from Path.Post.scripts import linuxcnc_post  # FreeCAD 1.x
     except ImportError:
         from PathScripts.post import linuxcnc_post  # FreeCAD 0.19 – 0.21
+    linuxcnc_post = _fresh(linuxcnc_post)
     if hasattr(linuxcnc_post, "export"):
         gcode = linuxcnc_post.export(objectslist, "-", argstring)
         if gcode is None:

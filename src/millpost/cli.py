@@ -1,5 +1,12 @@
-"""The `millpost` command: a thin shell over the Python API. Each subcommand lives in
-`millpost.commands.<name>`; errors millpost raises on purpose print one line and exit 2."""
+"""millpost: a post step for CNC milling programs that knows the physics. It reads the G-code your CAM
+wrote, simulates the cutter through the stock, predicts the cutting forces and rewrites only the feeds,
+as fast as your machine, tool and material allow and never faster.
+
+start with:  millpost optimize sample_jobs/adaptive_pocket --report pocket.html
+then see:    millpost COMMAND --help (each has an example)"""
+
+# A thin shell over the Python API: each subcommand lives in `millpost.commands.<name>`; errors
+# millpost raises on purpose print one line and exit 2.
 
 from __future__ import annotations
 
@@ -12,12 +19,24 @@ from . import __version__, commands
 from .errors import MillpostError
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """Wraps one-line paragraphs to the terminal; keeps paragraphs written on several lines (tables,
+    examples) as they are."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        return "\n\n".join(p if "\n" in p.strip("\n") else super(HelpFormatter, self)._fill_text(p, width, indent)
+                             for p in text.split("\n\n"))
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="millpost", description=__doc__)
+    parser = argparse.ArgumentParser(prog="millpost", description=__doc__,
+                                     formatter_class=HelpFormatter)
     parser.add_argument("--version", action="version", version=f"millpost {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         importlib.import_module(f"{commands.__name__}.{info.name}").register(sub)
+    for p in sub.choices.values():
+        p.formatter_class = HelpFormatter
     return parser
 
 

@@ -217,3 +217,34 @@ class Table:
                 close = difflib.get_close_matches(key, known, n=1, cutoff=0.5)
                 hint = f"; did you mean {close[0]!r}?" if close else ""
                 raise self.fail(key, self.data[key], f"unknown field{hint} (known: {', '.join(known)})")
+
+
+def dump_toml(data: dict[str, Any]) -> str:
+    """TOML text of a description: strings, numbers, booleans, lists of those, and nested tables (the
+    subset the descriptions use; `load_toml` reads it back to the same dict)."""
+    out: list[str] = []
+
+    def value(v: Any) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            if isinstance(v, float) and not math.isfinite(v):
+                raise ConfigError("<toml>", v, "a description holds finite numbers only")
+            return repr(v)  # shortest text that reads back to the same number
+        if isinstance(v, str):
+            return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        raise ConfigError("<toml>", v, "cannot be written as TOML")
+
+    def table(prefix: str, d: dict[str, Any]) -> None:
+        scalars = {k: v for k, v in d.items() if not isinstance(v, dict)}
+        if prefix and (scalars or not d):
+            out.append(f"\n[{prefix}]")
+        out.extend(f"{k} = {value(v)}" for k, v in scalars.items())
+        for k, v in d.items():
+            if isinstance(v, dict):
+                table(f"{prefix}.{k}" if prefix else k, v)
+
+    table("", data)
+    return "\n".join(out).lstrip("\n") + "\n"

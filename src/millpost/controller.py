@@ -133,25 +133,50 @@ class Execution:
     acc: np.ndarray
     v_entry: np.ndarray  # (n+1,)
 
-    def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Actual speed at fraction u of move `move` (sample positions map onto chords by fraction)."""
+    def _locate(self, move: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Block index and distance into it (mm) of fraction u of move `move` (by fraction on chords)."""
         key = self.blocks.move.astype(float) + self.blocks.u_end
         q = np.asarray(move, float) + np.clip(u, 0, 1)
         k = np.clip(np.searchsorted(key, q - 1e-12), 0, len(key) - 1)
         ustart = np.where(k > 0, np.where(self.blocks.move[np.maximum(k - 1, 0)] == self.blocks.move[k],
                                           self.blocks.u_end[np.maximum(k - 1, 0)], 0.0), 0.0)
         frac = np.clip((np.clip(u, 0, 1) - ustart) / np.maximum(self.blocks.u_end[k] - ustart, 1e-300), 0, 1)
-        x = frac * self.length[k]
+        return k, frac * self.length[k]
+
+    def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Actual speed at fraction u of move `move` (sample positions map onto chords by fraction)."""
+        k, x = self._locate(move, u)
         a = self.acc[k]
         v = np.minimum.reduce([np.sqrt(self.v_entry[k] ** 2 + 2 * a * x), self.vnom[k],
                                np.sqrt(self.v_entry[k + 1] ** 2 + 2 * a * (self.length[k] - x))])
         return v
 
+    def time_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Time (s from the program start) at which the tool passes fraction u of move `move`: the
+        blocks before plus the time into the block's trapezoid (accelerate from the entry speed at a,
+        cruise at the peak speed, decelerate to the exit speed)."""
+        k, x = self._locate(move, u)
+        a, L, v0, v1 = self.acc[k], self.length[k], self.v_entry[k], self.v_entry[k + 1]
+        vp = np.minimum(np.sqrt(np.maximum((2 * a * L + v0**2 + v1**2) / 2, 0)), self.vnom[k])
+        d_acc = (vp**2 - v0**2) / (2 * a)
+        d_dec = (vp**2 - v1**2) / (2 * a)
+        before = np.concatenate([[0.0], np.cumsum(self.block_time_s)])[k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_acc = (np.sqrt(v0**2 + 2 * a * np.minimum(x, d_acc)) - v0) / a
+            t_cruise = np.where(vp > 0, np.clip(x - d_acc, 0, None) / vp, 0.0)
+            t_dec = (np.sqrt(np.maximum(vp**2 - 2 * a * np.clip(x - (L - d_dec), 0, None), 0)) - vp) / -a
+        t_cruise = np.minimum(t_cruise, np.where(vp > 0, np.maximum(L - d_acc - d_dec, 0) / vp, 0.0))
+        return before + t_acc + t_cruise + t_dec
+
     def speed_at_samples(self, samples: Samples) -> np.ndarray:
         """Actual speed at every sample (mm/s); a sample's position along its move by arc length."""
+        return self.speed_at(samples.move, self._sample_fractions(samples))
+
+    @staticmethod
+    def _sample_fractions(samples: Samples) -> np.ndarray:
+        """Fraction of each sample along its move from the resampling (samples of a move are contiguous)."""
         s = samples.s_mm
         mv = samples.move
-        # fraction of each sample along its move from the resampling (samples of a move are contiguous)
         u = np.zeros(len(s))
         starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
         ends = np.r_[starts[1:], len(s)]
@@ -159,7 +184,11 @@ class Execution:
             s0 = s[a - 1] if a > 0 and not samples.segment_start[a] else s[a]
             span = s[b - 1] - s0
             u[a:b] = (s[a:b] - s0) / span if span > 0 else 1.0
-        return self.speed_at(mv, u)
+        return u
+
+    def time_at_samples(self, samples: Samples) -> np.ndarray:
+        """Time (s) at which the tool passes every sample (motion only: no dwells or tool changes)."""
+        return self.time_at(samples.move, self._sample_fractions(samples))
 
 
 def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Execution:

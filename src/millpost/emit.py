@@ -5,14 +5,16 @@ fragments: a move whose feed must change part-way is split at fractions of its l
 and arcs as arcs (keeping the line's IJK or R style, its distance modes and its number format).
 F is modal, so an F word is written wherever the wanted feed differs from the one in force; an F the
 program already had and that still holds keeps its bytes. Blocks that run several moves (canned
-cycles, G28) get the lowest feed any of their moves wants: never faster than the plan.
+cycles, G28) get the lowest feed any of their moves wants: never faster than the plan. Moves under
+cutter radius compensation (G41/G42) are never split: the controller offsets whatever coordinates are
+written, so a split point (a point of the offset path) would be offset again; they take one F.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -153,11 +155,14 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         decimals = _decimals(block, 4 if inch else 3)
         trailing_point = _trailing_point(block, default_trailing)
         writer = _LineWriter(body, block)
+        f_word = next((w for w in block.words if w.letter == "F"), None)
 
         def f_value(i: int, feed_mm_min: float, length_mm: float) -> float:
             mode = program.feed_mode[i]
             scale = INCH if inch else 1.0
-            if mode == 930:
+            if mode == 930 and program.compensated[i]:  # timed by the programmed length, not the offset path
+                value = f_word.value * feed_mm_min / tp.feed_mm_min[i]
+            elif mode == 930:
                 value = feed_mm_min / max(length_mm, 1e-12)  # inverse time: 1/min
             elif mode == 950:
                 value = feed_mm_min / scale / max(tp.rpm[i], 1e-12)  # per revolution
@@ -170,7 +175,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             d = (2 if inch else 1) + (2 if value < 10 else 0)
             return _fmt(math.floor(value * 10**d * (1 + 1e-12)) / 10**d, d, trailing_point)
 
-        split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1]
+        split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]]
         if split and len(moves) == 1:
             i = moves[0]
             new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, decimals,
@@ -178,7 +183,6 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             out.extend(new_lines)
             continue
         wanted = [plan.feed_mm_min[i] for i in moves if not math.isnan(plan.feed_mm_min[i])]
-        f_word = next((w for w in block.words if w.letter == "F"), None)
         if not wanted:
             if f_word is not None:
                 modal_f = f_word.value
@@ -186,7 +190,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             continue
         k = min(moves, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
         value = f_value(k, plan.feed_mm_min[k], lengths[k])
-        if program.feed_mode[k] == 930 and len(moves) > 1:
+        if program.feed_mode[k] == 930 and len(moves) > 1 and not program.compensated[moves].all():
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
         if flow:  # its own F, evaluated as it runs, still right on every run: keep it; else write one
             if f_word is not None and all(plan.feed_mm_min[i] == tp.feed_mm_min[i] for i in moves):
@@ -253,6 +257,18 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
                        + ending)
         modal = float(f)
     return out, modal
+
+
+def whole_compensated_moves(program: Program, fragments: list) -> list:
+    """Fragments (`schedule.feeds.Fragment`) with those of each compensated move merged into one over the
+    whole move at their lowest feed (such moves are written with one F, see the module docstring)."""
+    out, whole = [], {}
+    for f in fragments:
+        if not program.compensated[f.move]:
+            out.append(f)
+        elif f.move not in whole or f.feed_mm_min < whole[f.move].feed_mm_min:
+            whole[f.move] = replace(f, u_start=0.0, u_end=1.0)
+    return out + list(whole.values())
 
 
 def _same(a: float, b: float) -> bool:

@@ -10,7 +10,6 @@ slot spans [0, π]. The tool is cut into K axial slices; each slice carries its 
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -18,6 +17,7 @@ import numpy as np
 
 from ._kernels import engage as _k
 from .errors import MillpostError
+from .progress import Progress, resolve
 from .toolpath import RAPID, Samples
 from .tools import Tool
 
@@ -157,7 +157,7 @@ def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: 
 
 def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices: int = 8,
              ring_samples: int = 180, look_ahead_mm: float | None = None, smooth_steps: float = 1.0,
-             progress: bool | None = None) -> Engagement:
+             progress: Progress | bool | None = None) -> Engagement:
     """Step the tool(s) through `stock` (cut in place) along `samples` and return the engagement.
 
     tool: one Tool, or tools by number (samples.tool picks one; a change restarts the footprint).
@@ -170,6 +170,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     damps the cell-quantisation noise at a bandwidth tied to the step.
     Rapids that would remove material raise MillpostError naming the source line, except the
     leading rapids before the first feed move, which start from an unknown position and are skipped.
+    progress: a `millpost.progress` callback (stages "compile kernels" on the first run, "engagement"
+    in steps), or True/False/None as `millpost.progress.resolve` reads it.
     """
     n = len(samples)
     if slices < 1 or ring_samples < 4:
@@ -198,7 +200,10 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     prev_f = np.array([1.0, 0.0])
     moving = steps[steps > 0]
     ds = float(np.median(moving)) if len(moving) else 0.0
-    show = sys.stderr.isatty() if progress is None else progress
+    report = resolve(progress)
+    compiling = not _k.run.signatures  # numba compiles the kernel (or loads its cache) on the first call
+    if compiling:
+        report("compile kernels", 0.0, 0.0)
     chunk = 50_000
     # runs of one tool, cut into chunks for the progress display
     bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
@@ -223,10 +228,10 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                 raise MillpostError(
                     f"line {int(samples.line[bad])}: rapid move runs into the stock at "
                     f"X{p[0]:.3f} Y{p[1]:.3f} Z{p[2]:.3f} (a crash; use a feed move to cut)")
-            if show:
-                print(f"\rengagement {100 * c1 / n:5.1f} % ({c1}/{n} steps)", end="", file=sys.stderr, flush=True)
-    if show:
-        print(file=sys.stderr)
+            if compiling:
+                report("compile kernels", 1.0, 1.0)
+                compiling = False
+            report("engagement", c1, n)
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:
         kappa[a:b] = _kappa(t, out["zmid"][a:b])

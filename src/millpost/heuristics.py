@@ -21,6 +21,16 @@ the candidate with the highest material removal rate wins. The limits, with thei
 - among candidates within `tie_tolerance` of the best removal rate, the fastest feed wins (the
   reference's preference for fast, light passes over slow, heavy ones).
 
+With a strategy (adaptive, slot, profile, face) the search keeps to a machinist's rules for it, from
+the material file's `[strategies]` table with their sources: the radial width range of adaptive
+clearing, profiling and facing, the deepest full-width slot (chips must leave a closed slot), the
+deepest facing pass. Entry moves are never fed like the cut: the ramp feed is the full-width ramp at
+the material's steepest ramp angle under the same limits, and at most `ramp_feed_ratio` of the
+cutting feed; the plunge feed takes the axial feed per tooth f_ax = `plunge_fz_ratio` · h_target on the
+whole end edge (no chip thinning there), lowered where the end-edge torque M = z·k_c(h)·h·R²/2 (Kienzle,
+k_c = k_c1.1·h^−m_c, the bottom edges as a 180° drill) exceeds the spindle's torque, and never above
+the ramp feed. The answer names the rules that bind, as it names the physical limits.
+
 Loads come from the same models as `millpost calc` (`evaluate_cut`), so an independent `calc` of the
 answer satisfies every limit.
 """
@@ -37,13 +47,13 @@ from .commands.calc import evaluate_cut
 from .errors import MillpostError
 from .forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut
 from .machine import Machine
-from .materials import Material
+from .materials import STRATEGIES, Material
+from .progress import Progress, silent
 from .tools.beam import ToolBeam
 from .tools.cutter import Tool
 
 
 SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
-RAMP_ANGLE_DEG = 2.0         # helical ramp: full-width cut π·D·tan(2°) deep per turn (a common CAM default)
 
 
 @dataclass(frozen=True)
@@ -68,7 +78,9 @@ class Limits:
 @dataclass(frozen=True)
 class Recommendation:
     """Chosen cut and its predicted loads (mm, rpm, mm/min, mm³/min, N, N·m, W). `binding` names the
-    limits at their bound (ratio ≥ 0.999); `ratios` gives every limit's load over its bound."""
+    limits and strategy rules at their bound (ratio ≥ 0.999); `ratios` gives every limit's load over its
+    bound. ramp_feed_mm_min: along a full-width ramp at the material's ramp angle; plunge_feed_mm_min:
+    straight down (both below the cutting feed)."""
 
     ap_mm: float
     ae_mm: float
@@ -86,13 +98,16 @@ class Recommendation:
     torque_Nm: float
     power_W: float
     ramp_feed_mm_min: float
+    plunge_feed_mm_min: float
     binding: tuple[str, ...]
     ratios: dict[str, float] = field(default_factory=dict)
+    strategy: str | None = None
 
 
 @dataclass(frozen=True)
 class _Setup:
     tool: Tool
+    material: Material
     machine: Machine
     limits: Limits
     model: Mechanistic | Kienzle
@@ -106,9 +121,13 @@ class _Setup:
     feed_cap_mm_min: float
     feed_cap_reason: str
     ap_max_mm: float
+    strategy: str | None
+    ae_range_mm: tuple[float, float]
+    ap_range_mm: tuple[float, float]
 
 
-def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, model: str) -> _Setup:
+def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, model: str,
+           strategy: str | None = None) -> _Setup:
     vc_lo, vc_hi = material.rpm_window(tool.diameter_mm, tool.material)
     lo, hi = max(vc_lo, machine.spindle.rpm_min), min(vc_hi, machine.spindle.rpm_max)
     hi_reason = "surface_speed" if vc_hi <= machine.spindle.rpm_max else "spindle_rpm"
@@ -120,11 +139,20 @@ def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, mod
         caps["feed_max"] = limits.feed_max_mm_min
     reason = min(caps, key=caps.get)
     target = limits.chip_load_mm or float(np.mean(material.chip_load_mm(tool.diameter_mm)))
-    return _Setup(tool, machine, limits, material.force_model(model),
+    d, ap_max = tool.diameter_mm, min(tool.flute_len, tool.stickout)
+    ae_range, ap_hi = (0.02 * d, d), ap_max
+    if strategy is not None:
+        if strategy not in STRATEGIES:
+            raise MillpostError(f"unknown strategy {strategy!r}; known: {', '.join(STRATEGIES)}")
+        rules = material.strategies
+        ae_range = tuple(f * d for f in rules.ae_range_D(strategy))
+        if rules.ap_max_D(strategy) is not None:
+            ap_hi = min(ap_max, rules.ap_max_D(strategy) * d)
+    return _Setup(tool, material, machine, limits, material.force_model(model),
                   material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV),
                   ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
                   material.min_chip_mm(tool.edge_radius_mm), lo, hi, hi_reason, caps[reason], reason,
-                  min(tool.flute_len, tool.stickout))
+                  ap_max, strategy, ae_range, (min(0.05 * d, 0.5 * ap_hi), ap_hi))
 
 
 def _load_ratios(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
@@ -197,9 +225,8 @@ def _grid(lo: float, hi: float, n: int) -> np.ndarray:
 def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> tuple[float, float, float, float]:
     """Geometric grid over (ae, ap, rpm) with the coarse search model, four finer grids around the best so
     far, then the best dozen candidates re-solved with the full model; f_z is always the largest feasible."""
-    d = s.tool.diameter_mm
     full = [(v, v) if v else rng for v, rng in
-            ((ae_fixed, (0.02 * d, d)), (ap_fixed, (0.05 * d, s.ap_max_mm)), (rpm_fixed, (s.rpm_lo, s.rpm_hi)))]
+            ((ae_fixed, s.ae_range_mm), (ap_fixed, s.ap_range_mm), (rpm_fixed, (s.rpm_lo, s.rpm_hi)))]
     ranges = list(full)
     seen: dict[tuple[float, float, float], float] = {}
     for sizes in ((20, 16, 4), (7, 7, 4), (7, 7, 3), (7, 7, 3), (7, 7, 3)):
@@ -227,13 +254,18 @@ def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> t
 
 def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
               model: str = "mechanistic", ae_mm: float | None = None, ap_mm: float | None = None,
-              rpm: float | None = None, tie_tolerance: float = 0.005) -> Recommendation:
-    """Best roughing cut for the tool, material and machine (ae, ap, rpm may be fixed by the caller)."""
-    s = _setup(tool, material, machine, limits, model)
+              rpm: float | None = None, tie_tolerance: float = 0.005, strategy: str | None = None) -> Recommendation:
+    """Best roughing cut for the tool, material and machine (ae, ap, rpm may be fixed by the caller),
+    within the material's rules for `strategy` (adaptive, slot, profile, face; None: the physics only)."""
+    s = _setup(tool, material, machine, limits, model, strategy)
     for name, value, lo, hi in (("ae_mm", ae_mm, 0.0, tool.diameter_mm), ("ap_mm", ap_mm, 0.0, s.ap_max_mm),
                                 ("rpm", rpm, machine.spindle.rpm_min, machine.spindle.rpm_max)):
         if value is not None and not lo < value <= hi:
             raise MillpostError(f"fixed {name} = {value:g} is outside ({lo:g}, {hi:g}] for this tool and machine")
+    for name, value, (lo, hi) in (("ae_mm", ae_mm, s.ae_range_mm), ("ap_mm", ap_mm, s.ap_range_mm)):
+        if strategy is not None and value is not None and not lo * (1 - 1e-9) <= value <= hi * (1 + 1e-9):
+            raise MillpostError(f"fixed {name} = {value:g} is outside {strategy}'s range [{lo:.4g}, {hi:.4g}] mm "
+                                f"for this tool in {material.name} ({material.strategies.source.split(';')[0]})")
     ae, ap, n, fz = _search(s, ae_mm, ap_mm, rpm, tie_tolerance)
     return _describe(s, ae, ap, n, fz)
 
@@ -249,29 +281,52 @@ def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommend
     ratios[s.rpm_hi_reason] = n / s.rpm_hi
     ratios["max_depth"] = ap / s.ap_max_mm
     ratios["slot"] = min(ae, s.tool.diameter_mm) / s.tool.diameter_mm
+    if s.strategy is not None and s.ae_range_mm[0] < s.ae_range_mm[1]:
+        ratios[f"{s.strategy}_width_max"] = ae / s.ae_range_mm[1]
+        ratios[f"{s.strategy}_width_min"] = s.ae_range_mm[0] / ae
+    if s.strategy is not None and s.ap_range_mm[1] < s.ap_max_mm:
+            ratios[f"{s.strategy}_depth_max"] = ap / s.ap_range_mm[1]
     binding = tuple(sorted(k for k, v in ratios.items() if v >= 0.999))
-    ramp_ap = min(ap, math.pi * s.tool.diameter_mm * math.tan(math.radians(RAMP_ANGLE_DEG)))
-    ramp = _best_fz(s, np.array([s.tool.diameter_mm]), np.array([ramp_ap]), np.array([n]), iterations=40)[0]
-    ramp_feed = float(ramp * s.tool.flutes * n) if np.isfinite(ramp) else 0.0
+    ramp_feed, plunge_feed = _entry_feeds(s, ap, n, res.feed_mm_min)
     return Recommendation(
         ap_mm=ap, ae_mm=ae, rpm=n, fz_mm=fz, feed_mm_min=res.feed_mm_min, mrr_mm3_min=res.mrr_mm3_min,
         h_max_mm=float(res.h_max_mm), chip_target_mm=s.chip_target_mm, vc_m_min=res.vc_m_min, F_avg_N=res.F_avg_N,
         F_peak_N=res.F_peak_N, deflection_mm=res.deflection_mm, break_ratio=res.break_ratio,
-        torque_Nm=res.torque_Nm, power_W=res.power_W, ramp_feed_mm_min=min(ramp_feed, res.feed_mm_min),
-        binding=binding, ratios=ratios)
+        torque_Nm=res.torque_Nm, power_W=res.power_W, ramp_feed_mm_min=ramp_feed, plunge_feed_mm_min=plunge_feed,
+        binding=binding, ratios=ratios, strategy=s.strategy)
+
+
+def _entry_feeds(s: _Setup, ap: float, n: float, feed_mm_min: float) -> tuple[float, float]:
+    """Ramp and plunge feeds (mm/min) for the cut at depth ap and speed n (see the module docstring)."""
+    rules, d, z = s.material.strategies, s.tool.diameter_mm, s.tool.flutes
+    ramp_ap = min(ap, math.pi * d * math.tan(math.radians(rules.ramp_angle_deg)))
+    ramp = _best_fz(s, np.array([d]), np.array([ramp_ap]), np.array([n]), iterations=40)[0]
+    ramp_feed = min(float(ramp * z * n) if np.isfinite(ramp) else 0.0, rules.ramp_feed_ratio * feed_mm_min)
+    k = s.material.kienzle
+    torque_Nmm = float(s.machine.spindle.torque_Nm(n)) * 1e3
+    h_torque = (2 * torque_Nmm / (z * k.kc11_N_mm2 * (d / 2) ** 2)) ** (1 / (1 - k.mc))
+    h = min(rules.plunge_fz_ratio * s.chip_target_mm, h_torque)
+    plunge_feed = min(h * z * n if h >= s.h_min_mm else 0.0, ramp_feed)
+    return ramp_feed, plunge_feed
 
 
 def sweep_ae(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
-             model: str = "mechanistic", widths_mm: np.ndarray | None = None) -> list[Recommendation]:
-    """The best cut at each radial width (MRR against ae): why the recommendation chose its width."""
-    widths = widths_mm if widths_mm is not None else np.linspace(0.05, 1.0, 20) * tool.diameter_mm
-    s = _setup(tool, material, machine, limits, model)
+             model: str = "mechanistic", widths_mm: np.ndarray | None = None,
+             strategy: str | None = None, progress: Progress = silent) -> list[Recommendation]:
+    """The best cut at each radial width (MRR against ae): why the recommendation chose its width
+    (over the strategy's width range when one is given)."""
+    s = _setup(tool, material, machine, limits, model, strategy)
+    if widths_mm is not None:
+        widths = widths_mm
+    else:
+        widths = np.linspace(*s.ae_range_mm, 20) if strategy else np.linspace(0.05, 1.0, 20) * tool.diameter_mm
     out = []
-    for ae in widths:
+    for k, ae in enumerate(widths):
         try:
             out.append(_describe(s, *_search(s, float(ae), None, None, 0.005)))
         except MillpostError:
-            continue
+            pass
+        progress("sweep ae", k + 1, len(widths))
     return out
 
 

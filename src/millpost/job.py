@@ -23,6 +23,8 @@ from pathlib import Path
 from .errors import ConfigError
 from .machine import Machine
 from .materials import Material
+from .registry import plugins
+from .gcode import ReaderOptions
 from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
@@ -46,6 +48,10 @@ class Job:
     cell_mm: float | None = None
     dialect: str | None = None
     limits: dict = field(default_factory=lambda: dict(_LIMIT_KEYS))
+
+    def reader_options(self) -> ReaderOptions:
+        """How to read the program: the job's dialect, and its tools' diameters for cutter compensation."""
+        return ReaderOptions(dialect=self.dialect, tool_diameters_mm={n: t.diameter_mm for n, t in self.tools.items()})
 
     def stock(self):
         """Build the stock height field (mm, program frame)."""
@@ -120,8 +126,9 @@ def load_job(path: str | Path) -> Job:
         if key not in _LIMIT_KEYS:
             raise ConfigError(f"limits.{key}", value, f"unknown limit; known: {', '.join(_LIMIT_KEYS)}", file=f)
         if key == "model":
-            if value not in ("mechanistic", "kienzle"):
-                raise ConfigError("limits.model", value, "mechanistic or kienzle", file=f)
+            if value not in plugins("force_models"):
+                raise ConfigError("limits.model", value, f"one of {', '.join(sorted(plugins('force_models')))}",
+                                  file=f)
         elif not (isinstance(value, (int, float)) and value >= 0):
             raise ConfigError(f"limits.{key}", value, "must be a number >= 0", file=f)
         limits[key] = value

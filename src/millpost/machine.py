@@ -136,12 +136,36 @@ class Axis:
 
 @dataclass(frozen=True)
 class Spindle:
-    """Spindle speed range (rpm) and rated power (W); constant torque below base_rpm, constant power above."""
+    """Spindle speed range (rpm) and rated power (W); constant torque below base_rpm, constant power above.
+
+    Optional, for predicting what a VFD reports (`millpost calibrate fit` measures them): the no-load
+    power at speeds idle_rpm (bearings, windage, motor losses; interpolated, held flat outside), and the
+    output current I = √(I₀² + (T/K_t)²) with the magnetising (no-load) current I₀ and the torque-producing
+    part T/K_t in quadrature (field-oriented view of an induction motor; T the shaft torque, N·m).
+    """
 
     rpm_min: float
     rpm_max: float
     power_W: float
     base_rpm: float
+    idle_rpm: tuple[float, ...] = ()
+    idle_power_W: tuple[float, ...] = ()
+    kt_Nm_per_A: float | None = None
+    idle_current_A: float = 0.0
+
+    def idle_power_at_W(self, rpm) -> np.ndarray:
+        """No-load spindle power (W) at a speed: 0 where not measured, and 0 when the spindle is off."""
+        n = np.asarray(rpm, float)
+        if not self.idle_rpm:
+            return np.zeros_like(n)
+        return np.where(n > 0, np.interp(n, self.idle_rpm, self.idle_power_W), 0.0)
+
+    def current_A(self, torque_Nm) -> np.ndarray:
+        """Output current (A) at a shaft torque (N·m); nan when the spindle's K_t is not given."""
+        t = np.asarray(torque_Nm, float)
+        if self.kt_Nm_per_A is None:
+            return np.full_like(t, np.nan)
+        return np.hypot(self.idle_current_A, t / self.kt_Nm_per_A)
 
     def torque_Nm(self, rpm) -> np.ndarray:
         """Available torque at a speed (N·m); 0 outside the speed range."""
@@ -188,8 +212,13 @@ class Machine:
         s = t.table("spindle")
         rpm_min = s.number("rpm_min", ge=0)
         rpm_max = s.number("rpm_max", gt=rpm_min)
+        idle_rpm = s.numbers("idle_rpm", (), ge=0)
+        idle_power = s.numbers("idle_power_W", (), ge=0, length=len(idle_rpm) if idle_rpm else None)
+        if len(idle_power) != len(idle_rpm) or any(np.diff(idle_rpm) <= 0):
+            raise s.fail("idle_rpm", list(idle_rpm), "needs rising speeds, one idle_power_W for each")
         spindle = Spindle(rpm_min, rpm_max, s.number("power_W", gt=0),
-                          s.number("base_rpm", rpm_max, gt=0, le=rpm_max))
+                          s.number("base_rpm", rpm_max, gt=0, le=rpm_max), idle_rpm, idle_power,
+                          s.number("kt_Nm_per_A", None, gt=0), s.number("idle_current_A", 0.0, ge=0))
         s.done()
         c = t.table("controller")
         controller = Controller(c.string("kind", "generic", choices=CONTROLLERS),

@@ -13,7 +13,53 @@ import numpy as np
 
 from .config import Table, load_description
 from .errors import ConfigError
-from .forces import Kienzle, Mechanistic
+from .registry import plugins
+
+
+STRATEGIES = ("adaptive", "slot", "profile", "face")
+
+
+@dataclass(frozen=True)
+class StrategyRules:
+    """A machinist's rules for roughing with an end mill in this material, as fractions of the tool
+    diameter D. Radial width ranges (lo, hi): adaptive clearing (constant light engagement, deep),
+    profile (side milling a wall), face (a wide, shallow pass); slot_ap_D: deepest full-width slot (chips
+    must leave a closed slot); face_ap_D: deepest facing pass. Entry: ramp_angle_deg (steepest helical
+    or linear ramp), ramp_feed_ratio (ramp feed over the cutting feed), plunge_fz_ratio (axial feed per
+    tooth of a plunge over the chip-load target: the whole end edge cuts, no chip thinning)."""
+
+    adaptive_ae_D: tuple[float, float] = (0.05, 0.2)
+    profile_ae_D: tuple[float, float] = (0.1, 0.4)
+    face_ae_D: tuple[float, float] = (0.6, 0.8)
+    slot_ap_D: float = 1.0
+    face_ap_D: float = 0.1
+    ramp_angle_deg: float = 2.0
+    ramp_feed_ratio: float = 0.5
+    plunge_fz_ratio: float = 0.5
+    source: str = "millpost defaults (no material-specific source)"
+
+    def ae_range_D(self, strategy: str) -> tuple[float, float]:
+        """Radial width range of a strategy (fractions of D); a slot is full width."""
+        return (1.0, 1.0) if strategy == "slot" else getattr(self, f"{strategy}_ae_D")
+
+    def ap_max_D(self, strategy: str) -> float | None:
+        """Deepest cut of a strategy (fraction of D), None where only the flute length bounds it."""
+        return {"slot": self.slot_ap_D, "face": self.face_ap_D}.get(strategy)
+
+    @classmethod
+    def from_table(cls, t: Table) -> "StrategyRules":
+        ranges = {}
+        for name in ("adaptive_ae_D", "profile_ae_D", "face_ae_D"):
+            lo, hi = t.numbers(name, gt=0, length=2)
+            if not lo <= hi <= 1:
+                raise t.fail(name, [lo, hi], "must be [low, high] with high <= 1 (fractions of D)")
+            ranges[name] = (lo, hi)
+        rules = cls(**ranges, slot_ap_D=t.number("slot_ap_D", gt=0), face_ap_D=t.number("face_ap_D", gt=0),
+                    ramp_angle_deg=t.number("ramp_angle_deg", gt=0, le=45),
+                    ramp_feed_ratio=t.number("ramp_feed_ratio", gt=0, le=1),
+                    plunge_fz_ratio=t.number("plunge_fz_ratio", gt=0, le=1), source=t.string("source"))
+        t.done()
+        return rules
 
 
 @dataclass(frozen=True)
@@ -51,6 +97,7 @@ class Material:
     surface_speed_m_min: {"carbide": (lo, hi), "hss": (lo, hi)}. chip_load: diameters (mm) with the
     recommended f_z range at each (interpolated in between, clamped outside). min_chip_ratio: minimum
     chip thickness over the cutting-edge radius (below it the edge ploughs instead of cutting).
+    strategies: roughing rules per strategy (optional table; defaults when absent, said in its source).
     """
 
     name: str
@@ -66,6 +113,7 @@ class Material:
     min_chip_ratio: float
     min_chip_source: str
     hardness_HB: float = 0.0
+    strategies: StrategyRules = StrategyRules()
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Material":
@@ -114,9 +162,10 @@ class Material:
         ratio = mc.number("ratio_to_edge_radius", gt=0, le=2)
         mc_source = mc.string("source")
         mc.done()
-        t.done(("mechanistic",))
+        strategies = StrategyRules.from_table(t.table("strategies")) if t.has("strategies") else StrategyRules()
+        t.done(("mechanistic", "strategies"))
         return cls(name, description, kienzle, mech, speeds, speed_source, dia, fmin, fmax, chip_source,
-                   ratio, mc_source, hardness)
+                   ratio, mc_source, hardness, strategies)
 
     # --- guidance -------------------------------------------------------------------------------
     def chip_load_mm(self, diameter_mm: float) -> tuple[float, float]:
@@ -135,28 +184,12 @@ class Material:
         return self.min_chip_ratio * edge_radius_mm
 
     # --- force models ---------------------------------------------------------------------------
-    def kienzle_model(self, **settings) -> Kienzle:
-        k = self.kienzle
-        return Kienzle.from_coefficients(k.kc11_N_mm2, k.mc, radial_ratio=k.radial_ratio,
-                                         axial_ratio=k.axial_ratio, **settings)
-
-    def mechanistic_model(self, *, h0_mm: float = 0.05, **settings) -> Mechanistic:
-        """Published coefficients when the file has them; otherwise the tangent of the Kienzle law at chip
-        thickness h0 (PHYSICS.md §2.1): K_tc = (1 − m_c) k_c1.1 h0^(−m_c), K_te = m_c k_c1.1 h0^(1−m_c),
-        radial and axial terms by the Kienzle ratios. The tangent bounds the Kienzle force from above."""
-        if self.mechanistic is not None:
-            return Mechanistic.from_coefficients(*self.mechanistic.values(), **settings)
-        if h0_mm <= 0:
-            raise ConfigError("h0_mm", h0_mm, "must be > 0")
-        k = self.kienzle
-        ktc = (1 - k.mc) * k.kc11_N_mm2 * h0_mm ** (-k.mc)
-        kte = k.mc * k.kc11_N_mm2 * h0_mm ** (1 - k.mc)
-        return Mechanistic.from_coefficients(ktc, k.radial_ratio * ktc, k.axial_ratio * ktc,
-                                             kte, k.radial_ratio * kte, k.axial_ratio * kte, **settings)
-
-    def force_model(self, kind: str = "mechanistic", **settings) -> Mechanistic | Kienzle:
-        if kind == "mechanistic":
-            return self.mechanistic_model(**settings)
-        if kind == "kienzle":
-            return self.kienzle_model(**settings)
-        raise ConfigError("model", kind, "must be mechanistic or kienzle")
+    def force_model(self, kind: str = "mechanistic", **settings):
+        """The force model `kind` with this material's coefficients: any model registered in the
+        ``millpost.force_models`` entry-point group (built-ins: mechanistic, kienzle), built by its
+        ``from_material(material, **settings)``."""
+        models = plugins("force_models")
+        if kind not in models:
+            raise ConfigError("model", kind, f"must be one of {', '.join(sorted(models))} (force models registered "
+                                             "in the millpost.force_models entry-point group)")
+        return models[kind].from_material(self, **settings)

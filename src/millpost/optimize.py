@@ -29,11 +29,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import controller, engagement
-from .emit import FeedPlan, write_feeds
+from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .errors import MillpostError
-from .gcode import ReaderOptions, read_program
+from .gcode import read_program
 from .gcode.interpret import Program
 from .job import Job
+from .progress import Progress, resolve, stage
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, ChipLoad, CurrentSlew, FeedLimit, Junction, MotorCurrent,
                        PathGrid, PathJerk, ScheduleOptions, SpeedLoad, schedule_samples)
 from .schedule.assemble import merged_bounds
@@ -253,13 +254,19 @@ def replay(samples: Samples, limits: list, loads: dict, v_mm_s: np.ndarray, job:
     return out
 
 
-def optimize(job: Job, *, progress: bool | None = None, options: ScheduleOptions | None = None) -> Result:
-    """Run the whole post step on a job and return the new program and its summary."""
+def optimize(job: Job, *, progress: Progress | bool | None = None, options: ScheduleOptions | None = None) -> Result:
+    """Run the whole post step on a job and return the new program and its summary. progress: a
+    `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal)."""
     t_start = time.perf_counter()
-    program = read_program(job.program, ReaderOptions(dialect=job.dialect))
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
-    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
-    result = schedule_program(job, program, samples, eng, options)
+    report = resolve(progress)
+    with stage(report, "read program"):
+        program = read_program(job.program, job.reader_options())
+        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    with stage(report, "stock"):
+        stock = job.stock()
+    eng = engagement.simulate(stock, dict(job.tools), samples, progress=report)
+    with stage(report, "forces, schedule, emit"):
+        result = schedule_program(job, program, samples, eng, options)
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
@@ -287,8 +294,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     else:
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
-        fragments = piecewise_feeds(samples, emission_limit(samples, limits, sched,
-                                                            ("axis_acceleration", "junction", "jerk")))
+        fragments = whole_compensated_moves(program, piecewise_feeds(
+            samples, emission_limit(samples, limits, sched, ("axis_acceleration", "junction", "jerk"))))
         plan = _plan_from_fragments(program, fragments)
         emitted_tp = split_toolpath(tp, fragments)
         status, message = "solved", ""

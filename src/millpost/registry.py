@@ -1,8 +1,10 @@
 """Plugin registries: built-ins plus `importlib.metadata` entry points.
 
-Groups: ``millpost.dialects``, ``millpost.force_models``, ``millpost.posts``. A third-party package
-adds a plugin by declaring an entry point in its own group table; built-ins are declared the same
-way in millpost's pyproject, so there is one mechanism for both.
+Groups: ``millpost.dialects`` (a `millpost.gcode.dialects.Dialect` instance) and
+``millpost.force_models`` (a class with ``from_material(material, **settings)`` returning a model with
+``predict`` and ``linear_loads``, as `millpost.forces.Mechanistic`). A third-party package adds a
+plugin by declaring an entry point in its own group table; built-ins are declared the same way in
+millpost's pyproject, so there is one mechanism for both. Plugins are read once per process.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ from ..forces import (Kienzle, Mechanistic, chip_thinning_factor, given_cut, imm
 from ..forces.mechanistic import COEF_NAMES
 from ..machine import Machine
 from ..materials import Material
+from ..registry import plugins
 from ..tools.beam import ToolBeam
 from ..tools.cutter import Tool
 from ..tools.library import load_tool
@@ -30,7 +31,10 @@ allowed lateral force (bending strength / safety factor). With --machine, machin
 F_peak over the softer X/Y axis stiffness (in series with the tool) and spindle_power_ratio the cutting
 power over the spindle's power at that speed. Coefficients: --coeffs Ktc,Krc,Kac (N/mm²) and
 Kte,Kre,Kae (N/mm) for the mechanistic model; --kienzle kc11 (N/mm²), mc [, radial=F_r/F_t,
-axial=F_a/F_t]."""
+axial=F_a/F_t].
+
+example:
+  millpost calc --diameter 6 --flutes 3 --material al6061 --machine vmc-small --ae 1.2 --ap 6 --rpm 12000 --feed 2000"""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -78,7 +82,7 @@ def add_material_arguments(p: argparse.ArgumentParser) -> None:
     m.add_argument("--coeffs", metavar="Ktc=..,Krc=..,Kac=..,Kte=..,Kre=..,Kae=..",
                    help="mechanistic coefficients (N/mm², N/mm)")
     m.add_argument("--kienzle", metavar="kc11=..,mc=..", help="Kienzle kc1.1 (N/mm²) and mc")
-    g.add_argument("--model", choices=("mechanistic", "kienzle"), help="force model for --material "
+    g.add_argument("--model", choices=sorted(plugins("force_models")), help="force model for --material "
                    "(default mechanistic; --coeffs and --kienzle imply theirs)")
 
 

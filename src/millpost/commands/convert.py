@@ -8,10 +8,12 @@ from ..files import write_atomic
 from ..errors import MillpostError
 from ..gcode import ReaderOptions, dialects, read_program, read_text
 from ..gcode.convert import convert, same_path
+from ..progress import Bars, stage
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("convert", help="re-post a program for another controller dialect",
+                       epilog="example:\n  millpost convert sample_jobs/slotting/program.nc --to grbl -o slotting-grbl.nc",
                        description="Write the same toolpath for another controller: canned cycles expanded, "
                                    "arcs as IJK, the target's number format and line numbering. The result is "
                                    "read back and checked against the input path (1e-4 mm) before it is written.")
@@ -24,10 +26,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     target = dialects.get(args.to)
-    program = read_program(args.program, ReaderOptions(dialect=args.source))
-    text = convert(program, target)
-    back = read_text(text, args.output, ReaderOptions(dialect=target.name))
-    diff = same_path(program, back)
+    with Bars() as bars:
+        with stage(bars, "read program"):
+            program = read_program(args.program, ReaderOptions(dialect=args.source))
+        with stage(bars, "convert and read back"):
+            text = convert(program, target)
+            back = read_text(text, args.output, ReaderOptions(dialect=target.name))
+            diff = same_path(program, back)
     if diff:
         raise MillpostError(f"conversion would change the toolpath: {'; '.join(diff)}")
     write_atomic(args.output, text)

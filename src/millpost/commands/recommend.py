@@ -7,10 +7,13 @@ import json
 import sys
 from dataclasses import asdict
 
+from ..errors import ConfigError
 from ..files import atomic_path
 from ..heuristics import Limits, Recommendation, recommend, sweep_ae
 from ..machine import Machine
-from ..materials import Material
+from ..materials import STRATEGIES, Material
+from ..progress import Bars, stage
+from ..registry import plugins
 from .calc import add_tool_arguments, tool_from_args
 
 HELP = """\
@@ -27,9 +30,20 @@ Heuristics (each limit is named in `binding` when it decides the answer):
   machine_feed / feed_max / dynamic_range  feed ≤ the machine's, the user's, and the corner-to-open-pass
                 dynamic range (the reference's 100 mm/s)
   max_depth / slot  ap at the flute length, ae at the full diameter
+Strategy rules (--strategy, default adaptive; from the material file's [strategies] table, with sources):
+  <strategy>_width_min/max  radial width within the strategy's range (adaptive clearing: light, e.g.
+                0.15-0.2 D in aluminium; profile 0.1-0.4 D; face 0.67-0.83 D; slot: full width)
+  <strategy>_depth_max  slot depth for chip evacuation (1 x D), facing depth (0.1 D)
+  ramp / plunge feed  a full-width ramp at the material's ramp angle under the same limits and at most
+                ramp_feed_ratio of the cutting feed; plunge: axial chip plunge_fz_ratio of the target,
+                end-edge torque within the spindle's, never above the ramp feed
+  any           no strategy rules: the physics alone
 Among cuts within 0.5 % of the best removal rate the fastest feed wins (fast, light passes over slow,
 heavy ones). Units: mm, rpm, mm/min, mm³/min, N, W. --format fusion|freecad prints the values under the
-names of those CAM dialogs (metric); the ramp feed is the feed of a full-width helical ramp at 2°."""
+names of those CAM dialogs (metric).
+
+example:
+  millpost recommend --diameter 6 --flutes 3 --material al6061 --machine vmc-small --strategy adaptive --format fusion"""
 
 KEYS = ("ap_mm", "ae_mm", "rpm", "fz_mm", "feed_mm_min", "mrr_mm3_min", "deflection_mm", "power_W")
 
@@ -41,7 +55,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_tool_arguments(p)
     p.add_argument("--material", required=True, metavar="NAME|FILE", help="built-in material or material .toml")
     p.add_argument("--machine", required=True, metavar="NAME|FILE", help="built-in machine or machine .toml")
-    p.add_argument("--model", choices=("mechanistic", "kienzle"), default="mechanistic", help="force model")
+    p.add_argument("--model", choices=sorted(plugins("force_models")), default="mechanistic", help="force model")
+    p.add_argument("--strategy", choices=(*STRATEGIES, "any"), default="adaptive",
+                   help="roughing strategy whose rules the cut keeps (default adaptive; any: physics only)")
     lim = p.add_argument_group("limits")
     lim.add_argument("--max-deflection", type=float, default=0.025, metavar="MM", help="tool deflection (mm)")
     lim.add_argument("--feed-min", type=float, default=0.0, metavar="MM_MIN", help="slowest traversal rate")
@@ -78,11 +94,11 @@ def cam_values(rec: Recommendation, fmt: str, diameter_mm: float) -> dict[str, t
     if fmt == "fusion":
         return {"Spindle speed": (rec.rpm, "rpm"), "Surface speed": (rec.vc_m_min, "m/min"),
                 "Cutting feedrate": (rec.feed_mm_min, "mm/min"), "Feed per tooth": (rec.fz_mm, "mm"),
-                "Ramp feedrate": (rec.ramp_feed_mm_min, "mm/min"), "Plunge feedrate": (rec.ramp_feed_mm_min, "mm/min"),
+                "Ramp feedrate": (rec.ramp_feed_mm_min, "mm/min"), "Plunge feedrate": (rec.plunge_feed_mm_min, "mm/min"),
                 "Maximum roughing stepdown": (rec.ap_mm, "mm"), "Optimal load": (rec.ae_mm, "mm"),
                 "Maximum stepover": (rec.ae_mm, "mm")}
     return {"Spindle speed": (rec.rpm, "rpm"), "Horizontal feed": (rec.feed_mm_min, "mm/min"),
-            "Vertical feed": (rec.ramp_feed_mm_min, "mm/min"), "Step down": (rec.ap_mm, "mm"),
+            "Vertical feed": (rec.plunge_feed_mm_min, "mm/min"), "Step down": (rec.ap_mm, "mm"),
             "Step over": (100.0 * rec.ae_mm / diameter_mm, "%")}
 
 
@@ -111,9 +127,16 @@ def run(args: argparse.Namespace) -> int:
     tool = tool_from_args(args)
     material, machine = Material.load(args.material), Machine.load(args.machine)
     limits = limits_from_args(args)
-    rec = recommend(tool, material, machine, limits, model=args.model, ae_mm=args.ae, ap_mm=args.ap, rpm=args.rpm)
+    if args.plot and not args.sweep:
+        raise ConfigError("plot", args.plot, "needs --sweep (the plot is removal rate against ae over the sweep)")
+    strategy = None if args.strategy == "any" else args.strategy
+    with Bars() as bars:
+        with stage(bars, "search"):
+            rec = recommend(tool, material, machine, limits, model=args.model, ae_mm=args.ae, ap_mm=args.ap,
+                            rpm=args.rpm, strategy=strategy)
+        recs = sweep_ae(tool, material, machine, limits, model=args.model, strategy=strategy,
+                        progress=bars) if args.sweep else []
     if args.sweep:
-        recs = sweep_ae(tool, material, machine, limits, model=args.model)
         if args.plot:
             _write_plot(args.plot, recs, rec, f"D{tool.diameter_mm:g} {tool.flutes}FL, {material.name}, {machine.name}")
         if args.json:
@@ -136,10 +159,18 @@ def run(args: argparse.Namespace) -> int:
         return 0
     out = sys.stdout
     for key in ("ap_mm", "ae_mm", "rpm", "vc_m_min", "fz_mm", "h_max_mm", "chip_target_mm", "feed_mm_min",
-                "ramp_feed_mm_min", "mrr_mm3_min", "F_peak_N", "deflection_mm", "break_ratio", "torque_Nm", "power_W"):
+                "ramp_feed_mm_min", "plunge_feed_mm_min", "mrr_mm3_min", "F_peak_N", "deflection_mm", "break_ratio", "torque_Nm", "power_W"):
         out.write(f"{key:>18}  {getattr(rec, key):.6g}\n")
     out.write(f"{'binding':>18}  {', '.join(rec.binding) or 'none'}\n")
+    if rec.strategy:
+        r, d = material.strategies, tool.diameter_mm
+        lo, hi = r.ae_range_D(rec.strategy)
+        depth = f", ap ≤ {r.ap_max_D(rec.strategy):g} D" if r.ap_max_D(rec.strategy) is not None else ""
+        out.write(f"{'strategy':>18}  {rec.strategy}: ae {lo:g}–{hi:g} D ({lo * d:.3g}–{hi * d:.3g} mm){depth}; "
+                  f"ramp ≤ {r.ramp_angle_deg:g}° at ≤ {r.ramp_feed_ratio:g} × feed; plunge f_z ≤ "
+                  f"{r.plunge_fz_ratio:g} × chip target (sources: {material.name} material file)\n")
     if rec.ramp_feed_mm_min == 0:
-        out.write(f"{'note':>18}  no full-width 2° helical ramp keeps the limits: ramp shallower or pre-drill\n")
+        out.write(f"{'note':>18}  no full-width {material.strategies.ramp_angle_deg:g}° ramp keeps the limits: "
+                  "ramp shallower or pre-drill\n")
     out.write(f"{'limit ratios':>18}  " + ", ".join(f"{k} {v:.2f}" for k, v in sorted(rec.ratios.items())) + "\n")
     return 0

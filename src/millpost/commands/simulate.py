@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import ConfigError, MillpostError
 from ..files import atomic_path, write_csv
+from ..progress import Bars
 
 TRACE_COLUMNS = ("sample", "s_mm", "x_mm", "y_mm", "z_mm", "move", "line", "kind", "tool", "feed_mm_min",
                  "volume_mm3", "area_mm2", "ap_mm", "ae_mm", "phi_st_deg", "phi_ex_deg", "engaged_deg", "descending")
@@ -25,7 +26,8 @@ TRACE_FORMATS = {"sample": "%d", "move": "%d", "line": "%d", "kind": "%d", "tool
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("simulate", help="engagement of the tools along a program through the stock",
-                              description=__doc__)
+                              description=__doc__, epilog="example:\n  millpost simulate sample_jobs/slotting "
+                                                          "--trace slotting.csv --stock-stl slotting.stl")
     p.add_argument("target", metavar="JOB|PROGRAM", help="job folder or job.toml, or a G-code file")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--stock-box", metavar="X0,Y0,Z0,X1,Y1,Z1", help="block stock corners (mm; PROGRAM only)")
@@ -122,10 +124,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("step", args.step, "must be > 0 mm")
     t0 = time.perf_counter()
     program_path, stock, tools, step, dialect = _inputs(args)
-    program = read_program(program_path, ReaderOptions(dialect=dialect))
+    diameters = {n: t.diameter_mm for n, t in tools.items()} if isinstance(tools, dict) else {}  # for G41/G42
+    program = read_program(program_path, ReaderOptions(dialect=dialect, tool_diameters_mm=diameters))
     v0 = stock.volume_mm3()
     samples = program.toolpath.resample(step)
-    eng = simulate(stock, tools, samples, slices=args.slices)
+    with Bars() as bars:
+        eng = simulate(stock, tools, samples, slices=args.slices, progress=bars)
     write_trace(args.trace, samples, eng)
     if args.stock_stl:
         stock.export_stl(args.stock_stl)

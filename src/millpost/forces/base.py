@@ -121,6 +121,15 @@ def clipped_arcs(engagement: Engagement) -> tuple[np.ndarray, np.ndarray, np.nda
     return st, ex, b
 
 
+def tool_arrays(tool, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(flutes, radius_mm), each (N,), of one Tool for all samples or a sequence of N Tools (one per
+    sample: a fit over cuts with several tools)."""
+    tools = [tool] * n if isinstance(tool, Tool) else list(tool)
+    if len(tools) != n:
+        raise MillpostError(f"one tool per sample needed: {len(tools)} tools for {n} samples")
+    return (np.array([t.flutes for t in tools], float), np.array([t.radius_mm for t in tools], float))
+
+
 def rpm_array(rpm, n: int) -> np.ndarray:
     r = np.broadcast_to(np.asarray(rpm, float), (n,)).astype(float)
     if np.any(r <= 0):

@@ -12,6 +12,8 @@ force vector also bounds its norm.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.special import beta as beta_fn
@@ -21,7 +23,7 @@ from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
 from .base import (LinearLoads, Loads, Measurements, NotFittedError, assemble_loads, clipped_arcs, rpm_array,
-                   to_machine)
+                   to_machine, tool_arrays)
 from .timedomain import simulate
 
 # Medians of K_rc/K_tc and K_ac/K_tc over the aluminium rows of PHYSICS.md §1.6 (CJME 2021 Table 5).
@@ -42,9 +44,10 @@ def sin_power_integral(q: float, a, b) -> np.ndarray:
     return F(b) - F(a)
 
 
-def power_law_coefficients(engagement: Engagement, flutes: int, mc: float, radial_ratio: float,
+def power_law_coefficients(engagement: Engagement, flutes, mc: float, radial_ratio: float,
                            axial_ratio: float) -> np.ndarray:
-    """Q: (N, 4) with [F̄_x, F̄_y, F̄_z (feed frame, N), T̄ (N·mm)] = k_c1.1 · Q · f_z^(1−m_c)."""
+    """Q: (N, 4) with [F̄_x, F̄_y, F̄_z (feed frame, N), T̄ (N·mm)] = k_c1.1 · Q · f_z^(1−m_c).
+    flutes: one number, or one per sample."""
     p = 1.0 - mc
     st, ex, b = clipped_arcs(engagement)
     s, c = np.sin(engagement.kappa), np.cos(engagement.kappa)
@@ -52,7 +55,7 @@ def power_law_coefficients(engagement: Engagement, flutes: int, mc: float, radia
     s_p1 = sin_power_integral(p + 1, st, ex)
     c_p = (np.sin(ex) ** (p + 1) - np.sin(st) ** (p + 1)) / (p + 1)   # ∫ sin^p φ cos φ
     rad = s * radial_ratio + c * axial_ratio
-    w = flutes / (2 * np.pi) * b * np.power(s, p)
+    w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b * np.power(s, p)
     Q = np.stack([-c_p - rad * s_p1, s_p1 - rad * c_p, (s * axial_ratio - c * radial_ratio) * s_p,
                   engagement.r_mm * s_p], -1)
     return (w[..., None] * Q).sum(1)
@@ -76,6 +79,13 @@ class Kienzle:
         model.coef_ = np.array([kc11, mc], float)
         model.coef_cov_ = np.zeros((2, 2))
         return model
+
+    @classmethod
+    def from_material(cls, material, **settings) -> "Kienzle":
+        """The material's published Kienzle set (k_c1.1, m_c and the F_r/F_t, F_a/F_t ratios)."""
+        k = material.kienzle
+        return cls.from_coefficients(k.kc11_N_mm2, k.mc, radial_ratio=k.radial_ratio, axial_ratio=k.axial_ratio,
+                                     **settings)
 
     def _coef(self) -> np.ndarray:
         if not hasattr(self, "coef_"):
@@ -128,8 +138,9 @@ class Kienzle:
             torque_a=T * slope, torque_b=T * icpt, power_a=T * slope * omega, power_b=T * icpt * omega,
             exact=False, feed_ref_mm_min=f0 / per_feed)
 
-    def fit(self, engagement: Engagement, measured: Measurements, tool: Tool) -> "Kienzle":
-        """k_c1.1 and m_c by least squares in log space on cutting power and/or |F̄_xy|.
+    def fit(self, engagement: Engagement, measured: Measurements, tool: Tool | Sequence[Tool]) -> "Kienzle":
+        """k_c1.1 and m_c by least squares in log space on cutting power and/or |F̄_xy| (`tool`: the tool of
+        every sample, or one per sample).
 
         log L = log k_c1.1 + p log f_z + log Q(m_c): linear in log k_c1.1 and nearly linear in m_c
         (Gauss–Newton from m_c = 0.25). Covariance s²(JᵀJ)⁻¹ (relative noise is constant in log space),
@@ -138,6 +149,7 @@ class Kienzle:
         n = len(engagement)
         fz = np.broadcast_to(np.asarray(measured.fz_mm, float), (n,)).astype(float)
         omega = 2 * np.pi * rpm_array(measured.rpm, n) / 60.0
+        flutes, _ = tool_arrays(tool, n)
         targets = []
         if measured.power_W is not None:
             targets.append(("power", np.broadcast_to(np.asarray(measured.power_W, float), (n,))))
@@ -153,7 +165,7 @@ class Kienzle:
 
         def model_log(theta):
             log_kc, mc = theta
-            Q = power_law_coefficients(engagement, tool.flutes, mc, self.radial_ratio, self.axial_ratio)
+            Q = power_law_coefficients(engagement, flutes, mc, self.radial_ratio, self.axial_ratio)
             base = np.log(fz) * (1 - mc) + log_kc
             out = []
             for (kind, _), m in zip(targets, masks):

@@ -10,21 +10,24 @@ to any engagement).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..engagement import Engagement
 from ..errors import MillpostError
 from ..tools.cutter import Tool
 from .base import (LinearLoads, Loads, Measurements, NotFittedError, assemble_loads, clipped_arcs, rpm_array,
-                   to_feed, to_machine)
+                   to_feed, to_machine, tool_arrays)
 from .timedomain import simulate
 
 COEF_NAMES = ("Ktc", "Krc", "Kac", "Kte", "Kre", "Kae")
 
 
-def regressors(engagement: Engagement, flutes: int) -> tuple[np.ndarray, np.ndarray]:
+def regressors(engagement: Engagement, flutes) -> tuple[np.ndarray, np.ndarray]:
     """G, E: (N, 4, 3) so that [F̄_x, F̄_y, F̄_z, T̄] (feed frame; N, N, N, N·mm) =
-    f_z·G @ (K_tc, K_rc, K_ac) + E @ (K_te, K_re, K_ae)  (closed-form integrals, PHYSICS.md §1.3)."""
+    f_z·G @ (K_tc, K_rc, K_ac) + E @ (K_te, K_re, K_ae)  (closed-form integrals, PHYSICS.md §1.3).
+    flutes: one number, or one per sample."""
     st, ex, b = clipped_arcs(engagement)
     s, c = np.sin(engagement.kappa), np.cos(engagement.kappa)
     r = engagement.r_mm
@@ -34,7 +37,7 @@ def regressors(engagement: Engagement, flutes: int) -> tuple[np.ndarray, np.ndar
     i_c = d(np.sin)                                  # ∫ cos φ
     i_s = d(lambda p: -np.cos(p))                    # ∫ sin φ
     i_1 = ex - st
-    w = flutes / (2 * np.pi) * b
+    w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b
     zero = np.zeros_like(w)
     G = np.stack([
         np.stack([-s * i_sc, -s * s * i_ss, -c * s * i_ss], -1),
@@ -74,6 +77,21 @@ class Mechanistic:
         model.coef_ = np.array([Ktc, Krc, Kac, Kte, Kre, Kae], float)
         model.coef_cov_ = np.zeros((6, 6))
         return model
+
+    @classmethod
+    def from_material(cls, material, *, h0_mm: float = 0.05, **settings) -> "Mechanistic":
+        """The material's published mechanistic set when it has one; otherwise the tangent of its Kienzle
+        law at chip thickness h0 (mm): K_tc = (1 − m_c) k_c1.1 h0^(−m_c), K_te = m_c k_c1.1 h0^(1−m_c),
+        radial and axial terms by the Kienzle ratios (the tangent bounds the Kienzle force from above)."""
+        if material.mechanistic is not None:
+            return cls.from_coefficients(*material.mechanistic.values(), **settings)
+        if h0_mm <= 0:
+            raise MillpostError(f"h0_mm must be > 0 mm, got {h0_mm}")
+        k = material.kienzle
+        ktc = (1 - k.mc) * k.kc11_N_mm2 * h0_mm ** (-k.mc)
+        kte = k.mc * k.kc11_N_mm2 * h0_mm ** (1 - k.mc)
+        return cls.from_coefficients(ktc, k.radial_ratio * ktc, k.axial_ratio * ktc,
+                                     kte, k.radial_ratio * kte, k.axial_ratio * kte, **settings)
 
     @property
     def coefficients(self) -> dict[str, float]:
@@ -127,8 +145,9 @@ class Mechanistic:
             exact=True, feed_ref_mm_min=None)
 
     # --- identification -------------------------------------------------------------------------
-    def fit(self, engagement: Engagement, measured: Measurements, tool: Tool) -> "Mechanistic":
-        """Least-squares coefficients from measured average forces and/or cutting power per sample.
+    def fit(self, engagement: Engagement, measured: Measurements, tool: Tool | Sequence[Tool]) -> "Mechanistic":
+        """Least-squares coefficients from measured average forces and/or cutting power per sample
+        (`tool`: the tool of every sample, or one per sample for cuts with several tools).
 
         Rows: the three feed-frame force components (measured machine-XYZ forces rotated by the feed
         direction) and the power as an equivalent tangential force P/(ω R). Measurement noise is taken
@@ -141,7 +160,8 @@ class Mechanistic:
         n = len(engagement)
         fz = np.broadcast_to(np.asarray(measured.fz_mm, float), (n,)).astype(float)
         omega = 2 * np.pi * rpm_array(measured.rpm, n) / 60.0
-        G, E = regressors(engagement, tool.flutes)
+        flutes, radius = tool_arrays(tool, n)
+        G, E = regressors(engagement, flutes)
         X_all = np.concatenate([fz[:, None, None] * G, E], axis=2)  # (N, 4, 6)
         rows, ys = [], []
         if measured.force_N is not None:
@@ -152,8 +172,8 @@ class Mechanistic:
         if measured.power_W is not None:
             p = np.broadcast_to(np.asarray(measured.power_W, float), (n,))
             ok = np.isfinite(p)
-            rows.append(X_all[ok, 3] / tool.radius_mm)                 # T̄/R (N)
-            ys.append(p[ok] * 1000.0 / (omega[ok] * tool.radius_mm))    # P/(ω R) (N)
+            rows.append(X_all[ok, 3] / radius[ok, None])                 # T̄/R (N)
+            ys.append(p[ok] * 1000.0 / (omega[ok] * radius[ok]))          # P/(ω R) (N)
         if not rows or sum(len(y) for y in ys) == 0:
             raise MillpostError("fit needs measured forces or power")
         X, y = np.concatenate(rows), np.concatenate(ys)

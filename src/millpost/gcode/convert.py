@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from ..errors import MillpostError
 from ..toolpath import ARC_CW, PLANE_AXES, RAPID
 from .dialects import Dialect
 from .interpret import INCH, Program
@@ -24,6 +25,11 @@ _WCS = {1: "G54", 2: "G55", 3: "G56", 4: "G57", 5: "G58", 6: "G59", 7: "G59.1", 
 def convert(program: Program, dialect: Dialect) -> str:
     """The program as `dialect` writes it. Geometry is unchanged to the target's number precision."""
     tp = program.toolpath
+    if program.compensated.any():  # the moves are tool-centre paths: re-posting would drop the machine's offset
+        line = int(tp.line[np.flatnonzero(program.compensated)[0]])
+        raise MillpostError(f"{program.path}:{line}: cutter radius compensation (G41/G42) cannot be re-posted: "
+                            "convert writes the interpreted tool-centre path, which would bypass the machine's "
+                            "tool diameter and wear offsets; convert the program without compensation")
     out: list[str] = []
     seq = [0]
 

@@ -18,8 +18,10 @@ import numpy as np
 
 from ..errors import ParseError
 from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
+from .cutter_comp import LEFT, RIGHT, CompensationError, CutterComp
 from .flow import MAX_REPEATED_LINES, Flow, Source, control_of
 from .lexer import LENGTH_LIMIT, NUMBER_LIMIT, Block, Word, lex_line
+from .tool_table import read_tool_table
 
 INCH = 25.4
 # G codes as integers: round(value * 10)
@@ -29,7 +31,7 @@ _MODAL_GROUPS = {
     **{g: "motion" for g in _MOTION | {800}},
     170: "plane", 180: "plane", 190: "plane", 200: "units", 210: "units", 900: "distance", 910: "distance",
     901: "arc distance", 911: "arc distance", 930: "feed mode", 940: "feed mode", 950: "feed mode",
-    400: "cutter comp", 430: "tool length", 431: "tool length",
+    **{g: "cutter comp" for g in (400, 410, 420, 411, 421)}, 430: "tool length", 431: "tool length",
     432: "tool length", 490: "tool length", 980: "retract", 990: "retract",
     **{g: "coordinate system" for g in (540, 550, 560, 570, 580, 590, 591, 592, 593)},
     610: "path", 611: "path", 640: "path", 40: "non-modal", 100: "non-modal", 280: "non-modal",
@@ -41,9 +43,7 @@ _UNSUPPORTED_G = {
     80: "lathe radius mode (G8)", 120: "circular pocket (G12)", 130: "circular pocket (G13)",
     150: "polar coordinates (G15)", 160: "polar coordinates (G16)", 310: "skip function (G31)",
     330: "spindle-synchronised motion (G33)", 331: "rigid tapping (G33.1)", 382: "probing (G38.2)",
-    383: "probing (G38.3)", 384: "probing (G38.4)", 385: "probing (G38.5)", 410: "cutter radius compensation (G41)",
-    420: "cutter radius compensation (G42)", 411: "dynamic cutter compensation (G41.1)",
-    421: "dynamic cutter compensation (G42.1)", 434: "5-axis tool centre point (G43.4)",
+    383: "probing (G38.3)", 384: "probing (G38.4)", 385: "probing (G38.5)", 434: "5-axis tool centre point (G43.4)",
     435: "5-axis tool centre point (G43.5)", 500: "scaling (G50)", 510: "scaling (G51)", 501: "mirroring (G50.1)",
     511: "mirroring (G51.1)", 650: "macro call (G65)", 680: "coordinate rotation (G68)",
     682: "5-axis tilted work plane (G68.2)", 700: "lathe cycle (G70)", 710: "lathe cycle (G71)", 720: "lathe cycle (G72)",
@@ -83,6 +83,8 @@ class ReaderOptions:
     Haas's ``G53 G0 Z0.``) goes to `safe_z_mm` in the program frame — by default the highest Z the
     program reaches — and the assumption is reported in `Program.notes`.
     tool_lengths_mm: tool lengths by H number for G43 (unknown: 0, so Z is the tool tip).
+    tool_diameters_mm: tool diameters by tool number for cutter compensation (G41/G42 D); a program that
+    compensates with a tool whose diameter is not given is refused.
     dialect: name of the controller dialect (None: detect from the text).
     block_delete: when True, lines starting with '/' are skipped (switch on); default off, as LinuxCNC.
     """
@@ -92,9 +94,18 @@ class ReaderOptions:
     work_offsets_mm: dict[int, tuple[float, float, float]] = field(default_factory=dict)
     machine_frame_known: bool = False
     tool_lengths_mm: dict[int, float] = field(default_factory=dict)
+    tool_diameters_mm: dict[int, float] = field(default_factory=dict)
     safe_z_mm: float | None = None
     dialect: str | None = None
     block_delete: bool = False
+
+    def use_tool_table(self, path, units: str = "mm") -> "ReaderOptions":
+        """Tool lengths (G43) and diameters (G41/G42) from a LinuxCNC tool table file in `units`. Lathe
+        tools (a nose orientation 1..8) are left out of the diameters: compensating with one is refused."""
+        table = read_tool_table(path, units)
+        self.tool_lengths_mm = table.lengths_mm
+        self.tool_diameters_mm = {n: d for n, d in table.diameters_mm.items() if table.orientation[n] in (0, 9)}
+        return self
 
     @classmethod
     def linuxcnc(cls) -> "ReaderOptions":
@@ -119,7 +130,7 @@ class Program:
 
     units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
     when it ran (for writing it back): move_inch (G20), feed_mode (93/94/95), incremental (G91),
-    arc_absolute (G90.1).
+    arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool centre, not the programmed path).
     notes: assumptions made (unknown home, rotary axes at zero, ...), each naming its line.
     """
 
@@ -136,6 +147,7 @@ class Program:
     events: list[Event]
     notes: list[str]
     dwell_s: float
+    compensated: np.ndarray  # per move: offset by cutter compensation (its end is not the programmed point)
     control_flow: bool = False  # O-word subroutines or loops: a line may run several times
 
     @property
@@ -234,6 +246,7 @@ class Interpreter:
         self.safe_z_pending = False
         self.control_flow = False  # O-word control flow ran: lines may run more than once
         self.subprogram: tuple[str, str, int] | None = None  # M98/M99 of the block being executed
+        self.comp = CutterComp(self.record, self.m.__len__)
 
     # --- helpers ----------------------------------------------------------------------------
     def err(self, msg: str, block: Block, word: Word | None, expected: str) -> ParseError:
@@ -242,7 +255,7 @@ class Interpreter:
                           word=word.text if word is not None else "", expected=expected)
 
     def event(self, line: int, kind: str, value: object = None) -> None:
-        self.events.append(Event(line, kind, value, len(self.m)))
+        self.events.append(Event(line, kind, value, len(self.m) + self.comp.pending))
 
     def pending_scale(self, b: Block) -> float:
         """mm per unit for words of this block: a G20/G21 in the same block applies first."""
@@ -260,7 +273,10 @@ class Interpreter:
         if self.tool < 0 and self.selected >= 0:  # no M6 yet: the selected tool is the one in the spindle
             self.tool = self.selected
             self.notes.append(f"line {block.line}: T{self.selected} selected without M6: taken as loaded")
-        self.record(kind, self.pos.tolist(), end, center, turns, feed_mm_min, block.line)
+        if self.comp.active:
+            self.comp.move(kind, self.pos, end, center, turns, feed_mm_min, block.line, self.modal())
+        else:
+            self.record(kind, self.pos.tolist(), end, center, turns, feed_mm_min, block.line)
         self.pos = np.array(end, float)
 
     def feed_rate(self, block: Block, length_mm: float) -> float:
@@ -333,7 +349,10 @@ class Interpreter:
                 continue
             if block.words or block.assigns:
                 self.blocks += 1
-                self.execute(block)
+                try:
+                    self.execute(block)
+                except CompensationError as e:
+                    raise self.comp_error(e, block) from None
                 self.block_index += 1
                 if self.subprogram is not None:  # M98 / M99, after the rest of the block
                     kind, label, repeats = self.subprogram
@@ -351,18 +370,24 @@ class Interpreter:
             for key, value in block.assigns:
                 self.params[key] = value
 
-    def record(self, kind: int, start, end, center, turns: int, feed_mm_min: float, line: int) -> None:
-        """Append one move with the modal state it ran in."""
+    def modal(self) -> tuple:
+        """The modal state a move records: rpm, plane, tool, block, inch, feed mode, G91, G90.1."""
+        return (self.s if self.spindle_on else 0.0, self.plane, self.tool, self.block_index, self.scale != 1.0,
+                self.feed_mode, not self.absolute, self.arc_absolute)
+
+    def record(self, kind: int, start, end, center, turns: int, feed_mm_min: float, line: int,
+               modal: tuple | None = None) -> None:
+        """Append one move with the modal state it ran in (now, or `modal` when it was held back)."""
+        rpm, plane, tool, block, inch, feed_mode, incremental, arc_absolute = modal or self.modal()
         self.m.f.extend((start[0], start[1], start[2], end[0], end[1], end[2], center[0], center[1], center[2],
-                         feed_mm_min, self.s if self.spindle_on else 0.0))
-        self.m.i.extend((kind, self.plane, turns, self.tool, line, self.block_index, self.scale != 1.0,
-                         self.feed_mode, not self.absolute, self.arc_absolute))
+                         feed_mm_min, rpm))
+        self.m.i.extend((kind, plane, turns, tool, line, block, inch, feed_mode, incremental, arc_absolute))
 
     def fast_line(self, raw: str, line_no: int) -> bool:
         """The common block of CAM output — an optional G0/G1 then X/Y/Z/F words — without building
         words or touching numpy. Returns False (the general path runs) for anything else."""
         m = _FAST.fullmatch(raw)
-        if m is None or self.feed_mode != 940:
+        if m is None or self.feed_mode != 940 or self.comp.active:
             return False
         g = m.group(1)
         motion = self.motion if g is None else (0 if g == "0" else 10)
@@ -489,6 +514,7 @@ class Interpreter:
                 raise self.err("tool number must be a non-negative integer", b, val["T"], "T followed by an integer")
             self.selected = int(val["T"].value)
         mset = {c for c, _ in mcodes}
+        self.comp.check("M", mset)
         for code, w in mcodes:
             if code == 98:  # Fanuc-style subprogram call, run after the rest of the block
                 p = val.get("P")
@@ -530,12 +556,16 @@ class Interpreter:
         # plane, units
         for code, plane in ((170, 0), (180, 1), (190, 2)):
             if code in gset:
+                self.comp.check_plane(plane)
                 self.plane = plane
         for code, scale, name in ((200, INCH, "inch"), (210, 1.0, "mm")):
             if code in gset:
                 self.scale = scale
                 if name not in self.units_seen:
                     self.units_seen.append(name)
+        if gset & {400, 410, 420, 411, 421}:
+            self.cutter_comp(gset, b, val)
+        self.comp.check("G", gset)
         if gset & {430, 431, 432, 490}:
             self.tool_length(gset, b, val)
         # coordinate system
@@ -596,8 +626,10 @@ class Interpreter:
         # stops
         for code, w in mcodes:
             if code in (0, 1, 60):
+                self.comp.stop(end_program=False)
                 self.event(b.line, "stop", code)
             elif code in (2, 30):
+                self.comp.stop(end_program=True)
                 self.event(b.line, "end", code)
                 self.ended = True
 
@@ -652,6 +684,44 @@ class Interpreter:
         if L == "D":
             return comp
         return not mset.isdisjoint((66, 67, 68))  # E
+
+    def cutter_comp(self, gset: set, b: Block, val: dict) -> None:
+        """G40 off. G41/G42 (left/right) D<tool number>, no D or D0: the tool in the spindle, its diameter
+        from `ReaderOptions.tool_diameters_mm`; G41.1/G42.1 D<diameter in program units>."""
+        if 400 in gset:
+            self.comp.off()
+            return
+        code = next(c for c in (410, 420, 411, 421) if c in gset)
+        name, d = f"G{code / 10:g}", val.pop("D", None)
+        if code in (411, 421):
+            if d is None:
+                g = next(w for w in b.words if w.letter == "G" and round(w.value * 10) == code)
+                raise self.err(f"{name} with no D word", b, g, f"{name} D<tool diameter>")
+            if "L" in val:
+                raise self.err(f"{name} L (lathe tool orientation) is not supported", b, val["L"], f"{name} D alone")
+            diameter = d.value * self.scale
+        else:
+            if d is not None and (d.value < 0 or abs(d.value - round(d.value)) >= 1e-4):
+                raise self.err(f"{name} requires D word to be a whole number", b, d, "D<tool number>")
+            tool = int(round(d.value)) if d is not None else 0
+            tool = tool or (self.tool if self.tool >= 0 else self.selected)  # D0 or none: the spindle's
+            if tool < 0:  # LinuxCNC: an empty spindle has diameter 0
+                diameter = 0.0
+                self.notes.append(f"line {b.line}: {name} with no tool loaded: radius 0, no offset (as LinuxCNC)")
+            elif tool in self.opt.tool_diameters_mm:
+                diameter = self.opt.tool_diameters_mm[tool]
+            else:
+                raise self.err(f"{name} needs the diameter of tool {tool}, which is not given", b, d,
+                               f"tool {tool} in the job's tools or the tool table (its diameter)")
+        self.comp.on(LEFT if code in (410, 411) else RIGHT, diameter / 2, self.plane)
+
+    def comp_error(self, e: CompensationError, b: Block) -> ParseError:
+        """A compensation refusal at the word it is about (else the block's first axis or motion word)."""
+        def about(w: Word) -> bool:
+            return w.letter == e.letter and (e.code is None or abs(w.value - e.code) < 1e-6)
+        word = (next((w for w in b.words if about(w)), None) or next((w for w in b.words if w.letter in _AXES), None)
+                or next((w for w in b.words if w.letter == "G"), None))
+        return self.err(e.message, b, word, e.expected)
 
     def tool_length(self, gset: set, b: Block, val: dict) -> None:
         """G43 (H or current tool), G43.1 (dynamic Z/K), G43.2 (additional), G49 (cancel). Lengths come
@@ -744,6 +814,7 @@ class Interpreter:
                 idx = self.cs if p == 0 else p
                 if not 1 <= idx <= 9:
                     raise self.err("G10 P must select a coordinate system 0..9", b, val.get("P"), "P0..P9")
+                self.comp.check_offsets(idx, self.cs)
                 if "R" in val and val["R"].value != 0:
                     raise self.err("coordinate system rotation (G10 R) is not supported", b, val["R"], "R0 or no R")
 
@@ -904,6 +975,7 @@ class Interpreter:
     def canned_cycle(self, b: Block, val: dict, axis_words: dict) -> None:
         """Expand a drilling/boring/tapping cycle into moves the way LinuxCNC does."""
         code = self.motion
+        self.comp.check("G", (code,))
         a1, a2, an = PLANE_AXES[self.plane]
         an_letter = _AXES[an]
         cyc = self.cycle
@@ -1079,7 +1151,17 @@ class Interpreter:
 
     # --- result -----------------------------------------------------------------------------
     def finish(self, path: str, text: str) -> Program:
+        if self.comp.held or self.comp.side:
+            self.notes.append("program ends with cutter compensation on (no G40, M2 or M30): the last move ends at "
+                              "its offset end point (assumed)")
+            try:
+                self.comp.stop(end_program=True)
+            except CompensationError as e:
+                raise ParseError(e.message, file=self.file, line=max(self.comp.held[0].line, 1), column=1,
+                                 expected=e.expected) from None
         tp, ints = self.m.to_arrays()
+        compensated = np.zeros(len(tp), bool)
+        compensated[self.comp.moves] = True
         if self.safe_z_pending:
             z = np.concatenate([tp.start[:, 2], tp.end[:, 2]])
             finite = z[np.isfinite(z)]
@@ -1093,4 +1175,4 @@ class Interpreter:
             path=path, text=text, toolpath=tp, dialect=self.dialect, blocks=self.blocks,
             units=self.units_seen or ["mm"], move_inch=ints[:, 6].astype(bool), feed_mode=ints[:, 7].astype(np.int16),
             incremental=ints[:, 8].astype(bool), arc_absolute=ints[:, 9].astype(bool), events=self.events, notes=self.notes,
-            dwell_s=self.dwell_s, control_flow=self.control_flow)
+            dwell_s=self.dwell_s, compensated=compensated, control_flow=self.control_flow)

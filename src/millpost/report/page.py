@@ -1,0 +1,95 @@
+"""The report page: one HTML file with its figures inline (SVG) and no outside references, so it
+opens offline and can be mailed or archived as is."""
+
+from __future__ import annotations
+
+import html
+import os
+
+from ..files import write_atomic
+from . import figures
+from .data import ReportData, operation_times
+
+STYLE = """
+body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.15em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; } td, th { padding: 0.2em 0.7em; text-align: right; }
+td:first-child, th:first-child { text-align: left; } tr:nth-child(even) { background: #f4f4f4; }
+.headline { font-size: 1.1em; } figure { margin: 0.5em 0; } svg { max-width: 100%; height: auto; }
+.status-solved { color: #2ca02c; } .status-fallback_programmed_feeds { color: #d62728; }
+"""
+
+
+def headline(summary: dict) -> str:
+    """One line a machinist reads: status, cycle time programmed → optimized (change), the baseline,
+    and the limit that holds the feed most of the time."""
+    before, after = summary.get("cycle_time_before_s"), summary.get("cycle_time_after_s")
+    base = summary.get("cycle_time_baseline_s")
+    if before is None or after is None:
+        return "no optimize summary given: cycle times unknown"
+    text = f"{summary.get('status', '?')}: cycle time {before:.1f} s programmed → {after:.1f} s optimized"
+    if before > 0:
+        text += f" ({100 * (after / before - 1):+.0f} %)"
+    if base:
+        text += f"; one safe constant feed per tool: {base:.1f} s"
+    binding = summary.get("binding") or {}
+    if binding:
+        name, share = max(binding.items(), key=lambda kv: kv[1])
+        text += f"; feed held mostly by {name} ({100 * share:.0f} % of cutting time)"
+    return text
+
+
+def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
+    head = "".join(f"<th>{html.escape(title)}</th>" for _, title, _ in columns)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(format(r[key], fmt))}</td>" for key, _, fmt in columns)
+                   + "</tr>" for r in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def render(data: ReportData) -> str:
+    """The whole page as text."""
+    s = data.summary
+    rows = operation_times(data)
+    status = html.escape(str(s.get("status", "")))
+    parts = [f"<h1>millpost job report: {html.escape(data.title)}</h1>",
+             f'<p class="headline status-{status}">{html.escape(headline(s))}</p>']
+    if s.get("message"):
+        parts.append(f"<p>{html.escape(s['message'])}</p>")
+    binding = s.get("binding", {})
+    if binding:
+        parts.append("<p>What limits the feed (share of cutting time): " + html.escape(", ".join(
+            f"{k} {100 * v:.0f} %" for k, v in sorted(binding.items(), key=lambda kv: -kv[1]))) + "</p>")
+    parts += ["<h2>Cycle time per operation</h2>",
+              "<p>Feed moves only, rapids left out: at the programmed F, at the baseline F (per tool the highest "
+              "constant feed that exceeds no limit anywhere) and as the controller model executes the optimized "
+              "program (with its ramps). The headline's totals are the controller model's for the whole program.</p>",
+              _table(rows, [("operation", "operation", ""), ("tool", "tool", "d"), ("length_mm", "cut length (mm)", ".0f"),
+                            ("programmed_s", "programmed (s)", ".1f"), ("baseline_s", "baseline (s)", ".1f"),
+                            ("optimized_s", "optimized (s)", ".1f")]),
+              f"<figure>{figures.cycle_times(data)}</figure>",
+              "<h2>Feed along the path</h2><p>Programmed feed (grey) and the optimized feed as executed, coloured "
+              "by the limit that holds it.</p>", f"<figure>{figures.feed_along_path(data)}</figure>",
+              "<h2>Loads against their limits</h2><p>Along the path at the optimized feed; the last panel is each "
+              "limit's largest value over its bound on the whole program replayed (drive current included).</p>",
+              f"<figure>{figures.loads_vs_limits(data)}</figure>",
+              "<h2>Top view</h2><p>Cutting moves coloured by the optimized feed; crosses where it is slower than "
+              "programmed.</p>", f"<figure>{figures.top_view(data)}</figure>"]
+    if data.stock is not None:
+        parts += ["<h2>Final stock</h2>", f"<figure>{figures.stock_map(data)}</figure>"]
+    notes = list(s.get("notes", []))
+    if s.get("unavoidable_samples"):
+        notes.append("cuts too heavy at any feed (held at the programmed feed; reduce depth or width there): "
+                     + ", ".join(f"{k}: {v} samples" for k, v in s["unavoidable_samples"].items()))
+    if s.get("chip_floor_unmet_samples"):
+        notes.append(f"{s['chip_floor_unmet_samples']} samples cannot reach the material's minimum chip "
+                     "(the tool rubs there)")
+    parts.append("<h2>Notes</h2>" + ("<ul>" + "".join(f"<li>{html.escape(str(n))}</li>" for n in notes) + "</ul>"
+                                     if notes else "<p>none</p>"))
+    body = "\n".join(parts)
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>millpost: '
+            f"{html.escape(data.title)}</title><style>{STYLE}</style></head><body>\n{body}\n</body></html>\n")
+
+
+def write_report(path: str | os.PathLike, data: ReportData) -> None:
+    """Write the page atomically."""
+    write_atomic(path, render(data))

@@ -1,0 +1,198 @@
+"""The forward model: what the sensors of a machine running a program should read.
+
+Program + job + the speed the controller executes → per path sample, and on the controller's time base:
+
+- force on the tool F_tool (N, machine XYZ): the force model's mean over a tooth period at the feed per
+  tooth f_z = v / (flutes · n), rotated from the feed frame to machine axes; the force on the workpiece
+  (what a table dynamometer reads) is −F_tool;
+- spindle: cutting torque T_c and power P_c = T_c ω; the spindle's total power P_c + P_idle(n) and its
+  output current √(I₀² + (T/K_t)²), T = T_c + P_idle/ω, from the machine's spindle description;
+- each axis's motor current from the drive model (`Axis.demand`): inertia (moving mass, reflected rotor)
+  + Coulomb and viscous friction + the cutting force along the axis, at the axis velocity t·v and
+  acceleration t·a + κ·v² (t the path tangent, κ the curvature vector, a = v dv/ds). The feed axes move the
+  tool: the drive pushes against F_tool, so the cutting share is −F_tool along the axis;
+- deflection: the tool's lateral deflection at the load point (two-segment cantilever, `ToolBeam`) under
+  the in-plane mean force, and the machine's per axis F_tool / k_axis.
+
+Time: the controller model (`millpost.controller`) gives the instant the tool passes each sample; dwells
+(G4) are added where they run. Everything else the controller does (tool changes, spindle ramp-up) is
+not in the time base: `millpost.measure.align` finds the offset of a real log.
+
+Use `simulate(job)` for a whole job, or `predict(job, samples, eng, speed)` when the samples, their
+engagement and the executed speed are already at hand (optimize's replay check).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from . import controller, engagement
+from .engagement import Engagement
+from .errors import MillpostError
+from .gcode import read_program
+from .gcode.interpret import Program
+from .job import Job
+from .progress import Progress
+from .toolpath import RAPID, Samples
+from .tools.beam import ToolBeam
+
+
+@dataclass
+class Signals:
+    """Predicted signals per path sample (N samples). Units in the names; forces are means over a tooth
+    period. peak_force_xy_N is nan unless asked for (`peaks=True`: a time-domain run per sample)."""
+
+    t_s: np.ndarray               # (N,) time at which the tool passes the sample
+    s_mm: np.ndarray              # (N,) arc length
+    xyz_mm: np.ndarray            # (N, 3) tool tip, program frame
+    line: np.ndarray              # (N,) source line
+    move: np.ndarray              # (N,) toolpath move
+    tool: np.ndarray              # (N,) tool number
+    kind: np.ndarray              # (N,) RAPID/FEED/ARC_CW/ARC_CCW
+    speed_mm_s: np.ndarray        # (N,) executed path speed
+    rpm: np.ndarray               # (N,) spindle speed (0: off)
+    fz_mm: np.ndarray             # (N,) feed per tooth
+    ap_mm: np.ndarray             # (N,) axial depth of cut (0: not cutting)
+    ae_mm: np.ndarray             # (N,) radial width of cut
+    force_tool_N: np.ndarray      # (N, 3) on the tool, machine XYZ
+    peak_force_xy_N: np.ndarray   # (N,) largest in-plane |F| over a revolution
+    torque_Nm: np.ndarray         # (N,) cutting torque
+    cutting_power_W: np.ndarray   # (N,) cutting power T_c ω
+    spindle_power_W: np.ndarray   # (N,) cutting + no-load power
+    spindle_current_A: np.ndarray  # (N,) VFD output current (nan without the spindle's K_t)
+    axis_velocity_mm_s: np.ndarray  # (N, 3)
+    axis_accel_mm_s2: np.ndarray    # (N, 3)
+    axis_current_A: np.ndarray      # (N, 3) motor current of X, Y, Z
+    tool_deflection_mm: np.ndarray     # (N,) lateral, at the load point
+    machine_deflection_mm: np.ndarray  # (N, 3) per axis
+    engagement: Engagement | None = None  # the engagement the loads came from (for fits and discover)
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    @property
+    def force_workpiece_N(self) -> np.ndarray:
+        """(N, 3) force on the workpiece (what a table dynamometer reads): −F_tool."""
+        return -self.force_tool_N
+
+    def log_columns(self) -> dict[str, np.ndarray]:
+        """The predicted signals under the column names of the measurement log format
+        (`millpost.measure.log`): t_s, positions, line, spindle, workpiece force, axis currents."""
+        fw = self.force_workpiece_N
+        return {"t_s": self.t_s, "x_mm": self.xyz_mm[:, 0], "y_mm": self.xyz_mm[:, 1], "z_mm": self.xyz_mm[:, 2],
+                "line": self.line.astype(float), "spindle_rpm": self.rpm, "fx_N": fw[:, 0], "fy_N": fw[:, 1],
+                "fz_N": fw[:, 2], "spindle_power_W": self.spindle_power_W,
+                "spindle_current_A": self.spindle_current_A, "ix_A": self.axis_current_A[:, 0],
+                "iy_A": self.axis_current_A[:, 1], "iz_A": self.axis_current_A[:, 2]}
+
+    def select(self, index) -> "Signals":
+        """The samples at `index` (slice, mask or index array)."""
+        def pick(value):
+            return None if value is None else value.select(index) if isinstance(value, Engagement) else value[index]
+        return Signals(**{f.name: pick(getattr(self, f.name)) for f in fields(self)})
+
+    def sample_at(self, t_s) -> np.ndarray:
+        """Index of the sample the tool has last passed at each time (s; clipped to the program)."""
+        return np.clip(np.searchsorted(self.t_s, np.asarray(t_s, float), side="right") - 1, 0, len(self) - 1)
+
+
+def running_rpm(job: Job, programmed_rpm: np.ndarray) -> np.ndarray:
+    """The speed the spindle turns at (rpm): the programmed S clamped to the machine's range, 0 when off."""
+    sp = job.machine.spindle
+    r = np.asarray(programmed_rpm, float)
+    return np.where(r > 0, np.clip(r, sp.rpm_min, sp.rpm_max), 0.0)
+
+
+def controller_model(job: Job) -> controller.ControllerModel:
+    """The job machine's planner: axis rates and accelerations, junction deviation, block rate."""
+    ax = [job.machine.axes[a] for a in "xyz"]
+    return controller.ControllerModel(
+        max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
+        junction_deviation_mm=job.machine.controller.junction_deviation_mm,
+        block_rate_hz=job.machine.controller.block_rate_Hz)
+
+
+def time_base(program: Program, samples: Samples, execution: controller.Execution) -> np.ndarray:
+    """Time (s) at each sample: the controller's motion time plus the dwells that ran before it."""
+    t = execution.time_at_samples(samples)
+    dwells = sorted((e.move, float(e.value)) for e in program.events if e.kind == "dwell" and float(e.value) > 0)
+    if not dwells:
+        return t
+    at, secs = np.array(dwells).T
+    before = np.concatenate([[0.0], np.cumsum(secs)])   # dwell time run before move m: those with move ≤ m
+    return t + before[np.searchsorted(at, samples.move, side="right")]
+
+
+def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray, *, time_s: np.ndarray | None = None,
+            peaks: bool = False) -> Signals:
+    """Signals per sample at the executed path speed (mm/s, per sample). time_s: the time base (default:
+    the cumulative trapezoid time ds·2/(v₀ + v₁), for callers without a controller execution).
+    peaks: also the peak in-plane force per revolution (a time-domain run; slower)."""
+    n = len(samples)
+    v = np.asarray(speed_mm_s, float)
+    if v.shape != (n,):
+        raise MillpostError(f"predict needs one speed per sample ({n}), got shape {v.shape}")
+    m = job.machine
+    rpm = running_rpm(job, samples.rpm)
+    engaged = eng.ap_mm > 1e-9
+    if np.any(engaged & (rpm <= 0)):
+        k = int(np.flatnonzero(engaged & (rpm <= 0))[0])
+        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+    model = job.material.force_model(job.limits["model"])
+    force = np.zeros((n, 3))
+    torque, peak = np.zeros(n), np.full(n, np.nan)
+    fz = np.zeros(n)
+    tool_defl = np.zeros(n)
+    cutting = (samples.kind != RAPID) & engaged
+    for number in np.unique(samples.tool[cutting]):
+        tool = job.tools.get(int(number))
+        if tool is None:
+            line = int(samples.line[np.flatnonzero(cutting & (samples.tool == number))[0]])
+            raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
+        idx = np.flatnonzero(cutting & (samples.tool == number))
+        fz[idx] = v[idx] * 60.0 / (tool.flutes * rpm[idx])
+        loads = model.predict(eng.select(idx), fz[idx], rpm[idx], tool, peaks=peaks)
+        force[idx], torque[idx], peak[idx] = loads.force_N, loads.torque_Nm, loads.peak_force_xy_N
+        beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
+        tool_defl[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx]) * np.hypot(force[idx, 0], force[idx, 1])
+    omega = 2 * np.pi * rpm / 60.0
+    idle = m.spindle.idle_power_at_W(rpm)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shaft_torque = torque + np.where(omega > 0, idle / np.where(omega > 0, omega, 1.0), 0.0)
+    spindle_current = np.where(rpm > 0, m.spindle.current_A(shaft_torque), 0.0)
+    # axis kinematics along the path: a = v dv/ds = ½ d(v²)/ds (exact on a constant-acceleration ramp,
+    # where v² is linear in s), axis velocity t·v, acceleration t·a + κ·v²
+    a_path = 0.5 * np.gradient(v**2, samples.s_mm) if n > 1 else np.zeros(n)
+    vel = samples.tangent * v[:, None]
+    acc = samples.tangent * a_path[:, None] + samples.curvature * (v**2)[:, None]
+    current = np.zeros((n, 3))
+    for k, name in enumerate("xyz"):
+        current[:, k] = m.axes[name].demand(vel[:, k], acc[:, k], cut_force_N=-force[:, k]).current_A
+    if time_s is None:
+        dt = np.zeros(n)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dt[1:] = np.where(v[1:] + v[:-1] > 0, 2 * np.diff(samples.s_mm) / (v[1:] + v[:-1]), 0.0)
+        time_s = np.cumsum(dt)
+    return Signals(
+        t_s=np.asarray(time_s, float), s_mm=samples.s_mm, xyz_mm=samples.xyz_mm, line=samples.line,
+        move=samples.move, tool=samples.tool, kind=samples.kind, speed_mm_s=v, rpm=rpm, fz_mm=fz,
+        ap_mm=np.where(engaged, eng.ap_mm, 0.0), ae_mm=np.where(engaged, eng.ae_mm, 0.0), force_tool_N=force,
+        peak_force_xy_N=peak, torque_Nm=torque, cutting_power_W=torque * omega, spindle_power_W=torque * omega + idle,
+        spindle_current_A=spindle_current, axis_velocity_mm_s=vel, axis_accel_mm_s2=acc, axis_current_A=current,
+        tool_deflection_mm=tool_defl, machine_deflection_mm=m.deflection_mm(force), engagement=eng)
+
+
+def simulate(job: Job, feed_mm_min: np.ndarray | None = None, *, program: Program | None = None,
+             peaks: bool = False, progress: Progress | bool | None = None) -> Signals:
+    """The whole job: read the program, resample at the job's ds_mm, step the tools through the stock,
+    run the controller model (feed_mm_min overrides the programmed feed per move) and predict."""
+    program = program or read_program(job.program, job.reader_options())
+    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    if len(samples) == 0:
+        raise MillpostError(f"{job.program}: the program has no motion")
+    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
+    execution = controller.execute(program.toolpath, controller_model(job), feed_mm_min)
+    return predict(job, samples, eng, execution.speed_at_samples(samples),
+                   time_s=time_base(program, samples, execution), peaks=peaks)

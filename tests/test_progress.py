@@ -1,0 +1,89 @@
+"""Progress and messages: bars on a terminal (a pty) and none when piped or --quiet; the stages report
+through the callback in order; every verb's help has an example that parses; flags that need
+another are refused, not ignored."""
+
+from __future__ import annotations
+
+import os
+import pty
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from millpost.cli import build_parser, main
+from millpost.job import load_job
+from millpost.optimize import optimize
+
+ROOT = Path(__file__).resolve().parents[1]
+JOB = ROOT / "sample_jobs" / "slotting"
+ENV = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "COLUMNS": "120"}
+CMD = [sys.executable, "-m", "millpost.cli", "optimize", str(JOB)]
+
+
+def _on_pty(args: list[str]) -> str:
+    """Run a command with stdin/stdout/stderr on a pseudo-terminal; all it wrote."""
+    pid, fd = pty.fork()
+    if pid == 0:  # the child: exec the command on the terminal
+        os.execve(args[0], args, ENV)
+    out = bytearray()
+    while True:
+        try:
+            chunk = os.read(fd, 65536)
+        except OSError:  # EIO: the child closed the terminal
+            break
+        if not chunk:
+            break
+        out += chunk
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0, out.decode(errors="replace")[-2000:]
+    return out.decode(errors="replace")
+
+
+def test_progress_on_a_terminal_only(tmp_path):
+    shown = _on_pty(CMD + ["-o", str(tmp_path / "a.nc")])
+    for stage in ("read program", "engagement", "forces, schedule, emit"):
+        assert stage in shown
+    assert "\x1b[" in shown and "100%" in shown
+    assert re.search(r"millpost: solved: cycle time [\d.]+ s programmed → [\d.]+ s optimized", shown)
+    piped = subprocess.run(CMD + ["-o", str(tmp_path / "b.nc")], env=ENV, capture_output=True, text=True, check=True)
+    assert "engagement" not in piped.stderr and "\x1b[" not in piped.stderr
+    assert piped.stderr.count("\n") == 1 and piped.stderr.startswith("millpost: solved: cycle time")
+    quiet = _on_pty(CMD + ["-o", str(tmp_path / "c.nc"), "--quiet"])
+    assert quiet.strip() == ""
+    assert (tmp_path / "a.nc").read_text() == (tmp_path / "b.nc").read_text() == (tmp_path / "c.nc").read_text()
+
+
+def test_stages_report_through_the_callback():
+    calls = []
+    optimize(load_job(JOB), progress=lambda stage, done, total: calls.append((stage, done, total)))
+    order = list(dict.fromkeys(c[0] for c in calls))
+    assert [s for s in order if s != "compile kernels"] == ["read program", "stock", "engagement",
+                                                             "forces, schedule, emit"]
+    eng = [c for c in calls if c[0] == "engagement"]
+    assert eng[-1][1] == eng[-1][2] > 0 and all(a[1] <= b[1] for a, b in zip(eng, eng[1:]))
+    for stage in order:  # each stage ends finished
+        last = [c for c in calls if c[0] == stage][-1]
+        assert last[2] > 0 and last[1] >= last[2]
+
+
+def test_every_verb_has_an_example_that_parses():
+    parser = build_parser()
+    verbs = parser._subparsers._group_actions[0].choices
+    assert {"calc", "convert", "inspect", "optimize", "recommend", "report", "simulate"} <= set(verbs)
+    for name, sub in verbs.items():
+        text = sub.format_help()
+        assert "example:" in text, name
+        lines = [ln.split() for ln in text.split("example:")[1].strip().splitlines()]
+        assert lines[-1][:2] == ["millpost", name]
+        for words in lines:
+            assert parser.parse_args(words[1:]).command == words[1]
+
+
+def test_recommend_plot_needs_sweep(capsys, tmp_path):
+    code = main(["recommend", "--diameter", "6", "--flutes", "3", "--material", "al6061", "--machine",
+                 "vmc-small", "--plot", str(tmp_path / "p.png")])
+    assert code == 2 and "--sweep" in capsys.readouterr().err
+    assert not (tmp_path / "p.png").exists()
