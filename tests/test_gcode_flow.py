@@ -93,7 +93,7 @@ def test_flow_matches_linuxcnc(tmp_path):
 
 
 @pytest.mark.parametrize("text,reason", [
-    ("o1 while [1]\no1 endwhile\n", "lines executed"),
+    ("o1 while [1]\no1 endwhile\n", "lines again"),
     ("o5 call\nM2\n", "subroutine files are not supported"),
     ("o1 if [0]\nG0 X1\nM2\n", "not found before the end of the file"),
     ("o1 endwhile\n", "not open"),
@@ -101,7 +101,7 @@ def test_flow_matches_linuxcnc(tmp_path):
 ])
 def test_flow_errors_name_the_line(text, reason, monkeypatch):
     import millpost.gcode.interpret as interp
-    monkeypatch.setattr(interp, "MAX_EXECUTED_LINES", 10_000)
+    monkeypatch.setattr(interp, "MAX_REPEATED_LINES", 10_000)
     with pytest.raises(ParseError) as info:
         read_text(text, "bad.ngc", ReaderOptions.linuxcnc())
     assert reason in str(info.value) and info.value.line >= 1

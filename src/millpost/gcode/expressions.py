@@ -4,6 +4,8 @@ operators (``**``; ``* / MOD``; ``+ -``; ``EQ NE GT GE LT LE``; ``AND OR XOR``).
 
 `scan_line` reads a whole line that uses them: words with evaluated values, plus the parameter
 assignments, which take effect after the line (as in LinuxCNC: a line reads the old values).
+Every value is finite: a result that overflows or is undefined (``[1/0]``, ``[-8 ** 0.5]``,
+``[#1 * #1]`` beyond 1.8e308) is refused where it arises, as is nesting deeper than `MAX_DEPTH`.
 """
 
 from __future__ import annotations
@@ -20,6 +22,14 @@ _FUNCS: dict[str, Callable[[float], float]] = {
     "ROUND": lambda v: float(math.floor(v + 0.5)), "LN": math.log, "SIN": lambda v: math.sin(math.radians(v)),
     "SQRT": math.sqrt, "TAN": lambda v: math.tan(math.radians(v)),
 }
+
+
+def _power(a: float, b: float) -> float:
+    if a < 0 and b != int(b):  # (Python would return a complex number)
+        raise ValueError("a negative number to a fractional power")
+    return a ** b
+
+
 _BINOPS: list[dict[str, Callable[[float, float], float]]] = [  # lowest precedence first
     {"AND": lambda a, b: float(bool(a) and bool(b)), "OR": lambda a, b: float(bool(a) or bool(b)),
      "XOR": lambda a, b: float(bool(a) != bool(b))},
@@ -27,9 +37,12 @@ _BINOPS: list[dict[str, Callable[[float, float], float]]] = [  # lowest preceden
      "GE": lambda a, b: float(a >= b), "LT": lambda a, b: float(a < b), "LE": lambda a, b: float(a <= b)},
     {"+": lambda a, b: a + b, "-": lambda a, b: a - b},
     {"*": lambda a, b: a * b, "/": lambda a, b: a / b, "MOD": lambda a, b: math.fmod(a, b) if a * b >= 0 else a % b},
-    {"**": lambda a, b: a ** b},
+    {"**": _power},
 ]
+_LEVEL = {op: level for level, ops in enumerate(_BINOPS) for op in ops}  # precedence of each operator
+_WORD_OPERATORS = sorted((op for op in _LEVEL if op.isalpha()), key=len, reverse=True)
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
+MAX_DEPTH = 50  # brackets, unary signs and functions nested in one value
 
 
 class _Scanner:
@@ -38,6 +51,8 @@ class _Scanner:
     def __init__(self, text: str, line: int, file: str, params: dict) -> None:
         self.text, self.line, self.file, self.params = text, line, file, params
         self.pos = 0
+        self.depth = 0
+        self.upper = text.upper()
 
     def error(self, message: str, expected: str, at: int | None = None) -> ParseError:
         at = self.pos if at is None else at
@@ -48,12 +63,18 @@ class _Scanner:
         while self.pos < len(self.text) and self.text[self.pos] in " \t":
             self.pos += 1
 
-    def peek_word(self, options) -> str | None:
+    def operator(self) -> str | None:
+        """The binary operator at the cursor, if any (``**`` before ``*``)."""
         self.skip()
-        rest = self.text[self.pos:].upper()
-        for op in sorted(options, key=len, reverse=True):
-            if rest.startswith(op):
-                return op
+        ch = self.text[self.pos:self.pos + 1]
+        if ch == "*":
+            return "**" if self.text.startswith("**", self.pos) else "*"
+        if ch in ("+", "-", "/"):
+            return ch
+        if ch.isalpha():
+            for op in _WORD_OPERATORS:
+                if self.upper.startswith(op, self.pos):
+                    return op
         return None
 
     def expect(self, ch: str) -> None:
@@ -65,6 +86,15 @@ class _Scanner:
     # --- grammar ---------------------------------------------------------------------------
     def value(self) -> float:
         """A real value: number, parameter, [expression], unary function, or signed value."""
+        self.depth += 1
+        if self.depth > MAX_DEPTH:
+            raise self.error(f"expression nested more than {MAX_DEPTH} deep", "a simpler expression")
+        try:
+            return self._value()
+        finally:
+            self.depth -= 1
+
+    def _value(self) -> float:
         self.skip()
         ch = self.text[self.pos:self.pos + 1]
         if ch in "+-" and ch:
@@ -80,8 +110,11 @@ class _Scanner:
             return self.params_get(self.parameter_ref())
         m = _NUM.match(self.text, self.pos)
         if m and ch not in "+-":
+            v = float(m.group(0))
+            if not math.isfinite(v):
+                raise self.error("number too large", "a number below 1.8e308")
             self.pos = m.end()
-            return float(m.group(0))
+            return v
         start = self.pos
         name = re.match(r"[A-Za-z]+", self.text[self.pos:])
         if name:
@@ -103,7 +136,10 @@ class _Scanner:
                     key = self.parameter_ref()
                 except ParseError:  # a number out of range cannot exist
                     key = None
-                    self.pos = self.text.index("]", self.pos)
+                    end = self.text.find("]", self.pos)
+                    if end < 0:
+                        raise self.error("unclosed EXISTS[", "EXISTS[#<name>]") from None
+                    self.pos = end
                 self.expect("]")
                 return float(isinstance(key, int) or (key is not None and key in self.params))
             if fn in _FUNCS:
@@ -111,10 +147,13 @@ class _Scanner:
                 a = self.expression()
                 self.expect("]")
                 try:
-                    return float(_FUNCS[fn](a))
+                    v = float(_FUNCS[fn](a))
                 except (ValueError, OverflowError) as exc:
                     raise self.error(f"{fn} of {a:g} is undefined ({exc})", "an argument in the function's domain",
                                      start) from None
+                if not math.isfinite(v):
+                    raise self.error(f"{fn} of {a:g} overflows", "an argument in the function's domain", start)
+                return v
             self.pos = start
         raise self.error("expected a number, parameter or expression", "a value such as 1.5, #3, #<name> or [1+2]")
 
@@ -144,20 +183,21 @@ class _Scanner:
         raise self.error(f"parameter #<{key}> is used before it is set", "a named parameter assigned earlier")
 
     def expression(self, level: int = 0) -> float:
-        if level == len(_BINOPS):
-            return self.value()
-        left = self.expression(level + 1)
+        """Operators of precedence `level` and above, left to right (precedence climbing)."""
+        left = self.value()
         while True:
-            op = self.peek_word(_BINOPS[level])
-            if op is None:
+            op = self.operator()
+            if op is None or _LEVEL[op] < level:
                 return left
             at = self.pos
             self.pos += len(op)
-            right = self.expression(level + 1)
+            right = self.expression(_LEVEL[op] + 1)
             try:
-                left = float(_BINOPS[level][op](left, right))
+                left = float(_BINOPS[_LEVEL[op]][op](left, right))
             except (ZeroDivisionError, OverflowError, ValueError) as exc:
                 raise self.error(f"{op} is undefined here ({exc})", "a defined arithmetic result", at) from None
+            if not math.isfinite(left):
+                raise self.error(f"{op} overflows (the result is beyond 1.8e308)", "a finite arithmetic result", at)
 
 
 def scan_line(code: str, line: int, file: str, params: dict) -> tuple[list[tuple[str, float, int, int, int]], list]:

@@ -6,7 +6,7 @@ positional arguments (#1–#30, local to the call, as are named parameters witho
 ``break`` and ``continue``; ``endsub``/``return`` may carry a value, stored in ``#<_value>``.
 
 `Source` walks a program's text one line at a time and can return to a line it has passed (it keeps
-8 bytes per line); the interpreter reads straight-line programs without it and starts one at the
+8 bytes per line, and counts the lines read more than once: at most `MAX_REPEATED_LINES`); the interpreter reads straight-line programs without it and starts one at the
 first control statement. `Flow` holds the call and loop stacks and moves the source where a statement sends it.
 Subroutines must be in the same file (LinuxCNC's search of other files is not modelled: such a call
 is an error that says so).
@@ -29,7 +29,10 @@ _COMMENT = re.compile(r"\([^()]*\)")
 _PROGRAM = re.compile(r"[ \t]*[Oo][ \t]*(\d+)[ \t]*(?:\([^()]*\)[ \t]*)*(?:;.*)?$")  # a Fanuc subprogram's O line
 KEYWORDS = {"sub", "endsub", "return", "call", "if", "elseif", "else", "endif", "while", "endwhile", "do",
             "repeat", "endrepeat", "break", "continue"}
-MAX_EXECUTED_LINES = 20_000_000  # a guard against loops that never end
+# Lines read again (loops, calls, M98 repeats, skips over a body) beyond the first reading of each:
+# a loop that never ends, or one that expands a program past what a post-processed file holds, is
+# refused (LinuxCNC has no such limit; at ~30 us a line this bounds the reading to a few seconds).
+MAX_REPEATED_LINES = 100_000
 
 
 def control_of(raw: str) -> tuple[str, str, int] | None:
@@ -64,6 +67,7 @@ class Source:
         self.text = text
         self.pos = pos
         self.line = line
+        self.repeats = 0  # lines read again after their first reading
         self.starts = array("q", [0])  # offset of every line seen so far, and of the one after
         while len(self.starts) < line:
             self.starts.append(text.find("\n", self.starts[-1]) + 1)
@@ -80,6 +84,8 @@ class Source:
         self.line += 1
         if self.line == len(self.starts):
             self.starts.append(self.pos)
+        else:
+            self.repeats += 1
         return raw
 
     def seek(self, line: int) -> None:
@@ -117,7 +123,6 @@ class Flow:
     programs: dict = field(default_factory=dict)  # M98 subprogram number → line of its O word
     frames: list = field(default_factory=list)
     loops: list = field(default_factory=list)
-    executed: int = 0
 
     def error(self, line: int, raw: str, message: str, expected: str) -> ParseError:
         return ParseError(message, file=self.file, line=line, column=len(raw) - len(raw.lstrip()) + 1,

@@ -19,8 +19,8 @@ import numpy as np
 from ..errors import ParseError
 from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
 from .cutter_comp import LEFT, RIGHT, CompensationError, CutterComp
-from .flow import MAX_EXECUTED_LINES, Flow, Source, control_of
-from .lexer import Block, Word, lex_line
+from .flow import MAX_REPEATED_LINES, Flow, Source, control_of
+from .lexer import LENGTH_LIMIT, NUMBER_LIMIT, Block, Word, lex_line
 from .tool_table import read_tool_table
 
 INCH = 25.4
@@ -48,6 +48,21 @@ _UNSUPPORTED_G = {
     511: "mirroring (G51.1)", 650: "macro call (G65)", 680: "coordinate rotation (G68)",
     682: "5-axis tilted work plane (G68.2)", 700: "lathe cycle (G70)", 710: "lathe cycle (G71)", 720: "lathe cycle (G72)",
     960: "constant surface speed (G96)", 1000: "user G code",
+}
+MAX_CYCLE_MOVES = 100_000  # one canned-cycle block (repeats x pecks)
+MAX_CYCLE_MOVES_TOTAL = 1_000_000  # all canned cycles of a program
+_TAKE_AXES = {100, 280, 300, 520, 920}  # non-modal codes whose axis words are not a move
+# M-code modal groups (LinuxCNC): two codes of one group in a block are an error
+_M_GROUPS = {**dict.fromkeys((0, 1, 2, 30, 60), "stopping"), 6: "tool change", 61: "tool change",
+             **dict.fromkeys((3, 4, 5, 19), "spindle"), **dict.fromkeys((7, 8, 9), "coolant"),
+             **dict.fromkeys((48, 49, 50, 51, 52, 53), "override")}
+_CHECKED = frozenset("DEHIJKLPQR")  # words a block may only carry when one of its codes reads them
+_WORD_USERS = {
+    "D": "D only with G41/G42 (cutter radius compensation)", "E": "E only with M66/M67/M68",
+    "H": "H only with G43 or G43.2", "I": "I only with G2/G3, G87 or G10", "J": "J only with G2/G3, G87 or G10",
+    "K": "K only with G2/G3 or G87", "L": "L only with a canned cycle, G10, G41/G42 or M98",
+    "P": "P only with G2/G3 (turns), G4, G10, G64, G82/G84/G86/G88/G89 (dwell), M98 or M19/M50-M66",
+    "Q": "Q only with G73/G83 (peck), G10, G64 or M19/M66-M68", "R": "R only with G2/G3, a canned cycle or G10",
 }
 _LATHE_G76 = "threading cycle G76 (LinuxCNC's G76 is a lathe threading cycle)"
 _AXES = "XYZ"
@@ -212,7 +227,7 @@ class Interpreter:
         self.spindle_on = False
         self.tool = -1
         self.selected = -1
-        self.retract_old_z = True
+        self.retract_old_z = dialect != "linuxcnc"  # LinuxCNC starts in G99 (retract to R), Fanuc in G98
         self.cs = 1
         self.g5x = {i: np.array(v, float) for i, v in options.work_offsets_mm.items()}
         self.g92 = np.zeros(3)
@@ -223,6 +238,7 @@ class Interpreter:
         self.cycle: dict = {}
         self.polar_step: tuple[float, float] | None = None
         self.cycle_il = None
+        self.cycle_moves = 0.0  # moves made by canned cycles so far (bounded by MAX_CYCLE_MOVES_TOTAL)
         self.blocks = 0
         self.dwell_s = 0.0
         self.block_index = 0
@@ -311,11 +327,10 @@ class Interpreter:
                     self.notes.append(f"line {line_no}: after program end (M2/M30): not executed")
                     break
                 continue
-            if flow is not None:
-                flow.executed += 1
-                if flow.executed > MAX_EXECUTED_LINES:
-                    raise ParseError(f"more than {MAX_EXECUTED_LINES} lines executed", file=self.file, line=line_no,
-                                     column=1, word=raw.strip()[:40], expected="loops that end")
+            if source is not None and source.repeats > MAX_REPEATED_LINES:
+                raise ParseError(f"loops and calls read more than {MAX_REPEATED_LINES:,} lines again", file=self.file,
+                                 line=line_no, column=1, word=raw.strip()[:40],
+                                 expected=f"loops that end within {MAX_REPEATED_LINES:,} repeated lines")
             if self.fast_line(raw, line_no):
                 continue
             control = control_of(raw)
@@ -388,9 +403,11 @@ class Interpreter:
         for L, v in zip(letters, words):
             value = float(v[1])
             if L == "F":
-                if value < 0:
+                if not 0.0 <= value <= NUMBER_LIMIT:
                     return False
                 f = value * sc
+            elif not -LENGTH_LIMIT <= value <= LENGTH_LIMIT:  # the general path says why
+                return False
             elif self.absolute:
                 if L == "X":
                     x = value * sc
@@ -462,13 +479,21 @@ class Interpreter:
                 groups[grp if code != 530 else "g53"] = w
                 g.append((code, w))
             elif L == "M":
-                code = int(round(w.value))
+                if w.value < 0 or w.value != int(w.value):
+                    raise self.err("M code must be a non-negative integer", b, w, "M0 ... M199")
+                code = int(w.value)
+                grp = _M_GROUPS.get(code)
+                for other, x in mcodes:
+                    if grp is not None and _M_GROUPS.get(other) == grp:
+                        raise self.err(f"two M codes from the {grp} group in one block", b, w,
+                                       f"at most one of the {grp} group (first was {x.text.strip()})")
                 mcodes.append((code, w))
             else:
                 if L in val:
                     raise self.err(f"word {L} appears twice in one block", b, w, f"one {L} word per block")
                 val[L] = w
         gset = {c for c, _ in g}
+        self.check_words(b, val, gset, mcodes)
         # 1. feed mode, F, S
         for code in (930, 940, 950):
             if code in gset:
@@ -580,8 +605,8 @@ class Interpreter:
             self.motion = self.basic_motion if self.dialect == "fanuc" else None
             self.cycle_il = None
         elif motion_code is not None:
-            if motion_code in _CYCLES and self.motion != motion_code:
-                self.cycle_il = None
+            if motion_code in _CYCLES and self.motion != motion_code:  # another cycle: its words anew, the
+                self.cycle.clear()  # level where the sequence began kept (LinuxCNC)
             if motion_code not in _CYCLES:
                 self.cycle_il = None
                 self.basic_motion = motion_code
@@ -607,6 +632,58 @@ class Interpreter:
                 self.comp.stop(end_program=True)
                 self.event(b.line, "end", code)
                 self.ended = True
+
+    def check_words(self, b: Block, val: dict, gset: set, mcodes: list) -> None:
+        """Refuse a word that nothing in its block uses, as LinuxCNC 2.9 does (its check_other_codes):
+        D, E, H, I, J, K, L, P, Q, R each need a G or M code of the block, or the motion mode the block
+        runs in, that reads them (``G1 X1 Q3`` is an error, not a move). The Fanuc dialect adds P
+        (dwell) and K (repeats) on every canned cycle and Q (shift) on G76/G87."""
+        if 40 in gset or 530 in gset or not val.keys().isdisjoint(_CHECKED):
+            motion = next((c for c in gset if c in _MOTION or c == 800), None)
+            if motion is None and not gset & _TAKE_AXES and not val.keys().isdisjoint("XYZABCUVW@^"):
+                motion = self.motion
+            mset = {c for c, _ in mcodes}
+            for L, w in val.items():
+                if L in _CHECKED and not self.word_used(L, motion, gset, mset):
+                    raise self.err(f"{L} word with nothing in the block to use it", b, w, _WORD_USERS[L])
+            if motion in _CYCLES:
+                for L in "ABCUVW":
+                    if L in val:
+                        raise self.err(f"{L} word in a canned cycle", b, val[L], "only the plane's axes, R, Q, P, L")
+            if 40 in gset and motion in (20, 30):
+                raise self.err("G4 with G2/G3 (both use P)", b, val.get("P"), "the dwell and the arc on separate lines")
+            if 530 in gset and (910 in gset or (not self.absolute and 900 not in gset)):
+                raise self.err("G53 in incremental mode (G91)", b, None, "G90 with G53")
+        if "N" in val:
+            raise self.err("N (line number) word not at the start of the block", b, val["N"], "N first, or no N")
+
+    def word_used(self, L: str, motion: int | None, gset: set, mset: set) -> bool:
+        """Whether a code of the block (or the motion it runs in) reads the word `L` (LinuxCNC's rules)."""
+        if motion in (20, 30) and L in "IJKRP":  # arcs: the common case first
+            return True
+        cycle = motion in _CYCLES
+        fanuc = self.dialect == "fanuc"
+        comp = not gset.isdisjoint((410, 420, 411, 421))
+        if L in "IJ":
+            return motion == 870 or 100 in gset
+        if L == "K":
+            return motion == 870 or (fanuc and cycle)
+        if L == "R":
+            return cycle or not gset.isdisjoint((100, 411, 421)) or 19 in mset
+        if L == "P":
+            return (not gset.isdisjoint((40, 100, 640)) or motion in (20, 30, 740, 820, 840, 860, 880, 890)
+                    or (fanuc and cycle) or not mset.isdisjoint((19, 50, 51, 52, 53, 62, 63, 64, 65, 66, 98))
+                    or any(100 <= c <= 199 for c in mset))
+        if L == "Q":
+            return (motion in (730, 830) or (fanuc and motion in (760, 870)) or not gset.isdisjoint((100, 640))
+                    or not mset.isdisjoint((19, 66, 67, 68)) or any(100 <= c <= 199 for c in mset))
+        if L == "L":
+            return cycle or comp or 100 in gset or not mset.isdisjoint((98, 66))
+        if L == "H":
+            return not gset.isdisjoint((430, 432))
+        if L == "D":
+            return comp
+        return not mset.isdisjoint((66, 67, 68))  # E
 
     def cutter_comp(self, gset: set, b: Block, val: dict) -> None:
         """G40 off. G41/G42 (left/right) D<tool number>, no D or D0: the tool in the spindle, its diameter
@@ -914,12 +991,13 @@ class Interpreter:
         if code in (730, 830) and cyc.get("Q", 0) <= 0:
             raise self.err(f"peck cycle G{code / 10:g} needs Q > 0", b, val.get("Q"), "Q (peck depth) > 0")
         repeats = 1
-        if "L" in val:
-            if val["L"].value < 0 or val["L"].value != int(val["L"].value):
-                raise self.err("repeat count L must be a non-negative integer", b, val["L"], "L0, L1, L2, ...")
-            repeats = int(val["L"].value)
+        count = val.get("L") or (val.get("K") if self.dialect == "fanuc" and code != 870 else None)  # Fanuc: K
+        if count is not None:
+            if count.value < 0 or count.value != int(count.value) or (count.value == 0 and self.dialect == "linuxcnc"):
+                raise self.err("repeat count must be a positive integer", b, count, f"{count.letter}1, {count.letter}2, ...")
+            repeats = int(count.value)
         sc = self.scale
-        old = self.pos[an]
+        old = self.cycle_il  # LinuxCNC: the level where the cycle sequence began, not the current one
         if self.absolute:
             r = cyc["R"] * sc
             bottom = cyc[an_letter] * sc
@@ -929,13 +1007,15 @@ class Interpreter:
         if bottom > r and code != 870:  # back boring cuts upwards from an R below the part
             raise self.err(f"canned cycle bottom {an_letter} above the R plane", b, val.get(an_letter),
                            f"{an_letter} below R")
-        clear = r if not self.retract_old_z else max(r, self.cycle_il if self.cycle_il is not None else old)
+        self.check_cycle_size(b, code, repeats, r, bottom, cyc)
         feed = self.feed_rate(b, 1.0)
-        if old < r:
+        if old < r:  # (a move of no length when the cycle sequence is already at R: LinuxCNC makes it too)
             p = self.pos.copy()
             p[an] = r
             self.emit(RAPID, p, b)
             old = r
+        clear = r if not self.retract_old_z else old
+        current = self.pos[an]
         d1 = axis_words.get(_AXES[a1])
         d2 = axis_words.get(_AXES[a2])
         if self.polar_step is not None and self.plane != 0:
@@ -952,13 +1032,29 @@ class Interpreter:
             else:
                 p[a1] += d1.value * sc if d1 is not None else 0.0
                 p[a2] += d2.value * sc if d2 is not None else 0.0
-            p[an] = old if rep == 0 else self.pos[an]
+            # LinuxCNC 2.9: the first hole is reached at the current level, if above R; any other at the
+            # clear level; then down to R (back boring goes down to R beside the bore itself)
+            p[an] = current if rep == 0 and current > r else clear
             self.emit(RAPID, p, b)
-            if self.pos[an] != r and code != 870:  # back boring goes down to R beside the bore itself
+            if p[an] > r and code != 870:
                 self.to_depth(RAPID, r, b)
             self.cycle_body(code, b, r, bottom, clear, feed, cyc)
-            old = clear
         self.polar_step = None
+
+    def check_cycle_size(self, b: Block, code: int, repeats: int, r: float, bottom: float, cyc: dict) -> None:
+        """Refuse a cycle block that would expand to more than `MAX_CYCLE_MOVES` moves, or take the
+        program's canned cycles past `MAX_CYCLE_MOVES_TOTAL` (peck count = depth / Q, times L)."""
+        per_hole = 6.0
+        if code in (730, 830):
+            per_hole += 3.0 * (r - bottom) / (cyc["Q"] * self.scale)
+        moves = repeats * per_hole
+        if moves > MAX_CYCLE_MOVES or self.cycle_moves + moves > MAX_CYCLE_MOVES_TOTAL:
+            limit = MAX_CYCLE_MOVES if moves > MAX_CYCLE_MOVES else MAX_CYCLE_MOVES_TOTAL - self.cycle_moves
+            raise self.err(f"canned cycle G{code / 10:g} would make about {moves:.3g} moves (repeats x pecks), "
+                           f"more than the {limit:,} millpost reads", b, b.words[0] if b.words else None,
+                           f"at most {MAX_CYCLE_MOVES:,} moves per cycle block and {MAX_CYCLE_MOVES_TOTAL:,} "
+                           "per program (fewer repeats L, a larger peck Q)")
+        self.cycle_moves += moves
 
     def to_depth(self, kind: int, depth: float, b: Block, feed: float = math.nan) -> None:
         an = PLANE_AXES[self.plane][2]
@@ -989,6 +1085,8 @@ class Interpreter:
                     self.to_depth(RAPID, depth + rapid_delta, b)
                 else:
                     self.to_depth(RAPID, depth + rapid_delta, b)
+                if depth - delta >= depth:  # a peck below the float resolution at this depth: no progress
+                    break
                 depth -= delta
             self.to_depth(FEED, bottom, b, feed)
             self.to_depth(RAPID, clear, b)

@@ -4,6 +4,13 @@ Accepts what RS-274 posts write: any letter case, no spaces (``G1X10Y5F300``), c
 parentheses and after ``;``, ``N`` line numbers, ``O`` program numbers, ``%`` tape marks, block delete
 ``/`` and ``*`` checksums. LinuxCNC parameters (``#``) and expressions (``[...]``) are evaluated by the
 interpreter's expression module when present; the fast path here handles plain numbers.
+
+Every value must be finite and within the range of its letter, in program units (mm or inch, rpm,
+degrees): lengths ``X Y Z U V W I J K R Q @`` at most ``LENGTH_LIMIT`` (1 000 000) in magnitude, ``G``
+and ``M`` codes below 1000, any other word (``F S P L T H D N A B C ^`` ...) at most ``NUMBER_LIMIT``
+(1e9; LinuxCNC's example 3D_Chips.ngc feeds at F2 250 000). A value beyond is a mistake, and the
+limits keep every later sum and product finite. Exponents (``1e3``) are not G-code: LinuxCNC reads
+the ``e`` as an E word and refuses it; so does millpost, saying why.
 """
 
 from __future__ import annotations
@@ -19,6 +26,9 @@ _WORD = re.compile(r"([A-Za-z@^])[ \t]*([-+]?[ \t]*(?:\d+\.?\d*|\.\d+))")
 _PLAIN = re.compile(r"(?:[ \t]*[A-Za-z@^][ \t]*[-+]?[ \t]*(?:\d+\.?\d*|\.\d+))*[ \t]*")
 _COMMENT = re.compile(r"\([^()]*\)")
 _CHECKSUM = re.compile(r"\*[ \t]*\d+[ \t]*$")
+LENGTH_LIMIT = 1e6  # program units (1 km in mm)
+NUMBER_LIMIT = 1e9
+_LIMITS = {**dict.fromkeys("XYZUVWIJKRQ@", LENGTH_LIMIT), "G": 999.9, "M": 999.0}
 
 
 @dataclass(slots=True)
@@ -119,6 +129,15 @@ def lex_line(text: str, line: int, file: str = "<string>", params: dict | None =
         found = [(m.group(1).upper(), _number(m.group(2)), m.start() + 1, m.start(), m.end())
                  for m in _WORD.finditer(code)]
     for letter, value, column, start, end in found:
+        limit = _LIMITS.get(letter, NUMBER_LIMIT)
+        if not -limit <= value <= limit:  # also NaN
+            raise ParseError(f"{letter} value out of range", file=file, line=line, column=column,
+                             word=text[start:end].strip()[:40], expected=f"|{letter}| <= {limit:g}")
+        if letter == "E" and start and code[start - 1] in "0123456789.":
+            number = code[block.words[-1].start if block.words else start:end].strip()
+            raise ParseError("a number in exponent notation (G-code has none: the 'e' reads as an E word)",
+                             file=file, line=line, column=(block.words[-1].column if block.words else column),
+                             word=number, expected="the number written out in decimals, e.g. 1000 for 1e3")
         if letter == "N" and not block.words and block.number is None:
             block.number = value
             continue
