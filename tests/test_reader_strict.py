@@ -200,6 +200,18 @@ def test_fanuc_k_repeats_a_cycle():
     assert drilled[:, 0].tolist() == [10.0, 20.0, 30.0]
 
 
+def test_g49_with_h0_is_fanuc_style_only(tmp_path):
+    """Centroid/Haas posts write `G49 H0`; LinuxCNC 2.9 refuses the H (rs274 says so when installed)."""
+    text = "G21 G90\nG49 H0\nG0 X1\nM2\n"
+    read_text(text, "h.nc", ReaderOptions(dialect="fanuc"))
+    with pytest.raises(ParseError, match="h.nc:2:5: H word"):
+        read_text(text, "h.nc", ReaderOptions(dialect="linuxcnc"))
+    if rs274_oracle.RS274:
+        f = tmp_path / "h.ngc"
+        f.write_text(text)
+        assert rs274_oracle.run(f).error is not None
+
+
 def test_a_program_beyond_the_size_ceiling_is_refused_before_reading(tmp_path, monkeypatch):
     import millpost.gcode as gcode
 

@@ -679,8 +679,8 @@ class Interpreter:
                     or not mset.isdisjoint((19, 66, 67, 68)) or any(100 <= c <= 199 for c in mset))
         if L == "L":
             return cycle or comp or 100 in gset or not mset.isdisjoint((98, 66))
-        if L == "H":
-            return not gset.isdisjoint((430, 432))
+        if L == "H":  # Fanuc-style controls (Haas, Centroid) also take an H (offset 0) with the G49 cancel
+            return not gset.isdisjoint((430, 432)) or (fanuc and 490 in gset)
         if L == "D":
             return comp
         return not mset.isdisjoint((66, 67, 68))  # E
