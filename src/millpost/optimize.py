@@ -26,6 +26,7 @@ from .limits import HARD, JobLimits, build_limits, spindle_rpm, static_caps
 from .replay import baseline_feeds, binding_shares, feed_at_samples, limit_ratios
 from .schedule import PathGrid, ScheduleOptions, schedule_samples
 from .schedule.feeds import cluster, emission_limit, piecewise_feeds
+from .signals import controller_model
 from .toolpath import RAPID, Samples
 
 
@@ -37,14 +38,6 @@ class Result:
     summary: dict
     samples: Samples
     trace: dict = field(default_factory=dict)
-
-
-def machine_controller(job: Job) -> controller.ControllerModel:
-    ax = [job.machine.axes[a] for a in "xyz"]
-    return controller.ControllerModel(
-        max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
-        junction_deviation_mm=job.machine.controller.junction_deviation_mm,
-        block_rate_hz=job.machine.controller.block_rate_Hz)
 
 
 def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
@@ -107,7 +100,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options or ScheduleOptions.from_choices(solver=job.limits["solver"]))
     solver_s = time.perf_counter() - t0
-    model = machine_controller(job)
+    model = controller_model(job)
     before = controller.execute(tp, model)
     base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
     baseline = controller.execute(tp, model, base_feeds)
