@@ -43,23 +43,26 @@ class Pass:
     rpm: float
 
 
-def passes(rng: np.random.Generator, diameter: float) -> list[Pass]:
-    """Three slots, two side cuts along y = 0 and two along y = W (each a fresh strip of material)."""
+def passes(rng: np.random.Generator, diameter: float, flutes: int) -> list[Pass]:
+    """Two or three slots (depth 0.2–1 D), then two side cuts along y = 0 (climb) and two along y = W
+    (conventional), each a fresh strip of width 0.1–0.5 D and depth 0.4–1.5 D; every pass at its own
+    speed (4000–10000 rpm) and feed per tooth (0.01–0.1 mm, log-uniform)."""
     R = diameter / 2
     out = []
-    for k in range(3):
-        out.append(Pass(18.0 + 16.0 * k, rng.uniform(0.3, 1.0) * diameter, 0, 0))
+    for k in range(int(rng.integers(2, 4))):
+        out.append(Pass(18.0 + 16.0 * k, rng.uniform(0.2, 1.0) * diameter, 0, 0))
     y0 = -R
     for _ in range(2):
-        y0 += rng.uniform(0.15, 0.5) * diameter
-        out.append(Pass(y0, rng.uniform(0.5, 1.5) * diameter, 0, 0))
+        y0 += rng.uniform(0.1, 0.5) * diameter
+        out.append(Pass(y0, rng.uniform(0.4, 1.5) * diameter, 0, 0))
     y1 = BOX[1] + R
     for _ in range(2):
-        y1 -= rng.uniform(0.15, 0.5) * diameter
-        out.append(Pass(y1, rng.uniform(0.5, 1.5) * diameter, 0, 0))
+        y1 -= rng.uniform(0.1, 0.5) * diameter
+        out.append(Pass(y1, rng.uniform(0.4, 1.5) * diameter, 0, 0))
     for p in out:
-        p.rpm = float(np.round(rng.uniform(5000, 10000), -2))
-        p.feed_mm_min = float(np.round(p.rpm * rng.uniform(0.02, 0.07) * 2, -1))   # f_z 0.01 .. 0.07 mm (2 flutes)
+        p.rpm = float(np.round(rng.uniform(4000, 10000), -2))
+        p.feed_mm_min = float(max(np.round(p.rpm * flutes * np.exp(rng.uniform(np.log(0.01), np.log(0.1))), -1), 10))
+        p.y_mm, p.depth_mm = round(p.y_mm, 3), round(p.depth_mm, 3)
     return out
 
 
@@ -67,10 +70,7 @@ def write_job(folder: Path, seed: int) -> tuple[Path, list[Pass], tuple[float, i
     """A job folder: program.nc, material.toml (nominal coefficients ±20 % off), job.toml."""
     rng = np.random.default_rng(seed)
     diameter, flutes = TOOLS[seed % len(TOOLS)]
-    plan = passes(rng, diameter)
-    for p in plan:   # the values the program states
-        p.feed_mm_min = float(np.round(p.feed_mm_min * flutes / 2, -1))
-        p.y_mm, p.depth_mm = round(p.y_mm, 3), round(p.depth_mm, 3)
+    plan = passes(rng, diameter, flutes)
     R = diameter / 2
     lines = ["(discover test: straight passes in a box)", "G21 G90 G17 G94", "T1 M6", "G0 Z5"]
     for p in plan:
@@ -175,7 +175,7 @@ class Run:
 def make_run(folder: Path, seed: int, effect: str, *, noise: float | None = None, rate_hz: float = 100.0,
              signals_cache: dict | None = None) -> Run:
     """One measured run with `effect` hidden (or "none"), seeded."""
-    job_path, plan, (diameter, flutes), _ = write_job(folder, seed % 3)
+    job_path, plan, (diameter, flutes), _ = write_job(folder, seed)
     rng = np.random.default_rng(1000 + seed)
     key = str(job_path)
     if signals_cache is not None and key in signals_cache:
@@ -193,7 +193,7 @@ def make_run(folder: Path, seed: int, effect: str, *, noise: float | None = None
     # the straight cut rows: snap to the pass (interpolation between samples leaves y, z exact on a pass)
     rpm = sig.rpm[np.clip(np.searchsorted(sig.t_s, tau, side="right") - 1, 0, len(sig) - 1)]
     coef = dict(TRUE)
-    truth: dict = {"effect": effect, "noise": noise}
+    truth: dict = {"effect": effect, "noise": noise, "offset_s": offset}
     kwargs: dict = {}
     if effect == "tool_wear":
         F0, _ = cutting_loads(xyz, vel, rpm, diameter, flutes, coef, plan)
