@@ -97,7 +97,8 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
         notes.append(f"round {k + 1}: " + "; ".join(f"{n} gain {100 * r['gain']:.1f} % p {r['p']:.2g}"
                                                      + ("" if r["physical"] else " (unphysical sign)")
                                                      for n, r in ranked[:5])
-                     + "".join(f"; {n} not applicable" for n, r in rs.items() if not r.get("applicable")))
+                     + "".join(f"; {n} not applicable" + (f" ({r['reason']})" if r.get("reason") else "")
+                               for n, r in rs.items() if not r.get("applicable")))
     if not sel.effects:
         notes.append("no effect is significant: the refitted base model explains the held-out data")
     return Discovery(alignment, rows, sel, nominal, notes, len(log), log.path)

@@ -62,6 +62,7 @@ class Effect:
     channels: ClassVar[tuple[str, ...]]
     meaning: ClassVar[str] = ""
     positive: ClassVar[tuple[str, ...]] = ()   # parameters that physics requires > 0
+    slow: ClassVar[bool] = True   # the effect changes the signal over many rows (see search.compare)
 
     @property
     def physical(self) -> bool:
