@@ -28,7 +28,7 @@ from millpost.signals import simulate
 
 TRUE = {"Ktc": 631.0, "Krc": 99.0, "Kac": 273.0, "Kte": 13.0, "Kre": 10.0, "Kae": 2.8}
 TOOLS = ((6.0, 3), (10.0, 4), (8.0, 2))    # diameter (mm), flutes
-BOX = (120.0, 80.0, 20.0)                  # length X, width Y, height (top at z = 0)
+BOX = (80.0, 80.0, 20.0)                   # length X, width Y, height (top at z = 0)
 FZ_MM = (0.006, 0.15)
 EDGE_FREE = {"Kte": 0.0, "Kre": 0.0, "Kae": 0.0}                      # feed per tooth range of a job: finishing to roughing
 EFFECTS = ("none", "tool_wear", "size_effect", "deflection", "inertia", "sensor_lag", "spindle_no_load",
@@ -48,7 +48,7 @@ class Pass:
 def passes(rng: np.random.Generator, diameter: float, flutes: int) -> list[Pass]:
     """Two or three slots (depth 0.2–1 D), then two side cuts along y = 0 (climb) and two along y = W
     (conventional), each a fresh strip of width 0.1–0.5 D and depth 0.4–1.5 D; every pass at its own
-    speed (4000–10000 rpm, at least 150 mm/min) and feed per tooth (FZ_MM, spread over the range)."""
+    speed (4000–10000 rpm, at least 200 mm/min where it can) and feed per tooth (FZ_MM, spread over the range)."""
     R = diameter / 2
     out = []
     for k in range(int(rng.integers(2, 4))):
@@ -65,7 +65,7 @@ def passes(rng: np.random.Generator, diameter: float, flutes: int) -> list[Pass]
     levels = np.exp(np.log(FZ_MM[0]) + (np.arange(len(out)) + rng.uniform(0, 1, len(out))) / len(out)
                     * np.log(FZ_MM[1] / FZ_MM[0]))
     for p, fz in zip(out, rng.permutation(levels)):
-        p.rpm = float(np.round(rng.uniform(max(4000.0, 150.0 / (fz * flutes)), 10000), -2))
+        p.rpm = float(np.round(rng.uniform(min(max(4000.0, 200.0 / (fz * flutes)), 10000.0), 10000.0), -2))
         p.feed_mm_min = float(np.round(p.rpm * flutes * fz, -1))
         p.y_mm, p.depth_mm = round(p.y_mm, 3), round(p.depth_mm, 3)
     return out

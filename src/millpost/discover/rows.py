@@ -80,7 +80,9 @@ class Rows:
     whether or not the channel is logged (effects use the force magnitude); columns: channel → {name: (n,)}
     channel-own base columns; fixed: channel → (n,) fixed base term. features: rpm, fz_mm, ae_mm, ap_mm,
     diameter_mm, cut_length_m (engaged path so far, per tool), velocity_mm_s (n, 3), accel_mm_s2 (n, 3);
-    cuts: the cutting samples behind the rows (for effects that change the engagement or the law)."""
+    cuts: the cutting samples behind the rows (for effects that change the engagement or the law). use:
+    the rows fits and scores use: not where the tool leaves the material (`exit_zone`), nor the first
+    look-ahead of a cut, where the tool already cuts but the sample behind it did not (`engaged_sample`)."""
 
     t_s: np.ndarray
     measured: dict[str, np.ndarray]
@@ -155,8 +157,8 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
     features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[je], "ae_mm": signals.ae_mm[je],
                 "ap_mm": signals.ap_mm[je], "diameter_mm": diameter[je], "cut_length_m": length[je],
                 "velocity_mm_s": signals.axis_velocity_mm_s[j], "accel_mm_s2": signals.axis_accel_mm_s2[j]}
-    return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, ~exiting[je],
-                cuts)
+    use = ~exiting[je] & (cutting[j] == cutting[je])
+    return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, use, cuts)
 
 
 def engaged_sample(signals: Signals, j: np.ndarray) -> np.ndarray:
