@@ -319,6 +319,7 @@ def replace_numbers(program: Program, words: dict[int, dict[str, float]]) -> str
         for letter, value in new.items():
             old = have[letter].text[1:].strip()
             decimals = len(old.split(".")[1]) if "." in old else 0
-            texts[letter] = _fmt(value, decimals, old.endswith("."))
+            trailing = old.endswith(".")
+            texts[letter] = _fmt(value, max(decimals, 1) if trailing else decimals, trailing)
         lines[n - 1] = _LineWriter(body, block, True).replace(texts) + lines[n - 1][len(body):]
     return "".join(lines)

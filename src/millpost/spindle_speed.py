@@ -123,13 +123,14 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
     for k, b in enumerate(blocks):
         sample_block[np.isin(samples.move, b.moves)] = k
     grids = {id(b): _grid(*b.window[:2]) for b in free}
+    tries = max((len(g) for g in grids.values()), default=0)
     times = [_block_times(job, program, samples, eng, options, blocks, sample_block)]  # as programmed
-    for c in range(CANDIDATES):
-        progress("spindle speeds", c, CANDIDATES)
+    for c in range(tries):  # the c-th speed of every block's grid at once (the blocks' times are their own)
+        progress("spindle speeds", c, tries)
         rpm = {b.line: float(grids[id(b)][min(c, len(grids[id(b)]) - 1)]) for b in free}
         times.append(_block_times(job, program, _with_rpm(samples, blocks, sample_block, rpm), eng, options,
                                   blocks, sample_block))
-    progress("spindle speeds", CANDIDATES, CANDIDATES)
+    progress("spindle speeds", tries, tries)
     chosen: dict[int, float] = {}
     rows = []
     for k, b in enumerate(blocks):
@@ -139,7 +140,7 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
             continue
         lo, hi, what = b.window
         grid = grids[id(b)]
-        t = np.array([times[1 + c][k] for c in range(CANDIDATES)])
+        t = np.array([times[1 + c][k] for c in range(len(grid))])
         best = int(np.argmin(t))
         t0 = times[0][k]
         window = (f"window {lo:.0f}–{hi:.0f} rpm: the material's surface speed for "
@@ -147,7 +148,7 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
                   + (" within the spindle's range" if what == "surface_speed" else ", capped by the spindle's maximum"))
         row.update(window_rpm=[round(lo, 1), round(hi, 1)], time_s=round(float(t0), 3))
         if np.isfinite(t[best]) and t[best] < t0 * (1 - MIN_GAIN):
-            new = float(grid[min(best, len(grid) - 1)])
+            new = float(grid[best])
             chosen[b.line] = new
             rows.append({**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
                          "reason": f"S{b.rpm:g} → S{new:g}: its cuts take {t[best]:.2f} s instead of {t0:.2f} s "
