@@ -25,13 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .emit import replace_numbers
 from .errors import MillpostError
 from .gcode.interpret import Program
 from .gcode.lexer import lex_line
 from .heuristics import rpm_range
 from .job import Job
 from .limits import build_limits
-from .progress import Progress, silent
+from .progress import Progress, reporting, silent
 from .schedule import ScheduleOptions, schedule_samples
 from .signals import step_times_s
 from .toolpath import RAPID, Samples
@@ -160,7 +161,6 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
     summary = {"mode": "optimize", "blocks": rows, "changed": sum(r["changed"] for r in rows)}
     if not chosen:
         return program, samples, summary
-    from .emit import replace_numbers
     tp = program.toolpath
     move_rpm = tp.rpm.copy()
     for b in blocks:
@@ -192,7 +192,8 @@ def _block_times(job: Job, program: Program, samples: Samples, eng, options: Sch
     """Per block the scheduled time (s) of its samples under the job's limits at the samples' rpm
     (inf for every block when a segment's solve fails)."""
     limits = build_limits(job, samples, eng, program.toolpath)
-    sched = schedule_samples(samples, limits, options)
+    with reporting(silent):  # the stage is "spindle speeds", not the schedule's own
+        sched = schedule_samples(samples, limits, options)
     if any(not s.status.ok for _, _, s in sched.segments):
         return np.full(len(blocks), np.inf)
     dt = step_times_s(samples.s_mm, np.nan_to_num(sched.feed_mm_s, nan=0.0))
