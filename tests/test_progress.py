@@ -91,3 +91,32 @@ def test_recommend_plot_needs_sweep(capsys, tmp_path):
                  "vmc-small", "--plot", str(tmp_path / "p.png")])
     assert code == 2 and "--sweep" in capsys.readouterr().err
     assert not (tmp_path / "p.png").exists()
+
+
+def test_kernel_compiles_report_to_the_enclosing_callback_only():
+    """`compiling` reports a stage while a numba dispatcher has no compiled copy in this process, to the
+    callback of the enclosing `reporting` block; nothing outside it, nothing in a forked worker."""
+    from types import SimpleNamespace
+
+    from millpost._kernels import compiling
+    from millpost.progress import current, reporting, silent
+
+    fresh, ready = SimpleNamespace(signatures=[]), SimpleNamespace(signatures=["(float64,)"])
+    calls = []
+    with compiling(fresh):  # no callback set: silent
+        pass
+    with reporting(lambda *c: calls.append(c)):
+        with compiling(ready):
+            pass
+        assert calls == []
+        with compiling(ready, fresh):
+            calls.append("call")
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # a forked worker: its reports would draw on the parent's terminal
+            os.write(w, b"1" if current() is silent else b"0")
+            os._exit(0)
+        os.waitpid(pid, 0)
+        assert os.read(r, 1) == b"1"
+    assert calls == [("compile kernels", 0.0, 0.0), "call", ("compile kernels", 1.0, 1.0)]
+    assert current() is silent

@@ -1,6 +1,7 @@
 """End to end: a job's program → engagement → limits → one convex feed schedule → the program with new
 feeds → replay. Only wiring: the limits and the feed policy are `millpost.limits`, the schedule
-`millpost.schedule`, the written program `millpost.emit`, the checks `millpost.replay`.
+`millpost.schedule`, the written program `millpost.emit`, the checks `millpost.replay` (through the
+forward model `millpost.signals`), the spindle speeds (opt-in) `millpost.spindle_speed`.
 
 Cycle times are always the controller model's (`millpost.controller`), before and after, and against
 the honest baseline: per tool, the highest single constant feed that exceeds no limit anywhere.
@@ -102,8 +103,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         program, samples, spindle = choose_speeds(job, program, samples, eng, options, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
     tp = program.toolpath
-    t_limits = time.perf_counter()
     ds = float(job.limits["ds_mm"])
+    t_limits = time.perf_counter()
     limits = build_limits(job, samples, eng, tp, progress)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options)
