@@ -131,3 +131,24 @@ def test_s_words_keep_their_style():
     program = read_text(text, "style.nc")
     out = replace_numbers(program, {2: {"S": 10000.0}, 4: {"S": 8000.0}})
     assert out == "G21 G90\ns10000. m3\nG1 X10 F100\nN20 S8000 M3 (spindle)\nG1 X20\nM30\n"
+
+
+def test_a_failed_schedule_keeps_the_programmed_s(tmp_path, monkeypatch):
+    """Never new speeds with the programmed feeds: when the final schedule fails, S stays as programmed."""
+    import millpost.optimize as opt_module
+    from millpost.schedule import Status
+
+    real = opt_module.schedule_samples
+
+    def failing(samples, limits, options=None):
+        sch = real(samples, limits, options)
+        for _, _, seg in sch.segments:
+            seg.status, seg.message = Status.NUMERICAL_ERROR, "forced failure"
+        return sch
+
+    monkeypatch.setattr(opt_module, "schedule_samples", failing)  # the choice's own runs still solve
+    job = _job(tmp_path, "S7000", "optimize")
+    result = optimize(job, progress=False)
+    assert result.summary["status"] == "fallback_programmed_feeds"
+    assert "S kept as programmed" in " ".join(result.summary["notes"])
+    assert result.text == job.program.read_text()  # programmed feeds and the programmed S

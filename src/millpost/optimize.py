@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -98,7 +98,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     (Split from `optimize` so that tests can give engagements of known geometry.) progress: stages
     "forces", "schedule", "emission" and "replay"."""
     options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
-    spindle, t_spindle = {}, time.perf_counter()
+    spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
     if job.limits["rpm"] == "optimize":
         program, samples, spindle = choose_speeds(job, program, samples, eng, options, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
@@ -116,6 +116,11 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     baseline = controller.execute(tp, model, base_feeds)
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
+    if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
+        result = schedule_program(replace(job, limits={**job.limits, "rpm": "programmed"}), *as_given, eng, options,
+                                  progress)
+        result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
+        return result
     if failed:
         plan = FeedPlan.programmed(program)
         status = "fallback_programmed_feeds"

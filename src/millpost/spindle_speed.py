@@ -12,7 +12,9 @@ per mm/min, a lower S can lift a power or torque limit on a spindle past its bas
 Each block's speed is chosen from a geometric grid over its window (`CANDIDATES` speeds, whole rpm) by
 the schedule's own time of the block's samples (the minimum-time feed profile under all limits, the
 same solver `optimize` runs): the fastest speed wins, and it replaces the programmed S only when it
-shortens the block by at least `MIN_GAIN`. Blocks where the feed depends on the speed (G95 feed per
+shortens the block by at least `MIN_GAIN`. A speed at which the feed policy would hold more of the
+block's samples at their programmed feed (a load over its bound there, caused by the new S) is
+refused; if the schedule at the chosen speeds fails, `optimize` keeps the programmed S. Blocks where the feed depends on the speed (G95 feed per
 revolution) or whose S is an expression keep their S; a program with O-word control flow keeps all.
 """
 
@@ -141,9 +143,11 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
             continue
         lo, hi, what = b.window
         grid = grids[id(b)]
-        t = np.array([times[1 + c][k] for c in range(len(grid))])
+        t0, held0 = times[0][0][k], times[0][1][k]
+        # a speed at which the feed policy must hold more of the block's samples at their programmed feed
+        # (a load over its bound there because of the new S) is no candidate
+        t = np.array([times[1 + c][0][k] if times[1 + c][1][k] <= held0 else np.inf for c in range(len(grid))])
         best = int(np.argmin(t))
-        t0 = times[0][k]
         window = (f"window {lo:.0f}–{hi:.0f} rpm: the material's surface speed for "
                   + ", ".join(f"T{n} ({job.tools[n].diameter_mm:g} mm)" for n in b.tools)
                   + (" within the spindle's range" if what == "surface_speed" else ", capped by the spindle's maximum"))
@@ -188,13 +192,18 @@ def _with_rpm(samples: Samples, blocks: list[SpeedBlock], sample_block: np.ndarr
 
 
 def _block_times(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions,
-                 blocks: list[SpeedBlock], sample_block: np.ndarray) -> np.ndarray:
-    """Per block the scheduled time (s) of its samples under the job's limits at the samples' rpm
-    (inf for every block when a segment's solve fails)."""
+                 blocks: list[SpeedBlock], sample_block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per block the scheduled time (s) of its samples under the job's limits at the samples' rpm (inf
+    for every block when a segment's solve fails), and how many of its samples the feed policy holds."""
     limits = build_limits(job, samples, eng, program.toolpath)
     with reporting(silent):  # the stage is "spindle speeds", not the schedule's own
         sched = schedule_samples(samples, limits, options)
+    mine = sample_block >= 0
+    held = np.zeros(len(samples), bool)
+    for mask in limits.held.values():
+        held |= mask
+    held_count = np.bincount(sample_block[mine & held], minlength=len(blocks))
     if any(not s.status.ok for _, _, s in sched.segments):
-        return np.full(len(blocks), np.inf)
+        return np.full(len(blocks), np.inf), held_count
     dt = step_times_s(samples.s_mm, np.nan_to_num(sched.feed_mm_s, nan=0.0))
-    return np.bincount(sample_block[sample_block >= 0], weights=dt[sample_block >= 0], minlength=len(blocks))
+    return np.bincount(sample_block[mine], weights=dt[mine], minlength=len(blocks)), held_count
