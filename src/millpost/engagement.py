@@ -219,6 +219,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     moving = steps[steps > 0]
     ds = float(np.median(moving)) if len(moving) else 0.0
     report = resolve(progress)
+    report("engagement", 0, n)  # started: its bar's clock runs from here
     chunk = 50_000
     # runs of one tool, cut into chunks for the progress display
     bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
