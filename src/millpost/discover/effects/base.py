@@ -4,7 +4,9 @@ and a fit (scikit-learn style: `fit` returns self, learned values end in `_`).
 An effect proposes one or more *variants* (a nonlinear setting such as a time constant on a grid, or the
 sensor it acts on), each as extra model terms (channel → {parameter: column}) and/or a filter of whole
 channels; `fit` refits the base model together with each variant on the training rows and keeps the
-variant with the smallest weighted residual.
+variant with the smallest weighted residual (`search`; an effect with one nonlinear scalar, a lag τ, an
+exponent m, a compliance C, searches a grid and then by golden section between the best point's neighbours,
+`refine`).
 """
 
 from __future__ import annotations
@@ -90,17 +92,21 @@ class Effect:
                 best = trial
         return best
 
-    def evaluate(self, ctx: Context, v: Variant) -> tuple[float, Variant, Fit, Design]:
-        """(training χ², variant, joint fit, design) of one variant refitted with the base and the kept
-        effects."""
+    def joint_design(self, ctx: Context, v: Variant) -> Design:
+        """The design of the base, the kept effects and variant v."""
         terms = [e.variant_.terms for e in ctx.kept] + [v.terms]
         filters = {k: f for e in ctx.kept for k, f in e.variant_.filters.items()} | v.filters
-        d = design(ctx.rows, terms, filters)
+        return design(ctx.rows, terms, filters)
+
+    def evaluate(self, ctx: Context, v: Variant) -> tuple[float, Variant, Fit]:
+        """(training χ², variant, joint fit) of one variant refitted with the base and the kept effects
+        (the design is not kept: on a long log it is the largest array)."""
+        d = self.joint_design(ctx, v)
         f = solve(d, ctx.rows, ctx.train, ctx.sigma)
         pred = f.predict(d)
         chi2 = sum(float(np.nansum((ctx.rows.measured[c] - pred[c])[ctx.train] ** 2)) / ctx.sigma[c] ** 2
                    for c in d.X)
-        return chi2, v, f, d
+        return chi2, v, f
 
     def refine(self, ctx: Context, best: tuple, grid: np.ndarray, at, steps: int = 8) -> tuple:
         """Golden-section search of the training χ² over a scalar setting between the grid neighbours of
@@ -123,12 +129,12 @@ class Effect:
         return min((best, fa, fb), key=lambda x: x[0])
 
     def keep(self, ctx: Context, best: tuple | None) -> "Effect":
-        """Store the best (χ², variant, fit, design) as the fitted state."""
+        """Store the best (χ², variant, fit) as the fitted state."""
         if best is None:
             self.variant_ = None
             return self
-        _, v, f, d = best
-        self.variant_, self.fit_, self.design_ = v, f, d
+        _, v, f = best
+        self.variant_, self.fit_, self.design_ = v, f, self.joint_design(ctx, v)
         own = [n for n in f.names if n.startswith(self.name + ":")]
         p, s = f.params(), f.stderr()
         self.params_ = {**v.setting, **{n.split(":", 1)[1]: p[n] for n in own}}
