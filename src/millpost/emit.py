@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .errors import MillpostError
+from .gcode import dialects
 from .gcode.flow import control_of
 from .gcode.interpret import INCH, Program
 from .gcode.lexer import Block, lex_line
@@ -119,7 +120,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     tp = program.toolpath
     if len(plan.feed_mm_min) != len(tp):
         raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
-    default_trailing = program.dialect == "fanuc" if trailing_point is None else trailing_point
+    default_trailing = dialects.get(program.dialect).trailing_point if trailing_point is None else trailing_point
     lines = program.text.splitlines(keepends=True)
     lengths = tp.lengths()
     cutting = tp.kind != RAPID
