@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from ..errors import MillpostError
 from ..registry import plugins
 
+MARKER_CAP = 3
+
 
 @dataclass(frozen=True)
 class Dialect:
@@ -35,8 +37,9 @@ class Dialect:
     (Fanuc), instead of no motion mode. cycle_k_repeats: K is a canned cycle's repeat count (except
     G87's K, a depth; Fanuc), besides L. zero_repeats_refused: L0 is an error (LinuxCNC) rather than
     "set the cycle up, do not run it". cycle_dwell_any: every canned cycle reads P (dwell), not only
-    G82/G86/G88/G89. boring_shift_q: G76/G87 read Q (the shift off the wall). g49_takes_h: G49 may
-    carry H (H0, the cancelled offset; Centroid and Haas postambles). Dwell units: `dwell_s`.
+    G82/G86/G88/G89. boring_shift_q: G76/G87 read Q (the shift off the wall). tap_peck_q: G74/G84
+    read Q (peck tapping; the reader refuses it: its retract is a control parameter). g49_takes_h:
+    G49 may carry H (H0, the cancelled offset; Centroid and Haas postambles). Dwell units: `dwell_s`.
     """
 
     name: str
@@ -59,6 +62,7 @@ class Dialect:
     cycle_dwell_any: bool = False
     boring_shift_q: bool = False
     g49_takes_h: bool = False
+    tap_peck_q: bool = False
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""
@@ -80,9 +84,11 @@ class Dialect:
         return value / 1000.0 if self.dwell_ms and (cycle or not decimal_point) else value
 
     def score(self, text: str) -> int:
-        """How strongly the text looks like this dialect's (markers found in the first 200 lines)."""
+        """How strongly the text looks like this dialect's: markers found in the first 200 lines, each
+        counted at most MARKER_CAP times (a common code written on every line, such as Mach3's G00 that
+        Fanuc posts write too, cannot outweigh several distinct markers of another dialect)."""
         head = "\n".join(text.splitlines()[:200])
-        return sum(len(re.findall(m, head, flags=re.IGNORECASE | re.MULTILINE)) for m in self.markers)
+        return sum(min(MARKER_CAP, len(re.findall(m, head, flags=re.IGNORECASE | re.MULTILINE))) for m in self.markers)
 
 
 GRBL = Dialect("grbl", canned_cycles=False, end_code="M30", tool_length_codes=frozenset({"G43.1", "G49"}),
@@ -91,7 +97,7 @@ LINUXCNC = Dialect("linuxcnc", starts_g98=False, g76_lathe=True, zero_repeats_re
                                         r"linuxcnc", r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
 FANUC = Dialect("fanuc", trailing_point=True, line_numbers=5, dwell_ms=True,
                 percent=True, end_code="M30", tool_length_codes=frozenset({"G43", "G49"}), g80_keeps_motion=True,
-                cycle_k_repeats=True, cycle_dwell_any=True, boring_shift_q=True, g49_takes_h=True,
+                cycle_k_repeats=True, cycle_dwell_any=True, boring_shift_q=True, g49_takes_h=True, tap_peck_q=True,
                 markers=(r"^%\s*$", r"^O\d{3,5}", r"G28\s*G91", r"G43\s*Z[-\d.]+\s*H\d+", r"\bM29\b", r"\bM30\b",
                          r"haas", r"fanuc", r"G53\s*G0?0\s*Z"))
 MACH3 = Dialect("mach3", end_code="M30", tool_length_codes=frozenset({"G43", "G49"}),

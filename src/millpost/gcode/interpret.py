@@ -638,7 +638,7 @@ class Interpreter:
         """Refuse a word that nothing in its block uses, as LinuxCNC 2.9 does (its check_other_codes):
         D, E, H, I, J, K, L, P, Q, R each need a G or M code of the block, or the motion mode the block
         runs in, that reads them (``G1 X1 Q3`` is an error, not a move). A dialect may add P (dwell) and
-        K (repeats) on every canned cycle, Q (shift) on G76/G87 and H on G49 (`Dialect`)."""
+        K (repeats) on every canned cycle, Q (shift) on G76/G87, Q (peck) on G74/G84 and H on G49 (`Dialect`)."""
         if 40 in gset or 530 in gset or not val.keys().isdisjoint(_CHECKED):
             motion = next((c for c in gset if c in _MOTION or c == 800), None)
             if motion is None and not gset & _TAKE_AXES and not val.keys().isdisjoint("XYZABCUVW@^"):
@@ -676,7 +676,7 @@ class Interpreter:
                     or (d.cycle_dwell_any and cycle) or not mset.isdisjoint((19, 50, 51, 52, 53, 62, 63, 64, 65, 66, 98))
                     or any(100 <= c <= 199 for c in mset))
         if L == "Q":
-            return (motion in (730, 830) or (d.boring_shift_q and motion in (760, 870)) or not gset.isdisjoint((100, 640))
+            return (motion in (730, 830) or (d.boring_shift_q and motion in (760, 870)) or (d.tap_peck_q and motion in (740, 840)) or not gset.isdisjoint((100, 640))
                     or not mset.isdisjoint((19, 66, 67, 68)) or any(100 <= c <= 199 for c in mset))
         if L == "L":
             return cycle or comp or 100 in gset or not mset.isdisjoint((98, 66))
@@ -991,6 +991,9 @@ class Interpreter:
                 raise self.err(f"canned cycle G{code / 10:g} without {need}", b, None, f"an {need} word")
         if code in (730, 830) and cyc.get("Q", 0) <= 0:
             raise self.err(f"peck cycle G{code / 10:g} needs Q > 0", b, val.get("Q"), "Q (peck depth) > 0")
+        if code in (740, 840) and cyc.get("Q", 0) > 0:  # read by dialects with peck tapping (tap_peck_q)
+            raise self.err(f"peck tapping (G{code / 10:g} with Q) is not supported", b, val.get("Q"),
+                           "a tapping cycle without Q (its retract depends on the control's parameters)")
         repeats = 1
         count = val.get("L") or (val.get("K") if self.dialect.cycle_k_repeats and code != 870 else None)
         if count is not None:
