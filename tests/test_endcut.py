@@ -297,3 +297,27 @@ def test_absurd_drilling_feed_is_lowered_to_the_drill_strength(tmp_path):
     thrust = model("al6061").predict(solid_end(), feed / (2 * 1000), tool)[0][0]
     assert thrust <= thrust_limit_N(tool) * 1.001
     assert 50 < feed < 6000 / 10
+
+
+def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
+    """A canned cycle's block holds the hole's X Y Z R, not a move's end: its moves are never split (a split
+    would write the cycle word with a split point as the hole bottom and drop R). A tap feeds at its pitch
+    times the spindle speed (M8: 1.25 mm × 500 rpm = F625): the optimizer never changes that F, even where
+    the schedule would raise or lower it."""
+    (tmp_path / "p.nc").write_text("G21 G90 G17 G94\nT1 M6\nS3000 M3\nG0 X0 Y0 Z10\n"
+                                   "G99 G81 X0 Y0 Z-12 R2 F150\nX20\nG80\nG0 Z10\nT2 M6\nS500 M3\n"
+                                   "G99 G84 X0 Y0 Z-10 R2 F625\nX20\nG80\nG0 Z10\nM2\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-10, -10, -15], [30, 10, 0]]\n'
+        '[tools.1]\ndiameter_mm = 6.8\nflutes = 2\nshape = "drill"\ntip_angle_deg = 118\nflute_length_mm = 40\n'
+        'stickout_mm = 50\n[tools.2]\ndiameter_mm = 8\nflutes = 3\nshape = "flat"\nflute_length_mm = 20\n'
+        'stickout_mm = 40\n')
+    job = load_job(tmp_path / "job.toml")
+    result = optimize(job, progress=False)
+    out = result.text.splitlines()
+    assert [ln for ln in out if "G81" in ln][0].startswith("G99 G81 X0 Y0 Z-12 R2 F")
+    assert "G99 G84 X0 Y0 Z-10 R2 F625" in out and sum(("G81" in ln) + ("G84" in ln) for ln in out) == 2
+    original, emitted = read_text((tmp_path / "p.nc").read_text()), read_text(result.text)
+    np.testing.assert_allclose(emitted.toolpath.end, original.toolpath.end, atol=1e-9)
+    tap = emitted.cycle == 840
+    assert tap.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[tap & (emitted.toolpath.kind != 0)] == 625)

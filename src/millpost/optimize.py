@@ -55,6 +55,11 @@ def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
         else:
             plan.feed_mm_min[mv] = min(f.feed_mm_min for f in frs)
             plan.fragments[mv] = [(f.u_end, f.feed_mm_min) for f in frs]
+    # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never changed
+    tapping = np.flatnonzero(np.isin(program.cycle, (740, 840)))
+    plan.feed_mm_min[tapping] = program.toolpath.feed_mm_min[tapping]
+    for mv in tapping:
+        plan.fragments.pop(int(mv), None)
     if program.control_flow:
         tp = program.toolpath
         fed = np.flatnonzero(np.isfinite(plan.feed_mm_min) & (tp.kind != RAPID))

@@ -131,7 +131,8 @@ class Program:
 
     units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
     when it ran (for writing it back): move_inch (G20), feed_mode (93/94/95), incremental (G91),
-    arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool centre, not the programmed path).
+    arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool centre, not the programmed path),
+    cycle (the canned cycle that ran it, its G code × 10: 810 for G81, 840 for G84; 0 for other moves).
     notes: assumptions made (unknown home, rotary axes at zero, ...), each naming its line.
     """
 
@@ -149,6 +150,7 @@ class Program:
     notes: list[str]
     dwell_s: float
     compensated: np.ndarray  # per move: offset by cutter compensation (its end is not the programmed point)
+    cycle: np.ndarray  # per move: the canned cycle's G code × 10, 0 outside cycles
     control_flow: bool = False  # O-word subroutines or loops: a line may run several times
 
     @property
@@ -211,6 +213,7 @@ class Interpreter:
     def __init__(self, options: ReaderOptions, file: str, dialect: Dialect) -> None:
         self.opt, self.file, self.dialect = options, file, dialect
         self.m = _Moves()
+        self.cycle_runs: list[tuple[int, int, int]] = []  # (first move, end, G code × 10)
         self.events: list[Event] = []
         self.notes: list[str] = []
         self.params: dict = {"_value": 0.0, "_value_returned": 0.0}  # LinuxCNC's predefined return value
@@ -619,7 +622,9 @@ class Interpreter:
                                "a G0, G1, G2 or G3 word (after G80, the motion mode must be given again)")
             g53 = 530 in gset
             if self.motion in _CYCLES:
+                first = len(self.m)
                 self.canned_cycle(b, val, axis_words)
+                self.cycle_runs.append((first, len(self.m), self.motion))
             elif self.motion in (20, 30):
                 self.arc(b, val, axis_words)
             else:
@@ -1165,6 +1170,9 @@ class Interpreter:
         tp, ints = self.m.to_arrays()
         compensated = np.zeros(len(tp), bool)
         compensated[self.comp.moves] = True
+        cycle = np.zeros(len(tp), np.int16)
+        for first, end, code in self.cycle_runs:
+            cycle[first:end] = code
         if self.safe_z_pending:
             z = np.concatenate([tp.start[:, 2], tp.end[:, 2]])
             finite = z[np.isfinite(z)]
@@ -1178,4 +1186,5 @@ class Interpreter:
             path=path, text=text, toolpath=tp, dialect=self.dialect.name, blocks=self.blocks,
             units=self.units_seen or ["mm"], move_inch=ints[:, 6].astype(bool), feed_mode=ints[:, 7].astype(np.int16),
             incremental=ints[:, 8].astype(bool), arc_absolute=ints[:, 9].astype(bool), events=self.events, notes=self.notes,
-            dwell_s=self.dwell_s, compensated=compensated, control_flow=self.control_flow)
+            dwell_s=self.dwell_s, compensated=compensated, control_flow=self.control_flow,
+            cycle=cycle)
