@@ -43,7 +43,10 @@ class Result:
 def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
     """The emitter's plan from the fragments. With control flow a line that runs several times gets
     one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
-    ones differ by at least `step`."""
+    ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
+    (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
+    (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
+    keeps the program's F (each run at its programmed feed)."""
     plan = FeedPlan.programmed(program)
     by_move: dict[int, list] = {}
     for f in fragments:
@@ -64,9 +67,15 @@ def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
         tp = program.toolpath
         fed = np.flatnonzero(np.isfinite(plan.feed_mm_min) & (tp.kind != RAPID))
         lines, inverse = np.unique(tp.line[fed], return_inverse=True)
-        per_line = np.full(len(lines), np.inf)
+        per_line, prog_max, forced = np.full(len(lines), np.inf), np.zeros(len(lines)), np.zeros(len(lines), bool)
         np.minimum.at(per_line, inverse, plan.feed_mm_min[fed])
-        plan.feed_mm_min[fed] = cluster(per_line, step)[inverse]
+        np.maximum.at(prog_max, inverse, tp.feed_mm_min[fed])
+        np.logical_or.at(forced, inverse, plan.feed_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
+        text = program.text.splitlines()
+        own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
+                          for n in lines], bool)
+        keep = own_f & ~forced & (cluster(per_line, step) < prog_max * (1 - 1e-9))
+        plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], cluster(per_line, step)[inverse])
         plan.fragments = {}
     return plan
 
