@@ -40,6 +40,8 @@ class Dialect:
     G82/G86/G88/G89. boring_shift_q: G76/G87 read Q (the shift off the wall). tap_peck_q: G74/G84
     read Q (peck tapping; the reader refuses it: its retract is a control parameter). g49_takes_h:
     G49 may carry H (H0, the cancelled offset; Centroid and Haas postambles). Dwell units: `dwell_s`.
+    What the writer needs to know: g43_without_h: G43 with no H takes the loaded tool's length
+    (LinuxCNC); path_modes: the controller has G61/G61.1/G64 path control modes (grbl has not).
     """
 
     name: str
@@ -63,6 +65,8 @@ class Dialect:
     boring_shift_q: bool = False
     g49_takes_h: bool = False
     tap_peck_q: bool = False
+    g43_without_h: bool = False
+    path_modes: bool = True
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""
@@ -92,9 +96,11 @@ class Dialect:
 
 
 GRBL = Dialect("grbl", canned_cycles=False, end_code="M30", tool_length_codes=frozenset({"G43.1", "G49"}),
+               path_modes=False,
                markers=(r"^\s*\$[A-Z0-9]", r"grbl", r"^G90 G94$", r"^\(When using Fusion 360 for Personal Use"))
-LINUXCNC = Dialect("linuxcnc", starts_g98=False, g76_lathe=True, zero_repeats_refused=True, markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P",
-                                        r"linuxcnc", r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
+LINUXCNC = Dialect("linuxcnc", starts_g98=False, g76_lathe=True, zero_repeats_refused=True, g43_without_h=True,
+                   markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P", r"linuxcnc",
+                            r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
 FANUC = Dialect("fanuc", trailing_point=True, line_numbers=5, dwell_ms=True,
                 percent=True, end_code="M30", tool_length_codes=frozenset({"G43", "G49"}), g80_keeps_motion=True,
                 cycle_k_repeats=True, cycle_dwell_any=True, boring_shift_q=True, g49_takes_h=True, tap_peck_q=True,
