@@ -321,3 +321,21 @@ def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
     np.testing.assert_allclose(emitted.toolpath.end, original.toolpath.end, atol=1e-9)
     tap = emitted.cycle == 840
     assert tap.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[tap & (emitted.toolpath.kind != 0)] == 625)
+
+
+def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):
+    """A subroutine line `G1 F[#1] ...` called at F300 and at F3000 (above the chip-load feed, which the
+    default policy does not lower): one constant F for the line would run the F3000 call at the lowest
+    feed any run may take. No hard limit needs either run slower, so the line keeps the program's F
+    expression, and the optimized program is no slower than the programmed one."""
+    (tmp_path / "p.ngc").write_text("o100 sub\n  G1 F[#1] X[#2]\no100 endsub\nG21 G90 G17\nT1 M6\nS9000 M3\n"
+                                    "G0 X0 Y0 Z2\nG1 Z-1 F100\no100 call [300] [10]\no100 call [3000] [20]\n"
+                                    "G0 Z10\nM2\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.ngc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-10, -10, -10], [30, 10, 0]]\n'
+        'cell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = "flat"\nflute_length_mm = 16\n'
+        'stickout_mm = 24\n')
+    result = optimize(load_job(tmp_path / "job.toml"), progress=False)
+    assert "  G1 F[#1] X[#2]" in result.text.splitlines()
+    assert result.summary["status"] == "solved"
+    assert result.summary["cycle_time_after_s"] <= result.summary["cycle_time_before_s"] * (1 + 1e-3)

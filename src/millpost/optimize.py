@@ -42,13 +42,14 @@ class Result:
     trace: dict = field(default_factory=dict)
 
 
-def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
+def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray) -> FeedPlan:
     """The emitter's plan from the fragments. With control flow a line that runs several times gets
     one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
     ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
     (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
     (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
-    keeps the program's F (each run at its programmed feed)."""
+    keeps the program's F (each run at its programmed feed). hard_cap_mm_min: per move, the lowest speed
+    cap of the hard limits over its samples (a run is forced slower where it is under the programmed feed)."""
     plan = FeedPlan.programmed(program)
     by_move: dict[int, list] = {}
     for f in fragments:
@@ -72,7 +73,7 @@ def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
         per_line, prog_max, forced = np.full(len(lines), np.inf), np.zeros(len(lines)), np.zeros(len(lines), bool)
         np.minimum.at(per_line, inverse, plan.feed_mm_min[fed])
         np.maximum.at(prog_max, inverse, tp.feed_mm_min[fed])
-        np.logical_or.at(forced, inverse, plan.feed_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
+        np.logical_or.at(forced, inverse, hard_cap_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
         text = program.text.splitlines()
         own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
                           for n in lines], bool)
@@ -146,7 +147,9 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         fragments = whole_compensated_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
-        plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
+        hard_cap = np.full(len(tp), np.inf)
+        np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD) * 60.0)
+        plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]), hard_cap)
         status, message = "solved", ""
     progress("emission", 2, 4)
     text = write_feeds(program, plan)
