@@ -31,6 +31,7 @@ FORCE = ("fx_N", "fy_N", "fz_N")
 CUTTING = FORCE + ("spindle_power_W",)
 CURRENTS = ("ix_A", "iy_A", "iz_A")
 CHANNELS = CUTTING + ("spindle_current_A",) + CURRENTS
+GAP_RAD = np.deg2rad(0.5)   # an engaged arc with a gap wider than this is two arcs (see `exit_zone`)
 
 
 @dataclass
@@ -38,11 +39,13 @@ class Cuts:
     """The cutting path samples behind the rows, so that an effect can evaluate the cutting law again on a
     changed engagement (a bent tool's narrower cut, a chip-thickness-dependent coefficient).
 
-    sample: (n,) per log row, its cutting sample (index into the arrays below) or −1 where the tool does not
-    cut; engagement, flutes, fz_mm (feed per tooth, mm) and omega_rad_s (spindle speed) of the cutting
+    sample: (n, 2) per log row, the two cutting samples around the tool's engagement (indices into the
+    arrays below, −1 where that sample does not cut) and weight (n,) the second's share (the row is
+    interpolated between them); engagement, flutes, fz_mm (feed per tooth, mm) and omega_rad_s (spindle speed) of the cutting
     samples."""
 
     sample: np.ndarray
+    weight: np.ndarray
     engagement: Engagement
     flutes: np.ndarray
     fz_mm: np.ndarray
@@ -68,7 +71,8 @@ class Cuts:
             per["spindle_power_W"][:m, k] = self.fz_mm * G[:, 3, k] / 1000.0 * self.omega_rad_s
             per["spindle_power_W"][:m, 3 + k] = E[:, 3, k] / 1000.0 * self.omega_rad_s
         at = np.where(self.sample >= 0, self.sample, m)
-        return {c: v[at] for c, v in per.items()}
+        w = self.weight[:, None]
+        return {c: (1 - w) * v[at[:, 0]] + w * v[at[:, 1]] for c, v in per.items()}
 
 
 @dataclass
@@ -82,7 +86,7 @@ class Rows:
     diameter_mm, cut_length_m (engaged path so far, per tool), velocity_mm_s (n, 3), accel_mm_s2 (n, 3);
     cuts: the cutting samples behind the rows (for effects that change the engagement or the law). use:
     the rows fits and scores use: not where the tool leaves the material (`exit_zone`), nor the first
-    look-ahead of a cut, where the tool already cuts but the sample behind it did not (`engaged_sample`)."""
+    look-ahead of a cut, where the tool already cuts but the sample behind it did not (`engaged_between`)."""
 
     t_s: np.ndarray
     measured: dict[str, np.ndarray]
@@ -114,7 +118,8 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
         raise MillpostError(f"{log.path}: only {len(inside)} log rows fall inside the program after alignment "
                             f"(offset {alignment.offset_s:.3f} s)")
     j = j_all[inside]
-    je = engaged_sample(signals, j)
+    ka, kb, w = engaged_between(signals, alignment.program_time(log.t_s[inside]))
+    je = np.where(w < 0.5, ka, kb)
     measured = {c: np.asarray(log[c][inside], float) for c in CHANNELS if log.has(c)}
     if not measured:
         raise MillpostError(f"{log.path}: no channel discover can use (has {', '.join(log.columns)}; "
@@ -130,8 +135,8 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
     idx = np.flatnonzero(cutting)
     position = np.full(n_s, -1)
     position[idx] = np.arange(len(idx))
-    cuts = Cuts(position[je], signals.engagement.select(idx), flutes[idx], signals.fz_mm[idx],
-                2 * np.pi * signals.rpm[idx] / 60.0)
+    cuts = Cuts(np.column_stack([position[ka], position[kb]]), w, signals.engagement.select(idx), flutes[idx],
+                signals.fz_mm[idx], 2 * np.pi * signals.rpm[idx] / 60.0)
     cut = cuts.channels(*cuts.regressors())
     # engaged path length so far per tool (m): wear grows with it
     ds = np.diff(signals.s_mm, prepend=signals.s_mm[0]) * cutting
@@ -157,22 +162,26 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
     features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[je], "ae_mm": signals.ae_mm[je],
                 "ap_mm": signals.ap_mm[je], "diameter_mm": diameter[je], "cut_length_m": length[je],
                 "velocity_mm_s": signals.axis_velocity_mm_s[j], "accel_mm_s2": signals.axis_accel_mm_s2[j]}
-    use = ~exiting[je] & (cutting[j] == cutting[je])
+    use = ~exiting[je] & (cutting[j] == cutting[ka]) & (cutting[j] == cutting[kb])
     return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, use, cuts)
 
 
-def engaged_sample(signals: Signals, j: np.ndarray) -> np.ndarray:
-    """The path sample whose engagement is the tool's at samples j: the engagement of a sample is the one
-    the tool meets `look_ahead_mm` further along the path (taken ahead so that the current step's own
-    cells do not cut the arc's tangent ends), so the tool's own is that of the sample that far behind."""
-    ahead = signals.engagement.look_ahead_mm
-    if ahead is None:
-        return j
+def engaged_between(signals: Signals, tau_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tool's engagement at program times tau_s as the two path samples around it and the weight of
+    the second (ka, kb, w): the engagement of a sample is the one the tool meets `look_ahead_mm` further
+    along the path (taken ahead so that the current step's own cells do not cut the arc's tangent ends),
+    so the tool's own at path position s is that of the path at s − look-ahead, interpolated linearly in
+    path length between the samples (a nearest sample would shift the rising force of a cut's entry by
+    up to half a step)."""
     s = signals.s_mm
-    target = s[j] - ahead[j]
-    k = np.clip(np.searchsorted(s, target), 1, len(s) - 1)
-    k = np.where(np.abs(s[k - 1] - target) <= np.abs(s[k] - target), k - 1, k)
-    return np.where(ahead[j] > 0, np.minimum(k, j), j)
+    s_row = np.interp(tau_s, signals.t_s, s)
+    ahead = signals.engagement.look_ahead_mm
+    target = s_row - (np.interp(s_row, s, ahead) if ahead is not None else 0.0)
+    ka = np.clip(np.searchsorted(s, target, side="right") - 1, 0, max(len(s) - 2, 0))
+    kb = np.minimum(ka + 1, len(s) - 1)
+    step = s[kb] - s[ka]
+    w = np.where(step > 0, np.clip((target - s[ka]) / np.where(step > 0, step, 1.0), 0.0, 1.0), 0.0)
+    return ka, kb, w
 
 
 def exit_zone(signals: Signals, diameter_mm: np.ndarray) -> np.ndarray:
@@ -190,6 +199,11 @@ def exit_zone(signals: Signals, diameter_mm: np.ndarray) -> np.ndarray:
     for a, b in zip(starts, ends):
         s_end = signals.s_mm[b - 1]
         out[a:b] = s_end - signals.s_mm[a:b] < 0.5 * diameter_mm[a:b]
+    eng = signals.engagement
+    if eng is not None and eng.arc_rad is not None:
+        # the material in front already split in two: the engaged measure falls short of the interval
+        span = np.nan_to_num(eng.phi_ex - eng.phi_st)
+        out |= np.any(span - eng.arc_rad > GAP_RAD, axis=1)
     return out
 
 
