@@ -85,7 +85,8 @@ class Rows:
     channel-own base columns; fixed: channel → (n,) fixed base term. features: rpm, fz_mm, ae_mm, ap_mm,
     diameter_mm, cut_length_m (engaged path so far, per tool), velocity_mm_s (n, 3), accel_mm_s2 (n, 3);
     cuts: the cutting samples behind the rows (for effects that change the engagement or the law). use:
-    the rows fits and scores use: not where the tool leaves the material (`exit_zone`), nor the first
+    the rows fits and scores use: not where the tool leaves the material (`exit_zone`), nor just before
+    a cut (`entry_zone`), nor the first
     look-ahead of a cut, where the tool already cuts but the sample behind it did not (`engaged_between`)."""
 
     t_s: np.ndarray
@@ -162,7 +163,7 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
     features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[je], "ae_mm": signals.ae_mm[je],
                 "ap_mm": signals.ap_mm[je], "diameter_mm": diameter[je], "cut_length_m": length[je],
                 "velocity_mm_s": signals.axis_velocity_mm_s[j], "accel_mm_s2": signals.axis_accel_mm_s2[j]}
-    use = ~exiting[je] & (cutting[j] == cutting[ka]) & (cutting[j] == cutting[kb])
+    use = ~exiting[je] & ~entry_zone(signals)[j] & (cutting[j] == cutting[ka]) & (cutting[j] == cutting[kb])
     return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, use, cuts)
 
 
@@ -204,6 +205,25 @@ def exit_zone(signals: Signals, diameter_mm: np.ndarray) -> np.ndarray:
         # the material in front already split in two: the engaged measure falls short of the interval
         span = np.nan_to_num(eng.phi_ex - eng.phi_st)
         out |= np.any(span - eng.arc_rad > GAP_RAD, axis=1)
+    return out
+
+
+def entry_zone(signals: Signals) -> np.ndarray:
+    """Samples within one look-ahead (or one step) before a run of cutting samples: the tool may already
+    touch the stock there (the stepping takes a cell as cut only once the tool covers its centre, and an
+    entering cutter's first fraction of a millimetre already meets a wide arc of a flat face), but the
+    model has no engagement for them: discover leaves these rows out of its fits and scores."""
+    cutting = signals.ap_mm > 1e-9
+    out = np.zeros(len(signals), bool)
+    ahead = signals.engagement.look_ahead_mm if signals.engagement is not None else None
+    s = signals.s_mm
+    starts = np.flatnonzero(np.diff(np.concatenate([[0], cutting.astype(np.int8)])) == 1)
+    for a in starts[starts > 0]:
+        margin = max(float(ahead[a]) if ahead is not None else 0.0, s[a] - s[a - 1])
+        k = a
+        while k > 0 and not cutting[k - 1] and s[a] - s[k - 1] <= margin:
+            k -= 1
+        out[k:a] = True
     return out
 
 
