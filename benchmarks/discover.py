@@ -38,7 +38,7 @@ def tile(rows, copies: int):
     feats = {k: cat(v) for k, v in rows.features.items()}
     L = rows.features["cut_length_m"]
     feats["cut_length_m"] = np.concatenate([L + k * L.max() for k in range(copies)])
-    cuts = dataclasses.replace(rows.cuts, sample=cat(rows.cuts.sample))   # the same cuts, visited again
+    cuts = dataclasses.replace(rows.cuts, sample=cat(rows.cuts.sample), weight=cat(rows.cuts.weight))   # visited again
     return Rows(t, {c: cat(v) for c, v in rows.measured.items()}, {c: cat(v) for c, v in rows.cut.items()},
                 {c: {k: cat(v) for k, v in d.items()} for c, d in rows.columns.items()},
                 {c: cat(v) for c, v in rows.fixed.items()}, feats, None, cat(rows.use), cuts)
