@@ -235,10 +235,10 @@ class Execution:
 
     def speed_at_samples(self, samples: Samples) -> np.ndarray:
         """Actual speed at every sample (mm/s); a sample's position along its move by arc length."""
-        return self.speed_at(samples.move, self._sample_fractions(samples))
+        return self.speed_at(samples.move, self.sample_fractions(samples))
 
     @staticmethod
-    def _sample_fractions(samples: Samples) -> np.ndarray:
+    def sample_fractions(samples: Samples) -> np.ndarray:
         """Fraction of each sample along its move from the resampling (samples of a move are contiguous)."""
         s = samples.s_mm
         mv = samples.move
@@ -253,7 +253,7 @@ class Execution:
 
     def time_at_samples(self, samples: Samples) -> np.ndarray:
         """Time (s) at which the tool passes every sample (motion only: no dwells or tool changes)."""
-        return self.time_at(samples.move, self._sample_fractions(samples))
+        return self.time_at(samples.move, self.sample_fractions(samples))
 
 
 def pauses_s(program, model: ControllerModel) -> np.ndarray:
@@ -295,11 +295,18 @@ def path_modes(program, model: ControllerModel) -> np.ndarray:
     return out
 
 
+def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Execution:
+    """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the
+    motion and take their time, its path modes (G61/G64 P) set the corners; feed_mm_min overrides
+    the programmed feed per move."""
+    return execute(program.toolpath, model, feed_mm_min, pauses=pauses_s(program, model),
+                   blend_mm=path_modes(program, model))
+
+
 def program_time(program, model: ControllerModel) -> float:
     """Cycle time of an interpreted program (s): motion and the pauses between its first and last
     move, in the path modes (G61/G64) the program sets."""
-    return execute(program.toolpath, model, pauses=pauses_s(program, model),
-                   blend_mm=path_modes(program, model)).time_s
+    return execute_program(program, model).time_s
 
 
 def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
@@ -478,9 +485,12 @@ def _arc_maxvel(s: _Segment, halved: bool) -> float:
     return min(s.maxvel, math.sqrt(NORMAL_SHARE * a * s.radius))
 
 
-def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
-    """LinuxCNC's blend arc between two segments (blendmath.c: blendInit3From*, blendParamKinematics,
-    blendComputeParameters): (trim of each segment, arc length, arc speed, arc acceleration), or None."""
+def _blend_geometry(prev: _Segment, cur: _Segment, model: ControllerModel):
+    """The feed-independent part of LinuxCNC's blend arc between two segments (blendmath.c:
+    blendInit3From*, blendComputeParameters): (θ, φ, binormal, d_geom, r_geom), or None where no arc
+    fits. θ is half the angle between the reversed incoming and the outgoing direction, φ = π − 2θ the
+    turn; the arc may reach d_geom (mm) into each segment (at most the blend tolerance from the
+    corner, half a line, a third/two thirds of an arc's sweep), so its radius is at most r_geom."""
     u1, u2 = prev.t1, cur.t0
     dot = min(max(_dot(u1, u2), -1.0), 1.0)
     theta = math.acos(-dot) / 2.0
@@ -494,7 +504,6 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
             return None
     if prev.arc and cur.arc and theta < math.pi / 12:
         return None
-    phi = math.pi - 2.0 * theta
     t1 = prev.tolerance if prev.tolerance > 0 else 0.25 * prev.nominal
     t2 = cur.tolerance if cur.tolerance > 0 else 0.25 * cur.nominal
     tol = min(t1, t2, 0.25 * prev.nominal, 0.25 * cur.nominal)
@@ -506,6 +515,20 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
         L1 = 0.5 * prev.nominal
     L1 = min(L1, prev.length)
     L2 = min(cur.angle / 3.0, math.pi / 2) * cur.radius if cur.arc else 0.5 * cur.length
+    d_tol = math.cos(theta) * tol / (1.0 - math.sin(theta))
+    d_geom = min(L1, L2, d_tol)
+    return theta, math.pi - 2.0 * theta, binormal, d_geom, math.tan(theta) * d_geom
+
+
+def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
+    """LinuxCNC's blend arc between two segments (blendmath.c: blendParamKinematics,
+    blendComputeParameters on `_blend_geometry`): (trim of each segment, arc length, arc speed, arc
+    acceleration), or None. The arc runs at up to the faster segment's requested speed."""
+    geometry = _blend_geometry(prev, cur, model)
+    if geometry is None:
+        return None
+    theta, phi, binormal, d_geom, r_geom = geometry
+    u1, u2 = prev.t1, cur.t0
     a_max = _inscribed(binormal, model.accel_mm_s2)
     a_n = a_max * NORMAL_SHARE
     v_req = max(prev.req, cur.req)
@@ -518,9 +541,6 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
         base = math.sqrt(sum((u2[i] * vm2 - u1[i] * vm1) ** 2 for i in range(3)))
         v_alt = vm1 * vm2 * math.sin(phi) / base if base > 0 else 0.0
     v_goal = min(v_req, max(v_alt, v_planar))
-    d_tol = math.cos(theta) * tol / (1.0 - math.sin(theta))
-    d_geom = min(L1, L2, d_tol)
-    r_geom = math.tan(theta) * d_geom
     v_plan = min(math.sqrt(a_n * r_geom), v_goal)
     a_par = 0.5 * a_max
     t_blend = min(math.sqrt(2.0 * a_par * d_geom), v_plan) / a_par
@@ -531,6 +551,33 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     if r_plan < 1e-12 or s_arc < 1e-6:
         return None
     return d_plan, s_arc, min(v_plan, v_req), a_max * TANGENTIAL_SHARE
+
+
+def blend_zones(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | None = None) -> list[tuple]:
+    """Corners where the controller may run a blend arc at the faster of its two moves' feeds (LinuxCNC
+    blends at max(F_in, F_out)): per corner (move before, move after, length into the move before and
+    into the move after (mm), the arc's top speed (mm/s)). The lengths and the speed bound the arc at
+    any feeds (r ≤ r_geom, v ≤ √(0.87·a·r_geom)), so a feed-independent zone: on it, the slower move's
+    loads see the faster move's feed unless both F words fit the zone. grbl never runs a junction above
+    the slower block's feed: no zones. blend_mm: the path modes per move (`path_modes`). Stops
+    (rapid ↔ feed, reversals, jumps, G61/G61.1) have no zone; pauses are not looked at (a zone
+    there only costs time)."""
+    if model.planner != "linuxcnc":
+        return []
+    segs = _segments(tp, model, None, blend_mm)
+    out = []
+    for prev, cur in zip(segs[:-1], segs[1:]):
+        if (prev.rapid or cur.rapid or model.exact_stop
+                or prev.tolerance in (EXACT_PATH, EXACT_STOP) or _dot(prev.t1, cur.t0) < SHARP_CORNER_COS
+                or np.linalg.norm(tp.start[cur.move] - tp.end[prev.move]) > 1e-6):
+            continue
+        geometry = _blend_geometry(prev, cur, model)
+        if geometry is None:
+            continue
+        _, _, binormal, d_geom, r_geom = geometry
+        v_top = math.sqrt(NORMAL_SHARE * _inscribed(binormal, model.accel_mm_s2) * r_geom)
+        out.append((prev.move, cur.move, d_geom, d_geom, v_top))
+    return out
 
 
 def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, blend_mm):

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import controller, safety
-from .emit import FeedPlan, whole_compensated_moves, write_feeds
+from .emit import FeedPlan, emitted_positions, whole_compensated_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
@@ -25,7 +25,7 @@ from .progress import Progress, resolve, stage
 from .limits import HARD, JobLimits, build_limits, spindle_rpm, static_caps
 from .replay import baseline_feeds, binding_shares, feed_at_samples, limit_ratios
 from .schedule import PathGrid, ScheduleOptions, schedule_samples
-from .schedule.feeds import cluster, emission_limit, piecewise_feeds
+from .schedule.feeds import blend_limit, cluster, emission_limit, piecewise_feeds
 from .signals import controller_model
 from .toolpath import RAPID, Samples
 
@@ -94,16 +94,15 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
     """From the engagement on: limits, schedule, emitted text, cycle times and the replay check.
     (Split from `optimize` so that tests can give engagements of known geometry.)"""
     tp = program.toolpath
-    ds = float(job.limits["ds_mm"])
     t_limits = time.perf_counter()
     limits = build_limits(job, samples, eng, tp)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options or ScheduleOptions.from_choices(solver=job.limits["solver"]))
     solver_s = time.perf_counter() - t0
     model = controller_model(job)
-    before = controller.execute(tp, model)
+    before = controller.execute_program(program, model)
     base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
-    baseline = controller.execute(tp, model, base_feeds)
+    baseline = controller.execute_program(program, model, base_feeds)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed:
         plan = FeedPlan.programmed(program)
@@ -113,6 +112,9 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
+        # corners the controller blends at the faster feed carry it into the slower move
+        limit_mm_s = blend_limit(samples, limit_mm_s, np.cumsum(tp.lengths()),
+                                 controller.blend_zones(tp, model, controller.path_modes(program, model)))
         fragments = whole_compensated_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
@@ -120,11 +122,14 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         status, message = "solved", ""
     text = write_feeds(program, plan)
     t_emit = time.perf_counter()
-    emitted_tp = read_text(text, str(job.program), job.reader_options()).toolpath  # what will run
-    after = controller.execute(emitted_tp, model)
+    emitted = read_text(text, str(job.program), job.reader_options())  # what will run
+    emitted_tp = emitted.toolpath
+    after = controller.execute_program(emitted, model)
     if status == "solved" and after.time_s > before.time_s * (1 + 1e-3):
         status = "slower"
-    executed = np.interp(samples.s_mm, *_speed_profile(emitted_tp, after, ds))
+    # the executed speed at each sample, at the same place of the emitted (split) moves
+    executed = after.speed_at(*emitted_positions(tp, emitted_tp, samples.move,
+                                                 controller.Execution.sample_fractions(samples)))
     ratios = limit_ratios(samples, limits, executed, job)
     as_programmed = limit_ratios(samples, limits, before.speed_at_samples(samples), job)
     by_effect, by_limit = binding_shares(samples, sched, limits)
@@ -249,9 +254,3 @@ def _rpm_notes(job: Job, program: Program) -> list[str]:
                        f"{job.machine.spindle.rpm_min:g}–{job.machine.spindle.rpm_max:g} rpm; "
                        f"the controller runs it at {used:g} rpm and the loads are computed there")
     return out
-
-
-def _speed_profile(tp, execution, ds: float) -> tuple[np.ndarray, np.ndarray]:
-    """(s, v) of an executed program on its own resampling, to interpolate at any arc length."""
-    s2 = tp.resample(ds)
-    return s2.s_mm, execution.speed_at_samples(s2)

@@ -196,3 +196,34 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
         own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, ramp_owned) & ramping)
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
     return out
+
+
+def blend_limit(samples: Samples, limit_mm_s: np.ndarray, move_end_mm: np.ndarray, zones: list[tuple]) -> np.ndarray:
+    """The feed limit (mm/s) with the controller's blend arcs: a controller that rounds a corner with an
+    arc run at the faster of the two moves' feeds (`controller.blend_zones`: move before, move after,
+    the arc's reach into each (mm), its top speed (mm/s)) carries that feed into the slower move. Where
+    the top speed exceeds the lowest limit over the zone (the samples it reaches on both moves, and
+    the next sample on each side), the zone's samples on both sides take that lowest limit, so that
+    both F words around the corner fit it. move_end_mm: arc length (mm) at the end of every move."""
+    out = np.asarray(limit_mm_s, float).copy()
+    if not zones:
+        return out
+    m0, m1, d0, d1, v_top = (np.array(c, float) for c in zip(*zones))
+    corner = np.asarray(move_end_mm, float)[m0.astype(np.int64)]
+    s = samples.s_mm
+    lo = np.maximum(np.searchsorted(s, corner - d0, side="left") - 1, 0)
+    hi = np.minimum(np.searchsorted(s, corner + d1, side="right") + 1, len(s))
+    count = np.maximum(hi - lo, 0)
+    keep = count > 0
+    lo, count, m0, m1, v_top = lo[keep], count[keep], m0[keep], m1[keep], v_top[keep]
+    if not len(lo):
+        return out
+    owner = np.repeat(np.arange(len(lo)), count)
+    idx = np.repeat(lo - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
+    mv = samples.move[idx]
+    inside = (mv >= m0[owner]) & (mv <= m1[owner])
+    vals = np.where(inside & np.isfinite(out[idx]), out[idx], np.inf)
+    zone_min = np.minimum.reduceat(vals, np.r_[0, np.cumsum(count)[:-1]])
+    lower = inside & (v_top[owner] > zone_min[owner])
+    np.minimum.at(out, idx[lower], zone_min[owner][lower])
+    return out
