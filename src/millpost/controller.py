@@ -281,10 +281,14 @@ EXACT_PATH, EXACT_STOP = -1.0, -2.0  # path modes in a blend-tolerance array: G6
 def path_modes(program, model: ControllerModel) -> np.ndarray:
     """Per move: the blend tolerance in effect (mm; G64 P, 0 for a G64 without P) or EXACT_PATH (G61:
     stop at corners) or EXACT_STOP (G61.1: stop after every move); before the program sets one, the
-    controller's own `blend_tolerance_mm`."""
+    controller's own `blend_tolerance_mm`. The moves of a canned cycle (after its climb to R) run in
+    exact path whatever the mode (LinuxCNC's convert_cycle sets G61 for them and restores it after)."""
     out = np.full(len(program.toolpath), model.blend_tolerance_mm)
     inch = np.asarray(program.move_inch, bool)
+    cycles = []
     for e in program.events:
+        if e.kind == "canned_cycle":
+            cycles.append((e.value, e.move))
         if e.kind != "path_mode" or e.move >= len(out):
             continue
         name, p = e.value
@@ -292,6 +296,8 @@ def path_modes(program, model: ControllerModel) -> np.ndarray:
             out[e.move:] = 0.0 if p is None else p * (25.4 if inch[e.move] else 1.0)
         else:
             out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP
+    for first, end in cycles:  # a canned cycle's moves (after the climb to R) in exact path, as LinuxCNC runs them
+        out[first:end] = np.where(out[first:end] == EXACT_STOP, EXACT_STOP, EXACT_PATH)
     return out
 
 

@@ -1016,6 +1016,8 @@ class Interpreter:
             old = r
         clear = r if not self.retract_old_z else old
         current = self.pos[an]
+        # LinuxCNC runs a cycle's moves after the climb to R in exact path (G61), then restores the mode
+        first = len(self.m) + self.comp.pending
         d1 = axis_words.get(_AXES[a1])
         d2 = axis_words.get(_AXES[a2])
         if self.polar_step is not None and self.plane != 0:
@@ -1039,6 +1041,7 @@ class Interpreter:
             if p[an] > r and code != 870:
                 self.to_depth(RAPID, r, b)
             self.cycle_body(code, b, r, bottom, clear, feed, cyc)
+        self.event(b.line, "canned_cycle", first)
         self.polar_step = None
 
     def check_cycle_size(self, b: Block, code: int, repeats: int, r: float, bottom: float, cyc: dict) -> None:
