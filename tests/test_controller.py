@@ -239,3 +239,25 @@ def test_blend_limit_lowers_both_sides_of_a_fast_corner():
     assert (out[near] == 5.0).all() and (out[~near] == limit[~near]).all()
     slow = zones[0][:4] + (4.0,)  # an arc no faster than the slow side needs nothing
     assert (blend_limit(smp, limit, np.cumsum(tp.lengths()), [slow]) == limit).all()
+
+
+def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
+    from millpost.controller import blend_zones, corner_speeds, execute
+
+    tp = feed_tp([("line", (50, 0, 0)), ("line", (100, 0, 0)), ("line", (100, 50, 0)), ("line", (99.9, 100, 0)),
+                  ("rapid", (0, 100, 0))], 6000)
+    ctl = lcnc(blend_tolerance_mm=0.05)
+    cap = corner_speeds(tp, ctl)
+    assert cap[1] == np.inf and cap[4] == 0.0 and cap[0] == cap[5] == np.inf  # collinear; feed -> rapid stops
+    assert cap[2] == pytest.approx(blend_zones(tp, ctl)[0][4], rel=1e-12)  # the right angle: its blend arc
+    # the slight bend (0.11°): the faster of the tangent kink (the velocity jump in one servo period within
+    # 10 % of the acceleration) and the blend arc, here the arc
+    u0, u1 = np.array([0.0, 1.0, 0.0]), np.array([-0.1, 50.0, 0.0]) / math.hypot(0.1, 50.0)
+    kink = 0.1 * 0.001 / np.max(np.abs(u1 - u0) / [3000.0, 2500.0, 2500.0])
+    assert cap[3] == pytest.approx(max(kink, blend_zones(tp, ctl)[1][4]), rel=1e-12) and cap[3] > kink
+    for feed in (600, 6000, 60000):
+        tp.feed_mm_min[:4] = feed
+        ex = execute(tp, ctl)
+        for j in (2, 3):  # the speed where the corner's blocks meet never exceeds the cap
+            k = np.flatnonzero(ex.move == j - 1)[-1]
+            assert ex.v_entry[k] <= cap[j] * (1 + 1e-9) and ex.v_entry[k + 1] <= cap[j] * (1 + 1e-9)

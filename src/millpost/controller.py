@@ -559,6 +559,35 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     return d_plan, s_arc, min(v_plan, v_req), a_max * TANGENTIAL_SHARE
 
 
+def corner_speeds(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | None = None) -> np.ndarray:
+    """LinuxCNC's planner: per junction (len(tp) + 1; index j: before move j) the highest speed (mm/s)
+    at which it passes the corner whatever the feeds: 0 where it stops (rapid ↔ feed, a reversal, a
+    jump, G61/G61.1), else the larger of the tangent-kink speed (the velocity jump v·Δu in one servo
+    period within 10 % of the axes' acceleration) and the blend arc's top speed √(0.87·a·r_geom) (or,
+    where no arc fits, the parabolic blend's); inf at the ends and between collinear moves."""
+    out = np.full(len(tp) + 1, np.inf)
+    segs = _segments(tp, model, np.full(len(tp), np.inf), blend_mm)
+    amax, dt = model.accel_mm_s2, model.servo_period_s
+    for prev, cur in zip(segs[:-1], segs[1:]):
+        if (prev.rapid != cur.rapid or model.exact_stop or prev.tolerance in (EXACT_PATH, EXACT_STOP)
+                or _dot(prev.t1, cur.t0) < SHARP_CORNER_COS
+                or np.linalg.norm(tp.start[cur.move] - tp.end[prev.move]) > 1e-6):
+            out[cur.move] = 0.0
+            continue
+        jump = max(abs(cur.t0[i] - prev.t1[i]) / amax[i] for i in range(3))
+        if jump < 1e-12:
+            continue
+        v = KINK_RATIO * dt / jump * (TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0)
+        geometry = _blend_geometry(prev, cur, model)
+        if geometry is not None:
+            _, _, binormal, _, r_geom = geometry
+            v = max(v, math.sqrt(NORMAL_SHARE * _inscribed(binormal, model.accel_mm_s2) * r_geom))
+        else:
+            v = max(v, _parabolic_speed(prev, cur))
+        out[cur.move] = v
+    return out
+
+
 def blend_zones(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | None = None) -> list[tuple]:
     """Corners where the controller may run a blend arc at the faster of its two moves' feeds (LinuxCNC
     blends at max(F_in, F_out)): per corner (move before, move after, length into the move before and

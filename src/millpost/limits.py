@@ -55,7 +55,8 @@ import numpy as np
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
 from .job import Job
-from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CurrentSlew, FeedLimit, Junction, MinSpeed,
+from .controller import ControllerModel, corner_speeds
+from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction, MinSpeed,
                        MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.rows import SpeedBounds
@@ -142,6 +143,20 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
+def _corners(job: Job, samples: Samples, toolpath: Toolpath):
+    """The corner rule of the machine's own planner (`ControllerModel.from_machine`): grbl's junction
+    deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds`), on the
+    last sample before each corner."""
+    model = ControllerModel.from_machine(job.machine)
+    if model.planner == "grbl":
+        return Junction(model.accel_mm_s2, model.junction_deviation_mm)
+    corner = corner_speeds(toolpath, model)
+    cap = np.full(len(samples), np.inf)
+    last = np.flatnonzero(samples.move[:-1] != samples.move[1:])
+    cap[last] = corner[samples.move[last + 1]]
+    return CornerSpeed(cap)
+
+
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied."""
     n = len(samples)
@@ -159,8 +174,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
-              Limit(Junction(amax, m.controller.junction_deviation_mm), HARD, "inertia", controller=True,
-                    f_word=False)]
+              Limit(_corners(job, samples, toolpath), HARD, "inertia", controller=True, f_word=False)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
                             f_word=False))

@@ -118,6 +118,20 @@ class Junction:
 
 
 @dataclass(frozen=True)
+class CornerSpeed:
+    """Speed cap (mm/s, per sample) at the corners a blending planner rounds by itself: the highest
+    speed it passes each corner at (`controller.corner_speeds` on the sample before the corner), inf
+    elsewhere. The corner rule of LinuxCNC-like controllers, as Junction is grbl's."""
+
+    cap_mm_s: np.ndarray
+    name: str = "junction"
+
+    def blocks(self, grid: PathGrid) -> list[Block]:
+        cap = _per_sample(self.cap_mm_s, len(grid))
+        return [SpeedBounds(self.name, np.zeros(len(grid)), cap**2)]
+
+
+@dataclass(frozen=True)
 class PathJerk:
     """Bounded change of path acceleration: |da/dt| ≤ jerk_mm_s3 (mm/s³) between collocation points,
     |a_{i+1} − a_i| ≤ J·Δs/v (Δt = Δs/v). Makes a an explicit variable."""
