@@ -1,6 +1,7 @@
 """Controller model against LinuxCNC 2.9's real trajectory planner (the headless harness in
 ../shared/tools/lcnc): the cycle time of every sample job, before and after `millpost optimize`, and
-of the real third-party programs LinuxCNC runs, within 2 % of LinuxCNC's.
+of the real third-party programs LinuxCNC runs, and of the real-program regression set (tests/real_jobs)
+after `optimize`, within 2 % of LinuxCNC's (each run prints both times with `pytest -s`).
 
 Skipped when LinuxCNC or the harness is absent. Each program runs once in LinuxCNC at a 5× clock
 speed-up (about a fifth of its cycle time in wall time, some 8 minutes in all); programs of more
@@ -16,11 +17,13 @@ import pytest
 
 import lcnc_harness
 from conftest import shared_data
+from millpost.errors import MillpostError
 from millpost.job import load_job
 from millpost.machine import Machine
 from millpost.optimize import optimize
 
 JOBS = Path(__file__).resolve().parents[1] / "sample_jobs"
+REAL_JOBS = sorted(p.parent for p in (Path(__file__).parent / "real_jobs").glob("*/job.toml"))
 SAMPLES = ["adaptive_pocket", "ball_roughing", "drill_and_mill", "slotting"]
 # real programs LinuxCNC runs cleanly (left out: Fanuc G76/G87 and G41 in fusion-fanuc-benchmark, Centroid
 # M25, a G1 with no F in compass/mt_kazbegi and sworn_brothers and test_linuxcnc_00, a '%' LinuxCNC
@@ -69,6 +72,7 @@ def check(program: Path, machine_name: str, models) -> None:
         pytest.skip(f"LinuxCNC refuses {program.name}: {res['errors']}")
     assert res.get("ok"), f"LinuxCNC did not run {program}: {res.get('error')}"
     t_lcnc = float(res["seconds"])
+    print(f"\n{program.name}: model {t_model:.3f} s, LinuxCNC {t_lcnc:.3f} s ({t_model / t_lcnc - 1.0:+.2%})")
     assert abs(t_model / t_lcnc - 1.0) <= TOLERANCE, f"{program.name}: model {t_model:.3f} s, LinuxCNC {t_lcnc:.3f} s"
 
 
@@ -89,3 +93,17 @@ def test_optimized_sample_job(name, models, tmp_path):
 @pytest.mark.parametrize("rel", REAL)
 def test_real_program(rel, models):
     check(shared_data(*rel.split("/")), MACHINE_FOR_REAL, models)
+
+
+@pytest.mark.parametrize("folder", REAL_JOBS, ids=[f.name for f in REAL_JOBS])
+def test_optimized_real_job(folder, models, tmp_path):
+    """The real-program regression set (tests/real_jobs) after `optimize`, on the job's machine."""
+    shared_data()  # skips without ../shared/data
+    job = load_job(folder)
+    try:
+        text = optimize(job, progress=False).text
+    except MillpostError as exc:  # refused with a clear error (see test_real_jobs)
+        pytest.skip(f"{folder.name}: {exc}")
+    out = tmp_path / f"{folder.name}.nc"
+    out.write_text(text)
+    check(out, job.machine.name, models)

@@ -56,8 +56,8 @@ from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
 from .job import Job
 from .controller import ControllerModel, corner_speeds
-from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction, MinSpeed,
-                       MotorCurrent, PathGrid, PathJerk, SpeedLoad)
+from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
+                       MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.rows import SpeedBounds
 from .toolpath import RAPID, Samples, Toolpath
