@@ -59,3 +59,22 @@ def test_without_blend_limits_the_corners_overrun(monkeypatch):
     job, eng, result, text = _run(822)
     ratios = replayed(job, eng, result, text)
     assert ratios["deflection"] > 1.5
+
+
+def test_replay_reads_the_same_place_of_split_moves():
+    # the replay maps a sample of the programmed move to its place on the emitted pieces (split lines
+    # and arcs at rounded points, so arc lengths differ slightly): the same point of the path
+    from millpost.emit import FeedPlan, write_feeds
+
+    text = "G21 G90 G17\nG0 X0 Y0 Z1\nG1 Z-1 F300\nG1 X10.3 Y0.7 F600\nG2 X20 Y0 I4.85 J-0.35 F600\nG0 Z5\nM2\n"
+    program = read_text(text, "p.nc")
+    plan = FeedPlan.programmed(program)
+    plan.fragments = {2: [(1 / 3, 500.0), (0.77777, 700.0), (1.0, 650.0)], 3: [(0.123456, 300.0), (1.0, 900.0)]}
+    emitted = read_text(write_feeds(program, plan), "e.nc").toolpath
+    assert len(emitted) == len(program.toolpath) + 3
+    move = np.repeat(np.arange(len(program.toolpath)), 50)
+    u = np.tile(np.linspace(0.0, 1.0, 50), len(program.toolpath))
+    k, frac = emitted_positions(program.toolpath, emitted, move, u)
+    gap = np.linalg.norm(program.toolpath.points(move, u) - emitted.points(k, frac), axis=1)
+    assert gap.max() < 2e-4  # split points written to 4 decimals
+    assert (emitted.feed_mm_min[k[(move == 2) & (u > 0.34) & (u < 0.77)]] == 700.0).all()
