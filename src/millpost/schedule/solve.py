@@ -12,10 +12,12 @@ schedule; `schedule_samples` hands whole segments to the processes when there ar
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import multiprocessing
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
@@ -26,6 +28,7 @@ from millpost.schedule.certify import certified_reach
 from millpost.schedule.problem import SolverOptions, Status
 from millpost.schedule.reach import Reach, reach, traversal_time
 from millpost.schedule.rows import Block, LocalRows, PathGrid, SpeedBounds, StepRows
+from millpost.progress import current
 from millpost.toolpath import RAPID, Samples
 
 
@@ -228,8 +231,9 @@ def _binding(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray, 
 
 
 def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | None = None, *,
-               b_start: float = 0.0, b_end: float = 0.0) -> Schedule:
-    """Minimum-time b(s) on one segment under the blocks, rest to rest by default."""
+               b_start: float = 0.0, b_end: float = 0.0, on_window: Callable[[int], None] | None = None) -> Schedule:
+    """Minimum-time b(s) on one segment under the blocks, rest to rest by default. on_window: called
+    with the sample count of each window solved (progress)."""
     opts = options or ScheduleOptions()
     n = len(grid)
     if n < 2:
@@ -265,7 +269,8 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
                             "no speed profile satisfies the limits (empty controllable set at the start)",
                             solver_s=time.perf_counter() - t0)
         b_new, slack, sec, cnt, message = _solve_linearised(grid, blocks, opts, v0, vref, rc, (U, Wm, H),
-                                                            b_lo, b_hi, b_start, b_end, 2 if has_steps else 1)
+                                                            b_lo, b_hi, b_start, b_end, 2 if has_steps else 1,
+                                                            on_window)
         secs += sec
         windows += cnt
         if b_new is None:
@@ -316,7 +321,8 @@ def _tangents_bind(grid: PathGrid, blocks: list[Block], b: np.ndarray, v0: np.nd
 
 def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, v0: np.ndarray, vref: float,
                       rc: Reach, rows: tuple, b_lo: np.ndarray, b_hi: np.ndarray, b_start: float, b_end: float,
-                      nfix: int) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
+                      nfix: int, on_window: Callable[[int], None] | None = None
+                      ) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
     """One SOCP solve at fixed tangent points: monolithic, or chunks of receding windows.
     Returns (b or None, floor slack, solver seconds, windows, failure message)."""
     n, ds = len(grid), grid.ds
@@ -337,12 +343,18 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
                    b_start=float(first[-1]), b_end_max=float(last[-1]), b_end_min=float(last[-1]))
         jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
                      rk.k_lo, rk.k_hi, first, last, nfix))
-    if _parallel(opts) and len(jobs) > 1:
-        ctx = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
-            outs = list(ex.map(_solve_chunk, jobs))
-    else:
-        outs = [_solve_chunk(j) for j in jobs]
+    outs = []
+    with contextlib.ExitStack() as stack:
+        if _parallel(opts) and len(jobs) > 1:
+            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
+                                                         mp_context=multiprocessing.get_context("fork")))
+            results = ex.map(_solve_chunk, jobs)
+        else:
+            results = map(_solve_chunk, jobs)
+        for k, out in enumerate(results):  # in order, as they come
+            outs.append(out)
+            if on_window is not None:
+                on_window(cuts[k + 1] - cuts[k])
     b, slack = np.zeros(n), np.zeros(n)
     secs, count = 0.0, 0
     for k, (bb, sw, sec, cnt, msg) in enumerate(outs):
@@ -391,23 +403,42 @@ class ProgramSchedule:
 
 def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | None = None) -> ProgramSchedule:
     """Schedule every cutting segment of `samples` rest to rest. `limits` are constraint objects
-    whose per-sample arrays span all samples."""
+    whose per-sample arrays span all samples. Reports the stage "schedule" (samples of the segments
+    and windows solved) to `millpost.progress.current()`."""
     opts = options or ScheduleOptions()
+    progress = current()
     grid = PathGrid.from_samples(samples)
     blocks = [blk for lim in limits for blk in lim.blocks(grid)]
     ranges = cutting_segments(samples)
     tasks = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi)) for lo, hi in ranges]
     big = sorted(range(len(tasks)), key=lambda k: -len(tasks[k][0]))
+    total, finished, inside = sum(len(g) for g, _ in tasks), 0, 0
+
+    def window(samples_done: int) -> None:  # a window of the segment being solved (passes may repeat them)
+        nonlocal inside
+        inside += samples_done
+        progress("schedule", finished + min(inside, len(tasks[k][0]) - 1), total)
+
     if _parallel(opts) and len(tasks) > 1 and sum(len(g) for g, _ in tasks) > 2 * opts.monolithic_max:
         # whole segments to the workers, largest first; each solves its chunks in turn
         one = dataclasses.replace(opts, processes=1)
         with ProcessPoolExecutor(max_workers=min(opts.processes, len(tasks)),
                                  mp_context=multiprocessing.get_context("fork")) as ex:
-            done = dict(zip(big, ex.map(_solve_segment, [(*tasks[k], one) for k in big],
-                                                  chunksize=max(1, len(big) // (8 * opts.processes)))))
+            done = {}
+            for k, sch in zip(big, ex.map(_solve_segment, [(*tasks[k], one) for k in big],
+                                          chunksize=max(1, len(big) // (8 * opts.processes)))):
+                done[k] = sch
+                finished += len(tasks[k][0])
+                progress("schedule", finished, total)
         schedules = [done[k] for k in range(len(tasks))]
     else:  # one long segment (its chunks in parallel), or only short ones
-        schedules = [solve_path(g, b, opts) for g, b in tasks]
+        schedules = []
+        for k, (g, b) in enumerate(tasks):
+            inside = 0
+            schedules.append(solve_path(g, b, opts, on_window=window))
+            finished += len(g)
+            progress("schedule", finished, total)
+    progress("schedule", total, total)
     feed = np.full(len(samples), np.nan)
     for (lo, hi), sch in zip(ranges, schedules):
         feed[lo:hi] = sch.feed_mm_s
