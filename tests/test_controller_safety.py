@@ -20,7 +20,7 @@ from millpost.controller import ControllerModel, Execution, execute_program
 from millpost.emit import emitted_positions
 from millpost.gcode import read_text
 from millpost.limits import build_limits
-from millpost.replay import limit_ratios
+from millpost.replay import replay
 from random_jobs import random_job, run_job
 
 SEEDS = [195, 284, 318, 432, 488, 670, 726, 822]
@@ -36,7 +36,7 @@ def replayed(job, eng, result, programmed_text: str) -> dict[str, float]:
     original = read_text(programmed_text, "programmed.nc").toolpath
     v = execute_program(program, model).speed_at(*emitted_positions(original, program.toolpath, smp.move,
                                                                     Execution.sample_fractions(smp)))
-    return limit_ratios(smp, build_limits(job, smp, eng, original), v, job)
+    return replay(job, smp, eng, build_limits(job, smp, eng, original), v).ratios
 
 
 def _run(seed: int):
