@@ -204,7 +204,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
                              or np.any(limits.held.get(k, False))},
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
-        "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(emitted_tp, samples)),
+        "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
         "notes": program.notes + _rpm_notes(job, program)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .controller import Execution
+from .emit import emitted_positions
 from .engagement import Engagement
 from .gcode.interpret import Program
 from .job import Job
@@ -42,11 +44,11 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     return feeds, per_tool
 
 
-def feed_at_samples(emitted: Toolpath, samples: Samples) -> np.ndarray:
-    """The F in force (mm/min) of an emitted program at each sample of the original resampling, by
-    arc length (splitting moves does not change the path's length)."""
-    s_end = np.cumsum(emitted.lengths())
-    k = np.clip(np.searchsorted(s_end, samples.s_mm - 1e-9), 0, max(len(emitted) - 1, 0))
+def feed_at_samples(original: Toolpath, emitted: Toolpath, samples: Samples) -> np.ndarray:
+    """The F in force (mm/min) of an emitted program at each sample of the original resampling, read at
+    the same place of the emitted (split) moves (`emit.emitted_positions`), not by the total arc length
+    (rounded split points shift it into the neighbouring piece)."""
+    k, _ = emitted_positions(original, emitted, samples.move, Execution.sample_fractions(samples))
     return emitted.feed_mm_min[k]
 
 
