@@ -8,8 +8,10 @@ point of the problem is feasible for it):
   relaxation the other way round.
 - StepRows (current slew, jerk): the relaxation drops them; the restriction keeps them by checking
   them exactly (√b, not linearised) on the restricted profile, which is then feasible, or gives up.
-- SoftFloor: the relaxation drops them; unmet floors on the restricted profile add their penalty
-  `floor_penalty`·Σ node length·(floor − b)/vref³ (s; the conic objective's own weight) to its cost.
+- SoftFloor: unmet floors add their penalty `floor_penalty`·Σ node length·(floor − b)⁺/vref³ (s; the
+  conic objective's own weight) to a profile's cost. Every feasible b lies below the relaxed greedy
+  profile (componentwise), so its unmet floors cost at least the relaxed profile's: that penalty
+  is part of the lower bound.
 
 A problem of linear rows in the neighbouring states reads α·b_{i+1} + β·b_i ≤ h with α = u/(2·ds_i),
 β = w − α. If α·β ≤ 0 for every row the feasible set is a lattice (closed under componentwise max),
@@ -18,8 +20,8 @@ the optimum; the greedy reachability (TOPP-RA) profile is that element. Rows wit
 curvature against a small tangent component, 2·ds·κ_k > t_k) break this and are bracketed again:
 in the restriction by b_i, b_{i+1} ≤ h/(α + β) (implies the row), in the relaxation by b_i ≤ h/β,
 b_{i+1} ≤ h/α (implied by the row, b ≥ 0). Rows with α, β < 0 and h ≥ 0 hold for every b ≥ 0 and
-are dropped. The restricted greedy profile costs J_R ≥ J*, the relaxed greedy one T_X ≤ J*; the
-restricted profile is returned with the proven gap J_R/T_X − 1.
+are dropped. The restricted greedy profile costs J_R ≥ J*, the relaxed greedy one J_X ≤ J*; the
+restricted profile is returned with the proven gap J_R/J_X − 1.
 """
 
 from __future__ import annotations
@@ -109,6 +111,8 @@ def certified_reach(grid: PathGrid, blocks: list[Block], floor_penalty: float = 
         node_len = np.zeros(n)
         node_len[:-1] += ds / 2
         node_len[1:] += ds / 2
-        vref = float(np.sqrt(b_hi.max())) or 1.0
-        t_r += floor_penalty * float(np.sum(node_len * np.maximum(floor - b, 0.0))) / vref**3
+        weight = floor_penalty * node_len / (float(np.sqrt(b_hi.max())) or 1.0) ** 3
+        # every feasible b is ≤ the relaxed profile, so its unmet floors cost at least the relaxed one's
+        t_r += float(np.sum(weight * np.maximum(floor - b, 0.0)))
+        t_x += float(np.sum(weight * np.maximum(floor - relaxed.b, 0.0)))
     return b, max(t_r / t_x - 1, 0.0)
