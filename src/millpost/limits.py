@@ -58,6 +58,7 @@ from .job import Job
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CurrentSlew, FeedLimit, Junction, MinSpeed,
                        MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
+from .schedule.constraints import window_blocks
 from .schedule.rows import SpeedBounds
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
@@ -111,7 +112,7 @@ class JobLimits:
 
     def by_block(self, grid: PathGrid) -> dict[str, Limit]:
         """The limit each row block (by its name) comes from."""
-        return {blk.name: lim for lim in self.limits for blk in lim.blocks(grid)}
+        return {blk.name: lim for lim in self.limits for blk in window_blocks(grid, [lim], 0, min(len(grid), 1))}
 
     def names(self, **identity) -> tuple[str, ...]:
         """Names of the limits (and of their row blocks) whose identity fields have these values."""
@@ -300,8 +301,13 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
 
 def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all."""
+    by itself allow (loads, chip load, feed, block rate), of one kind or all (in chunks of
+    LOAD_CHUNK samples: the rows of the whole program are never held at once)."""
     grid = PathGrid.from_samples(samples)
-    caps = [blk for lim in limits if not lim.controller and kind in (None, lim.kind)
-            for blk in lim.blocks(grid) if isinstance(blk, SpeedBounds)]
-    return np.sqrt(merged_bounds(caps, len(samples))[1])
+    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind)]
+    b_hi = np.empty(len(samples))
+    for lo in range(0, len(samples), LOAD_CHUNK):
+        hi = min(lo + LOAD_CHUNK, len(samples))
+        b_hi[lo:hi] = merged_bounds([blk for blk in window_blocks(grid, mine, lo, hi)
+                                     if isinstance(blk, SpeedBounds)], hi - lo)[1]
+    return np.sqrt(b_hi)

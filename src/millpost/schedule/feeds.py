@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from millpost.schedule.assemble import merged_bounds
-from millpost.schedule.constraints import path_blocks
+from millpost.schedule.constraints import window_blocks
 from millpost.schedule.rows import PathGrid, SpeedBounds
 from millpost.schedule.solve import ProgramSchedule
 from millpost.toolpath import RAPID, Samples
@@ -202,11 +202,11 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
     and programming the ramp as F words would only slow it (a ladder of them ends in F≈0 at a
     stop). nan on rapids."""
     grid = PathGrid.from_samples(samples)
-    caps = [blk for blk in path_blocks(grid, limits)
-            if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
     out = np.full(len(samples), np.nan)
     for lo, hi, sch in schedule.segments:
-        _, b_hi = merged_bounds([c.window(lo, hi) for c in caps], hi - lo)
+        caps = [blk for blk in window_blocks(grid, limits, lo, hi)
+                if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
+        _, b_hi = merged_bounds(caps, hi - lo)
         binding = sch.binding.astype(str)
         a = np.abs(sch.a)
         a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)

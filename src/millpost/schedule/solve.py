@@ -23,6 +23,7 @@ import numpy as np
 
 from millpost.schedule.assemble import build, linear_rows, merged_bounds, soft_floor
 from millpost.schedule.certify import certified_reach
+from millpost.schedule.constraints import window_blocks
 from millpost.schedule.problem import SolverOptions, Status
 from millpost.schedule.reach import Reach, reach, traversal_time
 from millpost.schedule.rows import Block, LocalRows, PathGrid, SpeedBounds, StepRows
@@ -391,28 +392,41 @@ class ProgramSchedule:
 
 def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | None = None) -> ProgramSchedule:
     """Schedule every cutting segment of `samples` rest to rest. `limits` are constraint objects
-    whose per-sample arrays span all samples."""
+    whose per-sample arrays span all samples; each segment's rows are built on its own samples
+    (`window_blocks`), so memory follows the longest segment, not the program."""
     opts = options or ScheduleOptions()
     grid = PathGrid.from_samples(samples)
-    blocks = [blk for lim in limits for blk in lim.blocks(grid)]
     ranges = cutting_segments(samples)
-    tasks = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi)) for lo, hi in ranges]
-    big = sorted(range(len(tasks)), key=lambda k: -len(tasks[k][0]))
-    if _parallel(opts) and len(tasks) > 1 and sum(len(g) for g, _ in tasks) > 2 * opts.monolithic_max:
-        # whole segments to the workers, largest first; each solves its chunks in turn
-        one = dataclasses.replace(opts, processes=1)
-        with ProcessPoolExecutor(max_workers=min(opts.processes, len(tasks)),
-                                 mp_context=multiprocessing.get_context("fork")) as ex:
-            done = dict(zip(big, ex.map(_solve_segment, [(*tasks[k], one) for k in big],
-                                                  chunksize=max(1, len(big) // (8 * opts.processes)))))
-        schedules = [done[k] for k in range(len(tasks))]
+    big = sorted(range(len(ranges)), key=lambda k: ranges[k][0] - ranges[k][1])
+    if _parallel(opts) and len(ranges) > 1 and sum(hi - lo for lo, hi in ranges) > 2 * opts.monolithic_max:
+        # whole segments to the workers, largest first; each solves its chunks in turn. The workers are
+        # forked with the grid and limits (initargs are not pickled under fork): only (lo, hi) travel
+        with ProcessPoolExecutor(max_workers=min(opts.processes, len(ranges)),
+                                 mp_context=multiprocessing.get_context("fork"), initializer=_share,
+                                 initargs=(grid, limits, dataclasses.replace(opts, processes=1))) as ex:
+            done = dict(zip(big, ex.map(_solve_shared, [ranges[k] for k in big],
+                                        chunksize=max(1, len(big) // (8 * opts.processes)))))
+        schedules = [done[k] for k in range(len(ranges))]
     else:  # one long segment (its chunks in parallel), or only short ones
-        schedules = [solve_path(g, b, opts) for g, b in tasks]
+        schedules = [_solve_segment(grid, limits, lo, hi, opts) for lo, hi in ranges]
     feed = np.full(len(samples), np.nan)
     for (lo, hi), sch in zip(ranges, schedules):
         feed[lo:hi] = sch.feed_mm_s
     return ProgramSchedule(feed, [(lo, hi, sch) for (lo, hi), sch in zip(ranges, schedules)])
 
 
-def _solve_segment(args: tuple) -> Schedule:
-    return solve_path(*args)
+def _solve_segment(grid: PathGrid, limits: list, lo: int, hi: int, opts: ScheduleOptions) -> Schedule:
+    return solve_path(grid.window(lo, hi), window_blocks(grid, limits, lo, hi), opts)
+
+
+_shared: tuple = ()  # a worker's (grid, limits, options), set by `_share` when the pool forks it
+
+
+def _share(*state) -> None:
+    global _shared
+    _shared = state
+
+
+def _solve_shared(segment: tuple[int, int]) -> Schedule:
+    grid, limits, opts = _shared
+    return _solve_segment(grid, limits, *segment, opts)
