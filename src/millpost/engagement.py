@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -80,6 +80,12 @@ class Engagement:
             return None if any(v is None for v in values) else np.concatenate(values)
         return cls(**{name: cat(name) for name in cls.__dataclass_fields__})
 
+    def per_sample(self) -> "Engagement":
+        """The same engagement without its per-slice and end arrays (phi_st … arc_rad, end_engaged
+        become (N, 0)): what is left to report once the loads are computed (~0.5 KB a sample less)."""
+        return replace(self, **{name: getattr(self, name)[:, :0] for name in _PER_SLICE
+                                if getattr(self, name) is not None})
+
     def select(self, index) -> "Engagement":
         """The samples at `index` (a slice, mask or index array)."""
         return Engagement(**{name: None if getattr(self, name) is None else getattr(self, name)[index]
@@ -107,6 +113,7 @@ class Engagement:
             ap_mm=np.full(n, ap_mm), ae_mm=ae, volume_mm3=np.full(n, np.nan), area_mm2=area)
 
 
+_PER_SLICE = ("phi_st", "phi_ex", "dz_mm", "z_mm", "r_mm", "kappa", "arc_rad", "end_engaged")
 END_BINS = 8  # radial bins of the tool's end (Engagement.end_engaged)
 
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import controller, safety
+from ._kernels import set_threads
 from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
@@ -71,6 +72,8 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal).
     `options` default to the job's `[limits] solver` on all cores."""
     t_start = time.perf_counter()
+    options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    set_threads(options.processes)
     report = resolve(progress)
     with stage(report, "read program"):
         program = read_program(job.program, job.reader_options())
@@ -79,24 +82,29 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         stock = job.stock()
     samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                         progress=report)
+    del stock  # memory: the stock grid and the per-slice engagement are not needed after the loads
     t_engage = time.perf_counter()
     with stage(report, "forces, schedule, emit"):
-        result = schedule_program(job, program, samples, eng, options)
+        limits = build_limits(job, samples, eng, program.toolpath)
+        t_limits = time.perf_counter()
+        eng = eng.per_sample()
+        result = schedule_program(job, program, samples, eng, options, limits=limits)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
-                                 **result.summary["stage_s"]}
+                                 **result.summary["stage_s"], "limits": round(t_limits - t_engage, 3)}
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
 
 def schedule_program(job: Job, program: Program, samples: Samples, eng,
-                     options: ScheduleOptions | None = None) -> Result:
-    """From the engagement on: limits, schedule, emitted text, cycle times and the replay check.
-    (Split from `optimize` so that tests can give engagements of known geometry.)"""
+                     options: ScheduleOptions | None = None, *, limits: JobLimits | None = None) -> Result:
+    """From the engagement on: limits (unless given: `build_limits` of this engagement), schedule,
+    emitted text, cycle times and the replay check. (Split from `optimize` so that tests can give
+    engagements of known geometry.)"""
     tp = program.toolpath
     ds = float(job.limits["ds_mm"])
     t_limits = time.perf_counter()
-    limits = build_limits(job, samples, eng, tp)
+    limits = limits if limits is not None else build_limits(job, samples, eng, tp)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options or ScheduleOptions.from_choices(solver=job.limits["solver"]))
     solver_s = time.perf_counter() - t0

@@ -12,8 +12,9 @@ import numpy as np
 
 from .gcode.interpret import Program
 from .job import Job
-from .limits import JobLimits, static_caps
+from .limits import LOAD_CHUNK, JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
+from .schedule.constraints import window_blocks
 from .schedule.rows import SpeedBounds
 from .toolpath import RAPID, Samples, Toolpath
 
@@ -57,12 +58,14 @@ def limit_ratios(samples: Samples, limits: JobLimits, v_mm_s: np.ndarray, job: J
             with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked below
                 ratio = value / np.broadcast_to(np.asarray(c.limit, float), value.shape)
             out[lim.name] = max(out.get(lim.name, 0.0), float(np.nanmax(np.where(cut, ratio, 0.0), initial=0)))
-        elif lim.f_word and not lim.controller:  # speed caps only millpost holds
-            for blk in lim.blocks(grid):
-                if isinstance(blk, SpeedBounds):
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        r = np.where(cut & (blk.b_hi > 0), v / np.sqrt(blk.b_hi), 0.0)
-                    out[blk.name] = max(out.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
+        elif lim.f_word and not lim.controller:  # speed caps only millpost holds (in chunks: memory)
+            for lo in range(0, len(samples), LOAD_CHUNK):
+                hi = min(lo + LOAD_CHUNK, len(samples))
+                for blk in window_blocks(grid, [lim], lo, hi):
+                    if isinstance(blk, SpeedBounds):
+                        with np.errstate(divide="ignore", invalid="ignore"):
+                            r = np.where(cut[lo:hi] & (blk.b_hi > 0), v[lo:hi] / np.sqrt(blk.b_hi), 0.0)
+                        out[blk.name] = max(out.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
     # motor current from the executed speed profile: a = v dv/ds along the path
     ds = np.gradient(samples.s_mm)
     a_path = v * np.gradient(v) / np.where(ds > 0, ds, 1.0)
