@@ -83,7 +83,7 @@ class Engagement:
     def per_sample(self) -> "Engagement":
         """The same engagement without its per-slice and end arrays (phi_st … arc_rad, end_engaged
         become (N, 0)): what is left to report once the loads are computed (~0.5 KB a sample less)."""
-        return replace(self, **{name: getattr(self, name)[:, :0] for name in _PER_SLICE
+        return replace(self, **{name: np.empty((len(self), 0)) for name in _PER_SLICE  # not views: freed
                                 if getattr(self, name) is not None})
 
     def select(self, index) -> "Engagement":
@@ -257,7 +257,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
             report("engagement", c1, n)
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:
-        kappa[a:b] = _kappa(t, out["zmid"][a:b])
+        for c0 in range(a, b, chunk):  # in chunks: the profile's temporaries stay small
+            kappa[c0:min(b, c0 + chunk)] = _kappa(t, out["zmid"][c0:min(b, c0 + chunk)])
     feed3 = np.column_stack([out["feed"], np.zeros(n)])
     dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
     with np.errstate(divide="ignore", invalid="ignore"):

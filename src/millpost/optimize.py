@@ -193,7 +193,8 @@ def _binding_kind(samples: Samples, sched, limits: JobLimits, kind: str) -> np.n
     owner = limits.by_block(PathGrid.from_samples(samples))
     out = np.zeros(len(samples), np.int8)
     for lo, hi, s in sched.segments:
-        out[lo:hi] = [name in owner and owner[name].kind == kind for name in s.binding.astype(str)]
+        names, which = np.unique(s.binding.astype(str), return_inverse=True)
+        out[lo:hi] = np.array([name in owner and owner[name].kind == kind for name in names], bool)[which.reshape(-1)]
     return out
 
 

@@ -95,7 +95,8 @@ def binding_shares(samples: Samples, sched, limits: JobLimits) -> tuple[dict[str
         with np.errstate(divide="ignore", invalid="ignore"):
             dt[1:] = np.where(v[1:] + v[:-1] > 0, 2 * np.diff(samples.s_mm[lo:hi]) / (v[1:] + v[:-1]), 0.0)
         total += float(dt.sum())
-        for block, w in zip(s.binding.astype(str), dt):
+        blocks, which = np.unique(s.binding.astype(str), return_inverse=True)
+        for block, w in zip(blocks, np.bincount(which.reshape(-1), weights=dt, minlength=len(blocks))):
             if block:
                 lim = owner.get(block)
                 effect, name = (lim.effect, lim.name) if lim is not None else (block, block)
