@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import re
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -82,7 +82,10 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         stock = job.stock()
     samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                         progress=report)
-    del stock  # memory: the stock grid and the per-slice engagement are not needed after the loads
+    # memory: the stock grid is not needed after the engagement, nor its per-slice arcs (reported by
+    # `millpost simulate` only), nor the per-slice engagement after the loads
+    del stock
+    eng = replace(eng, arc_rad=None)
     t_engage = time.perf_counter()
     with stage(report, "forces, schedule, emit"):
         limits = build_limits(job, samples, eng, program.toolpath)
