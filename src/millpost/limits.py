@@ -287,8 +287,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
     v_cap = np.minimum(static_caps(samples, limits), feed_max / 60.0)
-    at_cap = loads["force_a"] * v_cap[:, None] + loads["force_b"]
-    drive_force = -np.where(np.abs(at_cap) > np.abs(loads["force_b"]), at_cap, loads["force_b"])
+    drive_force = np.empty((n, 3))
+    for k in range(3):  # per axis: temporaries of one column (memory)
+        at_cap = loads["force_a"][:, k] * v_cap + loads["force_b"][:, k]
+        drive_force[:, k] = -np.where(np.abs(at_cap) > np.abs(loads["force_b"][:, k]), at_cap, loads["force_b"][:, k])
     drive_force[stalled] = 0.0  # inertia only there: the cutting share is held at the kept feed (reported)
     limits.append(Limit(MotorCurrent(mass, kf, current, tuple(friction), tuple(viscous), cut_beta=drive_force),
                         HARD, "current"))
