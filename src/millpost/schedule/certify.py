@@ -26,6 +26,8 @@ restricted profile is returned with the proven gap J_R/J_X − 1.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from millpost.schedule.assemble import linear_rows, merged_bounds, soft_floor
@@ -81,10 +83,35 @@ def _lattice(ds: np.ndarray, b_hi: np.ndarray, U: np.ndarray, W: np.ndarray, H: 
     return cap, U, W, H
 
 
+@dataclass
+class Certificate:
+    """The restricted profile `b` (feasible), the relaxed one `b_relaxed` (no feasible b exceeds it at
+    any sample) and their costs per interval and per node (s): traversal time of each interval and
+    soft-floor penalty of each node. `gap` is the proven bound over the whole segment."""
+
+    b: np.ndarray
+    b_relaxed: np.ndarray
+    cost: np.ndarray          # (2, N): restricted and relaxed, interval i's time + node i's penalty
+    gap: float
+
+    def gap_between(self, lo: int, hi: int) -> float:
+        """Proven bound on the stretch of samples [lo, hi) (intervals lo … hi − 2, nodes lo … hi − 1,
+        the segment's last node with the last stretch): every feasible b lies below the relaxed profile
+        there too, so its cost on the stretch is at least the relaxed one's."""
+        j_r, j_x = self.cost[:, lo:hi - 1].sum(axis=1) + (self.cost[:, hi - 1] if hi == self.cost.shape[1] else 0)
+        return max(j_r / j_x - 1, 0.0) if j_x > 0 else (0.0 if j_r <= 0 else np.inf)
+
+
 def certified_reach(grid: PathGrid, blocks: list[Block], floor_penalty: float = 10.0
                     ) -> tuple[np.ndarray, float] | None:
     """(b, gap bound) for a rest-to-rest segment, or None when the bracket does not close (hard speed
     floors, a slew or jerk row the restricted profile breaks, an infeasible restriction)."""
+    cert = certify(grid, blocks, floor_penalty)
+    return None if cert is None else (cert.b, cert.gap)
+
+
+def certify(grid: PathGrid, blocks: list[Block], floor_penalty: float = 10.0) -> Certificate | None:
+    """The certificate of a rest-to-rest segment (see `certified_reach`), or None."""
     n = len(grid)
     b_lo, b_hi = merged_bounds(blocks, n)
     if (b_lo > 0).any():
@@ -106,6 +133,12 @@ def certified_reach(grid: PathGrid, blocks: list[Block], floor_penalty: float = 
     t_r, t_x = traversal_time(ds, b), traversal_time(ds, relaxed.b)
     if not (np.isfinite(t_r) and t_x > 0):
         return None
+    cost = np.zeros((2, n))
+    for row, prof in zip(cost, (b, relaxed.b)):  # each interval's term of `traversal_time`
+        v = np.sqrt(np.maximum(prof, 0.0))
+        den = v[:-1] + v[1:]
+        with np.errstate(divide="ignore"):
+            row[:-1] = np.where(den > 0, 2 * ds / den, np.inf)
     floor = soft_floor(blocks, n)
     if (floor > 0).any():
         node_len = np.zeros(n)
@@ -113,6 +146,9 @@ def certified_reach(grid: PathGrid, blocks: list[Block], floor_penalty: float = 
         node_len[1:] += ds / 2
         weight = floor_penalty * node_len / (float(np.sqrt(b_hi.max())) or 1.0) ** 3
         # every feasible b is ≤ the relaxed profile, so its unmet floors cost at least the relaxed one's
-        t_r += float(np.sum(weight * np.maximum(floor - b, 0.0)))
-        t_x += float(np.sum(weight * np.maximum(floor - relaxed.b, 0.0)))
-    return b, max(t_r / t_x - 1, 0.0)
+        pen_r, pen_x = weight * np.maximum(floor - b, 0.0), weight * np.maximum(floor - relaxed.b, 0.0)
+        cost[0] += pen_r
+        cost[1] += pen_x
+        t_r += float(np.sum(pen_r))
+        t_x += float(np.sum(pen_x))
+    return Certificate(b, relaxed.b, cost, max(t_r / t_x - 1, 0.0))
