@@ -36,9 +36,10 @@ class ScheduleOptions:
     `relinearize`: extra solves re-taking the tangents (√b terms of LocalRows, 1/√b of StepRows)
     at the last solution (speeds below 5 % of the top speed keep the tangent there).
     `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length).
-    `certify_gap`: accept the O(N) reachability profile without a conic solve when it is provably
-    within this relative time of the optimum (certify.py; 0 always solves the SOCP). The default
-    0.1 % is the optimality budget of issue 5; measured loss is about a quarter of the bound.
+    `certify_gap`: accept the O(N) reachability profile without a conic solve where it is provably
+    within this relative time of the optimum, on the whole segment or on a stretch between cruise
+    anchors (certify.py, `_patch`; 0 always solves the SOCP). The default 0.1 % is the optimality
+    budget of issue 5; measured loss is about a quarter of the bound.
     Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
     normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it;
     after the retries the best solution is kept if its violation is within `accept_residual` (1e-4 of
