@@ -59,7 +59,6 @@ from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CurrentSlew,
                        MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
-from .schedule.rows import SpeedBounds
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
 
@@ -310,6 +309,5 @@ def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray
     b_hi = np.empty(len(samples))
     for lo in range(0, len(samples), LOAD_CHUNK):
         hi = min(lo + LOAD_CHUNK, len(samples))
-        b_hi[lo:hi] = merged_bounds([blk for blk in window_blocks(grid, mine, lo, hi)
-                                     if isinstance(blk, SpeedBounds)], hi - lo)[1]
+        b_hi[lo:hi] = merged_bounds(window_blocks(grid, mine, lo, hi, caps_only=True), hi - lo)[1]
     return np.sqrt(b_hi)

@@ -15,7 +15,6 @@ from .job import Job
 from .limits import LOAD_CHUNK, JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
 from .schedule.constraints import window_blocks
-from .schedule.rows import SpeedBounds
 from .toolpath import RAPID, Samples, Toolpath
 
 
@@ -61,11 +60,10 @@ def limit_ratios(samples: Samples, limits: JobLimits, v_mm_s: np.ndarray, job: J
         elif lim.f_word and not lim.controller:  # speed caps only millpost holds (in chunks: memory)
             for lo in range(0, len(samples), LOAD_CHUNK):
                 hi = min(lo + LOAD_CHUNK, len(samples))
-                for blk in window_blocks(grid, [lim], lo, hi):
-                    if isinstance(blk, SpeedBounds):
-                        with np.errstate(divide="ignore", invalid="ignore"):
-                            r = np.where(cut[lo:hi] & (blk.b_hi > 0), v[lo:hi] / np.sqrt(blk.b_hi), 0.0)
-                        out[blk.name] = max(out.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
+                for blk in window_blocks(grid, [lim], lo, hi, caps_only=True):
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        r = np.where(cut[lo:hi] & (blk.b_hi > 0), v[lo:hi] / np.sqrt(blk.b_hi), 0.0)
+                    out[blk.name] = max(out.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
     # motor current from the executed speed profile: a = v dv/ds along the path
     ds = np.gradient(samples.s_mm)
     a_path = v * np.gradient(v) / np.where(ds > 0, ds, 1.0)

@@ -59,6 +59,7 @@ class AxisAcceleration:
 
     amax_mm_s2: tuple[float, float, float]
     name: str = "axis_acceleration"
+    caps = False  # no SpeedBounds among its rows (see `window_blocks`)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         A = np.asarray(self.amax_mm_s2, float)[:, None] * np.ones((1, len(grid)))
@@ -124,6 +125,7 @@ class PathJerk:
 
     jerk_mm_s3: float
     name: str = "jerk"
+    caps = False  # no SpeedBounds among its rows (see `window_blocks`)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         n = len(grid)
@@ -254,6 +256,7 @@ class MotorCurrent:
     cut_alpha: np.ndarray | None = None
     cut_beta: np.ndarray | None = None
     name: str = "current"
+    caps = False  # no SpeedBounds among its rows (see `window_blocks`)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         n = len(grid)
@@ -290,8 +293,7 @@ class CurrentSlew:
 
     def pin(self, grid: PathGrid) -> "CurrentSlew":
         """The same limit with its rows' axes fixed to those that move on `grid` (see `window_blocks`)."""
-        return self if self.axes is not None else replace(self, axes=tuple(bool(x) for x in
-                                                                          np.abs(grid.tangent).max(axis=0) > 0))
+        return self if self.axes is not None else replace(self, axes=grid.moving_axes)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         n = len(grid)
@@ -312,21 +314,25 @@ def path_blocks(grid: PathGrid, limits: list) -> list[Block]:
     return [blk for lim in limits for blk in lim.blocks(grid)]
 
 
-def window_blocks(grid: PathGrid, limits: list, lo: int, hi: int) -> list[Block]:
+def window_blocks(grid: PathGrid, limits: list, lo: int, hi: int, *, caps_only: bool = False) -> list[Block]:
     """The rows of `limits` on samples [lo, hi) of `grid`, computed on that stretch alone (memory and
     time in proportion to it): equal to `path_blocks(grid, limits)` cut to [lo, hi). A limit object
     (or its `constraint`) has per-sample arrays of length len(grid), which are cut to the stretch and
     one sample beyond each end (a junction looks at the next sample); what a limit reads off the
-    whole grid is fixed first (`pin`)."""
+    whole grid is fixed first (`pin`). caps_only: only the SpeedBounds (limits whose class says
+    `caps = False` are skipped)."""
     n = len(grid)
     a, b = max(lo - 1, 0), min(hi + 1, n)
     sub = grid.window(a, b)
     out: list[Block] = []
     for lim in limits:
         c = getattr(lim, "constraint", lim)
+        if caps_only and not getattr(c, "caps", True):
+            continue
         if hasattr(c, "pin"):
             c = c.pin(grid)
         cut = {f.name: v[a:b] for f in fields(c)
                if isinstance(v := getattr(c, f.name), np.ndarray) and v.ndim and v.shape[0] == n}
-        out += [blk.window(lo - a, hi - a) for blk in replace(c, **cut).blocks(sub)]
+        out += [blk.window(lo - a, hi - a) for blk in replace(c, **cut).blocks(sub)
+                if not caps_only or isinstance(blk, SpeedBounds)]
     return out

@@ -20,7 +20,7 @@ import numpy as np
 
 from millpost.schedule.assemble import merged_bounds
 from millpost.schedule.constraints import window_blocks
-from millpost.schedule.rows import PathGrid, SpeedBounds
+from millpost.schedule.rows import PathGrid
 from millpost.schedule.solve import ProgramSchedule
 from millpost.toolpath import RAPID, Samples
 
@@ -204,8 +204,8 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
     grid = PathGrid.from_samples(samples)
     out = np.full(len(samples), np.nan)
     for lo, hi, sch in schedule.segments:
-        caps = [blk for blk in window_blocks(grid, limits, lo, hi)
-                if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
+        caps = [blk for blk in window_blocks(grid, limits, lo, hi, caps_only=True)
+                if blk.name not in controller_enforced]
         _, b_hi = merged_bounds(caps, hi - lo)
         binding = sch.binding.astype(str)
         a = np.abs(sch.a)
