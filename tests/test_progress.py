@@ -44,8 +44,9 @@ def _on_pty(args: list[str]) -> str:
 
 def test_progress_on_a_terminal_only(tmp_path):
     shown = _on_pty(CMD + ["-o", str(tmp_path / "a.nc")])
-    for stage in ("read program", "engagement", "forces, schedule, emit"):
-        assert stage in shown
+    # every stage that can take a second, the kernels' first load or compile in this process included
+    for stage in ("read program", "compile kernels", "engagement", "forces", "schedule", "emission", "replay"):
+        assert stage in shown, stage
     assert "\x1b[" in shown and "100%" in shown
     assert re.search(r"millpost: solved: cycle time [\d.]+ s programmed → [\d.]+ s optimized", shown)
     piped = subprocess.run(CMD + ["-o", str(tmp_path / "b.nc")], env=ENV, capture_output=True, text=True, check=True)
@@ -62,10 +63,11 @@ def test_stages_report_through_the_callback():
     calls = []
     optimize(load_job(JOB), progress=lambda stage, done, total: calls.append((stage, done, total)))
     order = list(dict.fromkeys(c[0] for c in calls))
-    assert [s for s in order if s != "compile kernels"] == ["read program", "stock", "engagement",
-                                                             "forces, schedule, emit"]
-    eng = [c for c in calls if c[0] == "engagement"]
-    assert eng[-1][1] == eng[-1][2] > 0 and all(a[1] <= b[1] for a, b in zip(eng, eng[1:]))
+    assert [s for s in order if s != "compile kernels"] == ["read program", "stock", "engagement", "forces",
+                                                             "schedule", "emission", "replay"]
+    for counted in ("engagement", "forces", "schedule", "emission", "replay"):  # fractions that only grow
+        got = [c for c in calls if c[0] == counted]
+        assert got[-1][1] == got[-1][2] > 0 and all(a[1] <= b[1] for a, b in zip(got, got[1:])), counted
     for stage in order:  # each stage ends finished
         last = [c for c in calls if c[0] == stage][-1]
         assert last[2] > 0 and last[1] >= last[2]
@@ -89,3 +91,32 @@ def test_recommend_plot_needs_sweep(capsys, tmp_path):
                  "vmc-small", "--plot", str(tmp_path / "p.png")])
     assert code == 2 and "--sweep" in capsys.readouterr().err
     assert not (tmp_path / "p.png").exists()
+
+
+def test_kernel_compiles_report_to_the_enclosing_callback_only():
+    """`compiling` reports a stage while a numba dispatcher has no compiled copy in this process, to the
+    callback of the enclosing `reporting` block; nothing outside it, nothing in a forked worker."""
+    from types import SimpleNamespace
+
+    from millpost._kernels import compiling
+    from millpost.progress import current, reporting, silent
+
+    fresh, ready = SimpleNamespace(signatures=[]), SimpleNamespace(signatures=["(float64,)"])
+    calls = []
+    with compiling(fresh):  # no callback set: silent
+        pass
+    with reporting(lambda *c: calls.append(c)):
+        with compiling(ready):
+            pass
+        assert calls == []
+        with compiling(ready, fresh):
+            calls.append("call")
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # a forked worker: its reports would draw on the parent's terminal
+            os.write(w, b"1" if current() is silent else b"0")
+            os._exit(0)
+        os.waitpid(pid, 0)
+        assert os.read(r, 1) == b"1"
+    assert calls == [("compile kernels", 0.0, 0.0), "call", ("compile kernels", 1.0, 1.0)]
+    assert current() is silent

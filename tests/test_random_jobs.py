@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from millpost.gcode import read_text
-from millpost.limits import spindle_rpm
+from millpost.signals import running_rpm
 from millpost.toolpath import RAPID
 from millpost.tools.beam import ToolBeam
 from random_jobs import run_job
@@ -44,7 +44,7 @@ def _independent(job, eng, result) -> dict:
     tr = result.trace
     smp = result.samples
     cut = (smp.kind != RAPID) & (eng.ap_mm > 0) & (smp.rpm > 0)
-    rpm = spindle_rpm(job, np.where(smp.rpm > 0, smp.rpm, 1.0))
+    rpm = running_rpm(job, np.where(smp.rpm > 0, smp.rpm, 1.0))
     fz = tr["feed_executed_mm_min"] / (tool.flutes * rpm)
     loads = job.material.force_model(job.limits["model"]).predict(eng, fz, rpm, tool)
     beam = ToolBeam.of(tool)

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from millpost._kernels import announce_compile
+from millpost._kernels import compiling
 from millpost.errors import ConfigError
 from millpost.toolpath import ARC_CW, RAPID, Samples, Toolpath
 
@@ -315,8 +315,8 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
     vj2 = vj2.copy()
     vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
     n = len(L)
-    announce_compile(_plan)
-    v2 = _plan(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
+    with compiling(_plan):
+        v2 = _plan(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
     ve = np.sqrt(np.maximum(v2, 0))
     t = _trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
     if model.planner == "linuxcnc":

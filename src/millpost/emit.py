@@ -301,3 +301,25 @@ def _same(a: float, b: float) -> bool:
 def _sweep(tp, i: int) -> float:
     sub = tp.subset(np.array([i]))
     return float(sub._arc_params()[3][0])
+
+
+def replace_numbers(program: Program, words: dict[int, dict[str, float]]) -> str:
+    """The program's text with the values of words on given lines replaced ({line: {letter: value}}),
+    each written in its own style (decimals, trailing point, case); every other byte as it was. A
+    letter the line does not have is an error (nothing is added)."""
+    lines = program.text.splitlines(keepends=True)
+    for n, new in sorted(words.items()):
+        body = lines[n - 1].rstrip("\r\n")
+        block = lex_line(body, n, program.path, _Unknown())
+        have = {w.letter: w for w in block.words}
+        missing = sorted(set(new) - set(have))
+        if missing:
+            raise MillpostError(f"{program.path}:{n}: no {', '.join(missing)} word to change")
+        texts = {}
+        for letter, value in new.items():
+            old = have[letter].text[1:].strip()
+            decimals = len(old.split(".")[1]) if "." in old else 0
+            trailing = old.endswith(".")
+            texts[letter] = _fmt(value, max(decimals, 1) if trailing else decimals, trailing)
+        lines[n - 1] = _LineWriter(body, block, True).replace(texts) + lines[n - 1][len(body):]
+    return "".join(lines)

@@ -15,10 +15,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ._kernels import announce_compile
+from ._kernels import compiling
 from ._kernels import engage as _k
 from .errors import CrashError, MillpostError
-from .progress import Progress, resolve
+from .progress import Progress, reporting, resolve
 from .toolpath import RAPID, Samples
 from .tools import Tool
 from .tools.cutter import CONE_SHAPES
@@ -226,13 +226,10 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     moving = steps[steps > 0]
     ds = float(np.median(moving)) if len(moving) else 0.0
     report = resolve(progress)
-    compiling = not _k.run.signatures  # numba compiles the kernel (or loads its cache) on the first call
-    if compiling:
-        report("compile kernels", 0.0, 0.0)
+    report("engagement", 0, n)  # started: its bar's clock runs from here
     chunk = 50_000
     # runs of one tool, cut into chunks for the progress display
     bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
-    announce_compile(_k.run)
     runs = []
     for a, b in zip(bounds[:-1], bounds[1:]):
         t = tools.get(int(tool_no[a])) if tools is not None else tool
@@ -244,16 +241,14 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
         for c0 in range(a, b, chunk):
             c1 = min(b, c0 + chunk)
-            bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny, stock.x0, stock.y0,
-                         stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits, stock.multi_ids,
-                         stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half, t.flute_len, K, M,
-                         ring_at, shape != _k.FLAT, 1e-3, *(v[a:b] for v in out.values()))
+            with reporting(report), compiling(_k.run):
+                bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny,
+                             stock.x0, stock.y0, stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits,
+                             stock.multi_ids, stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half,
+                             t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, *(v[a:b] for v in out.values()))
             if bad != _k.OK:
                 bad += a
                 raise CrashError(int(samples.line[bad]), xyz[bad])
-            if compiling:
-                report("compile kernels", 1.0, 1.0)
-                compiling = False
             report("engagement", c1, n)
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:

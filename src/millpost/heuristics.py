@@ -126,14 +126,22 @@ class _Setup:
     ap_range_mm: tuple[float, float]
 
 
-def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, model: str,
-           strategy: str | None = None) -> _Setup:
+def rpm_range(tool: Tool, material: Material, machine: Machine) -> tuple[float, float, str]:
+    """(lo, hi, what sets hi) of the spindle speed (rpm): the material's surface-speed window for the
+    tool (n = 1000 v_c / (π D)) within the spindle's range ("surface_speed" or "spindle_rpm"); a
+    window the spindle cannot reach gives its nearest end."""
     vc_lo, vc_hi = material.rpm_window(tool.diameter_mm, tool.material)
     lo, hi = max(vc_lo, machine.spindle.rpm_min), min(vc_hi, machine.spindle.rpm_max)
     hi_reason = "surface_speed" if vc_hi <= machine.spindle.rpm_max else "spindle_rpm"
     if lo > hi:   # the spindle cannot reach the window: run at the nearest end it can
         lo = hi = machine.spindle.rpm_max if vc_lo > machine.spindle.rpm_max else machine.spindle.rpm_min
         hi_reason = "spindle_rpm"
+    return lo, hi, hi_reason
+
+
+def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, model: str,
+           strategy: str | None = None) -> _Setup:
+    lo, hi, hi_reason = rpm_range(tool, material, machine)
     caps = {"machine_feed": machine.feed_max_mm_min, "dynamic_range": 60.0 * limits.dynamic_range_mm_s}
     if limits.feed_max_mm_min is not None:
         caps["feed_max"] = limits.feed_max_mm_min

@@ -13,7 +13,8 @@
                                       # plunge_feed_max_mm_min (cap on the feed of moves going down
                                       # into material: plunges, drilling, ramps),
                                       # lower ("hard"|"all"), feed_step (relative, 0.05),
-                                      # solver ("auto"|"clarabel": Clarabel on every segment)
+                                      # solver ("auto"|"clarabel": Clarabel on every segment),
+                                      # rpm ("programmed"|"optimize": choose S per operation)
     [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
 
 A folder stands for the `job.toml` inside it. Every number must be finite and inside its stated
@@ -38,8 +39,8 @@ from .tools.library import load_tool, tool_from_table
 
 _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
                "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None,
-               "lower": "hard", "feed_step": 0.05, "solver": "auto"}
-_CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel")}
+               "lower": "hard", "feed_step": 0.05, "solver": "auto", "rpm": "programmed"}
+_CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel"), "rpm": ("programmed", "optimize")}
 # the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
 # a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
 # budget of 5 mm or a feed of 1000 m/min is no limit at all.

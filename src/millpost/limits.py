@@ -11,7 +11,10 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `f_word`: the emitted F words obey its speed cap (false for accelerations, jerk and corner caps,
   which the controller ramps to on its own);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
-  limit binds).
+  limit binds);
+- for a load limit, `signal`: the load it bounds, from the forward model's signals
+  (`millpost.signals.Signals` → per-sample values; the replay check evaluates it at the executed speed),
+  and `bound`: its bound per sample before the feed policy.
 
 The feed policy (`[limits] lower`): millpost raises feeds freely under every limit. With
 lower = "hard" (the default) it lowers a feed below the programmed one only where a hard limit
@@ -48,17 +51,19 @@ user's `deflection_mm`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
 from .job import Job
+from .progress import Progress, silent
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CurrentSlew, FeedLimit, Junction, MinSpeed,
                        MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
+from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
 
@@ -78,6 +83,8 @@ class Limit:
     controller: bool = False
     f_word: bool = True
     default: str = ""
+    signal: Callable[[Any], np.ndarray] | None = None
+    bound: np.ndarray | None = None
 
     @property
     def name(self) -> str:
@@ -128,11 +135,6 @@ def max_sin(eng) -> np.ndarray:
     return np.where(cuts, s * np.sin(eng.kappa), 0.0).max(axis=1, initial=0.0)
 
 
-def spindle_rpm(job: Job, programmed_rpm: np.ndarray) -> np.ndarray:
-    """The speed the spindle turns at (rpm): the programmed S clamped to the machine's range."""
-    return np.clip(programmed_rpm, job.machine.spindle.rpm_min, job.machine.spindle.rpm_max)
-
-
 def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bound of a load a·v + b ≤ bound after the policy: where the load reaches its bound below
     v_keep (mm/s), the bound becomes the load at v_keep. Returns (bound, held)."""
@@ -142,8 +144,9 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
-def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimits:
-    """Every limit of the job over the resampled program, with the feed policy applied."""
+def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent) -> JobLimits:
+    """Every limit of the job over the resampled program, with the feed policy applied. progress: a
+    `millpost.progress` callback (stage "forces", in samples)."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])
@@ -174,7 +177,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
         raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
-    rpm = np.where(spin, spindle_rpm(job, samples.rpm), 1.0)
+    rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
     k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
     peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
     chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
@@ -183,6 +186,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
     thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
     defaults: dict[str, str] = {}
     rough_by_tool: dict[int, float] = {}
+    done = 0
     for number in np.unique(samples.tool[cutting]):
         tool = job.tools.get(int(number))
         if tool is None:
@@ -193,6 +197,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
         # in chunks: the models' per-slice temporaries (kilobytes a sample) stay bounded by the chunk
         for part in np.array_split(idx, max(1, -(-len(idx) // LOAD_CHUNK))):
             eng_p = eng.select(part)
+            progress("forces", done, n)
+            done += len(part)
             # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
             ll = model.linear_loads(eng_p, tool, rpm[part],
                                     feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[part], nan=100.0))
@@ -233,6 +239,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
         h_max[cut_here] = h_chip
         # the floor: the thickest chip, flank's or end's, reaches the minimum chip
         floor[cut_here] = h_min / np.maximum(sin_max[cut_here], sin_end[cut_here]) * per_tooth
+    progress("forces", n, n)
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
@@ -241,26 +248,29 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
     keep_quality = v_prog if lower == HARD else keep_hard
     held, forced = {}, {}
 
-    def load_limit(name: str, kind: str, effect: str, a, b, bound, default: str = "") -> None:
-        bound_eff, h = _policed(a, b, np.broadcast_to(bound, a.shape), keep_hard if kind == HARD else keep_quality)
+    def load_limit(name: str, kind: str, effect: str, a, b, bound, signal, default: str = "") -> None:
+        bound = np.broadcast_to(bound, a.shape)
+        bound_eff, h = _policed(a, b, bound, keep_hard if kind == HARD else keep_quality)
         held[name] = held.get(name, np.zeros(n, bool)) | (h & cutting)
         if kind == HARD:
             forced[name] = held[name]
-        limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default))
+        limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
+                            bound=bound))
 
+    # each load is affine in the speed (the schedule's rows); `signal` is the same load in the signals
     load_limit("cutting_force", HARD, "cutting force", loads["peak_a"], loads["peak_b"], peak_limit,
-               defaults.get("cutting_force", ""))
+               lambda s: s.peak_force_xy_N, defaults.get("cutting_force", ""))
     load_limit("power", HARD, "power", loads["power_a"], loads["power_b"],
-               np.where(spin, m.spindle.power_available_W(rpm), np.inf))
+               np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s: s.cutting_power_W)
     load_limit("torque", HARD, "power", loads["torque_a"], loads["torque_b"],
-               np.where(spin, m.spindle.torque_Nm(rpm), np.inf))
+               np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s: s.torque_Nm)
     load_limit("deflection", QUALITY, "deflection", loads["peak_a"] * defl_per_N, loads["peak_b"] * defl_per_N,
-               defl_limit, defaults.get("deflection", ""))
+               defl_limit, lambda s: s.peak_force_xy_N * defl_per_N, defaults.get("deflection", ""))
     load_limit("thrust", HARD, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2], thrust_limit,
-               defaults.get("thrust", ""))
+               lambda s: s.force_tool_N[:, 2], defaults.get("thrust", ""))
     load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], tool_torque_limit,
-               defaults.get("tool_torque", ""))
-    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max)
+               lambda s: s.torque_Nm, defaults.get("tool_torque", ""))
+    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max, lambda s: s.fz_mm * chip_factor)
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
@@ -280,8 +290,9 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath) -> JobLimi
     capacity = np.asarray(kf) * np.asarray(current) - np.asarray(mass) * np.asarray(amax) * 1e-3
     static = np.abs(loads["force_b"]) + friction
     slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
-    for k in range(3):
-        load_limit("cutting_current", HARD, "current", slope[:, k], static[:, k], np.where(engaged, capacity[k], np.inf))
+    for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
+        load_limit("cutting_current", HARD, "current", slope[:, k], static[:, k], np.where(engaged, capacity[k], np.inf),
+                   lambda s, k=k: slope[:, k] * s.speed_mm_s + static[:, k])
     stalled = held["cutting_current"]
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.

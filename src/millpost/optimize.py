@@ -1,6 +1,7 @@
 """End to end: a job's program → engagement → limits → one convex feed schedule → the program with new
 feeds → replay. Only wiring: the limits and the feed policy are `millpost.limits`, the schedule
-`millpost.schedule`, the written program `millpost.emit`, the checks `millpost.replay`.
+`millpost.schedule`, the written program `millpost.emit`, the checks `millpost.replay` (through the
+forward model `millpost.signals`), the spindle speeds (opt-in) `millpost.spindle_speed`.
 
 Cycle times are always the controller model's (`millpost.controller`), before and after, and against
 the honest baseline: per tool, the highest single constant feed that exceeds no limit anywhere.
@@ -22,12 +23,13 @@ from .emit import FeedPlan, whole_compensated_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
-from .progress import Progress, resolve, stage
-from .limits import HARD, JobLimits, build_limits, spindle_rpm, static_caps
-from .replay import baseline_feeds, binding_shares, feed_at_samples, limit_ratios
+from .progress import Progress, reporting, resolve, silent, stage
+from .limits import HARD, JobLimits, build_limits, static_caps
+from .replay import baseline_feeds, binding_shares, feed_at_samples, replay
 from .schedule import PathGrid, ScheduleOptions, schedule_samples
 from .schedule.feeds import cluster, emission_limit, piecewise_feeds
-from .signals import controller_model
+from .signals import controller_model, running_rpm
+from .spindle_speed import choose_speeds
 from .toolpath import RAPID, Samples
 
 
@@ -75,47 +77,66 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
     set_threads(options.processes)
     report = resolve(progress)
-    with stage(report, "read program"):
-        program = read_program(job.program, job.reader_options())
-    t_read = time.perf_counter()
-    with stage(report, "stock"):
-        stock = job.stock()
-    samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                                        progress=report)
-    # memory: the stock grid is not needed after the engagement, nor its per-slice arcs (reported by
-    # `millpost simulate` only), nor the per-slice engagement after the loads
-    del stock
-    eng = replace(eng, arc_rad=None)
-    t_engage = time.perf_counter()
-    with stage(report, "forces, schedule, emit"):
-        limits = build_limits(job, samples, eng, program.toolpath)
+    with reporting(report):  # the schedule's windows and the first numba compile of a kernel report too
+        with stage(report, "read program"):
+            program = read_program(job.program, job.reader_options())
+        t_read = time.perf_counter()
+        with stage(report, "stock"):
+            stock = job.stock()
+        samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                                            progress=report)
+        # memory: the stock grid is not needed after the engagement, nor its per-slice arcs (reported by
+        # `millpost simulate` only), nor (at the programmed speeds, whose loads do not change) the
+        # per-slice engagement once the loads are computed
+        del stock
+        eng = replace(eng, arc_rad=None)
+        t_engage = time.perf_counter()
+        limits = None
+        if job.limits["rpm"] != "optimize":
+            limits = build_limits(job, samples, eng, program.toolpath, report)
+            eng = eng.per_sample()
         t_limits = time.perf_counter()
-        eng = eng.per_sample()
-        result = schedule_program(job, program, samples, eng, options, limits=limits)
+        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
-                                 **result.summary["stage_s"], "limits": round(t_limits - t_engage, 3)}
+                                 **result.summary["stage_s"]}
+    if limits is not None:  # built here
+        result.summary["stage_s"]["limits"] = round(t_limits - t_engage, 3)
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
 
-def schedule_program(job: Job, program: Program, samples: Samples, eng,
-                     options: ScheduleOptions | None = None, *, limits: JobLimits | None = None) -> Result:
-    """From the engagement on: limits (unless given: `build_limits` of this engagement), schedule,
-    emitted text, cycle times and the replay check. (Split from `optimize` so that tests can give
-    engagements of known geometry.)"""
+def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
+                     progress: Progress = silent, limits: JobLimits | None = None) -> Result:
+    """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
+    `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
+    schedule, emitted text, cycle times and the replay check. (Split from `optimize` so that tests can
+    give engagements of known geometry.) progress: stages "forces", "schedule", "emission" and "replay"."""
+    options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
+    if job.limits["rpm"] == "optimize":
+        program, samples, spindle = choose_speeds(job, program, samples, eng, options, progress)
+        spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
+        limits = None  # the loads at the chosen speeds
     tp = program.toolpath
     ds = float(job.limits["ds_mm"])
     t_limits = time.perf_counter()
-    limits = limits if limits is not None else build_limits(job, samples, eng, tp)
+    limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress)
     t0 = time.perf_counter()
-    sched = schedule_samples(samples, limits, options or ScheduleOptions.from_choices(solver=job.limits["solver"]))
+    sched = schedule_samples(samples, limits, options)
     solver_s = time.perf_counter() - t0
     model = controller_model(job)
+    progress("emission", 0, 4)
     before = controller.execute(tp, model)
     base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
     baseline = controller.execute(tp, model, base_feeds)
+    progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
+    if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
+        result = schedule_program(replace(job, limits={**job.limits, "rpm": "programmed"}), *as_given, eng, options,
+                                  progress)
+        result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
+        return result
     if failed:
         plan = FeedPlan.programmed(program)
         status = "fallback_programmed_feeds"
@@ -129,15 +150,22 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
         plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
         status, message = "solved", ""
+    progress("emission", 2, 4)
     text = write_feeds(program, plan)
+    progress("emission", 3, 4)
     t_emit = time.perf_counter()
     emitted_tp = read_text(text, str(job.program), job.reader_options()).toolpath  # what will run
+    progress("emission", 4, 4)
+    progress("replay", 0, 3)
     after = controller.execute(emitted_tp, model)
     if status == "solved" and after.time_s > before.time_s * (1 + 1e-3):
         status = "slower"
     executed = np.interp(samples.s_mm, *_speed_profile(emitted_tp, after, ds))
-    ratios = limit_ratios(samples, limits, executed, job)
-    as_programmed = limit_ratios(samples, limits, before.speed_at_samples(samples), job)
+    progress("replay", 1, 3)
+    checked = replay(job, samples, eng, limits, executed)
+    progress("replay", 2, 3)
+    as_programmed = replay(job, samples, eng, limits, before.speed_at_samples(samples)).ratios
+    progress("replay", 3, 3)
     by_effect, by_limit = binding_shares(samples, sched, limits)
     cut = samples.kind != RAPID
     summary = {
@@ -161,7 +189,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
                     "emit": round(t_emit - t0 - solver_s, 3), "replay": round(time.perf_counter() - t_emit, 3)},
         "removed_volume_mm3": round(float(np.nansum(eng.volume_mm3)), 3),
         "policy": limits.lower,
-        "limits": {k: round(v, 4) for k, v in sorted(ratios.items())},
+        "limits": {k: round(v, 4) for k, v in sorted(checked.ratios.items())},
         "limits_programmed": {k: round(v, 4) for k, v in sorted(as_programmed.items())},
         "hard_limits": sorted(set(limits.names(kind=HARD))),
         "binding": by_effect,
@@ -171,8 +199,11 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(emitted_tp, samples)),
-        "notes": program.notes + _rpm_notes(job, program),
+        "notes": program.notes + _rpm_notes(job, program)
+        + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
+    if spindle:
+        summary["spindle"] = spindle
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
              "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
@@ -180,11 +211,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng,
              "feed_min_chip_mm_min": limits.floor_mm_s * 60.0,
              "feed_hard_cap_mm_min": static_caps(samples, limits, HARD) * 60.0,
              "deflection_limit_mm": limits.deflection_mm,
-             "binding_hard": _binding_kind(samples, sched, limits, HARD),
-             "peak_force_N": np.where(cut, limits.loads["peak_a"] * executed + limits.loads["peak_b"], 0.0),
-             "power_W": np.where(cut, limits.loads["power_a"] * executed + limits.loads["power_b"], 0.0),
-             "thrust_N": np.where(cut, limits.loads["force_a"][:, 2] * executed + limits.loads["force_b"][:, 2], 0.0),
-             "torque_Nm": np.where(cut, limits.loads["torque_a"] * executed + limits.loads["torque_b"], 0.0)}
+             "binding_hard": _binding_kind(samples, sched, limits, HARD), **checked.trace_columns()}
     # 1 where the policy held that limit's bound at the programmed or minimum-chip feed (reported)
     trace.update({f"held_{k}": v.astype(np.int8) for k, v in sorted(limits.held.items())})
     return Result(text, summary, samples, trace)
@@ -254,7 +281,7 @@ def _rpm_notes(job: Job, program: Program) -> list[str]:
     on = (tp.rpm > 0) & (tp.kind != RAPID)
     out = []
     for rpm in np.unique(tp.rpm[on]):
-        used = float(spindle_rpm(job, rpm))
+        used = float(running_rpm(job, rpm))
         if used != rpm:
             line = int(tp.line[np.flatnonzero(on & (tp.rpm == rpm))[0]])
             out.append(f"{job.program}:{line}: S{rpm:g} is outside the spindle's range "

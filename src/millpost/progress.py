@@ -4,13 +4,19 @@ A stage reports through a callback ``progress(stage, done, total)`` (any units; 
 stage cannot tell how far it is) and imports nothing of the terminal; the CLI passes `Bars`, which
 draws one bar per stage on stderr when it is a terminal (with the elapsed time running even while a
 stage reports nothing) and stays silent when piped. `stage` wraps a step that reports no fractions.
+
+Code below an API that takes no callback (the schedule's windows, the numba kernels' first compile)
+reports to `current()`: the callback an enclosing `reporting` block set in this process (worker
+processes forked from it stay silent), else nothing.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import TextIO
 
 Progress = Callable[[str, float, float], None]
@@ -18,6 +24,25 @@ Progress = Callable[[str, float, float], None]
 
 def silent(stage: str, done: float, total: float) -> None:
     """A progress callback that shows nothing."""
+
+
+_reporting: ContextVar[tuple[int, "Progress"] | None] = ContextVar("millpost_progress", default=None)
+
+
+@contextmanager
+def reporting(progress: Progress) -> Iterator[None]:
+    """Within the block, `current()` in this process is `progress`."""
+    token = _reporting.set((os.getpid(), progress))
+    try:
+        yield
+    finally:
+        _reporting.reset(token)
+
+
+def current() -> Progress:
+    """The callback of the enclosing `reporting` block when set in this process; else `silent`."""
+    set_by = _reporting.get()
+    return set_by[1] if set_by is not None and set_by[0] == os.getpid() else silent
 
 
 @contextmanager

@@ -2,19 +2,25 @@
 executed speeds, and which limits bound for how much of the time.
 
 The executed speed comes from the controller model (`millpost.controller`) running the emitted
-program; every load is affine in the path speed v (mm/s), so its value at the executed speed is
-a·v + b, compared with the bound the schedule was given (after the feed policy of `millpost.limits`).
+program; the forward model (`millpost.signals.predict`) gives the signals there, with the loads the
+schedule was bounded with (affine in the path speed v, mm/s: exact for the mechanistic model, the
+upper tangent of the concave Kienzle and end-cutting laws); each limit's load (its `signal`) is
+compared with the bound the schedule was given (after the feed policy of `millpost.limits`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from .engagement import Engagement
 from .gcode.interpret import Program
 from .job import Job
 from .limits import LOAD_CHUNK, JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
 from .schedule.constraints import window_blocks
+from .signals import Signals, predict, step_times_s
 from .toolpath import RAPID, Samples, Toolpath
 
 
@@ -44,54 +50,86 @@ def feed_at_samples(emitted: Toolpath, samples: Samples) -> np.ndarray:
     return emitted.feed_mm_min[k]
 
 
-def limit_ratios(samples: Samples, limits: JobLimits, v_mm_s: np.ndarray, job: Job) -> dict[str, float]:
-    """Largest value/bound of every limit over the cutting samples at the executed speeds (mm/s)."""
+@dataclass
+class Replay:
+    """A schedule checked at the executed speeds. signals: the forward model's prediction there;
+    ratios: per limit the largest value / bound over the cutting samples (bounds after the feed policy);
+    loads: per load limit, per sample (its value, its bound before the policy), of the row with the
+    highest ratio where several rows share the name; current_ratio: per sample the largest axis motor
+    current over its drive's limit."""
+
+    signals: Signals
+    ratios: dict[str, float]
+    loads: dict[str, tuple[np.ndarray, np.ndarray]]
+    current_ratio: np.ndarray
+
+    def trace_columns(self) -> dict[str, np.ndarray]:
+        """Per-sample columns for the optimize trace (0 off the cut; a bound is nan where there is none):
+        the loads and their bounds the job report plots."""
+        s, cut = self.signals, self.signals.kind != RAPID
+
+        def on_cut(x):
+            return np.where(cut, x, 0.0)
+
+        def bound(name):
+            b = self.loads[name][1]
+            return np.where(cut & np.isfinite(b), b, np.nan)
+
+        return {"peak_force_N": on_cut(s.peak_force_xy_N), "power_W": on_cut(s.cutting_power_W),
+                "thrust_N": on_cut(s.force_tool_N[:, 2]), "torque_Nm": on_cut(s.torque_Nm),
+                "peak_force_limit_N": bound("cutting_force"), "power_limit_W": bound("power"),
+                "deflection_mm": on_cut(self.loads["deflection"][0]), "chip_mm": on_cut(self.loads["chip_load_max"][0]),
+                "chip_limit_mm": bound("chip_load_max"), "current_ratio": on_cut(self.current_ratio)}
+
+
+def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_s: np.ndarray) -> Replay:
+    """The signals at the executed speeds (mm/s per sample) from the forward model (`signals.predict`
+    with the schedule's affine loads), every limit's value there against its bound, and the drives'
+    motor currents against their limits (off the samples where the policy held the cutting current)."""
+    sig = predict(job, samples, eng, v_mm_s, loads=limits.loads)
     grid = PathGrid.from_samples(samples)
     cut = samples.kind != RAPID
-    out: dict[str, float] = {}
-    v = v_mm_s
+    v = sig.speed_mm_s
+    ratios: dict[str, float] = {}
+    rows: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # name: value, raw bound, value / raw bound
     for lim in limits:
         c = lim.constraint
         if isinstance(c, SpeedLoad):
-            value = c.alpha * v + c.beta
-            with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked below
-                ratio = value / np.broadcast_to(np.asarray(c.limit, float), value.shape)
-            out[lim.name] = max(out.get(lim.name, 0.0), float(np.nanmax(np.where(cut, ratio, 0.0), initial=0)))
+            value = lim.signal(sig)
+            with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked
+                ratio = np.where(cut, value / np.broadcast_to(np.asarray(c.limit, float), value.shape), 0.0)
+                raw = np.where(cut, value / lim.bound, 0.0)
+            ratios[lim.name] = max(ratios.get(lim.name, 0.0), float(np.nanmax(ratio, initial=0)))
+            bound = lim.bound
+            if lim.name in rows:  # several rows of one name (per axis): the highest per sample
+                old_value, old_bound, old_raw = rows[lim.name]
+                higher = raw > old_raw
+                value, bound, raw = (np.where(higher, value, old_value), np.where(higher, bound, old_bound),
+                                     np.maximum(raw, old_raw))
+            rows[lim.name] = (value, bound, raw)
         elif lim.f_word and not lim.controller:  # speed caps only millpost holds (in chunks: memory)
             for lo in range(0, len(samples), LOAD_CHUNK):
                 hi = min(lo + LOAD_CHUNK, len(samples))
                 for blk in window_blocks(grid, [lim], lo, hi, caps_only=True):
                     with np.errstate(divide="ignore", invalid="ignore"):
                         r = np.where(cut[lo:hi] & (blk.b_hi > 0), v[lo:hi] / np.sqrt(blk.b_hi), 0.0)
-                    out[blk.name] = max(out.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
-    # motor current from the executed speed profile: a = v dv/ds along the path
-    ds = np.gradient(samples.s_mm)
-    a_path = v * np.gradient(v) / np.where(ds > 0, ds, 1.0)
-    worst = 0.0
+                    ratios[blk.name] = max(ratios.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
+    limit_A = np.array([job.machine.axes[a].motor.current_limit_A for a in "xyz"])
+    current = np.max(np.abs(sig.axis_current_A) / limit_A, axis=1)
     keep = cut & ~limits.held["cutting_current"]
-    for k, name in enumerate("xyz"):
-        axis = job.machine.axes[name]
-        vel = samples.tangent[:, k] * v
-        acc = samples.tangent[:, k] * a_path + samples.curvature[:, k] * v**2
-        cut_force = -(limits.loads["force_a"][:, k] * v + limits.loads["force_b"][:, k])
-        d = axis.demand(vel, acc, cut_force_N=cut_force)
-        worst = max(worst, float(np.max(np.abs(d.current_A[keep]), initial=0.0)) / axis.motor.current_limit_A)
-    out["current"] = worst
-    return out
+    ratios["current"] = float(np.max(current[keep], initial=0.0))
+    return Replay(sig, ratios, {name: (value, bound) for name, (value, bound, _) in rows.items()}, current)
 
 
 def binding_shares(samples: Samples, sched, limits: JobLimits) -> tuple[dict[str, float], dict[str, float]]:
     """Share of the scheduled cutting time each limit binds, grouped by effect and by limit name
-    (time weights: trapezoid Δt = 2·Δs/(v₀ + v₁))."""
+    (time weights: `signals.step_times_s`)."""
     total = 0.0
     by_effect: dict[str, float] = {}
     by_name: dict[str, float] = {}
     owner = limits.by_block(PathGrid.from_samples(samples))
     for lo, hi, s in sched.segments:
-        v = s.feed_mm_s
-        dt = np.zeros(hi - lo)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dt[1:] = np.where(v[1:] + v[:-1] > 0, 2 * np.diff(samples.s_mm[lo:hi]) / (v[1:] + v[:-1]), 0.0)
+        dt = step_times_s(samples.s_mm[lo:hi], s.feed_mm_s)
         total += float(dt.sum())
         blocks, which = np.unique(s.binding.astype(str), return_inverse=True)
         for block, w in zip(blocks, np.bincount(which.reshape(-1), weights=dt, minlength=len(blocks))):

@@ -3,13 +3,14 @@
 Program + job + the speed the controller executes → per path sample, and on the controller's time base:
 
 - force on the tool F_tool (N, machine XYZ): the force model's mean over a tooth period at the feed per
-  tooth f_z = v / (flutes · n), rotated from the feed frame to machine axes; the force on the workpiece
+  tooth f_z = v / (flutes · n), rotated from the feed frame to machine axes, plus where the tool moves
+  down the thrust and torque of its end edges (`millpost.forces.endcut`); the force on the workpiece
   (what a table dynamometer reads) is −F_tool;
 - spindle: cutting torque T_c and power P_c = T_c ω; the spindle's total power P_c + P_idle(n) and its
   output current √(I₀² + (T/K_t)²), T = T_c + P_idle/ω, from the machine's spindle description;
 - each axis's motor current from the drive model (`Axis.demand`): inertia (moving mass, reflected rotor)
-  + Coulomb and viscous friction + the cutting force along the axis, at the axis velocity t·v and
-  acceleration t·a + κ·v² (t the path tangent, κ the curvature vector, a = v dv/ds). The feed axes move the
+  + Coulomb and viscous friction + the cutting force along the axis, at the axis velocity and
+  acceleration of `axis_motion` (t·v and t·a + κ·v² along the path). The feed axes move the
   tool: the drive pushes against F_tool, so the cutting share is −F_tool along the axis;
 - deflection: the tool's lateral deflection at the load point (two-segment cantilever, `ToolBeam`) under
   the in-plane mean force, and the machine's per axis F_tool / k_axis.
@@ -31,10 +32,11 @@ import numpy as np
 from . import controller, engagement
 from .engagement import Engagement
 from .errors import MillpostError
+from .forces.endcut import EndCut
 from .gcode import read_program
 from .gcode.interpret import Program
 from .job import Job
-from .progress import Progress
+from .progress import Progress, reporting, resolve
 from .toolpath import RAPID, Samples
 from .tools.beam import ToolBeam
 
@@ -125,11 +127,35 @@ def time_base(program: Program, samples: Samples, execution: controller.Executio
     return t + before[np.searchsorted(at, samples.move, side="right")]
 
 
+def step_times_s(s_mm: np.ndarray, speed_mm_s: np.ndarray) -> np.ndarray:
+    """Time (s) of the step ending at each sample (0 for the first) at path speeds v (mm/s) at the
+    samples: Δs·2/(v₀ + v₁), exact when the speed changes at constant acceleration; 0 where both ends
+    stand still."""
+    v = np.asarray(speed_mm_s, float)
+    dt = np.zeros(len(v))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dt[1:] = np.where(v[1:] + v[:-1] > 0, 2 * np.diff(s_mm) / (v[1:] + v[:-1]), 0.0)
+    return dt
+
+
+def axis_motion(samples: Samples, speed_mm_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(velocity mm/s, acceleration mm/s²), each (N, 3), of the axes at path speed v (mm/s) per sample:
+    t·v and t·a + κ·v², t the path tangent, κ the curvature vector and a = v dv/ds = ½ d(v²)/ds (exact
+    on a constant-acceleration ramp, where v² is linear in s)."""
+    v = np.asarray(speed_mm_s, float)
+    a_path = 0.5 * np.gradient(v**2, samples.s_mm) if len(v) > 1 else np.zeros(len(v))
+    return samples.tangent * v[:, None], samples.tangent * a_path[:, None] + samples.curvature * (v**2)[:, None]
+
+
 def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray, *, time_s: np.ndarray | None = None,
-            peaks: bool = False) -> Signals:
+            peaks: bool = False, loads: dict | None = None) -> Signals:
     """Signals per sample at the executed path speed (mm/s, per sample). time_s: the time base (default:
-    the cumulative trapezoid time ds·2/(v₀ + v₁), for callers without a controller execution).
-    peaks: also the peak in-plane force per revolution (a time-domain run; slower)."""
+    the cumulative `step_times_s`, for callers without a controller execution).
+    peaks: also the peak in-plane force per revolution (a time-domain run; slower).
+    loads: the cutting loads as affine functions a·v + b of the path speed v (mm/s) per sample (keys
+    force_a/_b (N, 3), peak_a/_b, torque_a/_b, power_a/_b: `millpost.limits.JobLimits.loads`, the
+    schedule's linearisation, exact for the mechanistic model and an upper bound for the concave Kienzle
+    and end-cutting laws); without them the force model and the end-cutting model at the feed per tooth."""
     n = len(samples)
     v = np.asarray(speed_mm_s, float)
     if v.shape != (n,):
@@ -141,11 +167,15 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
         k = int(np.flatnonzero(engaged & (rpm <= 0))[0])
         raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
     model = job.material.force_model(job.limits["model"])
+    end_model = EndCut.from_material(job.material)
     force = np.zeros((n, 3))
     torque, peak = np.zeros(n), np.full(n, np.nan)
     fz = np.zeros(n)
     tool_defl = np.zeros(n)
     cutting = (samples.kind != RAPID) & engaged
+    if loads is not None:
+        force = loads["force_a"] * v[:, None] + loads["force_b"]
+        torque, peak = loads["torque_a"] * v + loads["torque_b"], loads["peak_a"] * v + loads["peak_b"]
     for number in np.unique(samples.tool[cutting]):
         tool = job.tools.get(int(number))
         if tool is None:
@@ -153,8 +183,14 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
             raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
         idx = np.flatnonzero(cutting & (samples.tool == number))
         fz[idx] = v[idx] * 60.0 / (tool.flutes * rpm[idx])
-        loads = model.predict(eng.select(idx), fz[idx], rpm[idx], tool, peaks=peaks)
-        force[idx], torque[idx], peak[idx] = loads.force_N, loads.torque_Nm, loads.peak_force_xy_N
+        if loads is None:
+            eng_t = eng.select(idx)
+            got = model.predict(eng_t, fz[idx], rpm[idx], tool, peaks=peaks)
+            force[idx], torque[idx], peak[idx] = got.force_N, got.torque_Nm, got.peak_force_xy_N
+            if end_model is not None:  # the end's thrust (+Z on the tool) and torque where it moves down
+                thrust, end_torque = end_model.predict(eng_t, fz[idx], tool)
+                force[idx, 2] += thrust
+                torque[idx] += end_torque
         beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
         tool_defl[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx]) * np.hypot(force[idx, 0], force[idx, 1])
     omega = 2 * np.pi * rpm / 60.0
@@ -162,19 +198,12 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
     with np.errstate(divide="ignore", invalid="ignore"):
         shaft_torque = torque + np.where(omega > 0, idle / np.where(omega > 0, omega, 1.0), 0.0)
     spindle_current = np.where(rpm > 0, m.spindle.current_A(shaft_torque), 0.0)
-    # axis kinematics along the path: a = v dv/ds = ½ d(v²)/ds (exact on a constant-acceleration ramp,
-    # where v² is linear in s), axis velocity t·v, acceleration t·a + κ·v²
-    a_path = 0.5 * np.gradient(v**2, samples.s_mm) if n > 1 else np.zeros(n)
-    vel = samples.tangent * v[:, None]
-    acc = samples.tangent * a_path[:, None] + samples.curvature * (v**2)[:, None]
+    vel, acc = axis_motion(samples, v)
     current = np.zeros((n, 3))
     for k, name in enumerate("xyz"):
         current[:, k] = m.axes[name].demand(vel[:, k], acc[:, k], cut_force_N=-force[:, k]).current_A
     if time_s is None:
-        dt = np.zeros(n)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dt[1:] = np.where(v[1:] + v[:-1] > 0, 2 * np.diff(samples.s_mm) / (v[1:] + v[:-1]), 0.0)
-        time_s = np.cumsum(dt)
+        time_s = np.cumsum(step_times_s(samples.s_mm, v))
     return Signals(
         t_s=np.asarray(time_s, float), s_mm=samples.s_mm, xyz_mm=samples.xyz_mm, line=samples.line,
         move=samples.move, tool=samples.tool, kind=samples.kind, speed_mm_s=v, rpm=rpm, fz_mm=fz,
@@ -192,7 +221,9 @@ def simulate(job: Job, feed_mm_min: np.ndarray | None = None, *, program: Progra
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     if len(samples) == 0:
         raise MillpostError(f"{job.program}: the program has no motion")
-    eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=progress)
-    execution = controller.execute(program.toolpath, controller_model(job), feed_mm_min)
+    report = resolve(progress)
+    with reporting(report):  # the controller kernel's first compile too
+        eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=report)
+        execution = controller.execute(program.toolpath, controller_model(job), feed_mm_min)
     return predict(job, samples, eng, execution.speed_at_samples(samples),
                    time_s=time_base(program, samples, execution), peaks=peaks)

@@ -6,32 +6,29 @@ its samples are independent, so the result does not depend on the count.
 
 Every kernel is compiled with `cache=True`: the first run after an install (or an edit of a kernel)
 compiles them, about a minute on a small machine, and later runs load them from `__pycache__`.
-`announce_compile` says so, once, before that first compile.
+`compiling` wraps a kernel's call and reports the stage "compile kernels" to `millpost.progress.current()`
+(a progress bar on a terminal) while the kernel is not yet compiled in this process; nothing is printed.
 """
 
 from __future__ import annotations
 
-import os
-import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
-_announced = False
+from ..progress import current
 
 
-def announce_compile(*kernels) -> None:
-    """One line on stderr, once per process, when one of `kernels` (numba dispatchers) has no
-    compiled copy cached on disk yet."""
-    global _announced
-    if _announced:
+@contextmanager
+def compiling(*kernels) -> Iterator[None]:
+    """Around a call of numba dispatchers: the stage "compile kernels" started and finished when one of
+    them has no compiled copy in this process yet (numba compiles it, or loads it from the disk cache)."""
+    if all(k.signatures for k in kernels):
+        yield
         return
-    for kernel in kernels:
-        if kernel.signatures:  # already compiled in this process
-            continue
-        index = getattr(getattr(getattr(kernel, "_cache", None), "_cache_file", None), "_index_path", None)
-        if index is not None and not os.path.exists(index):
-            _announced = True
-            print("millpost: compiling the numba kernels once (about a minute; cached on disk for later runs)",
-                  file=sys.stderr, flush=True)
-            return
+    report = current()
+    report("compile kernels", 0.0, 0.0)
+    yield
+    report("compile kernels", 1.0, 1.0)
 
 
 def set_threads(n: int) -> None:

@@ -2,13 +2,11 @@
 when the job is at hand, from the job itself (operations from the program's comments, the load
 limits per sample, the final stock).
 
-The optimize trace holds per sample the programmed, scheduled and executed feeds (mm/min), the peak
-in-plane force (N) and spindle power (W) at the executed feed, and where a cut is too heavy at any
-feed. Derived here from the job: an upper bound of the drive current (see `_current_ratio`), the
-maximum chip thickness of a flat flank (see `_derive_limits`)
-against the material's chip load, the tool's allowed force (beam: strength / safety factor at the
-weakest section, load at mid-depth of cut), the spindle's power at the sample's speed, and the
-deflection (tool compliance at the tip + the softer X/Y axis) × peak force against `deflection_mm`.
+The optimize trace holds per sample the programmed, scheduled and executed feeds (mm/min), where a
+cut is too heavy at any feed, and the replay check's loads at the executed feed with their bounds
+(`millpost.replay`: the forward model's signals): peak in-plane force against the tool's allowed
+force, cutting power against the spindle's, deflection against `deflection_mm`, the largest chip
+against the material's chip load, and the largest axis motor current over its drive's limit.
 The binding limit per sample is the trace's `binding` column when it has one; otherwise the one of
 those ratios (or the feed cap, or the controller's ramps) that holds the feed, found within 3 %.
 """
@@ -23,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MillpostError
+from ..signals import step_times_s
 
 RAPID_FEED = np.nan  # the trace's programmed feed on rapids
 TIGHT = 0.97  # a ratio this close to 1 counts as binding
@@ -77,15 +76,11 @@ def read_trace(path: str | Path) -> dict[str, np.ndarray]:
 
 
 def sample_times_s(s_mm: np.ndarray, feed_mm_min: np.ndarray) -> np.ndarray:
-    """Time (s) of the step ending at each sample at the given feeds: 2·Δs / (v₀ + v₁), 0 where the
-    step does not move or either end has no feed (rapids in a programmed-feed column)."""
+    """Time (s) of the step ending at each sample at the given feeds (`signals.step_times_s`), 0 where
+    either end has no feed (rapids in a programmed-feed column) or the step does not move."""
     v = np.nan_to_num(np.asarray(feed_mm_min, float), nan=0.0) / 60.0
-    dt = np.zeros(len(s_mm))
-    if len(s_mm) > 1:
-        ds = np.diff(s_mm)
-        both = (v[1:] > 0) & (v[:-1] > 0) & (ds > 0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dt[1:] = np.where(both, 2 * ds / (v[1:] + v[:-1]), 0.0)
+    dt = step_times_s(s_mm, v)
+    dt[1:][(v[1:] <= 0) | (v[:-1] <= 0)] = 0.0
     return dt
 
 
@@ -132,6 +127,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     trace = {k: np.asarray(v) for k, v in trace.items()}
     n = len(trace["s_mm"])
     data = ReportData(summary, trace, [], title=Path(summary.get("program", "job")).name)
+    _trace_limits(data)
     if job is None:
         data.operations = operations_from_lines(np.zeros(n, int), trace["tool"], [])
         data.binding = _binding(data, feed_cap=None)
@@ -145,7 +141,6 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
     data.title = job.program.name
     data.operations = operations_from_lines(samples.line, samples.tool, comments)
-    _derive_limits(data, job, samples)
     feed_cap = job.machine.feed_max_mm_min
     if job.limits.get("feed_max_mm_min"):
         feed_cap = min(feed_cap, float(job.limits["feed_max_mm_min"]))
@@ -155,52 +150,19 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     return data
 
 
-def _derive_limits(data: ReportData, job, samples) -> None:
-    from ..tools.beam import ToolBeam
-    tr, m = data.trace, job.machine
-    n = len(tr["s_mm"])
-    force_lim, compliance = np.full(n, np.nan), np.full(n, np.nan)
-    rpm = np.clip(samples.rpm, m.spindle.rpm_min, m.spindle.rpm_max)
-    k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
-    for number, tool in job.tools.items():
-        idx = np.flatnonzero(samples.tool == number)
-        if not len(idx):
-            continue
-        beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
-        force_lim[idx] = beam.breaking_force_N(tr["ap_mm"][idx])
-        compliance[idx] = beam.compliance_mm_per_N(tr["ap_mm"][idx], at_tip=True) + 1.0 / k_xy
-    data.limits["peak_force_N"] = force_lim
-    data.limits["power_W"] = np.where(samples.rpm > 0, m.spindle.power_available_W(rpm), np.nan)
-    data.signals["deflection_mm"] = tr["peak_force_N"] * compliance
-    data.limits["deflection_mm"] = tr["deflection_limit_mm"]
-    # chip thickness h_max = f_z·sin φ_max with sin φ_max = 2·√(a_e/D·(1 − a_e/D)) below half immersion
-    # (1 above): the flank edge of a flat tool (an upper bound of h on ball and bull noses)
-    chip, chip_lim = np.full(n, np.nan), np.full(n, np.nan)
-    for number, tool in job.tools.items():
-        idx = np.flatnonzero((samples.tool == number) & (samples.rpm > 0))
-        d = np.clip(tr["ae_mm"][idx] / tool.diameter_mm, 0.0, 1.0)
-        sin_max = np.where(d >= 0.5, 1.0, 2 * np.sqrt(d * (1 - d)))
-        chip[idx] = tr["feed_executed_mm_min"][idx] / (tool.flutes * rpm[idx]) * sin_max
-        chip_lim[idx] = job.material.chip_load_mm(tool.diameter_mm)[1]
-    data.signals["chip_mm"], data.limits["chip_mm"] = chip, chip_lim
-    data.signals["current_ratio"] = _current_ratio(job, samples, tr)
-    data.limits["current_ratio"] = np.ones(n)
+# the loads the report plots against their bounds: (trace column of the load, of its bound; None: a ratio)
+TRACE_LIMITS = {"peak_force_N": "peak_force_limit_N", "power_W": "power_limit_W",
+                "deflection_mm": "deflection_limit_mm", "chip_mm": "chip_limit_mm", "current_ratio": None}
 
 
-def _current_ratio(job, samples, tr: dict) -> np.ndarray:
-    """Largest axis current over its drive limit per sample at the executed feed: inertia (path tangent
-    and curvature, a = v dv/ds along the path) and friction, plus on X and Y the cutting share bounded
-    by the whole peak in-plane force (the trace has no force direction): an upper bound."""
-    v = np.nan_to_num(tr["feed_executed_mm_min"], nan=0.0) / 60.0
-    ds = np.gradient(samples.s_mm)
-    a_path = v * np.gradient(v) / np.where(ds > 0, ds, 1.0)
-    worst = np.zeros(len(v))
-    for k, name in enumerate("xyz"):
-        axis = job.machine.axes[name]
-        d = axis.demand(samples.tangent[:, k] * v, samples.tangent[:, k] * a_path + samples.curvature[:, k] * v ** 2)
-        cut = tr["peak_force_N"] * axis.rho_m_per_rad / (axis.efficiency * axis.motor.kt_Nm_per_A) if k < 2 else 0.0
-        worst = np.maximum(worst, (np.abs(d.current_A) + cut) / axis.motor.current_limit_A)
-    return worst
+def _trace_limits(data: ReportData) -> None:
+    """The loads and bounds per sample from the trace (the replay check's forward-model signals at the
+    executed feed, written by optimize); a trace without them shows none."""
+    tr = data.trace
+    for key, bound in TRACE_LIMITS.items():
+        if key in tr and (bound is None or bound in tr):
+            data.signals[key] = tr[key]
+            data.limits[key] = tr[bound] if bound is not None else np.ones(len(tr[key]))
 
 
 LABELS = {"peak_force_N": "cutting force", "power_W": "power", "deflection_mm": "deflection", "chip_mm": "chip load",

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from millpost._kernels import announce_compile
+from millpost._kernels import compiling
 
 
 @numba.njit(cache=True)
@@ -126,11 +126,12 @@ def reach(ds: np.ndarray, b_lo: np.ndarray, b_hi: np.ndarray, U: np.ndarray, W: 
           b_start: float = 0.0, b_end_max: float = 0.0, b_end_min: float = 0.0) -> Reach:
     """Backward controllable sets and forward greedy profile for linear rows U·a + W·b ≤ H (M, N)."""
     f = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
-    announce_compile(_backward, _forward)
-    klo, khi = _backward(f(ds), f(b_lo), f(b_hi), f(U), f(W), f(H), float(b_end_min), float(b_end_max))
+    with compiling(_backward):
+        klo, khi = _backward(f(ds), f(b_lo), f(b_hi), f(U), f(W), f(H), float(b_end_min), float(b_end_max))
     if not np.isfinite(khi[0]) or klo[0] > khi[0]:
         return Reach(klo, khi, np.zeros(len(b_lo)), np.zeros(len(ds)))
-    b, a = _forward(f(ds), f(U), f(W), f(H), klo, khi, float(b_start))
+    with compiling(_forward):
+        b, a = _forward(f(ds), f(U), f(W), f(H), klo, khi, float(b_start))
     return Reach(klo, khi, b, a)
 
 

@@ -12,10 +12,12 @@ schedule; `schedule_samples` hands whole segments to the processes when there ar
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import multiprocessing
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
@@ -27,6 +29,7 @@ from millpost.schedule.constraints import window_blocks
 from millpost.schedule.problem import SolverOptions, Status
 from millpost.schedule.reach import Reach, reach, traversal_time
 from millpost.schedule.rows import Block, LocalRows, PathGrid, SpeedBounds, StepRows
+from millpost.progress import current
 from millpost.toolpath import RAPID, Samples
 
 
@@ -230,8 +233,9 @@ def _binding(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray, 
 
 
 def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | None = None, *,
-               b_start: float = 0.0, b_end: float = 0.0) -> Schedule:
-    """Minimum-time b(s) on one segment under the blocks, rest to rest by default.
+               b_start: float = 0.0, b_end: float = 0.0, on_window: Callable[[int], None] | None = None) -> Schedule:
+    """Minimum-time b(s) on one segment under the blocks, rest to rest by default. on_window: called
+    with the sample count of each window or stretch solved (progress).
 
     With `certify_gap` > 0 a rest-to-rest segment first gets the certified O(N) profile (certify.py):
     accepted whole when its proven gap is within `certify_gap`; otherwise it is cut at cruise anchors
@@ -258,9 +262,9 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
                             _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), time.perf_counter() - t0, 0,
                             "reach", cert.gap)
         if cert is not None:
-            return _patch(grid, blocks, opts, cert, b_lo, b_hi, vref, t0)
+            return _patch(grid, blocks, opts, cert, b_lo, b_hi, vref, t0, on_window)
     result_b, result_slack, rc, secs, windows, message = _solve_socp(
-        grid, blocks, opts, b_lo, b_hi, vref, np.array([b_start]), np.full(1, b_end))
+        grid, blocks, opts, b_lo, b_hi, vref, np.array([b_start]), np.full(1, b_end), on_window)
     if rc is None:
         return Schedule(np.zeros(n), np.zeros(n - 1), Status.INFEASIBLE, float("inf"),
                         "no speed profile satisfies the limits (empty controllable set at the start)",
@@ -284,7 +288,7 @@ def _nfix(blocks: list[Block]) -> int:
 
 
 def _solve_socp(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, b_lo: np.ndarray, b_hi: np.ndarray,
-                vref: float, first: np.ndarray, last: np.ndarray):
+                vref: float, first: np.ndarray, last: np.ndarray, on_window: Callable[[int], None] | None = None):
     """The SOCP from b fixed to `first` at the first samples to `last` at the last ones, re-linearised
     (`relinearize`). Returns (b or None, floor slack, the last reachability pass or None when even
     that is infeasible, solver seconds, windows, failure message)."""
@@ -303,7 +307,7 @@ def _solve_socp(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, b_lo
                 break
             return None, None, None, secs, windows, ""
         b_new, slack, sec, cnt, message = _solve_linearised(grid, blocks, opts, v0, vref, rc, (U, Wm, H),
-                                                            b_lo, b_hi, first, last, _nfix(blocks))
+                                                            b_lo, b_hi, first, last, _nfix(blocks), on_window)
         secs += sec
         windows += cnt
         if b_new is None:
@@ -316,7 +320,7 @@ def _solve_socp(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, b_lo
 
 
 def _patch(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, cert, b_lo: np.ndarray, b_hi: np.ndarray,
-           vref: float, t0: float) -> Schedule:
+           vref: float, t0: float, on_window: Callable[[int], None] | None = None) -> Schedule:
     """The certified profile with the stretches whose proven gap exceeds `certify_gap` solved by
     Clarabel (b fixed to the profile at the stretch's ends: the profile is feasible and sits on the
     speed cap there, so the result is feasible everywhere). A stretch whose solve fails keeps the
@@ -330,11 +334,18 @@ def _patch(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, cert, b_l
     one = dataclasses.replace(opts, processes=1)
     jobs = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi), one, b_lo[lo:hi], b_hi[lo:hi], vref,
              cert.b[lo:lo + nfix], cert.b[hi - nfix:hi]) for lo, hi in bad]
-    if _parallel(opts) and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=opts.processes, mp_context=multiprocessing.get_context("fork")) as ex:
-            outs = list(ex.map(_solve_stretch, jobs))
-    else:
-        outs = [_solve_stretch(j) for j in jobs]
+    outs = []
+    with contextlib.ExitStack() as stack:
+        if _parallel(opts) and len(jobs) > 1:
+            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
+                                                         mp_context=multiprocessing.get_context("fork")))
+            results = ex.map(_solve_stretch, jobs)
+        else:
+            results = map(_solve_stretch, jobs)
+        for (lo, hi), out in zip(bad, results):  # in order, as they come
+            outs.append(out)
+            if on_window is not None:
+                on_window(hi - lo)
     b, floor = cert.b.copy(), soft_floor(blocks, n)
     floor_unmet = floor > b * (1 + 1e-6) + 1e-9
     secs, windows, failed = 0.0, 0, []
@@ -388,7 +399,8 @@ def _tangents_bind(grid: PathGrid, blocks: list[Block], b: np.ndarray, v0: np.nd
 
 def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, v0: np.ndarray, vref: float,
                       rc: Reach, rows: tuple, b_lo: np.ndarray, b_hi: np.ndarray, first: np.ndarray,
-                      last: np.ndarray, nfix: int) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
+                      last: np.ndarray, nfix: int, on_window: Callable[[int], None] | None = None
+                      ) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
     """One SOCP solve at fixed tangent points: monolithic, or chunks of receding windows.
     Returns (b or None, floor slack, solver seconds, windows, failure message)."""
     n, ds = len(grid), grid.ds
@@ -410,12 +422,18 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
                    b_start=float(head[-1]), b_end_max=float(tail[-1]), b_end_min=float(tail[-1]))
         jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
                      rk.k_lo, rk.k_hi, head, tail, nfix))
-    if _parallel(opts) and len(jobs) > 1:
-        ctx = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=opts.processes, mp_context=ctx) as ex:
-            outs = list(ex.map(_solve_chunk, jobs))
-    else:
-        outs = [_solve_chunk(j) for j in jobs]
+    outs = []
+    with contextlib.ExitStack() as stack:
+        if _parallel(opts) and len(jobs) > 1:
+            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
+                                                         mp_context=multiprocessing.get_context("fork")))
+            results = ex.map(_solve_chunk, jobs)
+        else:
+            results = map(_solve_chunk, jobs)
+        for k, out in enumerate(results):  # in order, as they come
+            outs.append(out)
+            if on_window is not None:
+                on_window(cuts[k + 1] - cuts[k])
     b, slack = np.zeros(n), np.zeros(n)
     secs, count = 0.0, 0
     for k, (bb, sw, sec, cnt, msg) in enumerate(outs):
@@ -465,30 +483,51 @@ class ProgramSchedule:
 def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | None = None) -> ProgramSchedule:
     """Schedule every cutting segment of `samples` rest to rest. `limits` are constraint objects
     whose per-sample arrays span all samples; each segment's rows are built on its own samples
-    (`window_blocks`), so memory follows the longest segment, not the program."""
+    (`window_blocks`), so memory follows the longest segment, not the program. Reports the stage
+    "schedule" (samples of the segments and windows solved) to `millpost.progress.current()`."""
     opts = options or ScheduleOptions()
+    progress = current()
     grid = PathGrid.from_samples(samples)
     ranges = cutting_segments(samples)
-    big = sorted(range(len(ranges)), key=lambda k: ranges[k][0] - ranges[k][1])
-    if _parallel(opts) and len(ranges) > 1 and sum(hi - lo for lo, hi in ranges) > 2 * opts.monolithic_max:
+    sizes = [hi - lo for lo, hi in ranges]
+    big = sorted(range(len(ranges)), key=lambda k: -sizes[k])
+    total, finished, inside = sum(sizes), 0, 0
+
+    def window(samples_done: int) -> None:  # a window of the segment being solved (passes may repeat them)
+        nonlocal inside
+        inside += samples_done
+        progress("schedule", finished + min(inside, sizes[k] - 1), total)
+
+    if _parallel(opts) and len(ranges) > 1 and total > 2 * opts.monolithic_max:
         # whole segments to the workers, largest first; each solves its chunks in turn. The workers are
         # forked with the grid and limits (initargs are not pickled under fork): only (lo, hi) travel
         with ProcessPoolExecutor(max_workers=min(opts.processes, len(ranges)),
                                  mp_context=multiprocessing.get_context("fork"), initializer=_share,
                                  initargs=(grid, limits, dataclasses.replace(opts, processes=1))) as ex:
-            done = dict(zip(big, ex.map(_solve_shared, [ranges[k] for k in big],
-                                        chunksize=max(1, len(big) // (8 * opts.processes)))))
+            done = {}
+            for k, sch in zip(big, ex.map(_solve_shared, [ranges[k] for k in big],
+                                          chunksize=max(1, len(big) // (8 * opts.processes)))):
+                done[k] = sch
+                finished += sizes[k]
+                progress("schedule", finished, total)
         schedules = [done[k] for k in range(len(ranges))]
     else:  # one long segment (its chunks in parallel), or only short ones
-        schedules = [_solve_segment(grid, limits, lo, hi, opts) for lo, hi in ranges]
+        schedules = []
+        for k, (lo, hi) in enumerate(ranges):
+            inside = 0
+            schedules.append(_solve_segment(grid, limits, lo, hi, opts, window))
+            finished += sizes[k]
+            progress("schedule", finished, total)
+    progress("schedule", total, total)
     feed = np.full(len(samples), np.nan)
     for (lo, hi), sch in zip(ranges, schedules):
         feed[lo:hi] = sch.feed_mm_s
     return ProgramSchedule(feed, [(lo, hi, sch) for (lo, hi), sch in zip(ranges, schedules)])
 
 
-def _solve_segment(grid: PathGrid, limits: list, lo: int, hi: int, opts: ScheduleOptions) -> Schedule:
-    return solve_path(grid.window(lo, hi), window_blocks(grid, limits, lo, hi), opts)
+def _solve_segment(grid: PathGrid, limits: list, lo: int, hi: int, opts: ScheduleOptions,
+                   on_window: Callable[[int], None] | None = None) -> Schedule:
+    return solve_path(grid.window(lo, hi), window_blocks(grid, limits, lo, hi), opts, on_window=on_window)
 
 
 _shared: tuple = ()  # a worker's (grid, limits, options), set by `_share` when the pool forks it

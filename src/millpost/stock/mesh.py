@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._kernels import announce_compile, raster
+from .._kernels import compiling, raster
 from ..errors import MillpostError
 from .grid import Stock, choose_cell, grid_shape
 
@@ -39,8 +39,8 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     tol = 1e-3 * h
     top = np.full((ny, nx), np.float32(zf), np.float32)
     count = np.zeros(nx * ny, np.uint8)
-    announce_compile(raster.first_pass, raster.second_pass)
-    raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
+    with compiling(raster.first_pass):
+        raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
     multi_ids = raster.multi_columns(count)
     ptr = np.zeros(len(multi_ids) + 1, np.int64)
     np.cumsum(count[multi_ids] & 127, dtype=np.int64, out=ptr[1:])
@@ -48,7 +48,8 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     # crossings and intervals in float32, the stock's own precision (halves the peak memory)
     zc = np.empty(ptr[-1], np.float32)
     up = np.empty(ptr[-1], np.int8)
-    raster.second_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, multi_ids, ptr, zc, up)
+    with compiling(raster.second_pass):
+        raster.second_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, multi_ids, ptr, zc, up)
     out_ptr = np.empty_like(ptr)
     lo = np.empty(ptr[-1] // 2 + 1, np.float32)
     hi = np.empty_like(lo)

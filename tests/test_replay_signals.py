@@ -1,0 +1,83 @@
+"""The replay check predicts through the one forward model (`millpost.signals`): each limit's signal is
+the very load its schedule rows bound, the exact model agrees with the schedule's affine loads where
+they are exact and stays under them where they are tangents, and the kinematics of the executed
+profile stay within the machine's accelerations, as the controller model plans them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from millpost import safety
+from millpost.gcode import read_program
+from millpost.job import load_job
+from millpost.limits import build_limits
+from millpost.optimize import optimize
+from millpost.replay import replay
+from millpost.schedule import SpeedLoad
+from millpost.signals import predict
+from millpost.toolpath import RAPID
+
+JOBS = Path(__file__).resolve().parents[1] / "sample_jobs"
+
+
+@pytest.fixture(scope="module")
+def drill_and_mill():
+    """Slots, a contour and drilled holes (end cutting): the job, its samples, engagement, limits and the
+    executed speed (mm/s) of the optimized program."""
+    job = load_job(JOBS / "drill_and_mill")
+    program = read_program(job.program, job.reader_options())
+    samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                                    progress=False)
+    limits = build_limits(job, samples, eng, program.toolpath)
+    executed = optimize(job, progress=False).trace["feed_executed_mm_min"] / 60.0
+    return job, samples, eng, limits, executed
+
+
+def test_each_limit_signal_is_its_rows_load(drill_and_mill):
+    job, samples, eng, limits, _ = drill_and_mill
+    rng = np.random.default_rng(5)
+    v = rng.uniform(1.0, 60.0, len(samples))
+    sig = predict(job, samples, eng, v, loads=limits.loads)
+    cut = samples.kind != RAPID
+    checked = 0
+    for lim in limits:
+        if isinstance(lim.constraint, SpeedLoad):
+            rows = lim.constraint.alpha * v + lim.constraint.beta
+            np.testing.assert_allclose(lim.signal(sig)[cut], rows[cut], rtol=1e-9, atol=1e-12, err_msg=lim.name)
+            checked += 1
+    assert checked >= 10  # cutting force, power, torque, deflection, thrust, tool torque, chip load, 3 currents
+
+
+def test_exact_model_against_the_schedules_affine_loads(drill_and_mill):
+    job, samples, eng, limits, _ = drill_and_mill
+    assert job.limits["model"] == "mechanistic"  # affine in the feed: the flank loads are exact
+    v = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0  # the tangents' reference feed
+    exact = predict(job, samples, eng, v)
+    affine = predict(job, samples, eng, v, loads=limits.loads)
+    cut = (samples.kind != RAPID) & (eng.ap_mm > 1e-9)
+    end = cut & (np.nan_to_num(eng.descent) > 0) if eng.descent is not None else np.zeros(len(samples), bool)
+    assert end.sum() > 100 and (cut & ~end).sum() > 1000  # the job plunges and drills, and mills
+    flank = cut & ~end
+    np.testing.assert_allclose(exact.torque_Nm[flank], affine.torque_Nm[flank], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(exact.force_tool_N[flank], affine.force_tool_N[flank], rtol=1e-9, atol=1e-9)
+    # the end's thrust and torque (Kienzle, concave in the feed) stay under their tangent, which the
+    # schedule bounds; the exact model includes them (no thrust without them on a drill)
+    assert np.all(exact.force_tool_N[end, 2] <= affine.force_tool_N[end, 2] * (1 + 1e-9) + 1e-9)
+    assert np.all(exact.torque_Nm[end] <= affine.torque_Nm[end] * (1 + 1e-9) + 1e-12)
+    assert np.max(exact.force_tool_N[end, 2]) > 50.0
+
+
+def test_replayed_kinematics_stay_within_the_machines_accelerations(drill_and_mill):
+    job, samples, eng, limits, executed = drill_and_mill
+    checked = replay(job, samples, eng, limits, executed)
+    amax = np.array([job.machine.axes[a].amax_mm_s2 for a in "xyz"])
+    peak = np.abs(checked.signals.axis_accel_mm_s2).max(axis=0)
+    assert np.all(peak <= amax * 1.01), (peak, amax)  # the controller plans within them
+    assert np.any(peak >= amax * 0.9)  # and uses them
+    limit_A = np.array([job.machine.axes[a].motor.current_limit_A for a in "xyz"])
+    keep = (samples.kind != RAPID) & ~limits.held["cutting_current"]
+    assert checked.ratios["current"] == pytest.approx(
+        float(np.max(np.abs(checked.signals.axis_current_A[keep]) / limit_A)))
