@@ -162,9 +162,10 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         status = "slower"
     executed = np.interp(samples.s_mm, *_speed_profile(emitted_tp, after, ds))
     progress("replay", 1, 3)
-    checked = replay(job, samples, eng, limits, executed)
-    progress("replay", 2, 3)
+    # the programmed run first: only its ratios are kept, so its signals are freed before the emitted run's
     as_programmed = replay(job, samples, eng, limits, before.speed_at_samples(samples)).ratios
+    progress("replay", 2, 3)
+    checked = replay(job, samples, eng, limits, executed)
     progress("replay", 3, 3)
     by_effect, by_limit = binding_shares(samples, sched, limits)
     cut = samples.kind != RAPID

@@ -24,6 +24,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .._kernels import compiling
+
 
 _EXACT_EVERY = 32  # angular steps between exact sin/cos (the rotation recurrence in between drifts ~1e-16 a step)
 
@@ -123,11 +125,12 @@ def simulate(st, ex, b, z, dz, r, kappa, *, kc, ke, p: float, flutes: int, helix
     fz = np.broadcast_to(np.asarray(fz_mm, float), (n,)).astype(float)
     # identical samples (a cut that does not change along a move) are simulated once
     key = np.column_stack([np.asarray(a, float).reshape(n, st.shape[1]) for a in (st, ex, b, z, dz, r, kappa)] + [fz])
-    first, inverse = unique_rows(np.nan_to_num(key, nan=-1e300))
-    f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first])  # noqa: E731
-    peaks, mean = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
-                            np.asarray(ke, float), float(p), int(flutes), math.tan(math.radians(helix_deg)),
-                            float(radius_mm), ro, has_runout, f(fz), steps, periods)
+    with compiling(_row_hash, _simulate):
+        first, inverse = unique_rows(np.nan_to_num(key, nan=-1e300))
+        f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first])  # noqa: E731
+        peaks, mean = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
+                                np.asarray(ke, float), float(p), int(flutes), math.tan(math.radians(helix_deg)),
+                                float(radius_mm), ro, has_runout, f(fz), steps, periods)
     return peaks[inverse], mean[inverse]
 
 
