@@ -81,10 +81,13 @@ class Engagement:
         return cls(**{name: cat(name) for name in cls.__dataclass_fields__})
 
     def per_sample(self) -> "Engagement":
-        """The same engagement without its per-slice and end arrays (phi_st … arc_rad, end_engaged
-        become (N, 0)): what is left to report once the loads are computed (~0.5 KB a sample less)."""
-        return replace(self, **{name: np.empty((len(self), 0)) for name in _PER_SLICE  # not views: freed
-                                if getattr(self, name) is not None})
+        """The same engagement with what is reported once the loads are computed: ap, ae, volume, area
+        and feed direction; the per-slice arrays become (N, 0) and the optional per-step fields None
+        (~0.6 KB a sample less)."""
+        n = len(self)
+        return replace(self, **{name: np.empty((n, 0)) for name in _PER_SLICE},  # not views: freed
+                       **dict.fromkeys(("arc_rad", "step_mm", "descending", "move", "line", "depth_mm",
+                                        "end_engaged", "descent")))
 
     def select(self, index) -> "Engagement":
         """The samples at `index` (a slice, mask or index array)."""
@@ -113,7 +116,7 @@ class Engagement:
             ap_mm=np.full(n, ap_mm), ae_mm=ae, volume_mm3=np.full(n, np.nan), area_mm2=area)
 
 
-_PER_SLICE = ("phi_st", "phi_ex", "dz_mm", "z_mm", "r_mm", "kappa", "arc_rad", "end_engaged")
+_PER_SLICE = ("phi_st", "phi_ex", "dz_mm", "z_mm", "r_mm", "kappa")
 END_BINS = 8  # radial bins of the tool's end (Engagement.end_engaged)
 
 

@@ -240,6 +240,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         # the floor: the thickest chip, flank's or end's, reaches the minimum chip
         floor[cut_here] = h_min / np.maximum(sin_max[cut_here], sin_end[cut_here]) * per_tooth
     progress("forces", n, n)
+    del sin_max  # memory: every use is above
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))

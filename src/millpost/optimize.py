@@ -85,11 +85,11 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
             stock = job.stock()
         samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                             progress=report)
-        # memory: the stock grid is not needed after the engagement, nor its per-slice arcs (reported by
-        # `millpost simulate` only), nor (at the programmed speeds, whose loads do not change) the
-        # per-slice engagement once the loads are computed
+        # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
+        # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
+        # speeds, whose loads do not change) the per-slice engagement once the loads are computed
         del stock
-        eng = replace(eng, arc_rad=None)
+        eng = replace(eng, arc_rad=None, step_mm=None, descending=None, move=None, line=None, depth_mm=None)
         t_engage = time.perf_counter()
         limits = None
         if job.limits["rpm"] != "optimize":

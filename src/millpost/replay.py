@@ -10,6 +10,7 @@ compared with the bound the schedule was given (after the feed policy of `millpo
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,10 +92,12 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     cut = samples.kind != RAPID
     v = sig.speed_mm_s
     ratios: dict[str, float] = {}
-    rows: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # name: value, raw bound, value / raw bound
+    rows: dict[str, tuple] = {}  # name: value, raw bound, value / raw bound
+    shared = Counter(lim.name for lim in limits if isinstance(lim.constraint, SpeedLoad))
     for lim in limits:
         c = lim.constraint
         if isinstance(c, SpeedLoad):
+            shared[lim.name] -= 1  # rows of this name still to come
             value = lim.signal(sig)
             with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked
                 ratio = np.where(cut, value / np.broadcast_to(np.asarray(c.limit, float), value.shape), 0.0)
@@ -106,7 +109,8 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
                 higher = raw > old_raw
                 value, bound, raw = (np.where(higher, value, old_value), np.where(higher, bound, old_bound),
                                      np.maximum(raw, old_raw))
-            rows[lim.name] = (value, bound, raw)
+            # the ratio per sample is kept only while another row of the name may come (memory)
+            rows[lim.name] = (value, bound, raw if shared[lim.name] else None)
         elif lim.f_word and not lim.controller:  # speed caps only millpost holds (in chunks: memory)
             for lo in range(0, len(samples), LOAD_CHUNK):
                 hi = min(lo + LOAD_CHUNK, len(samples))
