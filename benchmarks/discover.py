@@ -15,6 +15,7 @@ peak_rss_mb (whole process), effects named.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import resource
 import sys
@@ -37,9 +38,10 @@ def tile(rows, copies: int):
     feats = {k: cat(v) for k, v in rows.features.items()}
     L = rows.features["cut_length_m"]
     feats["cut_length_m"] = np.concatenate([L + k * L.max() for k in range(copies)])
+    cuts = dataclasses.replace(rows.cuts, sample=cat(rows.cuts.sample))   # the same cuts, visited again
     return Rows(t, {c: cat(v) for c, v in rows.measured.items()}, {c: cat(v) for c, v in rows.cut.items()},
                 {c: {k: cat(v) for k, v in d.items()} for c, d in rows.columns.items()},
-                {c: cat(v) for c, v in rows.fixed.items()}, feats, None, cat(rows.use))
+                {c: cat(v) for c, v in rows.fixed.items()}, feats, None, cat(rows.use), cuts)
 
 
 def main() -> None:

@@ -28,9 +28,11 @@ from millpost.signals import simulate
 
 TRUE = {"Ktc": 631.0, "Krc": 99.0, "Kac": 273.0, "Kte": 13.0, "Kre": 10.0, "Kae": 2.8}
 TOOLS = ((6.0, 3), (10.0, 4), (8.0, 2))    # diameter (mm), flutes
-BOX = (120.0, 80.0, 20.0)                  # length X, width Y, height (top at z = 0)
+BOX = (80.0, 80.0, 20.0)                   # length X, width Y, height (top at z = 0)
+FZ_MM = (0.006, 0.15)
+EDGE_FREE = {"Kte": 0.0, "Kre": 0.0, "Kae": 0.0}                      # feed per tooth range of a job: finishing to roughing
 EFFECTS = ("none", "tool_wear", "size_effect", "deflection", "inertia", "sensor_lag", "spindle_no_load",
-           "sensor_drift", "axis_friction")
+           "sensor_drift", "axis_friction", "runout")
 KT_TO_MECH = {"Ktc": "Ktc_N_mm2", "Krc": "Krc_N_mm2", "Kac": "Kac_N_mm2", "Kte": "Kte_N_per_mm",
               "Kre": "Kre_N_per_mm", "Kae": "Kae_N_per_mm"}
 
@@ -43,23 +45,29 @@ class Pass:
     rpm: float
 
 
-def passes(rng: np.random.Generator, diameter: float) -> list[Pass]:
-    """Three slots, two side cuts along y = 0 and two along y = W (each a fresh strip of material)."""
+def passes(rng: np.random.Generator, diameter: float, flutes: int) -> list[Pass]:
+    """Two or three slots (depth 0.2–1 D), then two side cuts along y = 0 (climb) and two along y = W
+    (conventional), each a fresh strip of width 0.1–0.5 D and depth 0.4–1.5 D; every pass at its own
+    speed (4000–10000 rpm, at least 200 mm/min where it can) and feed per tooth (FZ_MM, spread over the range)."""
     R = diameter / 2
     out = []
-    for k in range(3):
-        out.append(Pass(18.0 + 16.0 * k, rng.uniform(0.3, 1.0) * diameter, 0, 0))
+    for k in range(int(rng.integers(2, 4))):
+        out.append(Pass(18.0 + 16.0 * k, rng.uniform(0.2, 1.0) * diameter, 0, 0))
     y0 = -R
     for _ in range(2):
-        y0 += rng.uniform(0.15, 0.5) * diameter
-        out.append(Pass(y0, rng.uniform(0.5, 1.5) * diameter, 0, 0))
+        y0 += rng.uniform(0.1, 0.5) * diameter
+        out.append(Pass(y0, rng.uniform(0.4, 1.5) * diameter, 0, 0))
     y1 = BOX[1] + R
     for _ in range(2):
-        y1 -= rng.uniform(0.15, 0.5) * diameter
-        out.append(Pass(y1, rng.uniform(0.5, 1.5) * diameter, 0, 0))
-    for p in out:
-        p.rpm = float(np.round(rng.uniform(5000, 10000), -2))
-        p.feed_mm_min = float(np.round(p.rpm * rng.uniform(0.02, 0.07) * 2, -1))   # f_z 0.01 .. 0.07 mm (2 flutes)
+        y1 -= rng.uniform(0.1, 0.5) * diameter
+        out.append(Pass(y1, rng.uniform(0.4, 1.5) * diameter, 0, 0))
+    # feeds per tooth spread over the whole range in every job (stratified, log scale), in random order
+    levels = np.exp(np.log(FZ_MM[0]) + (np.arange(len(out)) + rng.uniform(0, 1, len(out))) / len(out)
+                    * np.log(FZ_MM[1] / FZ_MM[0]))
+    for p, fz in zip(out, rng.permutation(levels)):
+        p.rpm = float(np.round(rng.uniform(min(max(4000.0, 200.0 / (fz * flutes)), 10000.0), 10000.0), -2))
+        p.feed_mm_min = float(np.round(p.rpm * flutes * fz, -1))
+        p.y_mm, p.depth_mm = round(p.y_mm, 3), round(p.depth_mm, 3)
     return out
 
 
@@ -67,10 +75,7 @@ def write_job(folder: Path, seed: int) -> tuple[Path, list[Pass], tuple[float, i
     """A job folder: program.nc, material.toml (nominal coefficients ±20 % off), job.toml."""
     rng = np.random.default_rng(seed)
     diameter, flutes = TOOLS[seed % len(TOOLS)]
-    plan = passes(rng, diameter)
-    for p in plan:   # the values the program states
-        p.feed_mm_min = float(np.round(p.feed_mm_min * flutes / 2, -1))
-        p.y_mm, p.depth_mm = round(p.y_mm, 3), round(p.depth_mm, 3)
+    plan = passes(rng, diameter, flutes)
     R = diameter / 2
     lines = ["(discover test: straight passes in a box)", "G21 G90 G17 G94", "T1 M6", "G0 Z5"]
     for p in plan:
@@ -117,7 +122,6 @@ def cutting_loads(xyz: np.ndarray, vel: np.ndarray, rpm: np.ndarray, diameter: f
     active = (xyz[:, 2] < -1e-6) & (speed > 1e-6) & (rpm > 0)
     phi = np.deg2rad(np.arange(0.5, 180.0, 1.0))          # front half: h = f_z sin φ > 0
     dphi = np.deg2rad(1.0)
-    slices = 6
     # pass k spans the rows whose y is its y (straight passes along +X)
     done: list = []
     for p in plan:
@@ -129,9 +133,11 @@ def cutting_loads(xyz: np.ndarray, vel: np.ndarray, rpm: np.ndarray, diameter: f
             d = vel[rows, :2] / speed[rows, None]
             nrm = np.column_stack([-d[:, 1], d[:, 0]])
             fz = speed[rows] * 60.0 / (flutes * rpm[rows])
-            dz = p.depth_mm / slices
-            for s in range(slices):
-                z = -p.depth_mm + (s + 0.5) * dz
+            # axial layers between the depths of the earlier passes: the material is a z-prism within each,
+            # so one slice per layer integrates the straight-fluted edge exactly
+            levels = sorted({-p.depth_mm, 0.0, *(zb for *_, zb in done if -p.depth_mm < zb < 0)})
+            for z0, z1 in zip(levels[:-1], levels[1:]):
+                z, dz = 0.5 * (z0 + z1), z1 - z0
                 pts = c[:, None, :] + R * (np.sin(phi)[None, :, None] * d[:, None, :]
                                            + np.cos(phi)[None, :, None] * nrm[:, None, :])
                 inside = ((pts[..., 0] >= 0) & (pts[..., 0] <= BOX[0]) & (pts[..., 1] >= 0) & (pts[..., 1] <= BOX[1])
@@ -172,10 +178,34 @@ class Run:
     truth: dict
 
 
-def make_run(folder: Path, seed: int, effect: str, *, noise: float | None = None, rate_hz: float = 100.0,
+def runout(tau, rpm, F, T, shear, vel, flutes: int, rng, truth: dict, substeps: int = 8):
+    """Mean loads per row with the chip of each flute changed by runout: flute j sits ρ·cos(ψ − 2πj/N)
+    further out, so its chip is f_z·sin φ + r_j − r_(j−1) and its shearing load (the `shear` part of F, T)
+    scales by 1 + (r_j − r_(j−1))/f_z while it cuts; the log row is the mean over its interval of the
+    flute in the cut (spindle angle ∫Ω dt, sub-steps per row)."""
+    rho = truth["runout_mm"] = rng.uniform(0.004, 0.008)
+    psi = rng.uniform(0, 2 * np.pi)
+    r = rho * np.cos(psi - 2 * np.pi * np.arange(flutes) / flutes)
+    delta = r - np.roll(r, 1)
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    fz = np.where(rpm > 0, speed * 60.0 / (flutes * np.maximum(rpm, 1.0)), 0.0)
+    dt = np.gradient(tau)
+    theta0 = np.cumsum(2 * np.pi * rpm / 60.0 * dt)
+    factor = np.zeros(len(tau))
+    for k in range(substeps):
+        theta = theta0 + 2 * np.pi * rpm / 60.0 * dt * (k + 0.5) / substeps
+        j = np.floor(theta * flutes / (2 * np.pi)).astype(np.int64) % flutes
+        factor += np.maximum(1 + delta[j] / np.maximum(fz, 1e-9), 0.0) / substeps
+    Fs, Ts = shear
+    return F + Fs * (factor - 1)[:, None], T + Ts * (factor - 1)
+
+
+def make_run(folder: Path, seed: int, effect: str, *, noise: float | None = None, rate_hz: float | None = None,
              signals_cache: dict | None = None) -> Run:
-    """One measured run with `effect` hidden (or "none"), seeded."""
-    job_path, plan, (diameter, flutes), _ = write_job(folder, seed % 3)
+    """One measured run with `effect` hidden (or "none"), seeded; logged at rate_hz (default 100 Hz, and
+    1 kHz for runout: once-per-revolution content needs several rows per revolution)."""
+    rate_hz = rate_hz if rate_hz is not None else (1000.0 if effect == "runout" else 100.0)
+    job_path, plan, (diameter, flutes), _ = write_job(folder, seed)
     rng = np.random.default_rng(1000 + seed)
     key = str(job_path)
     if signals_cache is not None and key in signals_cache:
@@ -193,7 +223,7 @@ def make_run(folder: Path, seed: int, effect: str, *, noise: float | None = None
     # the straight cut rows: snap to the pass (interpolation between samples leaves y, z exact on a pass)
     rpm = sig.rpm[np.clip(np.searchsorted(sig.t_s, tau, side="right") - 1, 0, len(sig) - 1)]
     coef = dict(TRUE)
-    truth: dict = {"effect": effect, "noise": noise}
+    truth: dict = {"effect": effect, "noise": noise, "offset_s": offset}
     kwargs: dict = {}
     if effect == "tool_wear":
         F0, _ = cutting_loads(xyz, vel, rpm, diameter, flutes, coef, plan)
@@ -207,9 +237,17 @@ def make_run(folder: Path, seed: int, effect: str, *, noise: float | None = None
         kwargs["size_m"] = truth["m"] = rng.uniform(0.3, 0.45)
     F, T = cutting_loads(xyz, vel, rpm, diameter, flutes, coef, plan, **kwargs)
     if effect == "deflection":
-        C = truth["compliance_mm_per_N"] = rng.uniform(1.5e-3, 3e-3)   # mm/N: a slender tool
-        for _ in range(4):     # the tool bends along the force on it
-            F, T = cutting_loads(xyz, vel, rpm, diameter, flutes, coef, plan, offset_xy=C * F[:, :2])
+        # a slender tool: the median in-plane force of the cuts bends it by 5–10 % of its diameter
+        cut = np.hypot(F[:, 0], F[:, 1])
+        C = truth["compliance_mm_per_N"] = rng.uniform(0.05, 0.1) * diameter / np.median(cut[cut > 1e-6])
+        offset_xy = np.zeros((len(F), 2))
+        for _ in range(8):     # the tool bends along the force on it (damped fixed point)
+            offset_xy = 0.5 * (offset_xy + C * F[:, :2])
+            F, T = cutting_loads(xyz, vel, rpm, diameter, flutes, coef, plan, offset_xy=offset_xy)
+    if effect == "runout":   # the mean loads vary slowly: the shearing share on every 10th row, interpolated
+        Fs, Ts = cutting_loads(xyz[::10], vel[::10], rpm[::10], diameter, flutes, coef | EDGE_FREE, plan)
+        Fs = np.column_stack([np.interp(tau, tau[::10], Fs[:, k]) for k in range(3)])
+        F, T = runout(tau, rpm, F, T, (Fs, np.interp(tau, tau[::10], Ts)), vel, flutes, rng, truth)
     omega = 2 * np.pi * rpm / 60.0
     power = T * omega
     work = -F                                              # force on the workpiece

@@ -149,3 +149,34 @@ def test_fanuc_fine_boring_back_boring_and_g80_return_to_g0():
     assert ends[9:16] == [[20, 0, 10], [20.5, 0, 10], [20.5, 0, -12], [20, 0, -12], [20, 0, -4], [20.5, 0, -4],
                           [20.5, 0, 10]]
     assert ends[16] == [20, 0, 10]
+
+
+def test_dialect_facts_live_in_the_dialect():
+    """The reader asks the Dialect, not its name: a dwell P in Fanuc counts milliseconds (G4 only
+    without a decimal point, a canned cycle's always); G4 P1500 and G4 P1.5 wait 1.5 s on Fanuc,
+    1500 s and 1.5 s on LinuxCNC. A G80 keeps G0 in Fanuc, leaves no motion in LinuxCNC."""
+    from millpost.gcode import dialects
+    fanuc, lcnc = dialects.get("fanuc"), dialects.get("linuxcnc")
+    assert fanuc.dwell_s(1500, decimal_point=False) == 1.5 and fanuc.dwell_s(1.5) == 1.5
+    assert fanuc.dwell_s(500, cycle=True) == 0.5 and lcnc.dwell_s(500, cycle=True) == 500
+    for name, wait in (("fanuc", 3.0), ("linuxcnc", 1501.5)):
+        prog = read_text("G21 G90\nG4 P1500\nG4 P1.5\nM2\n", "d.nc", ReaderOptions(dialect=name))
+        assert prog.dwell_s == pytest.approx(wait)
+    text = "G21 G90\nG0 X0 Y0 Z5\nG80\nX1\nM2\n"
+    assert read_text(text, "d.nc", ReaderOptions(dialect="fanuc")).toolpath.end[-1].tolist() == [1, 0, 5]
+    with pytest.raises(ParseError, match="no motion mode"):
+        read_text(text, "d.nc", ReaderOptions(dialect="linuxcnc"))
+
+
+def test_detection_weighs_distinct_markers():
+    """Fusion's Fanuc post writes %, O1001, G28 G91 and G43 Z H (Fanuc) and G00 on every rapid (also a
+    Mach3 marker): the distinct Fanuc markers win. LinuxCNC's own o-word sample programs with an
+    O-number-looking line stay LinuxCNC."""
+    from millpost.gcode import dialects
+    fusion = ("%\nO1001\nG90 G94 G17 G49 G40 G80\nG21\nG28 G91 Z0.\nG90\n(2D-FACE)\nT1 M06\nS5000 M03\n"
+              "G54\nG00 X80. Y-24.375\nG43 Z15. H01\n" + "G00 Z5.\nG01 Z-1. F500.\nG00 Z15.\n" * 10 + "M30\n%\n")
+    assert dialects.detect(fusion).name == "fanuc"
+    mach3 = "G00 G49 G40  G17 G80 G90 G21\nM04 S12000\n" + "G00 Z6\nG00 X0 Y0\nG01 Z-0.4\n" * 10 + "M30\n%\n"
+    assert dialects.detect(mach3).name == "mach3"
+    lcnc = "O0100\no100 sub\nG1 X1 F100\no100 endsub\no100 call\no100 call\nM2\n"
+    assert dialects.detect(lcnc).name == "linuxcnc"

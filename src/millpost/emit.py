@@ -7,7 +7,8 @@ F is modal, so an F word is written wherever the wanted feed differs from the on
 program already had and that still holds keeps its bytes. Blocks that run several moves (canned
 cycles, G28) get the lowest feed any of their moves wants: never faster than the plan. Moves under
 cutter radius compensation (G41/G42) are never split: the controller offsets whatever coordinates are
-written, so a split point (a point of the offset path) would be offset again; they take one F.
+written, so a split point (a point of the offset path) would be offset again; they take one F. Neither
+are moves of canned cycles: a cycle block's X Y Z R are the hole's, not a move's end.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .errors import MillpostError
+from .gcode import dialects
 from .gcode.flow import control_of
 from .gcode.interpret import INCH, Program
 from .gcode.lexer import Block, lex_line
@@ -119,7 +121,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     tp = program.toolpath
     if len(plan.feed_mm_min) != len(tp):
         raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
-    default_trailing = program.dialect == "fanuc" if trailing_point is None else trailing_point
+    default_trailing = dialects.get(program.dialect).trailing_point if trailing_point is None else trailing_point
     lines = program.text.splitlines(keepends=True)
     lengths = tp.lengths()
     cutting = tp.kind != RAPID
@@ -283,11 +285,12 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
 
 
 def whole_compensated_moves(program: Program, fragments: list) -> list:
-    """Fragments (`schedule.feeds.Fragment`) with those of each compensated move merged into one over the
-    whole move at their lowest feed (such moves are written with one F, see the module docstring)."""
+    """Fragments (`schedule.feeds.Fragment`) with those of each compensated move, and of each move a canned
+    cycle runs (its block's words are the cycle's, not a move's end point), merged into one over the whole
+    move at their lowest feed (such moves are written with one F, see the module docstring)."""
     out, whole = [], {}
     for f in fragments:
-        if not program.compensated[f.move]:
+        if not (program.compensated[f.move] or program.cycle[f.move]):
             out.append(f)
         elif f.move not in whole or f.feed_mm_min < whole[f.move].feed_mm_min:
             whole[f.move] = replace(f, u_start=0.0, u_end=1.0)

@@ -45,7 +45,8 @@ class Engagement:
     end_engaged (N, J): the tool's end on a descending step, per radial bin j of J equal bins over
     [0, R]: the share of the circle at that radius where the end edges cut a full axial feed (0 where
     the step does not descend). descent (N,): −dz/ds of the step (0 level or rising, 1 a plunge), so the
-    end's axial feed per tooth is f_z·descent. On a step with no horizontal motion (a plunge, a drill)
+    end's axial feed per tooth is f_z·descent. look_ahead_mm (N,): how far ahead along the path each
+    sample's ring was taken (its engagement is the one the tool meets that much later). On a step with no horizontal motion (a plunge, a drill)
     the flank sweeps no new material: its slices are not engaged (the end carries the whole cut).
     """
 
@@ -68,6 +69,7 @@ class Engagement:
     depth_mm: np.ndarray | None = None
     end_engaged: np.ndarray | None = None
     descent: np.ndarray | None = None
+    look_ahead_mm: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ap_mm)
@@ -234,6 +236,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     # runs of one tool, cut into chunks for the progress display
     bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
     runs = []
+    ahead = np.zeros(n)
     for a, b in zip(bounds[:-1], bounds[1:]):
         t = tools.get(int(tool_no[a])) if tools is not None else tool
         runs.append((a, b, t))
@@ -242,6 +245,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         shape, R, rc, r_tip, tan_half = _tool_params(t)
         la = look_ahead_mm if look_ahead_mm is not None else max(2 * ds, math.sqrt(R * stock.cell_mm))
         ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
+        ahead[a:b] = la
         for c0 in range(a, b, chunk):
             c1 = min(b, c0 + chunk)
             with reporting(report), compiling(_k.run):
@@ -269,4 +273,4 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         kappa=kappa, feed_dir=feed3, ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
         volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
         step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
-        depth_mm=out["depth"], end_engaged=out["end"], descent=descent)
+        depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead)

@@ -35,7 +35,7 @@ class StrategyRules:
     face_ap_D: float = 0.1
     ramp_angle_deg: float = 2.0
     ramp_feed_ratio: float = 0.5
-    plunge_fz_ratio: float = 0.5
+    plunge_fz_ratio: float = 0.25
     source: str = "millpost defaults (no material-specific source)"
 
     def ae_range_D(self, strategy: str) -> tuple[float, float]:

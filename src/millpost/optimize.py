@@ -43,10 +43,14 @@ class Result:
     trace: dict = field(default_factory=dict)
 
 
-def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
+def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray) -> FeedPlan:
     """The emitter's plan from the fragments. With control flow a line that runs several times gets
     one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
-    ones differ by at least `step`."""
+    ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
+    (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
+    (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
+    keeps the program's F (each run at its programmed feed). hard_cap_mm_min: per move, the lowest speed
+    cap of the hard limits over its samples (a run is forced slower where it is under the programmed feed)."""
     plan = FeedPlan.programmed(program)
     by_move: dict[int, list] = {}
     for f in fragments:
@@ -58,13 +62,24 @@ def _plan_from_fragments(program: Program, fragments, step: float) -> FeedPlan:
         else:
             plan.feed_mm_min[mv] = min(f.feed_mm_min for f in frs)
             plan.fragments[mv] = [(f.u_end, f.feed_mm_min) for f in frs]
+    # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never changed
+    tapping = np.flatnonzero(np.isin(program.cycle, (740, 840)))
+    plan.feed_mm_min[tapping] = program.toolpath.feed_mm_min[tapping]
+    for mv in tapping:
+        plan.fragments.pop(int(mv), None)
     if program.control_flow:
         tp = program.toolpath
         fed = np.flatnonzero(np.isfinite(plan.feed_mm_min) & (tp.kind != RAPID))
         lines, inverse = np.unique(tp.line[fed], return_inverse=True)
-        per_line = np.full(len(lines), np.inf)
+        per_line, prog_max, forced = np.full(len(lines), np.inf), np.zeros(len(lines)), np.zeros(len(lines), bool)
         np.minimum.at(per_line, inverse, plan.feed_mm_min[fed])
-        plan.feed_mm_min[fed] = cluster(per_line, step)[inverse]
+        np.maximum.at(prog_max, inverse, tp.feed_mm_min[fed])
+        np.logical_or.at(forced, inverse, hard_cap_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
+        text = program.text.splitlines()
+        own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
+                          for n in lines], bool)
+        keep = own_f & ~forced & (cluster(per_line, step) < prog_max * (1 - 1e-9))
+        plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], cluster(per_line, step)[inverse])
         plan.fragments = {}
     return plan
 
@@ -148,7 +163,9 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         fragments = whole_compensated_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
-        plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]))
+        hard_cap = np.full(len(tp), np.inf)
+        np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD) * 60.0)
+        plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]), hard_cap)
         status, message = "solved", ""
     progress("emission", 2, 4)
     text = write_feeds(program, plan)

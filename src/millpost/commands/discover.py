@@ -28,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("job", metavar="JOB", help="job folder or job.toml (the program the log recorded)")
     p.add_argument("--log", required=True, metavar="LOG.csv", help="measurement log (CSV or NPZ)")
     p.add_argument("--json", required=True, metavar="OUT.json", help="result ('-' for stdout)")
-    p.add_argument("--predictions", metavar="PRED.csv", help="per log row: t_s, <ch>_measured, _before, _after")
+    p.add_argument("--predictions", metavar="PRED.csv", help="per log row: t_s, held_out (1: scored), <ch>_measured, _before, _after")
     p.add_argument("--report", metavar="OUT.html", help="residual plots before/after (one HTML file)")
     p.add_argument("--write-model", metavar="DIR", help="write material, machine and job files with the effects")
     p.add_argument("--effects", metavar="NAME,...", help="only these candidates (default: all registered)")

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..engagement import Engagement
 from ..errors import MillpostError
 from ..forces.base import to_machine
 from ..forces.mechanistic import COEF_NAMES, regressors
@@ -33,6 +34,44 @@ CHANNELS = CUTTING + ("spindle_current_A",) + CURRENTS
 
 
 @dataclass
+class Cuts:
+    """The cutting path samples behind the rows, so that an effect can evaluate the cutting law again on a
+    changed engagement (a bent tool's narrower cut, a chip-thickness-dependent coefficient).
+
+    sample: (n,) per log row, its cutting sample (index into the arrays below) or −1 where the tool does not
+    cut; engagement, flutes, fz_mm (feed per tooth, mm) and omega_rad_s (spindle speed) of the cutting
+    samples."""
+
+    sample: np.ndarray
+    engagement: Engagement
+    flutes: np.ndarray
+    fz_mm: np.ndarray
+    omega_rad_s: np.ndarray
+
+    def regressors(self, engagement: Engagement | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """G, E (m, 4, 3) of the cutting law per cutting sample (feed frame, force on the tool and torque;
+        `millpost.forces.mechanistic.regressors`) on `engagement` (default the simulated one)."""
+        return regressors(self.engagement if engagement is None else engagement, self.flutes)
+
+    def channels(self, G: np.ndarray, E: np.ndarray) -> dict[str, np.ndarray]:
+        """Per log row and cutting channel, the (n, 6) columns of the six coefficients (K_tc, K_rc, K_ac
+        × f_z·G, K_te, K_re, K_ae × E): forces on the workpiece (−, rotated to machine XYZ, N) and spindle
+        power (torque × ω, W); zero on rows that do not cut."""
+        m = len(self.fz_mm)
+        per = {c: np.zeros((m + 1, 6)) for c in CUTTING}     # the last row: not cutting
+        fd = self.engagement.feed_dir
+        for k in range(3):
+            shear = -to_machine(fd, self.fz_mm[:, None] * G[:, :3, k])
+            edge = -to_machine(fd, E[:, :3, k])
+            for a, c in enumerate(FORCE):
+                per[c][:m, k], per[c][:m, 3 + k] = shear[:, a], edge[:, a]
+            per["spindle_power_W"][:m, k] = self.fz_mm * G[:, 3, k] / 1000.0 * self.omega_rad_s
+            per["spindle_power_W"][:m, 3 + k] = E[:, 3, k] / 1000.0 * self.omega_rad_s
+        at = np.where(self.sample >= 0, self.sample, m)
+        return {c: v[at] for c, v in per.items()}
+
+
+@dataclass
 class Rows:
     """n log rows (time order) with their measured channels and per-row features.
 
@@ -40,7 +79,10 @@ class Rows:
     the cutting law for fx_N, fy_N, fz_N, spindle_power_W (zeros where the tool does not cut), present
     whether or not the channel is logged (effects use the force magnitude); columns: channel → {name: (n,)}
     channel-own base columns; fixed: channel → (n,) fixed base term. features: rpm, fz_mm, ae_mm, ap_mm,
-    diameter_mm, cut_length_m (engaged path so far, per tool), velocity_mm_s (n, 3), accel_mm_s2 (n, 3)."""
+    diameter_mm, cut_length_m (engaged path so far, per tool), velocity_mm_s (n, 3), accel_mm_s2 (n, 3);
+    cuts: the cutting samples behind the rows (for effects that change the engagement or the law). use:
+    the rows fits and scores use: not where the tool leaves the material (`exit_zone`), nor the first
+    look-ahead of a cut, where the tool already cuts but the sample behind it did not (`engaged_sample`)."""
 
     t_s: np.ndarray
     measured: dict[str, np.ndarray]
@@ -50,6 +92,7 @@ class Rows:
     features: dict[str, np.ndarray] = field(default_factory=dict)
     index: np.ndarray | None = None   # the log rows these are (into the whole log)
     use: np.ndarray | None = None     # rows the fits and scores use (default all)
+    cuts: Cuts | None = None          # the cutting samples behind the rows (None: no program)
 
     def __len__(self) -> int:
         return len(self.t_s)
@@ -71,12 +114,12 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
         raise MillpostError(f"{log.path}: only {len(inside)} log rows fall inside the program after alignment "
                             f"(offset {alignment.offset_s:.3f} s)")
     j = j_all[inside]
+    je = engaged_sample(signals, j)
     measured = {c: np.asarray(log[c][inside], float) for c in CHANNELS if log.has(c)}
     if not measured:
         raise MillpostError(f"{log.path}: no channel discover can use (has {', '.join(log.columns)}; "
                             f"usable: {', '.join(CHANNELS)})")
     n_s = len(signals)
-    eng = signals.engagement
     cutting = signals.ap_mm > 1e-9
     flutes = np.ones(n_s)
     diameter = np.zeros(n_s)
@@ -84,21 +127,12 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
         tool = job.tools[int(number)]
         on = signals.tool == number
         flutes[on], diameter[on] = tool.flutes, tool.diameter_mm
-    per_sample = {c: np.zeros((n_s, 6)) for c in CUTTING}
     idx = np.flatnonzero(cutting)
-    if len(idx):
-        G, E = regressors(eng.select(idx), flutes[idx])
-        fz = signals.fz_mm[idx]
-        fd = eng.feed_dir[idx]
-        omega = 2 * np.pi * signals.rpm[idx] / 60.0
-        for k in range(3):    # K_tc.. shearing (× f_z), K_te.. edge: force on the tool → on the workpiece (−)
-            shear = -to_machine(fd, fz[:, None] * G[:, :3, k])
-            edge = -to_machine(fd, E[:, :3, k])
-            for a, c in enumerate(FORCE):
-                per_sample[c][idx, k], per_sample[c][idx, 3 + k] = shear[:, a], edge[:, a]
-            per_sample["spindle_power_W"][idx, k] = fz * G[:, 3, k] / 1000.0 * omega
-            per_sample["spindle_power_W"][idx, 3 + k] = E[:, 3, k] / 1000.0 * omega
-    cut = {c: v[j] for c, v in per_sample.items()}
+    position = np.full(n_s, -1)
+    position[idx] = np.arange(len(idx))
+    cuts = Cuts(position[je], signals.engagement.select(idx), flutes[idx], signals.fz_mm[idx],
+                2 * np.pi * signals.rpm[idx] / 60.0)
+    cut = cuts.channels(*cuts.regressors())
     # engaged path length so far per tool (m): wear grows with it
     ds = np.diff(signals.s_mm, prepend=signals.s_mm[0]) * cutting
     length = np.zeros(n_s)
@@ -118,12 +152,27 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
         elif c in CURRENTS:
             k = CURRENTS.index(c)
             columns[c]["inertia_A_per_m_s2"] = signals.axis_accel_mm_s2[j, k] / 1000.0
-            columns[c]["cut_force_gain"] = -signals.force_tool_N[j, k]
+            columns[c]["cut_force_gain"] = -signals.force_tool_N[je, k]
     exiting = exit_zone(signals, diameter)
-    features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[j], "ae_mm": signals.ae_mm[j],
-                "ap_mm": signals.ap_mm[j], "diameter_mm": diameter[j], "cut_length_m": length[j],
+    features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[je], "ae_mm": signals.ae_mm[je],
+                "ap_mm": signals.ap_mm[je], "diameter_mm": diameter[je], "cut_length_m": length[je],
                 "velocity_mm_s": signals.axis_velocity_mm_s[j], "accel_mm_s2": signals.axis_accel_mm_s2[j]}
-    return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, ~exiting[j])
+    use = ~exiting[je] & (cutting[j] == cutting[je])
+    return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, use, cuts)
+
+
+def engaged_sample(signals: Signals, j: np.ndarray) -> np.ndarray:
+    """The path sample whose engagement is the tool's at samples j: the engagement of a sample is the one
+    the tool meets `look_ahead_mm` further along the path (taken ahead so that the current step's own
+    cells do not cut the arc's tangent ends), so the tool's own is that of the sample that far behind."""
+    ahead = signals.engagement.look_ahead_mm
+    if ahead is None:
+        return j
+    s = signals.s_mm
+    target = s[j] - ahead[j]
+    k = np.clip(np.searchsorted(s, target), 1, len(s) - 1)
+    k = np.where(np.abs(s[k - 1] - target) <= np.abs(s[k] - target), k - 1, k)
+    return np.where(ahead[j] > 0, np.minimum(k, j), j)
 
 
 def exit_zone(signals: Signals, diameter_mm: np.ndarray) -> np.ndarray:

@@ -51,13 +51,15 @@ class Discovery:
                 "offset_s": round(self.alignment.offset_s, 6), "notes": self.notes}
 
     def predictions(self) -> dict[str, np.ndarray]:
-        """One row per log row: t_s and per measured channel <ch>_measured, <ch>_before, <ch>_after (nan
-        where the row falls outside the program)."""
+        """One row per log row: t_s, held_out (1 on the held-out rows the JSON's RMS are taken on) and per
+        measured channel <ch>_measured, <ch>_before, <ch>_after (nan where the row falls outside the
+        program)."""
         n = self.log_rows
         s = self.selection
         before, after = s.predict_before(), s.predict_after()
-        out = {"t_s": np.full(n, np.nan)}
+        out = {"t_s": np.full(n, np.nan), "held_out": np.zeros(n)}
         out["t_s"][self.rows.index] = self.rows.t_s
+        out["held_out"][self.rows.index] = s.block >= 0
         for c in self.rows.channels:
             for kind, v in (("measured", self.rows.measured[c]), ("before", before[c]), ("after", after[c])):
                 col = np.full(n, np.nan)
@@ -82,9 +84,9 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
              f"{len(rows)} of {len(log)} log rows inside the program; {int((sel.block >= 0).sum())} held out "
              f"in {int(sel.block.max()) + 1} time blocks"]
     if rows.use is not None and not rows.use.all():
-        notes.append(f"{int((~rows.use).sum())} rows where the tool leaves the material (within a tool radius of "
-                     "the end of a cut) are left out of fits and scores: the engagement's single arc per slice "
-                     "overstates the force there")
+        notes.append(f"{int((~rows.use).sum())} rows where the tool enters or leaves the material are left out of "
+                     "fits and scores (the first look-ahead of a cut, whose engagement is not sampled; within a "
+                     "tool radius of its end, where the engagement's single arc per slice overstates the force)")
     refit = {k: v for k, v in sel.base.params().items() if k in nominal}
     if refit:
         change = ", ".join(f"{k} {nominal[k]:.4g} → {v:.4g}" for k, v in refit.items())
@@ -97,7 +99,8 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
         notes.append(f"round {k + 1}: " + "; ".join(f"{n} gain {100 * r['gain']:.1f} % p {r['p']:.2g}"
                                                      + ("" if r["physical"] else " (unphysical sign)")
                                                      for n, r in ranked[:5])
-                     + "".join(f"; {n} not applicable" for n, r in rs.items() if not r.get("applicable")))
+                     + "".join(f"; {n} not applicable" + (f" ({r['reason']})" if r.get("reason") else "")
+                               for n, r in rs.items() if not r.get("applicable")))
     if not sel.effects:
         notes.append("no effect is significant: the refitted base model explains the held-out data")
     return Discovery(alignment, rows, sel, nominal, notes, len(log), log.path)

@@ -8,7 +8,8 @@ Criterion: a candidate against the current model is kept when (1) it is signific
 F-test F = ((S_before − S_after)/k) / (S_after/(m − k)) on the held-out residuals averaged over
 sub-blocks of MEAN_S (averaging makes neighbouring rows' correlated noise one observation; every channel
 divided by its residual scale σ_c under the base model, so N and W weigh alike; F is free of the noise
-level), k the candidate's parameters, m the sub-block means, has p < ALPHA / (number of candidates)
+level; an effect that lives above that bandwidth, `Effect.slow` false (runout: once per revolution,
+which sub-block means average away), is tested on the held-out rows themselves), k the candidate's parameters, m the sub-block means, has p < ALPHA / (number of candidates)
 (Bonferroni); and (2) it is material: the held-out weighted squared error of the channels it acts on falls by at least
 MIN_GAIN
 (a real base model never matches a machine exactly; a few % of structured mismatch is significant on a
@@ -19,8 +20,6 @@ once for a second effect; no effect is named when none passes.
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,28 +53,18 @@ def split(t_s: np.ndarray, use: np.ndarray | None = None) -> tuple[np.ndarray, n
 
 
 def candidates(names: list[str] | None = None) -> dict[str, type[Effect]]:
-    """The registered effects (``millpost.effects`` entry points, millpost's own declared there too),
-    optionally only `names`. An install whose metadata predates the group (an editable install not
-    reinstalled) has none registered: the built-in modules of `millpost.discover.effects` are used then."""
-    found = plugins("effects") or builtin_effects()
+    """The registered effects (the ``millpost.effects`` entry points; millpost's own are declared there
+    too), optionally only `names`."""
+    found = plugins("effects")
+    if not found:
+        raise MillpostError("no candidate effects are registered (entry-point group millpost.effects is empty): "
+                            "reinstall millpost (pip install -e .) so that its package metadata declares them")
     if names is None:
         return dict(found)
     unknown = [n for n in names if n not in found]
     if unknown:
         raise MillpostError(f"unknown effect {', '.join(unknown)}; known: {', '.join(sorted(found))}")
     return {n: found[n] for n in names}
-
-
-def builtin_effects() -> dict[str, type[Effect]]:
-    """The Effect subclasses defined in the modules of `millpost.discover.effects`, by name."""
-    from . import effects as package
-    out = {}
-    for info in pkgutil.iter_modules(package.__path__):
-        module = importlib.import_module(f"{package.__name__}.{info.name}")
-        for obj in vars(module).values():
-            if isinstance(obj, type) and issubclass(obj, Effect) and obj is not Effect and obj.__module__ == module.__name__:
-                out[obj.name] = obj
-    return out
 
 
 def held_out_rms(rows: Rows, pred: dict[str, np.ndarray], held: np.ndarray) -> dict[str, float]:
@@ -88,13 +77,14 @@ def held_out_rms(rows: Rows, pred: dict[str, np.ndarray], held: np.ndarray) -> d
 
 
 def compare(rows: Rows, sigma: dict[str, float], block: np.ndarray, before: dict, after: dict,
-            k: int, channels: list[str]) -> tuple[float, float]:
+            k: int, channels: list[str], mean_s: float = MEAN_S) -> tuple[float, float]:
     """(gain, p) of a candidate with k parameters acting on `channels`: the relative fall of the held-out
-    weighted squared error on those channels, and the p-value (all channels) of the held-out F-test on residual means over sub-blocks of MEAN_S (see the
-    module's docstring)."""
+    weighted squared error on those channels, and the p-value (all channels) of the held-out F-test on
+    residual means over sub-blocks of mean_s (see the module's docstring; 0: on the rows themselves)."""
     held = block >= 0
     sub = np.full(len(rows), -1)
-    sub[held] = np.floor((rows.t_s[held] - rows.t_s[0]) / MEAN_S).astype(np.int64)
+    sub[held] = (np.floor((rows.t_s[held] - rows.t_s[0]) / mean_s).astype(np.int64) if mean_s > 0
+                 else np.arange(int(held.sum())))
     nb = int(sub.max()) + 1
     s_before = s_after = 0.0
     m = 0
@@ -167,11 +157,12 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
                 continue
             e = cls().fit(ctx)
             if not e.applicable:
-                round_scores[name] = {"applicable": False}
+                round_scores[name] = {"applicable": False, "reason": e.reason_}
                 continue
             after = e.predict()
             k = len([n for n in e.fit_.names if n.startswith(name + ":")]) + len(e.variant_.setting)
-            gain, p = compare(rows, sigma, block, current, after, max(k, 1), e.channels_)
+            gain, p = compare(rows, sigma, block, current, after, max(k, 1), e.channels_,
+                              MEAN_S if e.slow else 0.0)
             ok = p < level and gain >= min_gain and e.physical
             round_scores[name] = {"applicable": True, "gain": gain, "p": p, "physical": e.physical,
                                   "significant": ok}

@@ -23,7 +23,7 @@ def read_text(text: str, name: str = "<string>", options: ReaderOptions | None =
     """Interpret G-code text. Raises ParseError (file:line:column, word, expected) on refusal."""
     options = options or ReaderOptions()
     dialect = dialects.get(options.dialect) if options.dialect else dialects.detect(text)
-    interp = Interpreter(options, name, dialect.name)
+    interp = Interpreter(options, name, dialect)
     interp.run(text)
     return interp.finish(name, text)
 

@@ -254,7 +254,7 @@ def _tool_length(program: Program, src: Block | None, line: int, dialect: Dialec
         return f"G43.1 Z{dialect.number(w.value, inch)}"
     h = int(args["H"].value) if "H" in args else tool
     if h < 0:
-        if dialect.name != "linuxcnc":
+        if not dialect.g43_without_h:
             raise _refuse(program, line, word.column, word.text, f"{code} without H and no tool loaded",
                           f"{code} H<tool number>")
         return code
@@ -288,7 +288,7 @@ def _event(e, dialect: Dialect, emit, comment, g) -> None:
         comment(str(e.value))
     elif e.kind == "m_code":
         emit(f"M{e.value}")
-    elif e.kind == "path_mode" and dialect.name != "grbl":
+    elif e.kind == "path_mode" and dialect.path_modes:
         name, p = e.value
         emit({"exact path": g(61), "exact stop": "G61.1", "blend": g(64) + (f" P{p:g}" if p else "")}[name])
 

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from ..errors import MillpostError
 from ..registry import plugins
 
+MARKER_CAP = 3
+
 
 @dataclass(frozen=True)
 class Dialect:
@@ -27,6 +29,19 @@ class Dialect:
     percent: wrap programs in % lines (tape format) with an O number.
     tool_length_codes: the tool length compensation codes the controller runs (G43 H from its tool
     table, G43.1 dynamic, G43.2 additional, G49 cancel); `convert` refuses the others.
+
+    What the reader needs to know (LinuxCNC 2.9 is the reference; Fanuc/Haas/Centroid differ):
+    starts_g98: canned cycles retract to the old Z until G98/G99 is given (Fanuc starts in G98;
+    LinuxCNC in G99, retract to R). g76_lathe: G76 is lathe threading (LinuxCNC; refused by a milling
+    reader) rather than fine boring. g80_keeps_motion: after G80 the last G0–G3 stays in effect
+    (Fanuc), instead of no motion mode. cycle_k_repeats: K is a canned cycle's repeat count (except
+    G87's K, a depth; Fanuc), besides L. zero_repeats_refused: L0 is an error (LinuxCNC) rather than
+    "set the cycle up, do not run it". cycle_dwell_any: every canned cycle reads P (dwell), not only
+    G82/G86/G88/G89. boring_shift_q: G76/G87 read Q (the shift off the wall). tap_peck_q: G74/G84
+    read Q (peck tapping; the reader refuses it: its retract is a control parameter). g49_takes_h:
+    G49 may carry H (H0, the cancelled offset; Centroid and Haas postambles). Dwell units: `dwell_s`.
+    What the writer needs to know: g43_without_h: G43 with no H takes the loaded tool's length
+    (LinuxCNC); path_modes: the controller has G61/G61.1/G64 path control modes (grbl has not).
     """
 
     name: str
@@ -41,6 +56,17 @@ class Dialect:
     end_code: str = "M2"
     markers: tuple[str, ...] = ()
     tool_length_codes: frozenset[str] = frozenset({"G43", "G43.1", "G43.2", "G49"})
+    starts_g98: bool = True
+    g76_lathe: bool = False
+    g80_keeps_motion: bool = False
+    cycle_k_repeats: bool = False
+    zero_repeats_refused: bool = False
+    cycle_dwell_any: bool = False
+    boring_shift_q: bool = False
+    g49_takes_h: bool = False
+    tap_peck_q: bool = False
+    g43_without_h: bool = False
+    path_modes: bool = True
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""
@@ -56,18 +82,28 @@ class Dialect:
             text = "0"
         return text
 
+    def dwell_s(self, value: float, decimal_point: bool = True, cycle: bool = False) -> float:
+        """A dwell P in seconds. With dwell_ms, P counts milliseconds: in a canned cycle always, on G4
+        when written without a decimal point (Fanuc: G4 P1500 and G4 P1.5 both wait 1.5 s)."""
+        return value / 1000.0 if self.dwell_ms and (cycle or not decimal_point) else value
+
     def score(self, text: str) -> int:
-        """How strongly the text looks like this dialect's (markers found in the first 200 lines)."""
+        """How strongly the text looks like this dialect's: markers found in the first 200 lines, each
+        counted at most MARKER_CAP times (a common code written on every line, such as Mach3's G00 that
+        Fanuc posts write too, cannot outweigh several distinct markers of another dialect)."""
         head = "\n".join(text.splitlines()[:200])
-        return sum(len(re.findall(m, head, flags=re.IGNORECASE | re.MULTILINE)) for m in self.markers)
+        return sum(min(MARKER_CAP, len(re.findall(m, head, flags=re.IGNORECASE | re.MULTILINE))) for m in self.markers)
 
 
 GRBL = Dialect("grbl", canned_cycles=False, end_code="M30", tool_length_codes=frozenset({"G43.1", "G49"}),
+               path_modes=False,
                markers=(r"^\s*\$[A-Z0-9]", r"grbl", r"^G90 G94$", r"^\(When using Fusion 360 for Personal Use"))
-LINUXCNC = Dialect("linuxcnc", markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P",
-                                        r"linuxcnc", r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
+LINUXCNC = Dialect("linuxcnc", starts_g98=False, g76_lathe=True, zero_repeats_refused=True, g43_without_h=True,
+                   markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P", r"linuxcnc",
+                            r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
 FANUC = Dialect("fanuc", trailing_point=True, line_numbers=5, dwell_ms=True,
-                percent=True, end_code="M30", tool_length_codes=frozenset({"G43", "G49"}),
+                percent=True, end_code="M30", tool_length_codes=frozenset({"G43", "G49"}), g80_keeps_motion=True,
+                cycle_k_repeats=True, cycle_dwell_any=True, boring_shift_q=True, g49_takes_h=True, tap_peck_q=True,
                 markers=(r"^%\s*$", r"^O\d{3,5}", r"G28\s*G91", r"G43\s*Z[-\d.]+\s*H\d+", r"\bM29\b", r"\bM30\b",
                          r"haas", r"fanuc", r"G53\s*G0?0\s*Z"))
 MACH3 = Dialect("mach3", end_code="M30", tool_length_codes=frozenset({"G43", "G49"}),

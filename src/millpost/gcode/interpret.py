@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import ParseError
 from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
 from .cutter_comp import LEFT, RIGHT, CompensationError, CutterComp
+from .dialects import Dialect
 from .flow import MAX_REPEATED_LINES, Flow, Source, control_of
 from .lexer import LENGTH_LIMIT, NUMBER_LIMIT, Block, Word, lex_line
 from .tool_table import read_tool_table
@@ -130,7 +131,8 @@ class Program:
 
     units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
     when it ran (for writing it back): move_inch (G20), feed_mode (93/94/95), incremental (G91),
-    arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool centre, not the programmed path).
+    arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool centre, not the programmed path),
+    cycle (the canned cycle that ran it, its G code × 10: 810 for G81, 840 for G84; 0 for other moves).
     notes: assumptions made (unknown home, rotary axes at zero, ...), each naming its line.
     """
 
@@ -148,6 +150,7 @@ class Program:
     notes: list[str]
     dwell_s: float
     compensated: np.ndarray  # per move: offset by cutter compensation (its end is not the programmed point)
+    cycle: np.ndarray  # per move: the canned cycle's G code × 10, 0 outside cycles
     control_flow: bool = False  # O-word subroutines or loops: a line may run several times
 
     @property
@@ -207,9 +210,10 @@ class _Moves:
 class Interpreter:
     """Runs blocks through the modal state. Use `read_program` / `read_text` rather than this directly."""
 
-    def __init__(self, options: ReaderOptions, file: str, dialect: str) -> None:
+    def __init__(self, options: ReaderOptions, file: str, dialect: Dialect) -> None:
         self.opt, self.file, self.dialect = options, file, dialect
         self.m = _Moves()
+        self.cycle_runs: list[tuple[int, int, int]] = []  # (first move, end, G code × 10)
         self.events: list[Event] = []
         self.notes: list[str] = []
         self.params: dict = {"_value": 0.0, "_value_returned": 0.0}  # LinuxCNC's predefined return value
@@ -227,7 +231,7 @@ class Interpreter:
         self.spindle_on = False
         self.tool = -1
         self.selected = -1
-        self.retract_old_z = dialect != "linuxcnc"  # LinuxCNC starts in G99 (retract to R), Fanuc in G98
+        self.retract_old_z = dialect.starts_g98
         self.cs = 1
         self.g5x = {i: np.array(v, float) for i, v in options.work_offsets_mm.items()}
         self.g92 = np.zeros(3)
@@ -466,7 +470,7 @@ class Interpreter:
                 if abs(w.value * 10 - code) > 1e-6:
                     raise self.err(f"G{w.value:g} is not a G code", b, w, "a G code such as G1 or G90.1")
                 grp = _MODAL_GROUPS.get(code)
-                if code == 760 and self.dialect == "linuxcnc":
+                if code == 760 and self.dialect.g76_lathe:
                     raise self.err(f"{_LATHE_G76} is not supported", b, w, "milling canned cycles (G73, G81-G89)")
                 if grp is None:
                     if code in _UNSUPPORTED_G:
@@ -563,7 +567,7 @@ class Interpreter:
             if p is None or p.value < 0:
                 raise self.err("dwell G4 needs a non-negative P (seconds; Fanuc: milliseconds)", b,
                                groups.get("non-modal"), "G4 P<time>")
-            secs = p.value / 1000.0 if (self.dialect == "fanuc" and p.letter == "P" and "." not in p.text) else p.value
+            secs = self.dialect.dwell_s(p.value, decimal_point="." in p.text) if p.letter == "P" else p.value
             self.dwell_s += secs
             self.event(b.line, "dwell", secs)
         # plane, units
@@ -615,7 +619,7 @@ class Interpreter:
             if axis_words and not consumed_axes:
                 raise self.err("axis words with G80", b, next(iter(axis_words.values())),
                                "no axis words on a G80 line, or a G0/G1 word to move")
-            self.motion = self.basic_motion if self.dialect == "fanuc" else None
+            self.motion = self.basic_motion if self.dialect.g80_keeps_motion else None
             self.cycle_il = None
         elif motion_code is not None:
             if motion_code in _CYCLES and self.motion != motion_code:  # another cycle: its words anew, the
@@ -631,7 +635,9 @@ class Interpreter:
                                "a G0, G1, G2 or G3 word (after G80, the motion mode must be given again)")
             g53 = 530 in gset
             if self.motion in _CYCLES:
+                first = len(self.m)
                 self.canned_cycle(b, val, axis_words)
+                self.cycle_runs.append((first, len(self.m), self.motion))
             elif self.motion in (20, 30):
                 self.arc(b, val, axis_words)
             else:
@@ -649,8 +655,8 @@ class Interpreter:
     def check_words(self, b: Block, val: dict, gset: set, mcodes: list) -> None:
         """Refuse a word that nothing in its block uses, as LinuxCNC 2.9 does (its check_other_codes):
         D, E, H, I, J, K, L, P, Q, R each need a G or M code of the block, or the motion mode the block
-        runs in, that reads them (``G1 X1 Q3`` is an error, not a move). The Fanuc dialect adds P
-        (dwell) and K (repeats) on every canned cycle and Q (shift) on G76/G87."""
+        runs in, that reads them (``G1 X1 Q3`` is an error, not a move). A dialect may add P (dwell) and
+        K (repeats) on every canned cycle, Q (shift) on G76/G87, Q (peck) on G74/G84 and H on G49 (`Dialect`)."""
         if 40 in gset or 530 in gset or not val.keys().isdisjoint(_CHECKED):
             motion = next((c for c in gset if c in _MOTION or c == 800), None)
             if motion is None and not gset & _TAKE_AXES and not val.keys().isdisjoint("XYZABCUVW@^"):
@@ -675,25 +681,25 @@ class Interpreter:
         if motion in (20, 30) and L in "IJKRP":  # arcs: the common case first
             return True
         cycle = motion in _CYCLES
-        fanuc = self.dialect == "fanuc"
+        d = self.dialect
         comp = not gset.isdisjoint((410, 420, 411, 421))
         if L in "IJ":
             return motion == 870 or 100 in gset
         if L == "K":
-            return motion == 870 or (fanuc and cycle)
+            return motion == 870 or (d.cycle_k_repeats and cycle)
         if L == "R":
             return cycle or not gset.isdisjoint((100, 411, 421)) or 19 in mset
         if L == "P":
             return (not gset.isdisjoint((40, 100, 640)) or motion in (20, 30, 740, 820, 840, 860, 880, 890)
-                    or (fanuc and cycle) or not mset.isdisjoint((19, 50, 51, 52, 53, 62, 63, 64, 65, 66, 98))
+                    or (d.cycle_dwell_any and cycle) or not mset.isdisjoint((19, 50, 51, 52, 53, 62, 63, 64, 65, 66, 98))
                     or any(100 <= c <= 199 for c in mset))
         if L == "Q":
-            return (motion in (730, 830) or (fanuc and motion in (760, 870)) or not gset.isdisjoint((100, 640))
+            return (motion in (730, 830) or (d.boring_shift_q and motion in (760, 870)) or (d.tap_peck_q and motion in (740, 840)) or not gset.isdisjoint((100, 640))
                     or not mset.isdisjoint((19, 66, 67, 68)) or any(100 <= c <= 199 for c in mset))
         if L == "L":
             return cycle or comp or 100 in gset or not mset.isdisjoint((98, 66))
-        if L == "H":  # Fanuc-style controls (Haas, Centroid) also take an H (offset 0) with the G49 cancel
-            return not gset.isdisjoint((430, 432)) or (fanuc and 490 in gset)
+        if L == "H":
+            return not gset.isdisjoint((430, 432)) or (d.g49_takes_h and 490 in gset)
         if L == "D":
             return comp
         return not mset.isdisjoint((66, 67, 68))  # E
@@ -1003,10 +1009,13 @@ class Interpreter:
                 raise self.err(f"canned cycle G{code / 10:g} without {need}", b, None, f"an {need} word")
         if code in (730, 830) and cyc.get("Q", 0) <= 0:
             raise self.err(f"peck cycle G{code / 10:g} needs Q > 0", b, val.get("Q"), "Q (peck depth) > 0")
+        if code in (740, 840) and cyc.get("Q", 0) > 0:  # read by dialects with peck tapping (tap_peck_q)
+            raise self.err(f"peck tapping (G{code / 10:g} with Q) is not supported", b, val.get("Q"),
+                           "a tapping cycle without Q (its retract depends on the control's parameters)")
         repeats = 1
-        count = val.get("L") or (val.get("K") if self.dialect == "fanuc" and code != 870 else None)  # Fanuc: K
+        count = val.get("L") or (val.get("K") if self.dialect.cycle_k_repeats and code != 870 else None)
         if count is not None:
-            if count.value < 0 or count.value != int(count.value) or (count.value == 0 and self.dialect == "linuxcnc"):
+            if count.value < 0 or count.value != int(count.value) or (count.value == 0 and self.dialect.zero_repeats_refused):
                 raise self.err("repeat count must be a positive integer", b, count, f"{count.letter}1, {count.letter}2, ...")
             repeats = int(count.value)
         sc = self.scale
@@ -1080,8 +1089,7 @@ class Interpreter:
         delta = cyc.get("Q", 0.0) * sc
         rapid_delta = 0.010 * INCH if sc != 1.0 else 0.254  # LinuxCNC's G73/G83 clearance
         dwell = cyc.get("P", 0.0)
-        if self.dialect == "fanuc" and dwell:
-            dwell = dwell / 1000.0
+        dwell = self.dialect.dwell_s(dwell, cycle=True)
         if code == 810:
             self.to_depth(FEED, bottom, b, feed)
             self.to_depth(RAPID, clear, b)
@@ -1175,6 +1183,9 @@ class Interpreter:
         tp, ints = self.m.to_arrays()
         compensated = np.zeros(len(tp), bool)
         compensated[self.comp.moves] = True
+        cycle = np.zeros(len(tp), np.int16)
+        for first, end, code in self.cycle_runs:
+            cycle[first:end] = code
         if self.safe_z_pending:
             z = np.concatenate([tp.start[:, 2], tp.end[:, 2]])
             finite = z[np.isfinite(z)]
@@ -1185,7 +1196,8 @@ class Interpreter:
             tp.center[arc, 2] = safe
             self.notes.append(f"safe height for unknown-home retracts: Z {safe:g} mm")
         return Program(
-            path=path, text=text, toolpath=tp, dialect=self.dialect, blocks=self.blocks,
+            path=path, text=text, toolpath=tp, dialect=self.dialect.name, blocks=self.blocks,
             units=self.units_seen or ["mm"], move_inch=ints[:, 6].astype(bool), feed_mode=ints[:, 7].astype(np.int16),
             incremental=ints[:, 8].astype(bool), arc_absolute=ints[:, 9].astype(bool), events=self.events, notes=self.notes,
-            dwell_s=self.dwell_s, compensated=compensated, control_flow=self.control_flow)
+            dwell_s=self.dwell_s, compensated=compensated, control_flow=self.control_flow,
+            cycle=cycle)

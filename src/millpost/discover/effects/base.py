@@ -4,7 +4,9 @@ and a fit (scikit-learn style: `fit` returns self, learned values end in `_`).
 An effect proposes one or more *variants* (a nonlinear setting such as a time constant on a grid, or the
 sensor it acts on), each as extra model terms (channel → {parameter: column}) and/or a filter of whole
 channels; `fit` refits the base model together with each variant on the training rows and keeps the
-variant with the smallest weighted residual.
+variant with the smallest weighted residual (`search`; an effect with one nonlinear scalar, a lag τ, an
+exponent m, a compliance C, searches a grid and then by golden section between the best point's neighbours,
+`refine`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import ClassVar
 import numpy as np
 
 from ...forces import NotFittedError
-from ..model import Filter, Terms, design, solve
+from ..model import Design, Filter, Fit, Terms, design, solve
 from ..rows import COEFS, CUTTING, Rows
 
 
@@ -62,6 +64,7 @@ class Effect:
     channels: ClassVar[tuple[str, ...]]
     meaning: ClassVar[str] = ""
     positive: ClassVar[tuple[str, ...]] = ()   # parameters that physics requires > 0
+    slow: ClassVar[bool] = True   # the effect changes the signal over many rows (see search.compare)
 
     @property
     def physical(self) -> bool:
@@ -72,23 +75,66 @@ class Effect:
     def variants(self, ctx: Context) -> Iterator[Variant]:
         raise NotImplementedError
 
+    def unavailable(self, ctx: Context) -> str | None:
+        """Why the effect cannot be seen in this log (said in discover's notes), or None."""
+        return None
+
     def fit(self, ctx: Context) -> "Effect":
+        self.reason_ = self.unavailable(ctx)
+        return self.keep(ctx, None if self.reason_ else self.search(ctx))
+
+    def search(self, ctx: Context) -> tuple | None:
+        """The best of the variants by training χ² (see `evaluate`), or None when there is none."""
         best = None
         for v in self.variants(ctx):
-            terms = [e.variant_.terms for e in ctx.kept] + [v.terms]
-            filters = {k: f for e in ctx.kept for k, f in e.variant_.filters.items()} | v.filters
-            d = design(ctx.rows, terms, filters)
-            f = solve(d, ctx.rows, ctx.train, ctx.sigma)
-            pred = f.predict(d)
-            chi2 = sum(float(np.nansum((ctx.rows.measured[c] - pred[c])[ctx.train] ** 2)) / ctx.sigma[c] ** 2
-                       for c in d.X)
-            if best is None or chi2 < best[0]:
-                best = (chi2, v, f, d)
+            trial = self.evaluate(ctx, v)
+            if best is None or trial[0] < best[0]:
+                best = trial
+        return best
+
+    def joint_design(self, ctx: Context, v: Variant) -> Design:
+        """The design of the base, the kept effects and variant v."""
+        terms = [e.variant_.terms for e in ctx.kept] + [v.terms]
+        filters = {k: f for e in ctx.kept for k, f in e.variant_.filters.items()} | v.filters
+        return design(ctx.rows, terms, filters)
+
+    def evaluate(self, ctx: Context, v: Variant) -> tuple[float, Variant, Fit]:
+        """(training χ², variant, joint fit) of one variant refitted with the base and the kept effects
+        (the design is not kept: on a long log it is the largest array)."""
+        d = self.joint_design(ctx, v)
+        f = solve(d, ctx.rows, ctx.train, ctx.sigma)
+        pred = f.predict(d)
+        chi2 = sum(float(np.nansum((ctx.rows.measured[c] - pred[c])[ctx.train] ** 2)) / ctx.sigma[c] ** 2
+                   for c in d.X)
+        return chi2, v, f
+
+    def refine(self, ctx: Context, best: tuple, grid: np.ndarray, at, steps: int = 8) -> tuple:
+        """Golden-section search of the training χ² over a scalar setting between the grid neighbours of
+        the best grid point (`best` from `evaluate`, `at(value)` → Variant; on a log scale)."""
+        key = next(iter(best[1].setting))
+        k = int(np.argmin(np.abs(np.log(grid / best[1].setting[key]))))
+        lo, hi = np.log(grid[max(k - 1, 0)]), np.log(grid[min(k + 1, len(grid) - 1)])
+        g = (np.sqrt(5) - 1) / 2
+        a, b = hi - g * (hi - lo), lo + g * (hi - lo)
+        fa, fb = self.evaluate(ctx, at(float(np.exp(a)))), self.evaluate(ctx, at(float(np.exp(b))))
+        for _ in range(steps):
+            if fa[0] < fb[0]:
+                hi, b, fb = b, a, fa
+                a = hi - g * (hi - lo)
+                fa = self.evaluate(ctx, at(float(np.exp(a))))
+            else:
+                lo, a, fa = a, b, fb
+                b = lo + g * (hi - lo)
+                fb = self.evaluate(ctx, at(float(np.exp(b))))
+        return min((best, fa, fb), key=lambda x: x[0])
+
+    def keep(self, ctx: Context, best: tuple | None) -> "Effect":
+        """Store the best (χ², variant, fit) as the fitted state."""
         if best is None:
             self.variant_ = None
             return self
-        _, v, f, d = best
-        self.variant_, self.fit_, self.design_ = v, f, d
+        _, v, f = best
+        self.variant_, self.fit_, self.design_ = v, f, self.joint_design(ctx, v)
         own = [n for n in f.names if n.startswith(self.name + ":")]
         p, s = f.params(), f.stderr()
         self.params_ = {**v.setting, **{n.split(":", 1)[1]: p[n] for n in own}}

@@ -1,7 +1,7 @@
 """sensor_lag: a sensor (or its filter) responds as a first-order lag, τ dy/dt = x − y: the dynamometer
 (fx_N, fy_N, fz_N together), the spindle power or current reading, or the axis currents. The variants
-are each sensor group × τ on a geometric grid from 2 log intervals to 2 s, then a finer grid between the
-best one's neighbours; the one with the smallest training residual is kept. Parameter tau_s (s)."""
+are each sensor group × τ on a geometric grid from 2 log intervals to 2 s, then a golden-section search
+between the best one's neighbours; the one with the smallest training residual is kept. Parameter tau_s (s)."""
 
 from __future__ import annotations
 
@@ -35,31 +35,22 @@ class SensorLag(Effect):
         resolution (a timing mismatch of the model, not a sensor's dynamics)."""
         return super().physical and self.params_["tau_s"] > 2.5 * self.dt_
 
-    def __init__(self, taus: np.ndarray | None = None, groups: tuple | None = None) -> None:
-        self.taus, self.groups = taus, groups
-
-    def fit(self, ctx: Context) -> "SensorLag":
-        dt = self.dt_ = ctx.rows.dt_s
-        if self.taus is not None or 2 * dt >= 2.0:
-            return super().fit(ctx)
-        coarse = np.geomspace(2 * dt, 2.0, 10)
-        first = SensorLag(coarse).fit(ctx)
-        if not first.applicable:
-            self.variant_ = None
-            return self
-        k = int(np.argmin(np.abs(coarse - first.params_["tau_s"])))
-        fine = np.geomspace(coarse[max(k - 1, 0)], coarse[min(k + 1, len(coarse) - 1)], 9)
-        group = tuple(first.channels_)
-        self.taus, self.groups = fine, (group,)
-        return super().fit(ctx)
+    def at(self, ctx: Context, group: tuple[str, ...], tau_s: float) -> Variant:
+        f = first_order(ctx.rows.dt_s, tau_s)
+        return Variant({"tau_s": tau_s}, {}, {c: f for c in group})
 
     def variants(self, ctx: Context):
-        dt = ctx.rows.dt_s
-        taus = self.taus if self.taus is not None else []
-        for group in self.groups or GROUPS:
-            chans = ctx.measured(group)
-            if not chans:
-                continue
-            for tau in taus:
-                f = first_order(dt, float(tau))
-                yield Variant({"tau_s": float(tau)}, {}, {c: f for c in chans})
+        for group in GROUPS:
+            chans = tuple(ctx.measured(group))
+            if chans:
+                for tau in self.grid_:
+                    yield self.at(ctx, chans, float(tau))
+
+    def search(self, ctx: Context) -> tuple | None:
+        self.dt_ = ctx.rows.dt_s
+        self.grid_ = np.geomspace(2 * self.dt_, max(2.0, 4 * self.dt_), 10)
+        best = super().search(ctx)
+        if best is None:
+            return None
+        group = tuple(best[1].filters)
+        return self.refine(ctx, best, self.grid_, lambda tau: self.at(ctx, group, tau))
