@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import controller, safety
+from ._kernels import set_threads
 from .emit import FeedPlan, emitted_positions, whole_compensated_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
@@ -88,6 +89,8 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal).
     `options` default to the job's `[limits] solver` on all cores."""
     t_start = time.perf_counter()
+    options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    set_threads(options.processes)
     report = resolve(progress)
     with reporting(report):  # the schedule's windows and the first numba compile of a kernel report too
         with stage(report, "read program"):
@@ -97,29 +100,42 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
             stock = job.stock()
         samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                             progress=report)
+        # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
+        # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
+        # speeds, whose loads do not change) the per-slice engagement once the loads are computed
+        del stock
+        eng = replace(eng, arc_rad=None, step_mm=None, descending=None, move=None, line=None, depth_mm=None)
         t_engage = time.perf_counter()
-        result = schedule_program(job, program, samples, eng, options, progress=report)
+        limits = None
+        if job.limits["rpm"] != "optimize":
+            limits = build_limits(job, samples, eng, program.toolpath, report)
+            eng = eng.per_sample()
+        t_limits = time.perf_counter()
+        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
+    if limits is not None:  # built here
+        result.summary["stage_s"]["limits"] = round(t_limits - t_engage, 3)
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
 
 def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
-                     progress: Progress = silent) -> Result:
+                     progress: Progress = silent, limits: JobLimits | None = None) -> Result:
     """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
-    `millpost.spindle_speed`), limits, schedule, emitted text, cycle times and the replay check.
-    (Split from `optimize` so that tests can give engagements of known geometry.) progress: stages
-    "forces", "schedule", "emission" and "replay"."""
+    `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
+    schedule, emitted text, cycle times and the replay check. (Split from `optimize` so that tests can
+    give engagements of known geometry.) progress: stages "forces", "schedule", "emission" and "replay"."""
     options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
     spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
     if job.limits["rpm"] == "optimize":
         program, samples, spindle = choose_speeds(job, program, samples, eng, options, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
+        limits = None  # the loads at the chosen speeds
     tp = program.toolpath
     t_limits = time.perf_counter()
-    limits = build_limits(job, samples, eng, tp, progress)
+    limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options)
     solver_s = time.perf_counter() - t0
@@ -168,9 +184,10 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     executed = after.speed_at(*emitted_positions(tp, emitted_tp, samples.move,
                                                  controller.Execution.sample_fractions(samples)))
     progress("replay", 1, 3)
-    checked = replay(job, samples, eng, limits, executed)
-    progress("replay", 2, 3)
+    # the programmed run first: only its ratios are kept, so its signals are freed before the emitted run's
     as_programmed = replay(job, samples, eng, limits, before.speed_at_samples(samples)).ratios
+    progress("replay", 2, 3)
+    checked = replay(job, samples, eng, limits, executed)
     progress("replay", 3, 3)
     by_effect, by_limit = binding_shares(samples, sched, limits)
     cut = samples.kind != RAPID
@@ -229,7 +246,8 @@ def _binding_kind(samples: Samples, sched, limits: JobLimits, kind: str) -> np.n
     owner = limits.by_block(PathGrid.from_samples(samples))
     out = np.zeros(len(samples), np.int8)
     for lo, hi, s in sched.segments:
-        out[lo:hi] = [name in owner and owner[name].kind == kind for name in s.binding.astype(str)]
+        names, which = np.unique(s.binding.astype(str), return_inverse=True)
+        out[lo:hi] = np.array([name in owner and owner[name].kind == kind for name in names], bool)[which.reshape(-1)]
     return out
 
 
