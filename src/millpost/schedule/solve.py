@@ -334,18 +334,7 @@ def _patch(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, cert, b_l
     one = dataclasses.replace(opts, processes=1)
     jobs = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi), one, b_lo[lo:hi], b_hi[lo:hi], vref,
              cert.b[lo:lo + nfix], cert.b[hi - nfix:hi]) for lo, hi in bad]
-    outs = []
-    with contextlib.ExitStack() as stack:
-        if _parallel(opts) and len(jobs) > 1:
-            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
-                                                         mp_context=multiprocessing.get_context("fork")))
-            results = ex.map(_solve_stretch, jobs)
-        else:
-            results = map(_solve_stretch, jobs)
-        for (lo, hi), out in zip(bad, results):  # in order, as they come
-            outs.append(out)
-            if on_window is not None:
-                on_window(hi - lo)
+    outs = _run_jobs(_solve_stretch, jobs, opts, [hi - lo for lo, hi in bad], on_window)
     b, floor = cert.b.copy(), soft_floor(blocks, n)
     floor_unmet = floor > b * (1 + 1e-6) + 1e-9
     secs, windows, failed = 0.0, 0, []
@@ -397,6 +386,25 @@ def _tangents_bind(grid: PathGrid, blocks: list[Block], b: np.ndarray, v0: np.nd
     return False
 
 
+def _run_jobs(fn: Callable, jobs: list, opts: ScheduleOptions, sizes: list[int],
+              on_window: Callable[[int], None] | None) -> list:
+    """fn over jobs, in forked processes when opts allow and there are several, results in order;
+    on_window(size) after each (the progress of that many samples)."""
+    outs = []
+    with contextlib.ExitStack() as stack:
+        if _parallel(opts) and len(jobs) > 1:
+            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
+                                                         mp_context=multiprocessing.get_context("fork")))
+            results = ex.map(fn, jobs)
+        else:
+            results = map(fn, jobs)
+        for size, out in zip(sizes, results):  # in order, as they come
+            outs.append(out)
+            if on_window is not None:
+                on_window(int(size))
+    return outs
+
+
 def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, v0: np.ndarray, vref: float,
                       rc: Reach, rows: tuple, b_lo: np.ndarray, b_hi: np.ndarray, first: np.ndarray,
                       last: np.ndarray, nfix: int, on_window: Callable[[int], None] | None = None
@@ -422,18 +430,7 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
                    b_start=float(head[-1]), b_end_max=float(tail[-1]), b_end_min=float(tail[-1]))
         jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
                      rk.k_lo, rk.k_hi, head, tail, nfix))
-    outs = []
-    with contextlib.ExitStack() as stack:
-        if _parallel(opts) and len(jobs) > 1:
-            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
-                                                         mp_context=multiprocessing.get_context("fork")))
-            results = ex.map(_solve_chunk, jobs)
-        else:
-            results = map(_solve_chunk, jobs)
-        for k, out in enumerate(results):  # in order, as they come
-            outs.append(out)
-            if on_window is not None:
-                on_window(cuts[k + 1] - cuts[k])
+    outs = _run_jobs(_solve_chunk, jobs, opts, list(np.diff(cuts)), on_window)
     b, slack = np.zeros(n), np.zeros(n)
     secs, count = 0.0, 0
     for k, (bb, sw, sec, cnt, msg) in enumerate(outs):
