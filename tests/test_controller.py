@@ -184,3 +184,80 @@ def test_exact_path_stops_at_corners():
     t = 20 / 100 + 100 / 3000 + 0.0005 + 20 / 100 + 100 / 1250 + 0.0005
     assert exact == pytest.approx(t, rel=1e-9)
     assert blend < exact
+
+
+def test_canned_cycle_moves_run_in_exact_path():
+    from millpost.controller import EXACT_PATH, path_modes, program_time
+    from millpost.gcode import read_text
+
+    # LinuxCNC's convert_cycle sets G61 for a cycle's moves after the climb to R and restores the mode:
+    # the rapid from one hole to the next and the rapid down to R stop between them
+    prog = read_text("G21 G90 G64 P0.1\nG0 X0 Y0 Z10\nG98 G81 X10 Y0 Z-2 R2 F600\nX20\nG80\nG1 X30 F600\nY10\nM2\n")
+    modes = path_modes(prog, lcnc())
+    cycle = (prog.toolpath.line == 3) | (prog.toolpath.line == 4)
+    assert (modes[cycle] == EXACT_PATH).all() and (modes[~cycle] == 0.1).all()
+    # the same as the cycle written between G61 and G64 P0.1: every move of a hole from rest to rest
+    explicit = read_text("G21 G90 G64 P0.1\nG0 X0 Y0 Z10\nG61\nG98 G81 X10 Y0 Z-2 R2 F600\nX20\nG80\nG64 P0.1\n"
+                         "G1 X30 F600\nY10\nM2\n")
+    assert program_time(prog, lcnc()) == pytest.approx(program_time(explicit, lcnc()), rel=1e-12)
+    blended = read_text("G21 G90 G64 P0.1\nG0 X0 Y0 Z10\nG0 X10 Y0\nZ2\nG1 Z-2 F600\nG0 Z10\nX20\nZ2\nG1 Z-2\n"
+                        "G0 Z10\nG1 X30 F600\nY10\nM2\n")  # the same moves outside a cycle: corners blended
+    assert program_time(blended, lcnc()) < program_time(prog, lcnc()) - 0.005
+
+
+def test_blend_zones_bound_the_blend_arc_at_any_feed():
+    from millpost.controller import blend_zones, execute
+
+    tol = 0.05
+    tp = feed_tp([("line", (100, 0, 0)), ("line", (100, 100, 0)), ("rapid", (0, 100, 0))], 3000 * 60)
+    (m0, m1, d0, d1, v_top), = blend_zones(tp, lcnc(blend_tolerance_mm=tol), None)  # none at the rapid
+    theta = math.pi / 4
+    d = math.cos(theta) * tol / (1 - math.sin(theta))  # blendComputeParameters: within P of the corner
+    assert (m0, m1) == (0, 1) and d0 == d1 == pytest.approx(d, rel=1e-12)
+    assert v_top == pytest.approx(math.sqrt(math.sqrt(0.75) * 2500 * math.tan(theta) * d), rel=1e-12)
+    for f_in, f_out in [(180000, 60), (60, 180000), (6000, 600)]:  # the arc runs at the faster feed
+        tp.feed_mm_min[:2] = f_in, f_out
+        ex = execute(tp, lcnc(blend_tolerance_mm=tol))
+        arc = ex.move[1:3] == [0, 1]
+        assert arc.all() and ex.length[1] <= d + 1e-12 and ex.length[2] <= d + 1e-12
+        assert ex.vnom[1] == pytest.approx(min(v_top, max(f_in, f_out) / 60), rel=1e-9)
+    assert blend_zones(tp, model(), None) == []  # grbl: a junction never runs above the slower feed
+
+
+def test_blend_limit_lowers_both_sides_of_a_fast_corner():
+    from millpost.controller import blend_zones
+    from millpost.schedule.feeds import blend_limit
+
+    tp = feed_tp([("line", (10, 0, 0)), ("line", (10, 10, 0))], 600)
+    smp = tp.resample(0.1)
+    ctl = lcnc(blend_tolerance_mm=0.05)
+    zones = blend_zones(tp, ctl, None)
+    limit = np.where(smp.move == 0, 100.0, 5.0)  # a heavy cut after the corner, a light one before
+    out = blend_limit(smp, limit, np.cumsum(tp.lengths()), zones)
+    d = zones[0][2]
+    near = np.abs(smp.s_mm - 10.0) <= d + 0.1 + 1e-9  # the zone and the next sample on each side
+    assert (out[near] == 5.0).all() and (out[~near] == limit[~near]).all()
+    slow = zones[0][:4] + (4.0,)  # an arc no faster than the slow side needs nothing
+    assert (blend_limit(smp, limit, np.cumsum(tp.lengths()), [slow]) == limit).all()
+
+
+def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
+    from millpost.controller import blend_zones, corner_speeds, execute
+
+    tp = feed_tp([("line", (50, 0, 0)), ("line", (100, 0, 0)), ("line", (100, 50, 0)), ("line", (99.9, 100, 0)),
+                  ("rapid", (0, 100, 0))], 6000)
+    ctl = lcnc(blend_tolerance_mm=0.05)
+    cap = corner_speeds(tp, ctl)
+    assert cap[1] == np.inf and cap[4] == 0.0 and cap[0] == cap[5] == np.inf  # collinear; feed -> rapid stops
+    assert cap[2] == pytest.approx(blend_zones(tp, ctl)[0][4], rel=1e-12)  # the right angle: its blend arc
+    # the slight bend (0.11°): the faster of the tangent kink (the velocity jump in one servo period within
+    # 10 % of the acceleration) and the blend arc, here the arc
+    u0, u1 = np.array([0.0, 1.0, 0.0]), np.array([-0.1, 50.0, 0.0]) / math.hypot(0.1, 50.0)
+    kink = 0.1 * 0.001 / np.max(np.abs(u1 - u0) / [3000.0, 2500.0, 2500.0])
+    assert cap[3] == pytest.approx(max(kink, blend_zones(tp, ctl)[1][4]), rel=1e-12) and cap[3] > kink
+    for feed in (600, 6000, 60000):
+        tp.feed_mm_min[:4] = feed
+        ex = execute(tp, ctl)
+        for j in (2, 3):  # the speed where the corner's blocks meet never exceeds the cap
+            k = np.flatnonzero(ex.move == j - 1)[-1]
+            assert ex.v_entry[k] <= cap[j] * (1 + 1e-9) and ex.v_entry[k + 1] <= cap[j] * (1 + 1e-9)

@@ -1,11 +1,13 @@
-"""Seeded random jobs end to end (issue 5): every emitted program, replayed through the controller
-model and the force model, exceeds no limit by more than 0.5 %. Jobs come from `random_jobs.py`
-(random programs, tools, built-in materials and machines, user limits and cuts).
+"""Seeded random jobs end to end (issue 5): every emitted program, replayed through the machine's own
+controller model (grbl's planner on the benchtop machine, LinuxCNC's blending planner on the others)
+and the force model, exceeds no limit (beyond the summary's rounding to 4 decimals). Jobs come from
+`random_jobs.py` (random programs, tools, built-in materials and machines, user limits and cuts).
 
 Two checks: the pipeline's own replay (`summary["limits"]`, every job), and an independent one on
 every tenth job, which re-evaluates the force model's nonlinear law (Kienzle's f_z^(1−mc), not the
 linear bound the scheduler used) in the time domain at the feed per tooth the controller actually
-runs, against the tool's breaking force, the deflection limit and the spindle curve."""
+runs, against the tool's breaking force, the deflection limit and the spindle curve (within 0.5 %:
+the linear bound is a chord of the nonlinear law)."""
 
 from __future__ import annotations
 
@@ -22,7 +24,8 @@ from millpost.tools.beam import ToolBeam
 from random_jobs import run_job
 
 COUNT = 1000
-TOL = 1.005
+TOL = 1.005  # the independent nonlinear check
+REPLAY_TOL = 1.0 + 1e-4  # the pipeline's replay: the summary rounds ratios to 4 decimals
 
 
 def _check(seed: int) -> dict:
@@ -70,14 +73,9 @@ def outcomes():
         return pool.map(_check, range(COUNT), chunksize=10)
 
 
-# Known and open: seed 587 replays at deflection 1.0053 since the feed policy landed (a quality limit, its
-# F quantised over a stretch whose replay differs from the schedule's samples). Held to 1.01 until fixed.
-KNOWN_OVER = {587: 1.01}
-
-
 def test_emitted_programs_exceed_no_limit(outcomes):
-    bad = [(o["seed"], {k: v for k, v in o["limits"].items() if v > KNOWN_OVER.get(o["seed"], TOL)})
-           for o in outcomes if max(o["limits"].values(), default=0.0) > KNOWN_OVER.get(o["seed"], TOL)]
+    bad = [(o["seed"], {k: v for k, v in o["limits"].items() if v > REPLAY_TOL})
+           for o in outcomes if max(o["limits"].values(), default=0.0) > REPLAY_TOL]
     assert not bad, f"{len(bad)} of {COUNT} jobs exceed a limit on replay: {bad[:5]}"
 
 

@@ -26,12 +26,15 @@ import pytest
 
 import rs274_oracle
 from conftest import SHARED_DATA
+from millpost.controller import Execution, blend_zones, path_modes
+from millpost.emit import emitted_positions
 from millpost.errors import MillpostError
-from millpost.gcode import read_text
+from millpost.gcode import read_program, read_text
 from millpost.job import load_job
 from millpost.machine import Machine
 from millpost.optimize import optimize
 from millpost.replay import feed_at_samples
+from millpost.signals import controller_model
 from millpost.toolpath import ARC_CW, RAPID
 
 JOBS = sorted(p.parent for p in (Path(__file__).parent / "real_jobs").glob("*/job.toml"))
@@ -76,7 +79,8 @@ def test_solved_and_not_slower_without_cause(run):
 def test_no_feed_below_min_chip_unless_hard_forced(run):
     name, job, result = run
     emitted = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
-    feed = feed_at_samples(emitted, result.samples)
+    program = read_program(job.program, job.reader_options())
+    feed = feed_at_samples(program.toolpath, emitted, result.samples)
     tr = result.trace
     cut = (result.samples.kind != RAPID) & (tr["feed_min_chip_mm_min"] > 0)
     need = np.minimum(tr["feed_min_chip_mm_min"], np.nan_to_num(tr["feed_programmed_mm_min"], nan=np.inf))
@@ -84,16 +88,27 @@ def test_no_feed_below_min_chip_unless_hard_forced(run):
     assert result.summary["below_min_chip"]["samples"] == int(low.sum())
     # each such F is forced: a hard limit caps it somewhere on the run of moves that F covers (one F
     # word, settled over consecutive moves; the run's samples include the sample each move starts at)
-    s_end = np.cumsum(emitted.lengths())
-    move = np.clip(np.searchsorted(s_end, result.samples.s_mm - 1e-9), 0, len(emitted) - 1)
+    move, _ = emitted_positions(program.toolpath, emitted, result.samples.move,
+                                Execution.sample_fractions(result.samples))
     f = emitted.feed_mm_min
     run_id = np.cumsum(np.r_[True, (f[1:] != f[:-1]) & (emitted.kind[1:] != RAPID)])
     sample_run = run_id[move]
     # the hard speed caps, and the schedule's speed where a hard limit without a cap of its own binds
     cap = np.minimum(tr["feed_hard_cap_mm_min"], np.where(tr["binding_hard"] == 1, tr["feed_schedule_mm_min"], np.inf))
+    # a blending controller runs a corner's arc at the faster of its two feeds, so the F words on both sides
+    # of a blended corner fit the lowest limit within the arc's reach (`controller.blend_zones`)
+    model = controller_model(job)
+    s_end0 = np.cumsum(program.toolpath.lengths())
+    zones = [(s_end0[m0] - d0, s_end0[m0] + d1) for m0, _, d0, d1, _ in
+             blend_zones(program.toolpath, model, path_modes(program, model))]
+    ds = float(job.limits["ds_mm"])
     for r in np.unique(sample_run[low]):
         on = sample_run == r
         on |= np.r_[on[1:], False]
+        for a, b in zones:
+            near = (result.samples.s_mm >= a - ds) & (result.samples.s_mm <= b + ds)
+            if (near & on).any():
+                on |= near
         k = int(move[np.flatnonzero(sample_run == r)[0]])
         assert cap[on].min() <= f[k] * (1 + 1e-3) + 0.1, \
             f"{name}: line {emitted.line[k]} F{f[k]:g} below the minimum-chip feed with no hard cause"

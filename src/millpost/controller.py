@@ -235,10 +235,10 @@ class Execution:
 
     def speed_at_samples(self, samples: Samples) -> np.ndarray:
         """Actual speed at every sample (mm/s); a sample's position along its move by arc length."""
-        return self.speed_at(samples.move, self._sample_fractions(samples))
+        return self.speed_at(samples.move, self.sample_fractions(samples))
 
     @staticmethod
-    def _sample_fractions(samples: Samples) -> np.ndarray:
+    def sample_fractions(samples: Samples) -> np.ndarray:
         """Fraction of each sample along its move from the resampling (samples of a move are contiguous)."""
         s = samples.s_mm
         mv = samples.move
@@ -253,7 +253,7 @@ class Execution:
 
     def time_at_samples(self, samples: Samples) -> np.ndarray:
         """Time (s) at which the tool passes every sample (motion only: no dwells or tool changes)."""
-        return self.time_at(samples.move, self._sample_fractions(samples))
+        return self.time_at(samples.move, self.sample_fractions(samples))
 
 
 def pauses_s(program, model: ControllerModel) -> np.ndarray:
@@ -281,10 +281,14 @@ EXACT_PATH, EXACT_STOP = -1.0, -2.0  # path modes in a blend-tolerance array: G6
 def path_modes(program, model: ControllerModel) -> np.ndarray:
     """Per move: the blend tolerance in effect (mm; G64 P, 0 for a G64 without P) or EXACT_PATH (G61:
     stop at corners) or EXACT_STOP (G61.1: stop after every move); before the program sets one, the
-    controller's own `blend_tolerance_mm`."""
+    controller's own `blend_tolerance_mm`. The moves of a canned cycle (after its climb to R) run in
+    exact path whatever the mode (LinuxCNC's convert_cycle sets G61 for them and restores it after)."""
     out = np.full(len(program.toolpath), model.blend_tolerance_mm)
     inch = np.asarray(program.move_inch, bool)
+    cycles = []
     for e in program.events:
+        if e.kind == "canned_cycle":
+            cycles.append((e.value, e.move))
         if e.kind != "path_mode" or e.move >= len(out):
             continue
         name, p = e.value
@@ -292,14 +296,23 @@ def path_modes(program, model: ControllerModel) -> np.ndarray:
             out[e.move:] = 0.0 if p is None else p * (25.4 if inch[e.move] else 1.0)
         else:
             out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP
+    for first, end in cycles:  # a canned cycle's moves (after the climb to R) in exact path, as LinuxCNC runs them
+        out[first:end] = np.where(out[first:end] == EXACT_STOP, EXACT_STOP, EXACT_PATH)
     return out
+
+
+def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Execution:
+    """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the
+    motion and take their time, its path modes (G61/G64 P) set the corners; feed_mm_min overrides
+    the programmed feed per move."""
+    return execute(program.toolpath, model, feed_mm_min, pauses=pauses_s(program, model),
+                   blend_mm=path_modes(program, model))
 
 
 def program_time(program, model: ControllerModel) -> float:
     """Cycle time of an interpreted program (s): motion and the pauses between its first and last
     move, in the path modes (G61/G64) the program sets."""
-    return execute(program.toolpath, model, pauses=pauses_s(program, model),
-                   blend_mm=path_modes(program, model)).time_s
+    return execute_program(program, model).time_s
 
 
 def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
@@ -478,9 +491,12 @@ def _arc_maxvel(s: _Segment, halved: bool) -> float:
     return min(s.maxvel, math.sqrt(NORMAL_SHARE * a * s.radius))
 
 
-def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
-    """LinuxCNC's blend arc between two segments (blendmath.c: blendInit3From*, blendParamKinematics,
-    blendComputeParameters): (trim of each segment, arc length, arc speed, arc acceleration), or None."""
+def _blend_geometry(prev: _Segment, cur: _Segment, model: ControllerModel):
+    """The feed-independent part of LinuxCNC's blend arc between two segments (blendmath.c:
+    blendInit3From*, blendComputeParameters): (θ, φ, binormal, d_geom, r_geom), or None where no arc
+    fits. θ is half the angle between the reversed incoming and the outgoing direction, φ = π − 2θ the
+    turn; the arc may reach d_geom (mm) into each segment (at most the blend tolerance from the
+    corner, half a line, a third/two thirds of an arc's sweep), so its radius is at most r_geom."""
     u1, u2 = prev.t1, cur.t0
     dot = min(max(_dot(u1, u2), -1.0), 1.0)
     theta = math.acos(-dot) / 2.0
@@ -494,7 +510,6 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
             return None
     if prev.arc and cur.arc and theta < math.pi / 12:
         return None
-    phi = math.pi - 2.0 * theta
     t1 = prev.tolerance if prev.tolerance > 0 else 0.25 * prev.nominal
     t2 = cur.tolerance if cur.tolerance > 0 else 0.25 * cur.nominal
     tol = min(t1, t2, 0.25 * prev.nominal, 0.25 * cur.nominal)
@@ -506,6 +521,20 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
         L1 = 0.5 * prev.nominal
     L1 = min(L1, prev.length)
     L2 = min(cur.angle / 3.0, math.pi / 2) * cur.radius if cur.arc else 0.5 * cur.length
+    d_tol = math.cos(theta) * tol / (1.0 - math.sin(theta))
+    d_geom = min(L1, L2, d_tol)
+    return theta, math.pi - 2.0 * theta, binormal, d_geom, math.tan(theta) * d_geom
+
+
+def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
+    """LinuxCNC's blend arc between two segments (blendmath.c: blendParamKinematics,
+    blendComputeParameters on `_blend_geometry`): (trim of each segment, arc length, arc speed, arc
+    acceleration), or None. The arc runs at up to the faster segment's requested speed."""
+    geometry = _blend_geometry(prev, cur, model)
+    if geometry is None:
+        return None
+    theta, phi, binormal, d_geom, r_geom = geometry
+    u1, u2 = prev.t1, cur.t0
     a_max = _inscribed(binormal, model.accel_mm_s2)
     a_n = a_max * NORMAL_SHARE
     v_req = max(prev.req, cur.req)
@@ -518,9 +547,6 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
         base = math.sqrt(sum((u2[i] * vm2 - u1[i] * vm1) ** 2 for i in range(3)))
         v_alt = vm1 * vm2 * math.sin(phi) / base if base > 0 else 0.0
     v_goal = min(v_req, max(v_alt, v_planar))
-    d_tol = math.cos(theta) * tol / (1.0 - math.sin(theta))
-    d_geom = min(L1, L2, d_tol)
-    r_geom = math.tan(theta) * d_geom
     v_plan = min(math.sqrt(a_n * r_geom), v_goal)
     a_par = 0.5 * a_max
     t_blend = min(math.sqrt(2.0 * a_par * d_geom), v_plan) / a_par
@@ -531,6 +557,62 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     if r_plan < 1e-12 or s_arc < 1e-6:
         return None
     return d_plan, s_arc, min(v_plan, v_req), a_max * TANGENTIAL_SHARE
+
+
+def corner_speeds(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | None = None) -> np.ndarray:
+    """LinuxCNC's planner: per junction (len(tp) + 1; index j: before move j) the highest speed (mm/s)
+    at which it passes the corner whatever the feeds: 0 where it stops (rapid ↔ feed, a reversal, a
+    jump, G61/G61.1), else the larger of the tangent-kink speed (the velocity jump v·Δu in one servo
+    period within 10 % of the axes' acceleration) and the blend arc's top speed √(0.87·a·r_geom) (or,
+    where no arc fits, the parabolic blend's); inf at the ends and between collinear moves."""
+    out = np.full(len(tp) + 1, np.inf)
+    segs = _segments(tp, model, np.full(len(tp), np.inf), blend_mm)
+    amax, dt = model.accel_mm_s2, model.servo_period_s
+    for prev, cur in zip(segs[:-1], segs[1:]):
+        if (prev.rapid != cur.rapid or model.exact_stop or prev.tolerance in (EXACT_PATH, EXACT_STOP)
+                or _dot(prev.t1, cur.t0) < SHARP_CORNER_COS
+                or np.linalg.norm(tp.start[cur.move] - tp.end[prev.move]) > 1e-6):
+            out[cur.move] = 0.0
+            continue
+        jump = max(abs(cur.t0[i] - prev.t1[i]) / amax[i] for i in range(3))
+        if jump < 1e-12:
+            continue
+        v = KINK_RATIO * dt / jump * (TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0)
+        geometry = _blend_geometry(prev, cur, model)
+        if geometry is not None:
+            _, _, binormal, _, r_geom = geometry
+            v = max(v, math.sqrt(NORMAL_SHARE * _inscribed(binormal, model.accel_mm_s2) * r_geom))
+        else:
+            v = max(v, _parabolic_speed(prev, cur))
+        out[cur.move] = v
+    return out
+
+
+def blend_zones(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | None = None) -> list[tuple]:
+    """Corners where the controller may run a blend arc at the faster of its two moves' feeds (LinuxCNC
+    blends at max(F_in, F_out)): per corner (move before, move after, length into the move before and
+    into the move after (mm), the arc's top speed (mm/s)). The lengths and the speed bound the arc at
+    any feeds (r ≤ r_geom, v ≤ √(0.87·a·r_geom)), so a feed-independent zone: on it, the slower move's
+    loads see the faster move's feed unless both F words fit the zone. grbl never runs a junction above
+    the slower block's feed: no zones. blend_mm: the path modes per move (`path_modes`). Stops
+    (rapid ↔ feed, reversals, jumps, G61/G61.1) have no zone; pauses are not looked at (a zone
+    there only costs time)."""
+    if model.planner != "linuxcnc":
+        return []
+    segs = _segments(tp, model, None, blend_mm)
+    out = []
+    for prev, cur in zip(segs[:-1], segs[1:]):
+        if (prev.rapid or cur.rapid or model.exact_stop
+                or prev.tolerance in (EXACT_PATH, EXACT_STOP) or _dot(prev.t1, cur.t0) < SHARP_CORNER_COS
+                or np.linalg.norm(tp.start[cur.move] - tp.end[prev.move]) > 1e-6):
+            continue
+        geometry = _blend_geometry(prev, cur, model)
+        if geometry is None:
+            continue
+        _, _, binormal, d_geom, r_geom = geometry
+        v_top = math.sqrt(NORMAL_SHARE * _inscribed(binormal, model.accel_mm_s2) * r_geom)
+        out.append((prev.move, cur.move, d_geom, d_geom, v_top))
+    return out
 
 
 def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, blend_mm):

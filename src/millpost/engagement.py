@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -82,6 +82,15 @@ class Engagement:
             return None if any(v is None for v in values) else np.concatenate(values)
         return cls(**{name: cat(name) for name in cls.__dataclass_fields__})
 
+    def per_sample(self) -> "Engagement":
+        """The same engagement with what is reported once the loads are computed: ap, ae, volume, area
+        and feed direction; the per-slice arrays become (N, 0) and the optional per-step fields None
+        (~0.6 KB a sample less)."""
+        n = len(self)
+        return replace(self, **{name: np.empty((n, 0)) for name in _PER_SLICE},  # not views: freed
+                       **dict.fromkeys(("arc_rad", "step_mm", "descending", "move", "line", "depth_mm",
+                                        "end_engaged", "descent")))
+
     def select(self, index) -> "Engagement":
         """The samples at `index` (a slice, mask or index array)."""
         return Engagement(**{name: None if getattr(self, name) is None else getattr(self, name)[index]
@@ -109,6 +118,7 @@ class Engagement:
             ap_mm=np.full(n, ap_mm), ae_mm=ae, volume_mm3=np.full(n, np.nan), area_mm2=area)
 
 
+_PER_SLICE = ("phi_st", "phi_ex", "dz_mm", "z_mm", "r_mm", "kappa")
 END_BINS = 8  # radial bins of the tool's end (Engagement.end_engaged)
 
 
@@ -249,7 +259,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
             report("engagement", c1, n)
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:
-        kappa[a:b] = _kappa(t, out["zmid"][a:b])
+        for c0 in range(a, b, chunk):  # in chunks: the profile's temporaries stay small
+            kappa[c0:min(b, c0 + chunk)] = _kappa(t, out["zmid"][c0:min(b, c0 + chunk)])
     feed3 = np.column_stack([out["feed"], np.zeros(n)])
     dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -58,11 +58,12 @@ import numpy as np
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
 from .job import Job
+from .controller import ControllerModel, corner_speeds
 from .progress import Progress, silent
-from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CurrentSlew, FeedLimit, Junction, MinSpeed,
-                       MotorCurrent, PathGrid, PathJerk, SpeedLoad)
+from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
+                       MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
-from .schedule.rows import SpeedBounds
+from .schedule.constraints import window_blocks
 from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
@@ -118,7 +119,7 @@ class JobLimits:
 
     def by_block(self, grid: PathGrid) -> dict[str, Limit]:
         """The limit each row block (by its name) comes from."""
-        return {blk.name: lim for lim in self.limits for blk in lim.blocks(grid)}
+        return {blk.name: lim for lim in self.limits for blk in window_blocks(grid, [lim], 0, min(len(grid), 1))}
 
     def names(self, **identity) -> tuple[str, ...]:
         """Names of the limits (and of their row blocks) whose identity fields have these values."""
@@ -144,6 +145,20 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
+def _corners(job: Job, samples: Samples, toolpath: Toolpath):
+    """The corner rule of the machine's own planner (`ControllerModel.from_machine`): grbl's junction
+    deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds`), on the
+    last sample before each corner."""
+    model = ControllerModel.from_machine(job.machine)
+    if model.planner == "grbl":
+        return Junction(model.accel_mm_s2, model.junction_deviation_mm)
+    corner = corner_speeds(toolpath, model)
+    cap = np.full(len(samples), np.inf)
+    last = np.flatnonzero(samples.move[:-1] != samples.move[1:])
+    cap[last] = corner[samples.move[last + 1]]
+    return CornerSpeed(cap)
+
+
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
     `millpost.progress` callback (stage "forces", in samples)."""
@@ -162,8 +177,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
-              Limit(Junction(amax, m.controller.junction_deviation_mm), HARD, "inertia", controller=True,
-                    f_word=False)]
+              Limit(_corners(job, samples, toolpath), HARD, "inertia", controller=True, f_word=False)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
                             f_word=False))
@@ -240,6 +254,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         # the floor: the thickest chip, flank's or end's, reaches the minimum chip
         floor[cut_here] = h_min / np.maximum(sin_max[cut_here], sin_end[cut_here]) * per_tooth
     progress("forces", n, n)
+    del sin_max  # memory: every use is above
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
@@ -297,8 +312,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
     v_cap = np.minimum(static_caps(samples, limits), feed_max / 60.0)
-    at_cap = loads["force_a"] * v_cap[:, None] + loads["force_b"]
-    drive_force = -np.where(np.abs(at_cap) > np.abs(loads["force_b"]), at_cap, loads["force_b"])
+    drive_force = np.empty((n, 3))
+    for k in range(3):  # per axis: temporaries of one column (memory)
+        at_cap = loads["force_a"][:, k] * v_cap + loads["force_b"][:, k]
+        drive_force[:, k] = -np.where(np.abs(at_cap) > np.abs(loads["force_b"][:, k]), at_cap, loads["force_b"][:, k])
     drive_force[stalled] = 0.0  # inertia only there: the cutting share is held at the kept feed (reported)
     limits.append(Limit(MotorCurrent(mass, kf, current, tuple(friction), tuple(viscous), cut_beta=drive_force),
                         HARD, "current"))
@@ -311,8 +328,12 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
 
 def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all."""
+    by itself allow (loads, chip load, feed, block rate), of one kind or all (in chunks of
+    LOAD_CHUNK samples: the rows of the whole program are never held at once)."""
     grid = PathGrid.from_samples(samples)
-    caps = [blk for lim in limits if not lim.controller and kind in (None, lim.kind)
-            for blk in lim.blocks(grid) if isinstance(blk, SpeedBounds)]
-    return np.sqrt(merged_bounds(caps, len(samples))[1])
+    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind)]
+    b_hi = np.empty(len(samples))
+    for lo in range(0, len(samples), LOAD_CHUNK):
+        hi = min(lo + LOAD_CHUNK, len(samples))
+        b_hi[lo:hi] = merged_bounds(window_blocks(grid, mine, lo, hi, caps_only=True), hi - lo)[1]
+    return np.sqrt(b_hi)

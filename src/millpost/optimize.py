@@ -18,7 +18,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import controller, safety
-from .emit import FeedPlan, whole_compensated_moves, write_feeds
+from ._kernels import set_threads
+from .emit import FeedPlan, emitted_positions, whole_compensated_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
@@ -26,7 +27,7 @@ from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
 from .replay import baseline_feeds, binding_shares, feed_at_samples, replay
 from .schedule import PathGrid, ScheduleOptions, schedule_samples
-from .schedule.feeds import cluster, emission_limit, piecewise_feeds
+from .schedule.feeds import blend_limit, cluster, emission_limit, piecewise_feeds
 from .signals import controller_model, running_rpm
 from .spindle_speed import choose_speeds
 from .toolpath import RAPID, Samples
@@ -88,6 +89,8 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal).
     `options` default to the job's `[limits] solver` on all cores."""
     t_start = time.perf_counter()
+    options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    set_threads(options.processes)
     report = resolve(progress)
     with reporting(report):  # the schedule's windows and the first numba compile of a kernel report too
         with stage(report, "read program"):
@@ -97,38 +100,50 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
             stock = job.stock()
         samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                             progress=report)
+        # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
+        # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
+        # speeds, whose loads do not change) the per-slice engagement once the loads are computed
+        del stock
+        eng = replace(eng, arc_rad=None, step_mm=None, descending=None, move=None, line=None, depth_mm=None)
         t_engage = time.perf_counter()
-        result = schedule_program(job, program, samples, eng, options, progress=report)
+        limits = None
+        if job.limits["rpm"] != "optimize":
+            limits = build_limits(job, samples, eng, program.toolpath, report)
+            eng = eng.per_sample()
+        t_limits = time.perf_counter()
+        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
+    if limits is not None:  # built here
+        result.summary["stage_s"]["limits"] = round(t_limits - t_engage, 3)
     result.summary["total_s"] = round(time.perf_counter() - t_start, 3)
     return result
 
 
 def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
-                     progress: Progress = silent) -> Result:
+                     progress: Progress = silent, limits: JobLimits | None = None) -> Result:
     """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
-    `millpost.spindle_speed`), limits, schedule, emitted text, cycle times and the replay check.
-    (Split from `optimize` so that tests can give engagements of known geometry.) progress: stages
-    "forces", "schedule", "emission" and "replay"."""
+    `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
+    schedule, emitted text, cycle times and the replay check. (Split from `optimize` so that tests can
+    give engagements of known geometry.) progress: stages "forces", "schedule", "emission" and "replay"."""
     options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
     spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
     if job.limits["rpm"] == "optimize":
         program, samples, spindle = choose_speeds(job, program, samples, eng, options, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
+        limits = None  # the loads at the chosen speeds
     tp = program.toolpath
-    ds = float(job.limits["ds_mm"])
     t_limits = time.perf_counter()
-    limits = build_limits(job, samples, eng, tp, progress)
+    limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options)
     solver_s = time.perf_counter() - t0
     model = controller_model(job)
     progress("emission", 0, 4)
-    before = controller.execute(tp, model)
+    before = controller.execute_program(program, model)
     base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
-    baseline = controller.execute(tp, model, base_feeds)
+    baseline = controller.execute_program(program, model, base_feeds)
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
@@ -144,6 +159,9 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
+        # corners the controller blends at the faster feed carry it into the slower move
+        limit_mm_s = blend_limit(samples, limit_mm_s, np.cumsum(tp.lengths()),
+                                 controller.blend_zones(tp, model, controller.path_modes(program, model)))
         fragments = whole_compensated_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
@@ -155,17 +173,21 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     text = write_feeds(program, plan)
     progress("emission", 3, 4)
     t_emit = time.perf_counter()
-    emitted_tp = read_text(text, str(job.program), job.reader_options()).toolpath  # what will run
+    emitted = read_text(text, str(job.program), job.reader_options())  # what will run
+    emitted_tp = emitted.toolpath
     progress("emission", 4, 4)
     progress("replay", 0, 3)
-    after = controller.execute(emitted_tp, model)
+    after = controller.execute_program(emitted, model)
     if status == "solved" and after.time_s > before.time_s * (1 + 1e-3):
         status = "slower"
-    executed = np.interp(samples.s_mm, *_speed_profile(emitted_tp, after, ds))
+    # the executed speed at each sample, at the same place of the emitted (split) moves
+    executed = after.speed_at(*emitted_positions(tp, emitted_tp, samples.move,
+                                                 controller.Execution.sample_fractions(samples)))
     progress("replay", 1, 3)
-    checked = replay(job, samples, eng, limits, executed)
-    progress("replay", 2, 3)
+    # the programmed run first: only its ratios are kept, so its signals are freed before the emitted run's
     as_programmed = replay(job, samples, eng, limits, before.speed_at_samples(samples)).ratios
+    progress("replay", 2, 3)
+    checked = replay(job, samples, eng, limits, executed)
     progress("replay", 3, 3)
     by_effect, by_limit = binding_shares(samples, sched, limits)
     cut = samples.kind != RAPID
@@ -199,7 +221,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
                              or np.any(limits.held.get(k, False))},
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
-        "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(emitted_tp, samples)),
+        "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
         "notes": program.notes + _rpm_notes(job, program)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
@@ -224,7 +246,8 @@ def _binding_kind(samples: Samples, sched, limits: JobLimits, kind: str) -> np.n
     owner = limits.by_block(PathGrid.from_samples(samples))
     out = np.zeros(len(samples), np.int8)
     for lo, hi, s in sched.segments:
-        out[lo:hi] = [name in owner and owner[name].kind == kind for name in s.binding.astype(str)]
+        names, which = np.unique(s.binding.astype(str), return_inverse=True)
+        out[lo:hi] = np.array([name in owner and owner[name].kind == kind for name in names], bool)[which.reshape(-1)]
     return out
 
 
@@ -288,9 +311,3 @@ def _rpm_notes(job: Job, program: Program) -> list[str]:
                        f"{job.machine.spindle.rpm_min:g}–{job.machine.spindle.rpm_max:g} rpm; "
                        f"the controller runs it at {used:g} rpm and the loads are computed there")
     return out
-
-
-def _speed_profile(tp, execution, ds: float) -> tuple[np.ndarray, np.ndarray]:
-    """(s, v) of an executed program on its own resampling, to interpolate at any arc length."""
-    s2 = tp.resample(ds)
-    return s2.s_mm, execution.speed_at_samples(s2)

@@ -10,16 +10,19 @@ compared with the bound the schedule was given (after the feed policy of `millpo
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
 
+from .controller import Execution
+from .emit import emitted_positions
 from .engagement import Engagement
 from .gcode.interpret import Program
 from .job import Job
-from .limits import JobLimits, static_caps
+from .limits import LOAD_CHUNK, JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
-from .schedule.rows import SpeedBounds
+from .schedule.constraints import window_blocks
 from .signals import Signals, predict, step_times_s
 from .toolpath import RAPID, Samples, Toolpath
 
@@ -42,11 +45,11 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     return feeds, per_tool
 
 
-def feed_at_samples(emitted: Toolpath, samples: Samples) -> np.ndarray:
-    """The F in force (mm/min) of an emitted program at each sample of the original resampling, by
-    arc length (splitting moves does not change the path's length)."""
-    s_end = np.cumsum(emitted.lengths())
-    k = np.clip(np.searchsorted(s_end, samples.s_mm - 1e-9), 0, max(len(emitted) - 1, 0))
+def feed_at_samples(original: Toolpath, emitted: Toolpath, samples: Samples) -> np.ndarray:
+    """The F in force (mm/min) of an emitted program at each sample of the original resampling, read at
+    the same place of the emitted (split) moves (`emit.emitted_positions`), not by the total arc length
+    (rounded split points shift it into the neighbouring piece)."""
+    k, _ = emitted_positions(original, emitted, samples.move, Execution.sample_fractions(samples))
     return emitted.feed_mm_min[k]
 
 
@@ -91,10 +94,12 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     cut = samples.kind != RAPID
     v = sig.speed_mm_s
     ratios: dict[str, float] = {}
-    rows: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # name: value, raw bound, value / raw bound
+    rows: dict[str, tuple] = {}  # name: value, raw bound, value / raw bound
+    shared = Counter(lim.name for lim in limits if isinstance(lim.constraint, SpeedLoad))
     for lim in limits:
         c = lim.constraint
         if isinstance(c, SpeedLoad):
+            shared[lim.name] -= 1  # rows of this name still to come
             value = lim.signal(sig)
             with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked
                 ratio = np.where(cut, value / np.broadcast_to(np.asarray(c.limit, float), value.shape), 0.0)
@@ -106,12 +111,14 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
                 higher = raw > old_raw
                 value, bound, raw = (np.where(higher, value, old_value), np.where(higher, bound, old_bound),
                                      np.maximum(raw, old_raw))
-            rows[lim.name] = (value, bound, raw)
-        elif lim.f_word and not lim.controller:  # speed caps only millpost holds
-            for blk in lim.blocks(grid):
-                if isinstance(blk, SpeedBounds):
+            # the ratio per sample is kept only while another row of the name may come (memory)
+            rows[lim.name] = (value, bound, raw if shared[lim.name] else None)
+        elif lim.f_word and not lim.controller:  # speed caps only millpost holds (in chunks: memory)
+            for lo in range(0, len(samples), LOAD_CHUNK):
+                hi = min(lo + LOAD_CHUNK, len(samples))
+                for blk in window_blocks(grid, [lim], lo, hi, caps_only=True):
                     with np.errstate(divide="ignore", invalid="ignore"):
-                        r = np.where(cut & (blk.b_hi > 0), v / np.sqrt(blk.b_hi), 0.0)
+                        r = np.where(cut[lo:hi] & (blk.b_hi > 0), v[lo:hi] / np.sqrt(blk.b_hi), 0.0)
                     ratios[blk.name] = max(ratios.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
     limit_A = np.array([job.machine.axes[a].motor.current_limit_A for a in "xyz"])
     current = np.max(np.abs(sig.axis_current_A) / limit_A, axis=1)
@@ -130,7 +137,8 @@ def binding_shares(samples: Samples, sched, limits: JobLimits) -> tuple[dict[str
     for lo, hi, s in sched.segments:
         dt = step_times_s(samples.s_mm[lo:hi], s.feed_mm_s)
         total += float(dt.sum())
-        for block, w in zip(s.binding.astype(str), dt):
+        blocks, which = np.unique(s.binding.astype(str), return_inverse=True)
+        for block, w in zip(blocks, np.bincount(which.reshape(-1), weights=dt, minlength=len(blocks))):
             if block:
                 lim = owner.get(block)
                 effect, name = (lim.effect, lim.name) if lim is not None else (block, block)

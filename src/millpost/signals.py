@@ -108,12 +108,10 @@ def running_rpm(job: Job, programmed_rpm: np.ndarray) -> np.ndarray:
 
 
 def controller_model(job: Job) -> controller.ControllerModel:
-    """The job machine's planner: axis rates and accelerations, junction deviation, block rate."""
-    ax = [job.machine.axes[a] for a in "xyz"]
-    return controller.ControllerModel(
-        max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
-        junction_deviation_mm=job.machine.controller.junction_deviation_mm,
-        block_rate_hz=job.machine.controller.block_rate_Hz)
+    """The job machine's own planner (`ControllerModel.from_machine`: grbl's or LinuxCNC's, its axis
+    rates and accelerations, junction deviation or blend tolerance, block rate, command times): the
+    one model that times programs and decides corner speeds for optimize, replay and the signals."""
+    return controller.ControllerModel.from_machine(job.machine)
 
 
 def time_base(program: Program, samples: Samples, execution: controller.Execution) -> np.ndarray:

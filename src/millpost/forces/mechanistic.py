@@ -39,19 +39,27 @@ def regressors(engagement: Engagement, flutes) -> tuple[np.ndarray, np.ndarray]:
     i_1 = ex - st
     w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b
     zero = np.zeros_like(w)
+
+    def fold(x: np.ndarray) -> np.ndarray:  # Σ_k w·x over the slices, in slice order, one (N, K) at a time
+        wx = w * x
+        out = np.zeros(len(wx))
+        for k in range(wx.shape[1]):
+            out += wx[:, k]
+        return out
+
     G = np.stack([
-        np.stack([-s * i_sc, -s * s * i_ss, -c * s * i_ss], -1),
-        np.stack([s * i_ss, -s * s * i_sc, -c * s * i_sc], -1),
-        np.stack([zero, -c * s * i_s, s * s * i_s], -1),
-        np.stack([r * s * i_s, zero, zero], -1),
+        np.stack([fold(-s * i_sc), fold(-s * s * i_ss), fold(-c * s * i_ss)], -1),
+        np.stack([fold(s * i_ss), fold(-s * s * i_sc), fold(-c * s * i_sc)], -1),
+        np.stack([fold(zero), fold(-c * s * i_s), fold(s * s * i_s)], -1),
+        np.stack([fold(r * s * i_s), fold(zero), fold(zero)], -1),
     ], -2)
     E = np.stack([
-        np.stack([-i_c, -s * i_s, -c * i_s], -1),
-        np.stack([i_s, -s * i_c, -c * i_c], -1),
-        np.stack([zero, -c * i_1, s * i_1], -1),
-        np.stack([r * i_1, zero, zero], -1),
+        np.stack([fold(-i_c), fold(-s * i_s), fold(-c * i_s)], -1),
+        np.stack([fold(i_s), fold(-s * i_c), fold(-c * i_c)], -1),
+        np.stack([fold(zero), fold(-c * i_1), fold(s * i_1)], -1),
+        np.stack([fold(r * i_1), fold(zero), fold(zero)], -1),
     ], -2)
-    return (w[..., None, None] * G).sum(1), (w[..., None, None] * E).sum(1)
+    return G, E
 
 
 class Mechanistic:

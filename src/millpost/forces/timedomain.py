@@ -22,28 +22,39 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
+from .._kernels import compiling
 
 
-@njit(cache=True)
+_EXACT_EVERY = 32  # angular steps between exact sin/cos (the rotation recurrence in between drifts ~1e-16 a step)
+
+
+@njit(cache=True, parallel=True)
 def _simulate(st, ex, b, z, dz, r, kappa, kc, ke, p, flutes, tan_helix, radius, runout, has_runout, fz,
               steps, periods):  # pragma: no cover - compiled
     n, k_slices = st.shape
     two_pi = 2.0 * math.pi
     pitch = two_pi / flutes
     dphi = pitch * periods / steps
+    cd, sd = math.cos(dphi), math.sin(dphi)
     peaks = np.zeros((n, 4))     # |F_xy| total, |F_xy| shearing part, |F_xy| edge part, torque
     mean = np.zeros((n, 4))
-    acc = np.zeros((6, steps))   # per angular step: shear x, y; edge x, y; z; torque
-    for i in range(n):
-        acc[:, :] = 0.0
+    for i in prange(n):  # samples are independent: the result does not depend on the thread count
+        acc = np.zeros((6, steps))   # per angular step: shear x, y; edge x, y; z; torque
+        cutting = False
         for k in range(k_slices):
             if b[i, k] <= 0.0:
                 continue
+            cutting = True
             sk = math.sin(kappa[i, k])
             ck = math.cos(kappa[i, k])
             m = max(1, int(math.ceil(dz[i, k] * tan_helix / radius / dphi)))
             db = b[i, k] / m
+            # per unit h^p (shearing) and per disk (edge): tangential, radial-plus-axial in plane, z
+            ct, crad, cz = db * kc[0], db * (kc[1] * sk + kc[2] * ck), db * (kc[2] * sk - kc[1] * ck)
+            et, erad, ez = db * ke[0], db * (ke[1] * sk + ke[2] * ck), db * (ke[2] * sk - ke[1] * ck)
+            tq = r[i, k]
             for sub in range(m):
                 zz = z[i, k] - 0.5 * dz[i, k] + (sub + 0.5) * dz[i, k] / m
                 for j in range(flutes):
@@ -54,9 +65,11 @@ def _simulate(st, ex, b, z, dz, r, kappa, kc, ke, p, flutes, tan_helix, radius, 
                         hi = ex[i, k] - off + shift
                         s0 = max(0, int(math.ceil(lo / dphi - 0.5)))
                         s1 = min(steps - 1, int(math.floor(hi / dphi - 0.5)))
+                        sp, cp = 0.0, 1.0
                         for s in range(s0, s1 + 1):
-                            ph = (s + 0.5) * dphi + off - shift
-                            sp = math.sin(ph)
+                            if (s - s0) % _EXACT_EVERY == 0:
+                                ph = (s + 0.5) * dphi + off - shift
+                                sp, cp = math.sin(ph), math.cos(ph)
                             h = fz[i] * sp * sk
                             if has_runout:
                                 base = h
@@ -65,21 +78,20 @@ def _simulate(st, ex, b, z, dz, r, kappa, kc, ke, p, flutes, tan_helix, radius, 
                                     hm = mm * base + runout[j] - runout[(j - mm) % flutes]
                                     if hm < h:
                                         h = hm
-                            if h <= 0.0:
-                                continue
-                            hp = h if p == 1.0 else h ** p
-                            cp = math.cos(ph)
-                            # shearing (∝ h^p) and edge parts kept apart for the linear peak bound
-                            ft = db * kc[0] * hp
-                            rad = db * hp * (kc[1] * sk + kc[2] * ck)
-                            et = db * ke[0]
-                            erad = db * (ke[1] * sk + ke[2] * ck)
-                            acc[0, s] += -ft * cp - rad * sp
-                            acc[1, s] += ft * sp - rad * cp
-                            acc[2, s] += -et * cp - erad * sp
-                            acc[3, s] += et * sp - erad * cp
-                            acc[4, s] += db * ((kc[2] * hp + ke[2]) * sk - (kc[1] * hp + ke[1]) * ck)
-                            acc[5, s] += r[i, k] * (ft + et)
+                            if h > 0.0:
+                                hp = h if p == 1.0 else h ** p
+                                # shearing (∝ h^p) and edge parts kept apart for the linear peak bound
+                                ft = ct * hp
+                                rad = crad * hp
+                                acc[0, s] += -ft * cp - rad * sp
+                                acc[1, s] += ft * sp - rad * cp
+                                acc[2, s] += -et * cp - erad * sp
+                                acc[3, s] += et * sp - erad * cp
+                                acc[4, s] += cz * hp + ez
+                                acc[5, s] += tq * (ft + et)
+                            sp, cp = sp * cd + cp * sd, cp * cd - sp * sd  # rotate by dφ
+        if not cutting:
+            continue
         for s in range(steps):
             fx = acc[0, s] + acc[2, s]
             fy = acc[1, s] + acc[3, s]
@@ -113,11 +125,39 @@ def simulate(st, ex, b, z, dz, r, kappa, *, kc, ke, p: float, flutes: int, helix
     fz = np.broadcast_to(np.asarray(fz_mm, float), (n,)).astype(float)
     # identical samples (a cut that does not change along a move) are simulated once
     key = np.column_stack([np.asarray(a, float).reshape(n, st.shape[1]) for a in (st, ex, b, z, dz, r, kappa)] + [fz])
-    key = np.nan_to_num(key, nan=-1e300)
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first])  # noqa: E731
-    peaks, mean = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
-                            np.asarray(ke, float), float(p), int(flutes), math.tan(math.radians(helix_deg)),
-                            float(radius_mm), ro, has_runout, f(fz), steps, periods)
-    inverse = inverse.reshape(-1)
+    with compiling(_row_hash, _simulate):
+        first, inverse = unique_rows(np.nan_to_num(key, nan=-1e300))
+        f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first])  # noqa: E731
+        peaks, mean = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
+                                np.asarray(ke, float), float(p), int(flutes), math.tan(math.radians(helix_deg)),
+                                float(radius_mm), ro, has_runout, f(fz), steps, periods)
     return peaks[inverse], mean[inverse]
+
+
+@njit(cache=True)
+def _row_hash(u):  # pragma: no cover - compiled
+    """64-bit hash per row of a uint64 array: splitmix64's mixer folded over the columns."""
+    out = np.empty(u.shape[0], np.uint64)
+    for i in range(u.shape[0]):
+        h = np.uint64(0x9E3779B97F4A7C15)
+        for j in range(u.shape[1]):
+            x = h ^ u[i, j]
+            x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+            x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+            h = x ^ (x >> np.uint64(31))
+        out[i] = h
+    return out
+
+
+def unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first, inverse) for the rows of a float array (N, M): one representative row index per distinct
+    row, and per row the position of its representative in `first` (key[first][inverse] == key).
+    Rows are told apart bit for bit: a 64-bit hash (splitmix64's mixer folded over the columns) groups
+    them, and a row that differs from its group's representative (a hash collision) keeps an entry of
+    its own, so the grouping is exact."""
+    u = np.ascontiguousarray(key, dtype=np.float64).view(np.uint64).reshape(len(key), -1)
+    _, first, inverse = np.unique(_row_hash(u), return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    clash = np.flatnonzero((u != u[first[inverse]]).any(axis=1))
+    inverse[clash] = len(first) + np.arange(len(clash))
+    return np.r_[first, clash], inverse

@@ -237,7 +237,8 @@ class Interpreter:
         self.g92 = np.zeros(3)
         self.tlo = 0.0  # tool length offset, mm
         self.g92_saved = np.zeros(3)
-        self.pos = np.zeros(3)  # program frame, mm
+        self._pos: np.ndarray | None = np.zeros(3)  # program frame, mm (see `pos`)
+        self._xyz: tuple[float, float, float] | None = None
         self.rotary = {a: 0.0 for a in _ROTARY}
         self.cycle: dict = {}
         self.polar_step: tuple[float, float] | None = None
@@ -401,7 +402,7 @@ class Interpreter:
         letters = [w[0].upper() for w in words]
         if len(set(letters)) != len(letters):
             return False
-        x, y, z = self.pos.tolist()
+        x, y, z = start = self._xyz if self._xyz is not None else tuple(self._pos.tolist())
         f = self.f
         sc = self.scale
         for L, v in zip(letters, words):
@@ -433,17 +434,29 @@ class Interpreter:
             self.cycle_il = None
         self.blocks += 1
         if len(letters) > ("F" in letters) or g is not None:
-            self.emit_xyz(RAPID if motion == 0 else FEED, x, y, z, line_no, math.nan if motion == 0 else f)
+            self.emit_xyz(RAPID if motion == 0 else FEED, start, x, y, z, line_no, math.nan if motion == 0 else f)
         self.block_index += 1
         return True
 
-    def emit_xyz(self, kind: int, x: float, y: float, z: float, line: int, feed_mm_min: float) -> None:
-        """Append a straight move from the current point (floats, mm) — the fast path's `emit`."""
+    def emit_xyz(self, kind: int, start: tuple, x: float, y: float, z: float, line: int, feed_mm_min: float) -> None:
+        """Append a straight move from the current point `start` (floats, mm) — the fast path's `emit`.
+        The position stays a tuple until the general path reads it (`pos`): no numpy per line."""
         if self.tool < 0 and self.selected >= 0:
             self.tool = self.selected
             self.notes.append(f"line {line}: T{self.selected} selected without M6: taken as loaded")
-        self.record(kind, self.pos.tolist(), (x, y, z), _NO_CENTRE, 0, feed_mm_min, line)
-        self.pos = np.array((x, y, z))
+        self.record(kind, start, (x, y, z), _NO_CENTRE, 0, feed_mm_min, line)
+        self._xyz, self._pos = (x, y, z), None
+
+    @property
+    def pos(self) -> np.ndarray:
+        """The current point (program frame, mm)."""
+        if self._pos is None:
+            self._pos = np.array(self._xyz)
+        return self._pos
+
+    @pos.setter
+    def pos(self, value: np.ndarray) -> None:
+        self._pos, self._xyz = value, None
 
     def execute(self, b: Block) -> None:
         g: list[tuple[int, Word]] = []
@@ -1025,6 +1038,8 @@ class Interpreter:
             old = r
         clear = r if not self.retract_old_z else old
         current = self.pos[an]
+        # LinuxCNC runs a cycle's moves after the climb to R in exact path (G61), then restores the mode
+        first = len(self.m) + self.comp.pending
         d1 = axis_words.get(_AXES[a1])
         d2 = axis_words.get(_AXES[a2])
         if self.polar_step is not None and self.plane != 0:
@@ -1048,6 +1063,7 @@ class Interpreter:
             if p[an] > r and code != 870:
                 self.to_depth(RAPID, r, b)
             self.cycle_body(code, b, r, bottom, clear, feed, cyc)
+        self.event(b.line, "canned_cycle", first)
         self.polar_step = None
 
     def check_cycle_size(self, b: Block, code: int, repeats: int, r: float, bottom: float, cyc: dict) -> None:

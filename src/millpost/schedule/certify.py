@@ -8,8 +8,10 @@ point of the problem is feasible for it):
   relaxation the other way round.
 - StepRows (current slew, jerk): the relaxation drops them; the restriction keeps them by checking
   them exactly (√b, not linearised) on the restricted profile, which is then feasible, or gives up.
-- SoftFloor: the relaxation drops them; unmet floors on the restricted profile add their penalty
-  `floor_penalty`·Σ node length·(floor − b)/vref³ (s; the conic objective's own weight) to its cost.
+- SoftFloor: unmet floors add their penalty `floor_penalty`·Σ node length·(floor − b)⁺/vref³ (s; the
+  conic objective's own weight) to a profile's cost. Every feasible b lies below the relaxed greedy
+  profile (componentwise), so its unmet floors cost at least the relaxed profile's: that penalty
+  is part of the lower bound.
 
 A problem of linear rows in the neighbouring states reads α·b_{i+1} + β·b_i ≤ h with α = u/(2·ds_i),
 β = w − α. If α·β ≤ 0 for every row the feasible set is a lattice (closed under componentwise max),
@@ -18,11 +20,13 @@ the optimum; the greedy reachability (TOPP-RA) profile is that element. Rows wit
 curvature against a small tangent component, 2·ds·κ_k > t_k) break this and are bracketed again:
 in the restriction by b_i, b_{i+1} ≤ h/(α + β) (implies the row), in the relaxation by b_i ≤ h/β,
 b_{i+1} ≤ h/α (implied by the row, b ≥ 0). Rows with α, β < 0 and h ≥ 0 hold for every b ≥ 0 and
-are dropped. The restricted greedy profile costs J_R ≥ J*, the relaxed greedy one T_X ≤ J*; the
-restricted profile is returned with the proven gap J_R/T_X − 1.
+are dropped. The restricted greedy profile costs J_R ≥ J*, the relaxed greedy one J_X ≤ J*; the
+restricted profile is returned with the proven gap J_R/J_X − 1.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -79,10 +83,35 @@ def _lattice(ds: np.ndarray, b_hi: np.ndarray, U: np.ndarray, W: np.ndarray, H: 
     return cap, U, W, H
 
 
+@dataclass
+class Certificate:
+    """The restricted profile `b` (feasible), the relaxed one `b_relaxed` (no feasible b exceeds it at
+    any sample) and their costs per interval and per node (s): traversal time of each interval and
+    soft-floor penalty of each node. `gap` is the proven bound over the whole segment."""
+
+    b: np.ndarray
+    b_relaxed: np.ndarray
+    cost: np.ndarray          # (2, N): restricted and relaxed, interval i's time + node i's penalty
+    gap: float
+
+    def gap_between(self, lo: int, hi: int) -> float:
+        """Proven bound on the stretch of samples [lo, hi) (intervals lo … hi − 2, nodes lo … hi − 1,
+        the segment's last node with the last stretch): every feasible b lies below the relaxed profile
+        there too, so its cost on the stretch is at least the relaxed one's."""
+        j_r, j_x = self.cost[:, lo:hi - 1].sum(axis=1) + (self.cost[:, hi - 1] if hi == self.cost.shape[1] else 0)
+        return max(j_r / j_x - 1, 0.0) if j_x > 0 else (0.0 if j_r <= 0 else np.inf)
+
+
 def certified_reach(grid: PathGrid, blocks: list[Block], floor_penalty: float = 10.0
                     ) -> tuple[np.ndarray, float] | None:
     """(b, gap bound) for a rest-to-rest segment, or None when the bracket does not close (hard speed
     floors, a slew or jerk row the restricted profile breaks, an infeasible restriction)."""
+    cert = certify(grid, blocks, floor_penalty)
+    return None if cert is None else (cert.b, cert.gap)
+
+
+def certify(grid: PathGrid, blocks: list[Block], floor_penalty: float = 10.0) -> Certificate | None:
+    """The certificate of a rest-to-rest segment (see `certified_reach`), or None."""
     n = len(grid)
     b_lo, b_hi = merged_bounds(blocks, n)
     if (b_lo > 0).any():
@@ -104,11 +133,22 @@ def certified_reach(grid: PathGrid, blocks: list[Block], floor_penalty: float = 
     t_r, t_x = traversal_time(ds, b), traversal_time(ds, relaxed.b)
     if not (np.isfinite(t_r) and t_x > 0):
         return None
+    cost = np.zeros((2, n))
+    for row, prof in zip(cost, (b, relaxed.b)):  # each interval's term of `traversal_time`
+        v = np.sqrt(np.maximum(prof, 0.0))
+        den = v[:-1] + v[1:]
+        with np.errstate(divide="ignore"):
+            row[:-1] = np.where(den > 0, 2 * ds / den, np.inf)
     floor = soft_floor(blocks, n)
     if (floor > 0).any():
         node_len = np.zeros(n)
         node_len[:-1] += ds / 2
         node_len[1:] += ds / 2
-        vref = float(np.sqrt(b_hi.max())) or 1.0
-        t_r += floor_penalty * float(np.sum(node_len * np.maximum(floor - b, 0.0))) / vref**3
-    return b, max(t_r / t_x - 1, 0.0)
+        weight = floor_penalty * node_len / (float(np.sqrt(b_hi.max())) or 1.0) ** 3
+        # every feasible b is ≤ the relaxed profile, so its unmet floors cost at least the relaxed one's
+        pen_r, pen_x = weight * np.maximum(floor - b, 0.0), weight * np.maximum(floor - relaxed.b, 0.0)
+        cost[0] += pen_r
+        cost[1] += pen_x
+        t_r += float(np.sum(pen_r))
+        t_x += float(np.sum(pen_x))
+    return Certificate(b, relaxed.b, cost, max(t_r / t_x - 1, 0.0))

@@ -14,7 +14,7 @@ Which limits are caps and which need real rows:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -59,6 +59,7 @@ class AxisAcceleration:
 
     amax_mm_s2: tuple[float, float, float]
     name: str = "axis_acceleration"
+    caps = False  # no SpeedBounds among its rows (see `window_blocks`)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         A = np.asarray(self.amax_mm_s2, float)[:, None] * np.ones((1, len(grid)))
@@ -118,12 +119,27 @@ class Junction:
 
 
 @dataclass(frozen=True)
+class CornerSpeed:
+    """Speed cap (mm/s, per sample) at the corners a blending planner rounds by itself: the highest
+    speed it passes each corner at (`controller.corner_speeds` on the sample before the corner), inf
+    elsewhere. The corner rule of LinuxCNC-like controllers, as Junction is grbl's."""
+
+    cap_mm_s: np.ndarray
+    name: str = "junction"
+
+    def blocks(self, grid: PathGrid) -> list[Block]:
+        cap = _per_sample(self.cap_mm_s, len(grid))
+        return [SpeedBounds(self.name, np.zeros(len(grid)), cap**2)]
+
+
+@dataclass(frozen=True)
 class PathJerk:
     """Bounded change of path acceleration: |da/dt| ≤ jerk_mm_s3 (mm/s³) between collocation points,
     |a_{i+1} − a_i| ≤ J·Δs/v (Δt = Δs/v). Makes a an explicit variable."""
 
     jerk_mm_s3: float
     name: str = "jerk"
+    caps = False  # no SpeedBounds among its rows (see `window_blocks`)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         n = len(grid)
@@ -142,13 +158,14 @@ def _load_interval(a2: np.ndarray, a1: np.ndarray, a0: np.ndarray) -> tuple[np.n
         v_hi = np.where(lin & (a1 > 0), root, v_hi)
         v_lo = np.where(lin & (a1 < 0), np.maximum(root, 0), v_lo)
         impossible |= lin & (a1 == 0) & (a0 > 0)
-        disc = a1**2 - a2 * a0
         q = ~lin
-        sq = np.sqrt(np.maximum(disc, 0))
-        r1, r2 = (-a1 - sq) / a2, (-a1 + sq) / a2
-        v_lo = np.where(q, np.maximum(r1, 0), v_lo)
-        v_hi = np.where(q, r2, v_hi)
-        impossible |= q & ((disc < 0) | (r2 < 0))
+        if q.any():  # quadratic rows (a vector load's norm)
+            disc = a1**2 - a2 * a0
+            sq = np.sqrt(np.maximum(disc, 0))
+            r1, r2 = (-a1 - sq) / a2, (-a1 + sq) / a2
+            v_lo = np.where(q, np.maximum(r1, 0), v_lo)
+            v_hi = np.where(q, r2, v_hi)
+            impossible |= q & ((disc < 0) | (r2 < 0))
     impossible |= lin & (a1 > 0) & (v_hi < 0)
     v_hi = np.where(impossible, np.sqrt(_TINY_B), v_hi)
     v_lo = np.where(impossible, 0.0, v_lo)
@@ -253,6 +270,7 @@ class MotorCurrent:
     cut_alpha: np.ndarray | None = None
     cut_beta: np.ndarray | None = None
     name: str = "current"
+    caps = False  # no SpeedBounds among its rows (see `window_blocks`)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         n = len(grid)
@@ -284,7 +302,12 @@ class CurrentSlew:
     ke_V_s_rad: tuple[float, float, float]
     bus_V: float
     rad_per_mm: tuple[float, float, float]
+    axes: tuple[bool, bool, bool] | None = None  # axes with rows (None: those that move on the grid)
     name: str = "current_slew"
+
+    def pin(self, grid: PathGrid) -> "CurrentSlew":
+        """The same limit with its rows' axes fixed to those that move on `grid` (see `window_blocks`)."""
+        return self if self.axes is not None else replace(self, axes=grid.moving_axes)
 
     def blocks(self, grid: PathGrid) -> list[Block]:
         n = len(grid)
@@ -293,7 +316,7 @@ class CurrentSlew:
         g = f(self.mass_kg) * 1e-3 / f(self.force_per_amp_N_A)  # A per mm/s²
         h0 = (self.bus_V - f(self.resistance_ohm) * f(self.current_limit_A)) / f(self.inductance_H) * np.ones((1, n))
         h1 = f(self.ke_V_s_rad) * f(self.rad_per_mm) * np.abs(t) / f(self.inductance_H)
-        keep = np.abs(t).max(axis=1) > 0
+        keep = np.abs(t).max(axis=1) > 0 if self.axes is None else np.array(self.axes, bool)
         with np.errstate(divide="ignore"):
             vmax = np.min(np.where(h1 > 0, h0 / h1, np.inf), axis=0)
         return [StepRows(self.name, (g * t)[keep], (g * k)[keep], h0[keep], h1[keep]),
@@ -303,3 +326,27 @@ class CurrentSlew:
 def path_blocks(grid: PathGrid, limits: list) -> list[Block]:
     """All rows of a list of limit objects."""
     return [blk for lim in limits for blk in lim.blocks(grid)]
+
+
+def window_blocks(grid: PathGrid, limits: list, lo: int, hi: int, *, caps_only: bool = False) -> list[Block]:
+    """The rows of `limits` on samples [lo, hi) of `grid`, computed on that stretch alone (memory and
+    time in proportion to it): equal to `path_blocks(grid, limits)` cut to [lo, hi). A limit object
+    (or its `constraint`) has per-sample arrays of length len(grid), which are cut to the stretch and
+    one sample beyond each end (a junction looks at the next sample); what a limit reads off the
+    whole grid is fixed first (`pin`). caps_only: only the SpeedBounds (limits whose class says
+    `caps = False` are skipped)."""
+    n = len(grid)
+    a, b = max(lo - 1, 0), min(hi + 1, n)
+    sub = grid.window(a, b)
+    out: list[Block] = []
+    for lim in limits:
+        c = getattr(lim, "constraint", lim)
+        if caps_only and not getattr(c, "caps", True):
+            continue
+        if hasattr(c, "pin"):
+            c = c.pin(grid)
+        cut = {f.name: v[a:b] for f in fields(c)
+               if isinstance(v := getattr(c, f.name), np.ndarray) and v.ndim and v.shape[0] == n}
+        out += [blk.window(lo - a, hi - a) for blk in replace(c, **cut).blocks(sub)
+                if not caps_only or isinstance(blk, SpeedBounds)]
+    return out

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from millpost.schedule.assemble import merged_bounds
-from millpost.schedule.constraints import path_blocks
-from millpost.schedule.rows import PathGrid, SpeedBounds
+from millpost.schedule.constraints import window_blocks
+from millpost.schedule.rows import PathGrid
 from millpost.schedule.solve import ProgramSchedule
 from millpost.toolpath import RAPID, Samples
 
@@ -115,63 +115,81 @@ def reachable(feeds_mm_min: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.n
     return np.where(take, faster, v) * 60.0
 
 
+def _move_cells(s: np.ndarray, v: np.ndarray, L: float, min_fragment_mm: float,
+                max_changes_per_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(lengths, speeds) of one move's fragments: equal cells, each at the smallest limit over the
+    samples it touches, merged down to the count bound (`_merge`). s: arc length from the move's first
+    sample (mm), v: the limit there (mm/s)."""
+    ncell = max(1, int(L // min_fragment_mm))
+    edges = np.linspace(0.0, L, ncell + 1)
+    # a cell touches the samples bounding every sample interval that overlaps it
+    lo = np.clip(np.searchsorted(s, edges[:-1], side="right") - 1, 0, len(s) - 1)
+    hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
+    cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
+    cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
+    q = np.maximum(cell_v * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
+    return _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
+
+
 def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm: float = 2.0,
                     max_changes_per_mm: float = 0.2, step: float = 0.05,
                     accel_mm_s2: tuple[float, float, float] | None = None) -> list[Fragment]:
     """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
     and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`) and, with the axes'
     accelerations (mm/s²), short peaks the controller cannot reach joined to their neighbours
-    (`reachable`), repeated until stable; equal neighbours within a move merged."""
+    (`reachable`), repeated until stable; equal neighbours within a move merged.
+
+    A move shorter than 2·min_fragment_mm is one cell (its smallest limit): those are done for all
+    moves at once, the longer ones one by one (`_move_cells`)."""
     lim = np.asarray(limit_mm_s, float)
-    out: list[Fragment] = []
-    length: list[float] = []
-    accel: list[float] = []
     amax = np.asarray(accel_mm_s2 if accel_mm_s2 is not None else (np.inf,) * 3, float)
     mv = samples.move
+    if not len(mv):
+        return []
     starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
     ends = np.r_[starts[1:], len(mv)]
-    for a, b in zip(starts, ends):
-        m = int(mv[a])
-        if samples.kind[a] == RAPID:
-            continue
-        first = a - 1 if a > 0 and not samples.segment_start[a] else a
-        s = samples.s_mm[first:b] - samples.s_mm[first]
-        v = lim[first:b]
-        L = float(s[-1])
-        if L <= 0 or not np.isfinite(v).any():
-            continue
-        ncell = max(1, int(L // min_fragment_mm))
-        edges = np.linspace(0.0, L, ncell + 1)
-        # a cell touches the samples bounding every sample interval that overlaps it
-        lo = np.clip(np.searchsorted(s, edges[:-1], side="right") - 1, 0, len(s) - 1)
-        hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
-        cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
-        cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
-        q = np.maximum(cell_v * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
-        Lf, Vf = _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
-        u = np.r_[0.0, np.cumsum(Lf) / L]
+    # a move's samples run from the one it starts at (the previous move's last, unless the path jumps)
+    first = np.where((starts > 0) & ~np.asarray(samples.segment_start, bool)[starts], starts - 1, starts)
+    L = samples.s_mm[ends - 1] - samples.s_mm[first]
+    v_min = np.minimum(np.minimum.reduceat(lim, starts), lim[first])  # nan where a sample is nan
+    finite = np.where(np.isfinite(lim), lim, np.inf)
+    v_fin = np.minimum(np.minimum.reduceat(finite, starts), finite[first])  # inf: no finite limit
+    keep = (samples.kind[starts] != RAPID) & (L > 0) & np.isfinite(v_fin)
+    t = np.abs(samples.tangent)
+    with np.errstate(divide="ignore"):  # the path acceleration the axes allow along the move, at most
+        accel = np.maximum.reduceat(np.min(np.where(t > 1e-12, amax / np.maximum(t, 1e-12), np.inf), axis=1),
+                                    starts)
+    # one cell: shorter than 2·min_fragment_mm, and no zero-length step (where the cell bounds would
+    # leave a sample out; such moves take the general way, which reproduces that)
+    repeat = np.r_[True, np.diff(samples.s_mm) <= 0].astype(np.int8)
+    one = keep & (np.floor_divide(L, min_fragment_mm) <= 1) & (np.maximum.reduceat(repeat, starts) == 0)
+    q = np.maximum(np.where(np.isfinite(v_min), v_min, v_fin) * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
+    k1 = np.flatnonzero(one)
+    parts = [(k1, np.zeros(len(k1)), np.ones(len(k1)), q[k1] * 60.0, L[k1])]  # move, u0, u1, feed, length
+    for k in np.flatnonzero(keep & ~one):
+        b, f = ends[k], first[k]
+        Lf, Vf = _move_cells(samples.s_mm[f:b] - samples.s_mm[f], lim[f:b], float(L[k]), min_fragment_mm,
+                             max_changes_per_mm)
+        u = np.r_[0.0, np.cumsum(Lf) / L[k]]
         u[-1] = 1.0
-        out.extend(Fragment(m, float(u[k]), float(u[k + 1]), float(Vf[k] * 60.0)) for k in range(len(Vf)))
-        length.extend(Lf)
-        t = np.abs(samples.tangent[a:b])
-        with np.errstate(divide="ignore"):  # the path acceleration the axes allow along the move, at most
-            accel.extend([float(np.max(np.min(np.where(t > 1e-12, amax / np.maximum(t, 1e-12), np.inf), axis=1)))]
-                         * len(Lf))
-    feeds = np.array([f.feed_mm_min for f in out])
-    move = np.array([f.move for f in out])
+        parts.append((np.full(len(Lf), k), u[:-1], u[1:], Vf * 60.0, Lf))
+    cols = [np.concatenate(c) for c in zip(*parts)]
+    order = np.argsort(cols[0], kind="stable")
+    k_of, u0, u1, feeds, length = (c[order] for c in cols)
+    k_of = k_of.astype(np.int64)
+    move = np.asarray(mv)[starts[k_of]]
     joined = np.r_[False, (move[1:] == move[:-1]) | (move[1:] == move[:-1] + 1)]
     for _ in range(20):
         before = feeds
-        feeds = reachable(settle(feeds, step), np.array(length), np.array(accel), joined, step)
+        feeds = reachable(settle(feeds, step), length, accel[k_of], joined, step)
         if np.array_equal(feeds, before):
             break
-    merged: list[Fragment] = []
-    for f, v in zip(out, feeds):
-        if merged and merged[-1].move == f.move and merged[-1].feed_mm_min == v:
-            merged[-1] = Fragment(f.move, merged[-1].u_start, f.u_end, float(v))
-        else:
-            merged.append(Fragment(f.move, f.u_start, f.u_end, float(v)))
-    return merged
+    # equal neighbours within a move merged
+    new = np.r_[True, (move[1:] != move[:-1]) | (feeds[1:] != feeds[:-1])]
+    head = np.flatnonzero(new)
+    tail = np.r_[head[1:], len(move)] - 1
+    return [Fragment(int(m), float(a), float(b), float(f))
+            for m, a, b, f in zip(move[head], u0[head], u1[tail], feeds[head])]
 
 
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
@@ -184,15 +202,46 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
     and programming the ramp as F words would only slow it (a ladder of them ends in F≈0 at a
     stop). nan on rapids."""
     grid = PathGrid.from_samples(samples)
-    caps = [blk for blk in path_blocks(grid, limits)
-            if isinstance(blk, SpeedBounds) and blk.name not in controller_enforced]
     out = np.full(len(samples), np.nan)
     for lo, hi, sch in schedule.segments:
-        _, b_hi = merged_bounds([c.window(lo, hi) for c in caps], hi - lo)
+        caps = [blk for blk in window_blocks(grid, limits, lo, hi, caps_only=True)
+                if blk.name not in controller_enforced]
+        _, b_hi = merged_bounds(caps, hi - lo)
         binding = sch.binding.astype(str)
         a = np.abs(sch.a)
         a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)
         ramping = np.r_[a > a_ref, False] | np.r_[False, a > a_ref]
         own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, ramp_owned) & ramping)
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
+    return out
+
+
+def blend_limit(samples: Samples, limit_mm_s: np.ndarray, move_end_mm: np.ndarray, zones: list[tuple]) -> np.ndarray:
+    """The feed limit (mm/s) with the controller's blend arcs: a controller that rounds a corner with an
+    arc run at the faster of the two moves' feeds (`controller.blend_zones`: move before, move after,
+    the arc's reach into each (mm), its top speed (mm/s)) carries that feed into the slower move. Where
+    the top speed exceeds the lowest limit over the zone (the samples it reaches on both moves, and
+    the next sample on each side), the zone's samples on both sides take that lowest limit, so that
+    both F words around the corner fit it. move_end_mm: arc length (mm) at the end of every move."""
+    out = np.asarray(limit_mm_s, float).copy()
+    if not zones:
+        return out
+    m0, m1, d0, d1, v_top = (np.array(c, float) for c in zip(*zones))
+    corner = np.asarray(move_end_mm, float)[m0.astype(np.int64)]
+    s = samples.s_mm
+    lo = np.maximum(np.searchsorted(s, corner - d0, side="left") - 1, 0)
+    hi = np.minimum(np.searchsorted(s, corner + d1, side="right") + 1, len(s))
+    count = np.maximum(hi - lo, 0)
+    keep = count > 0
+    lo, count, m0, m1, v_top = lo[keep], count[keep], m0[keep], m1[keep], v_top[keep]
+    if not len(lo):
+        return out
+    owner = np.repeat(np.arange(len(lo)), count)
+    idx = np.repeat(lo - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
+    mv = samples.move[idx]
+    inside = (mv >= m0[owner]) & (mv <= m1[owner])
+    vals = np.where(inside & np.isfinite(out[idx]), out[idx], np.inf)
+    zone_min = np.minimum.reduceat(vals, np.r_[0, np.cumsum(count)[:-1]])
+    lower = inside & (v_top[owner] > zone_min[owner])
+    np.minimum.at(out, idx[lower], zone_min[owner][lower])
     return out

@@ -21,6 +21,7 @@ All arrays are per sample (length N) so any block can be cut to a window of samp
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -52,6 +53,11 @@ class PathGrid:
 
     def window(self, lo: int, hi: int) -> "PathGrid":
         return PathGrid(self.s_mm[lo:hi], self.tangent[lo:hi], self.curvature[lo:hi])
+
+    @cached_property
+    def moving_axes(self) -> tuple[bool, bool, bool]:
+        """Whether each axis moves somewhere on the grid (a nonzero tangent component); computed once."""
+        return tuple(bool(x) for x in np.abs(self.tangent).max(axis=0) > 0)
 
 
 def _cut(x: np.ndarray, lo: int, hi: int) -> np.ndarray:

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from millpost.schedule.assemble import build, linear_rows, merged_bounds, soft_floor
-from millpost.schedule.certify import certified_reach
+from millpost.schedule.certify import certify
+from millpost.schedule.constraints import window_blocks
 from millpost.schedule.problem import SolverOptions, Status
 from millpost.schedule.reach import Reach, reach, traversal_time
 from millpost.schedule.rows import Block, LocalRows, PathGrid, SpeedBounds, StepRows
@@ -38,9 +39,10 @@ class ScheduleOptions:
     `relinearize`: extra solves re-taking the tangents (√b terms of LocalRows, 1/√b of StepRows)
     at the last solution (speeds below 5 % of the top speed keep the tangent there).
     `floor_penalty`: weight of soft-floor slack (time units per unit of scaled b per unit length).
-    `certify_gap`: accept the O(N) reachability profile without a conic solve when it is provably
-    within this relative time of the optimum (certify.py; 0 always solves the SOCP). The default
-    0.1 % is the optimality budget of issue 5; measured loss is about a quarter of the bound.
+    `certify_gap`: accept the O(N) reachability profile without a conic solve where it is provably
+    within this relative time of the optimum, on the whole segment or on a stretch between cruise
+    anchors (certify.py, `_patch`; 0 always solves the SOCP). The default 0.1 % is the optimality
+    budget of issue 5; measured loss is about a quarter of the bound.
     Iterative refinement is off (1.4–1.8× faster); a window whose largest row violation (rows
     normalised to unit coefficients, b scaled to ≤ 1) exceeds `max_residual` is re-solved with it;
     after the retries the best solution is kept if its violation is within `accept_residual` (1e-4 of
@@ -173,10 +175,10 @@ def _solve_chunk(args) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
         pos = commit - 1
 
 
-def _anchors(rc: Reach, b_hi: np.ndarray, parts: int, margin: int) -> list[int]:
-    """Cruise anchors near equally spaced positions: greedy b on the cap over ±3 samples."""
+def _anchors(b: np.ndarray, b_hi: np.ndarray, parts: int, margin: int) -> list[int]:
+    """Cruise anchors near equally spaced positions: the greedy profile b on the cap over ±3 samples."""
     n = len(b_hi)
-    on_cap = np.isfinite(b_hi) & (rc.b >= b_hi * (1 - 1e-9)) & (b_hi > 0)
+    on_cap = np.isfinite(b_hi) & (b >= b_hi * (1 - 1e-9)) & (b_hi > 0)
     flat = on_cap.copy()
     for k in range(1, 4):
         flat[k:] &= on_cap[:-k]
@@ -233,7 +235,13 @@ def _binding(grid: PathGrid, blocks: list[Block], b: np.ndarray, a: np.ndarray, 
 def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | None = None, *,
                b_start: float = 0.0, b_end: float = 0.0, on_window: Callable[[int], None] | None = None) -> Schedule:
     """Minimum-time b(s) on one segment under the blocks, rest to rest by default. on_window: called
-    with the sample count of each window solved (progress)."""
+    with the sample count of each window or stretch solved (progress).
+
+    With `certify_gap` > 0 a rest-to-rest segment first gets the certified O(N) profile (certify.py):
+    accepted whole when its proven gap is within `certify_gap`; otherwise it is cut at cruise anchors
+    of that profile (samples on the speed cap, where both bracketing profiles sit, so the optimum does
+    too) and only the stretches whose own proven gap exceeds `certify_gap` go to Clarabel, with b
+    fixed to the profile at their ends (`_patch`)."""
     opts = options or ScheduleOptions()
     n = len(grid)
     if n < 2:
@@ -242,43 +250,25 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
     b_lo, b_hi = merged_bounds(blocks, n)
     if not np.isfinite(b_hi).all():
         raise ValueError("every sample needs a finite speed cap (add a FeedLimit)")
+    vref = float(np.sqrt(b_hi.max())) or 1.0
+    t0 = time.perf_counter()
     if opts.certify_gap > 0 and b_start == 0 and b_end == 0:
-        t0 = time.perf_counter()
-        cert = certified_reach(grid, blocks, opts.floor_penalty)
-        if cert is not None and cert[1] <= opts.certify_gap:
-            b = cert[0]
+        cert = certify(grid, blocks, opts.floor_penalty)
+        if cert is not None and cert.gap <= opts.certify_gap:
+            b = cert.b
             a = np.diff(b) / (2 * ds)
             floor_unmet = soft_floor(blocks, n) > b * (1 + 1e-6) + 1e-9
             return Schedule(b, a, Status.SOLVED, traversal_time(ds, b), "", floor_unmet,
                             _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), time.perf_counter() - t0, 0,
-                            "reach", cert[1])
-    vref = float(np.sqrt(b_hi.max())) or 1.0
-    has_steps = any(isinstance(blk, StepRows) for blk in blocks)
-    nonconvex = has_steps or any(isinstance(blk, LocalRows) and (blk.g > 0).any() for blk in blocks)
-    v0 = np.sqrt(np.maximum(b_hi, 1e-12))
-    t0 = time.perf_counter()
-    secs, windows = 0.0, 0
-    result_b, result_slack, message = None, None, ""
-    for it in range(1 + (opts.relinearize if nonconvex else 0)):
-        U, Wm, _, H = linear_rows(blocks, b_hi, v0, convex_exact=False)
-        rc = reach(ds, b_lo, b_hi, U, Wm, H, b_start=b_start, b_end_max=b_end, b_end_min=b_end)
-        if not rc.feasible:
-            if result_b is not None:
-                break
-            return Schedule(np.zeros(n), np.zeros(n - 1), Status.INFEASIBLE, float("inf"),
-                            "no speed profile satisfies the limits (empty controllable set at the start)",
-                            solver_s=time.perf_counter() - t0)
-        b_new, slack, sec, cnt, message = _solve_linearised(grid, blocks, opts, v0, vref, rc, (U, Wm, H),
-                                                            b_lo, b_hi, b_start, b_end, 2 if has_steps else 1,
-                                                            on_window)
-        secs += sec
-        windows += cnt
-        if b_new is None:
-            break
-        result_b, result_slack = b_new, slack
-        if not _tangents_bind(grid, blocks, result_b, v0):
-            break  # re-taking the tangents cannot move the optimum: no linearised row is active off its tangent
-        v0 = np.maximum(np.sqrt(result_b), 0.05 * vref)  # tangent point of the next linearisation
+                            "reach", cert.gap)
+        if cert is not None:
+            return _patch(grid, blocks, opts, cert, b_lo, b_hi, vref, t0, on_window)
+    result_b, result_slack, rc, secs, windows, message = _solve_socp(
+        grid, blocks, opts, b_lo, b_hi, vref, np.array([b_start]), np.full(1, b_end), on_window)
+    if rc is None:
+        return Schedule(np.zeros(n), np.zeros(n - 1), Status.INFEASIBLE, float("inf"),
+                        "no speed profile satisfies the limits (empty controllable set at the start)",
+                        solver_s=time.perf_counter() - t0)
     floor = soft_floor(blocks, n)
     if result_b is None:
         b, status = rc.b, Status.FALLBACK
@@ -290,6 +280,83 @@ def solve_path(grid: PathGrid, blocks: list[Block], options: ScheduleOptions | N
     a = np.diff(b) / (2 * ds)
     return Schedule(b, a, status, traversal_time(ds, b), message, floor_unmet, _excess(grid, blocks, b, a),
                     _binding(grid, blocks, b, a), secs, windows)
+
+
+def _nfix(blocks: list[Block]) -> int:
+    """Samples of b fixed at a cut: two where StepRows tie neighbouring accelerations, else one."""
+    return 2 if any(isinstance(blk, StepRows) for blk in blocks) else 1
+
+
+def _solve_socp(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, b_lo: np.ndarray, b_hi: np.ndarray,
+                vref: float, first: np.ndarray, last: np.ndarray, on_window: Callable[[int], None] | None = None):
+    """The SOCP from b fixed to `first` at the first samples to `last` at the last ones, re-linearised
+    (`relinearize`). Returns (b or None, floor slack, the last reachability pass or None when even
+    that is infeasible, solver seconds, windows, failure message)."""
+    ds = grid.ds
+    has_steps = any(isinstance(blk, StepRows) for blk in blocks)
+    nonconvex = has_steps or any(isinstance(blk, LocalRows) and (blk.g > 0).any() for blk in blocks)
+    v0 = np.sqrt(np.maximum(b_hi, 1e-12))
+    secs, windows = 0.0, 0
+    result_b, result_slack, message = None, None, ""
+    for it in range(1 + (opts.relinearize if nonconvex else 0)):
+        U, Wm, _, H = linear_rows(blocks, b_hi, v0, convex_exact=False)
+        rc = reach(ds, b_lo, b_hi, U, Wm, H, b_start=float(first[-1]), b_end_max=float(last[-1]),
+                   b_end_min=float(last[-1]))
+        if not rc.feasible:
+            if result_b is not None:
+                break
+            return None, None, None, secs, windows, ""
+        b_new, slack, sec, cnt, message = _solve_linearised(grid, blocks, opts, v0, vref, rc, (U, Wm, H),
+                                                            b_lo, b_hi, first, last, _nfix(blocks), on_window)
+        secs += sec
+        windows += cnt
+        if b_new is None:
+            break
+        result_b, result_slack = b_new, slack
+        if not _tangents_bind(grid, blocks, result_b, v0):
+            break  # re-taking the tangents cannot move the optimum: no linearised row is active off its tangent
+        v0 = np.maximum(np.sqrt(result_b), 0.05 * vref)  # tangent point of the next linearisation
+    return result_b, result_slack, rc, secs, windows, message
+
+
+def _patch(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, cert, b_lo: np.ndarray, b_hi: np.ndarray,
+           vref: float, t0: float, on_window: Callable[[int], None] | None = None) -> Schedule:
+    """The certified profile with the stretches whose proven gap exceeds `certify_gap` solved by
+    Clarabel (b fixed to the profile at the stretch's ends: the profile is feasible and sits on the
+    speed cap there, so the result is feasible everywhere). A stretch whose solve fails keeps the
+    certified profile (feasible): status FALLBACK, and the message says where and why. Stretches run
+    in parallel processes."""
+    n, ds = len(grid), grid.ds
+    nfix = _nfix(blocks)
+    cuts = [0, *_anchors(cert.b, b_hi, max(1, round(n / opts.window)), margin=nfix + 3), n - 1]
+    spans = [(cuts[k], cuts[k + 1] + 1) for k in range(len(cuts) - 1)]
+    bad = [(lo, hi) for lo, hi in spans if cert.gap_between(lo, hi) > opts.certify_gap]
+    one = dataclasses.replace(opts, processes=1)
+    jobs = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi), one, b_lo[lo:hi], b_hi[lo:hi], vref,
+             cert.b[lo:lo + nfix], cert.b[hi - nfix:hi]) for lo, hi in bad]
+    outs = _run_jobs(_solve_stretch, jobs, opts, [hi - lo for lo, hi in bad], on_window)
+    b, floor = cert.b.copy(), soft_floor(blocks, n)
+    floor_unmet = floor > b * (1 + 1e-6) + 1e-9
+    secs, windows, failed = 0.0, 0, []
+    for (lo, hi), (bb, slack, sec, cnt, msg) in zip(bad, outs):
+        secs += sec
+        windows += cnt
+        if bb is None:
+            failed.append(f"samples [{lo}, {hi}): {msg or 'conic solve failed'}")
+            continue
+        b[lo:hi] = np.clip(bb, 0.0, b_hi[lo:hi])
+        fl = floor[lo:hi]
+        floor_unmet[lo:hi] = (fl > 0) & (slack > 1e-6 * np.maximum(fl, 1e-12)) & (b[lo:hi] < fl * (1 - 1e-6))
+    a = np.diff(b) / (2 * ds)
+    message = ("certified profile kept where the conic solve failed: " + "; ".join(failed[:3])) if failed else ""
+    return Schedule(b, a, Status.FALLBACK if failed else Status.SOLVED, traversal_time(ds, b), message, floor_unmet,
+                    _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), secs, windows)
+
+
+def _solve_stretch(args) -> tuple:
+    grid, blocks, opts, b_lo, b_hi, vref, first, last = args
+    b, slack, _, secs, windows, message = _solve_socp(grid, blocks, opts, b_lo, b_hi, vref, first, last)
+    return b, slack, secs, windows, message
 
 
 def _tangents_bind(grid: PathGrid, blocks: list[Block], b: np.ndarray, v0: np.ndarray, tol: float = 1e-3) -> bool:
@@ -319,9 +386,28 @@ def _tangents_bind(grid: PathGrid, blocks: list[Block], b: np.ndarray, v0: np.nd
     return False
 
 
+def _run_jobs(fn: Callable, jobs: list, opts: ScheduleOptions, sizes: list[int],
+              on_window: Callable[[int], None] | None) -> list:
+    """fn over jobs, in forked processes when opts allow and there are several, results in order;
+    on_window(size) after each (the progress of that many samples)."""
+    outs = []
+    with contextlib.ExitStack() as stack:
+        if _parallel(opts) and len(jobs) > 1:
+            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
+                                                         mp_context=multiprocessing.get_context("fork")))
+            results = ex.map(fn, jobs)
+        else:
+            results = map(fn, jobs)
+        for size, out in zip(sizes, results):  # in order, as they come
+            outs.append(out)
+            if on_window is not None:
+                on_window(int(size))
+    return outs
+
+
 def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, v0: np.ndarray, vref: float,
-                      rc: Reach, rows: tuple, b_lo: np.ndarray, b_hi: np.ndarray, b_start: float, b_end: float,
-                      nfix: int, on_window: Callable[[int], None] | None = None
+                      rc: Reach, rows: tuple, b_lo: np.ndarray, b_hi: np.ndarray, first: np.ndarray,
+                      last: np.ndarray, nfix: int, on_window: Callable[[int], None] | None = None
                       ) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
     """One SOCP solve at fixed tangent points: monolithic, or chunks of receding windows.
     Returns (b or None, floor slack, solver seconds, windows, failure message)."""
@@ -329,32 +415,22 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
     U, Wm, H = rows
     aref = float(max(np.abs(rc.a).max(), 1e-6 * vref**2 / grid.length_mm))
     if n <= opts.monolithic_max:
-        bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, np.array([b_start]), (b_end, b_end))
+        bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, first, (last[-1], last[-1]),
+                                    last if len(last) > 1 else None)
         return bw, sw, sol.solve_s, 1, "" if bw is not None else f"conic solve: {sol.raw_status}"
     parts = max(1, round(n / opts.chunk))
-    cuts = [0, *_anchors(rc, b_hi, parts, margin=opts.window // 4 + nfix), n - 1]
+    cuts = [0, *_anchors(rc.b, b_hi, parts, margin=opts.window // 4 + nfix), n - 1]
     jobs = []
     for k in range(len(cuts) - 1):
         lo, hi = cuts[k], cuts[k + 1] + 1
-        first = rc.b[lo:lo + nfix] if k > 0 else np.array([b_start])
-        last = rc.b[hi - nfix:hi] if k < len(cuts) - 2 else np.full(1, b_end)
+        head = rc.b[lo:lo + nfix] if k > 0 else first
+        tail = rc.b[hi - nfix:hi] if k < len(cuts) - 2 else last
         # controllable sets toward this chunk's own end (b fixed at an anchor, not free ≤ K)
         rk = reach(ds[lo:hi - 1], b_lo[lo:hi], b_hi[lo:hi], U[:, lo:hi], Wm[:, lo:hi], H[:, lo:hi],
-                   b_start=float(first[-1]), b_end_max=float(last[-1]), b_end_min=float(last[-1]))
+                   b_start=float(head[-1]), b_end_max=float(tail[-1]), b_end_min=float(tail[-1]))
         jobs.append((grid.window(lo, hi), _window_blocks(blocks, lo, hi), v0[lo:hi], vref, aref, opts,
-                     rk.k_lo, rk.k_hi, first, last, nfix))
-    outs = []
-    with contextlib.ExitStack() as stack:
-        if _parallel(opts) and len(jobs) > 1:
-            ex = stack.enter_context(ProcessPoolExecutor(max_workers=opts.processes,
-                                                         mp_context=multiprocessing.get_context("fork")))
-            results = ex.map(_solve_chunk, jobs)
-        else:
-            results = map(_solve_chunk, jobs)
-        for k, out in enumerate(results):  # in order, as they come
-            outs.append(out)
-            if on_window is not None:
-                on_window(cuts[k + 1] - cuts[k])
+                     rk.k_lo, rk.k_hi, head, tail, nfix))
+    outs = _run_jobs(_solve_chunk, jobs, opts, list(np.diff(cuts)), on_window)
     b, slack = np.zeros(n), np.zeros(n)
     secs, count = 0.0, 0
     for k, (bb, sw, sec, cnt, msg) in enumerate(outs):
@@ -403,40 +479,41 @@ class ProgramSchedule:
 
 def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | None = None) -> ProgramSchedule:
     """Schedule every cutting segment of `samples` rest to rest. `limits` are constraint objects
-    whose per-sample arrays span all samples. Reports the stage "schedule" (samples of the segments
-    and windows solved) to `millpost.progress.current()`."""
+    whose per-sample arrays span all samples; each segment's rows are built on its own samples
+    (`window_blocks`), so memory follows the longest segment, not the program. Reports the stage
+    "schedule" (samples of the segments and windows solved) to `millpost.progress.current()`."""
     opts = options or ScheduleOptions()
     progress = current()
     grid = PathGrid.from_samples(samples)
-    blocks = [blk for lim in limits for blk in lim.blocks(grid)]
     ranges = cutting_segments(samples)
-    tasks = [(grid.window(lo, hi), _window_blocks(blocks, lo, hi)) for lo, hi in ranges]
-    big = sorted(range(len(tasks)), key=lambda k: -len(tasks[k][0]))
-    total, finished, inside = sum(len(g) for g, _ in tasks), 0, 0
+    sizes = [hi - lo for lo, hi in ranges]
+    big = sorted(range(len(ranges)), key=lambda k: -sizes[k])
+    total, finished, inside = sum(sizes), 0, 0
 
     def window(samples_done: int) -> None:  # a window of the segment being solved (passes may repeat them)
         nonlocal inside
         inside += samples_done
-        progress("schedule", finished + min(inside, len(tasks[k][0]) - 1), total)
+        progress("schedule", finished + min(inside, sizes[k] - 1), total)
 
-    if _parallel(opts) and len(tasks) > 1 and sum(len(g) for g, _ in tasks) > 2 * opts.monolithic_max:
-        # whole segments to the workers, largest first; each solves its chunks in turn
-        one = dataclasses.replace(opts, processes=1)
-        with ProcessPoolExecutor(max_workers=min(opts.processes, len(tasks)),
-                                 mp_context=multiprocessing.get_context("fork")) as ex:
+    if _parallel(opts) and len(ranges) > 1 and total > 2 * opts.monolithic_max:
+        # whole segments to the workers, largest first; each solves its chunks in turn. The workers are
+        # forked with the grid and limits (initargs are not pickled under fork): only (lo, hi) travel
+        with ProcessPoolExecutor(max_workers=min(opts.processes, len(ranges)),
+                                 mp_context=multiprocessing.get_context("fork"), initializer=_share,
+                                 initargs=(grid, limits, dataclasses.replace(opts, processes=1))) as ex:
             done = {}
-            for k, sch in zip(big, ex.map(_solve_segment, [(*tasks[k], one) for k in big],
+            for k, sch in zip(big, ex.map(_solve_shared, [ranges[k] for k in big],
                                           chunksize=max(1, len(big) // (8 * opts.processes)))):
                 done[k] = sch
-                finished += len(tasks[k][0])
+                finished += sizes[k]
                 progress("schedule", finished, total)
-        schedules = [done[k] for k in range(len(tasks))]
+        schedules = [done[k] for k in range(len(ranges))]
     else:  # one long segment (its chunks in parallel), or only short ones
         schedules = []
-        for k, (g, b) in enumerate(tasks):
+        for k, (lo, hi) in enumerate(ranges):
             inside = 0
-            schedules.append(solve_path(g, b, opts, on_window=window))
-            finished += len(g)
+            schedules.append(_solve_segment(grid, limits, lo, hi, opts, window))
+            finished += sizes[k]
             progress("schedule", finished, total)
     progress("schedule", total, total)
     feed = np.full(len(samples), np.nan)
@@ -445,5 +522,19 @@ def schedule_samples(samples: Samples, limits: list, options: ScheduleOptions | 
     return ProgramSchedule(feed, [(lo, hi, sch) for (lo, hi), sch in zip(ranges, schedules)])
 
 
-def _solve_segment(args: tuple) -> Schedule:
-    return solve_path(*args)
+def _solve_segment(grid: PathGrid, limits: list, lo: int, hi: int, opts: ScheduleOptions,
+                   on_window: Callable[[int], None] | None = None) -> Schedule:
+    return solve_path(grid.window(lo, hi), window_blocks(grid, limits, lo, hi), opts, on_window=on_window)
+
+
+_shared: tuple = ()  # a worker's (grid, limits, options), set by `_share` when the pool forks it
+
+
+def _share(*state) -> None:
+    global _shared
+    _shared = state
+
+
+def _solve_shared(segment: tuple[int, int]) -> Schedule:
+    grid, limits, opts = _shared
+    return _solve_segment(grid, limits, *segment, opts)
