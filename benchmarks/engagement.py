@@ -172,6 +172,7 @@ def main() -> None:
             dt = time.perf_counter() - t0
             rates[key] = len(sm) / dt
             steps[key] = len(sm)
+            del stock  # before the next block: one 64 MB stock at a time
             stock = stk.box((0, 0, 0), (100, 100, TOP), args.cell)
             n = min(args.numpy_steps, len(sm))
             t0 = time.perf_counter()
