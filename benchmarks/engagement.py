@@ -1,6 +1,8 @@
 """Engagement benchmark: 100×100×50 mm block at 25 µm, D6 flat and ball end mills, ap 2 mm, 0.1 mm
 steps, on a slot pattern, a zig-zag pocket (ae = 0.4D) and a trochoid; plus rasterising a mesh
-with an undercut into the stock. Prints one JSON object.
+with an undercut into the stock. Prints one JSON object: steps/s, the process's peak RSS, and the
+peak RSS of each phase (engagement; mesh to stock), which includes what the process held when the
+phase began (interpreter, numpy, compiled kernels). CPU seconds of the whole run as `cpu_s`.
 
 `ratio_vs_numpy` compares with a straightforward per-step numpy version of the same algorithm
 (full-disk window update, ring of 181 immersion samples per slice, no bisection), timed in the same
@@ -129,6 +131,24 @@ def mesh_part():
     return v[t].astype(np.float64), part.volume()
 
 
+def reset_peak() -> None:
+    """Start a new peak-RSS phase (Linux: clear_refs 5 resets VmHWM; elsewhere the run's peak stays)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+    except OSError:
+        pass
+
+
+def peak_mb() -> float | None:
+    """Peak RSS since the last `reset_peak` (MB; VmHWM), or None where /proc is missing."""
+    try:
+        with open("/proc/self/status") as f:
+            return next(round(int(ln.split()[1]) / 1024, 1) for ln in f if ln.startswith("VmHWM:"))
+    except (OSError, StopIteration):
+        return None
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cell", type=float, default=0.025)
@@ -141,31 +161,36 @@ def main() -> None:
         simulate(stk.box((0, 0, 0), (10, 10, 5), 0.1), t, polyline(np.array([(45, 50), (55, 50)]), 4.0).resample(0.1),
                  progress=False)
     rates, ratio, steps = {}, {}, {}
-    stock = stk.box((0, 0, 0), (100, 100, TOP), args.cell)
-    fresh = stock.top.copy()
+    reset_peak()
     for tname, tool in tools.items():
         for pname, tp in paths.items():
             key = f"{tname}_{pname}"
             sm = tp.resample(0.1)
-            stock.top[...] = fresh
+            stock = stk.box((0, 0, 0), (100, 100, TOP), args.cell)  # a fresh block (no second copy kept)
             t0 = time.perf_counter()
             simulate(stock, tool, sm, progress=False)
             dt = time.perf_counter() - t0
             rates[key] = len(sm) / dt
             steps[key] = len(sm)
-            stock.top[...] = fresh
+            del stock  # before the next block: one 64 MB stock at a time
+            stock = stk.box((0, 0, 0), (100, 100, TOP), args.cell)
             n = min(args.numpy_steps, len(sm))
             t0 = time.perf_counter()
             numpy_steps(stock, tool, sm.xyz_mm[:n])
             ratio[key] = rates[key] / (n / (time.perf_counter() - t0))
-    del stock, fresh
+            del stock
+    engagement_peak = peak_mb()
     tris, vol = mesh_part()
+    reset_peak()
     t0 = time.perf_counter()
     part = stk.from_triangles(tris, args.cell)
     mesh_s = time.perf_counter() - t0
     print(json.dumps({
         "cell_mm": args.cell,
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+        "engagement_peak_rss_mb": engagement_peak,
+        "mesh_to_stock_peak_rss_mb": peak_mb(),
+        "cpu_s": round(time.process_time(), 1),
         "steps_per_s": {k: round(v) for k, v in rates.items()},
         "mesh_to_stock_s": round(mesh_s, 3),
         "ratio_vs_numpy": {k: round(v, 1) for k, v in ratio.items()},

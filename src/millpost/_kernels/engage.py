@@ -33,7 +33,7 @@ BAND, WEDGE, CAP = 0, 1, 2  # parts of a level sweep (see _region); CAP is also 
 BISECT = 8  # transition refinement: coarse step / 2**8
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def surface_height(r, shape, R, rc, r_tip, tan_half):
     """Height of the cutting surface above the tip at radius r ≤ R (mm)."""
     if shape == CORNER:
@@ -46,7 +46,7 @@ def surface_height(r, shape, R, rc, r_tip, tan_half):
     return 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def profile_radius(z, shape, R, rc, r_tip, tan_half):
     """Cutting radius at height z ≥ 0 above the tip (mm)."""
     if shape == CORNER:
@@ -59,7 +59,7 @@ def profile_radius(z, shape, R, rc, r_tip, tan_half):
     return R
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _profile_integral(za, zb, shape, R, rc, r_tip, tan_half):
     """∫ r(z) dz over [za, zb] (mm²), composite Simpson on 32 intervals."""
     n = 32
@@ -70,12 +70,12 @@ def _profile_integral(za, zb, shape, R, rc, r_tip, tan_half):
     return s * w / 3.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _is_multi(c, has_multi, bits):
     return has_multi and (bits[c >> 3] >> (c & 7)) & 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cut_multi(c, zc, top, zf, ids, ptr, lo, hi):
     """Cut multi column c down to zc (shortening or emptying intervals); returns the removed length."""
     m = np.searchsorted(ids, c)
@@ -94,7 +94,7 @@ def _cut_multi(c, zc, top, zf, ids, ptr, lo, hi):
     return rem
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _above(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi):
     """Length of material above zc in column c (mm), without cutting (a column cut down to the
     floor zf holds none)."""
@@ -111,7 +111,7 @@ def _above(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi):
     return t - max(zc, zf)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _column(c, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol):
     """One column under the tool surface at zc (tool tip at pz): cut it down (cut) and return
     (height removed, axial depth reached, False), or only test it and return (0, 0, whether
@@ -129,7 +129,7 @@ def _column(c, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol):
     return r, (t - pz if r > 0.0 else 0.0), False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _tool_z(kind, dx, dy, fx, fy, pz, shape, R, rc, r_tip, tan_half):
     """Height (mm) of the tool surface over a column at (dx, dy) from the axis point (tip at pz):
     radial distance, or for a BAND the distance across the sweep direction f; inf beyond R."""
@@ -139,7 +139,7 @@ def _tool_z(kind, dx, dy, fx, fy, pz, shape, R, rc, r_tip, tan_half):
     return pz if shape == FLAT else pz + surface_height(d, shape, R, rc, r_tip, tan_half)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, tan_half, top, zf):
     """Columns row+i0..row+i1 of a stock without undercuts cut down to the tool: (removed, depth)."""
     rem = 0.0
@@ -157,7 +157,7 @@ def _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, 
     return rem, ap
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _visit_row(row, i0, i1, kind, cx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, r_tip, tan_half, top, zf,
                has_multi, bits, ids, ptr, lo, hi, tol, rem, ap):
     """One row of columns under the tool: cut (or, for a rapid, check) them. Adds to the removed
@@ -177,7 +177,7 @@ def _visit_row(row, i0, i1, kind, cx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, 
     return rem, ap, False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _material(c, za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi):
     """Material length of column c inside [za, zb] (mm); c < 0 is outside the grid (air)."""
     if c < 0:
@@ -191,7 +191,7 @@ def _material(c, za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi):
     return max(min(top[c], zb) - max(zf, za), 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids,
               ptr, lo, hi, out):
     """The tool's end on a descending step (tip now at pz, `drop` mm lower than before): per radial bin
@@ -224,7 +224,7 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
         out[b] = out[b] / cnt[b] if cnt[b] > 0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
                has_multi, bits, ids, ptr, lo, hi, tol):
     """Update (cut=True) or check (cut=False) the columns under the tool at tip (px, py, pz).
@@ -278,19 +278,19 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
     return rem, ap, False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ring_cells(cx, cy, fx, fy, r, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts):
     """Columns (and bilinear weights) under M + 1 ring points at immersion φ_i (sin/cos tables)."""
     for i in range(M + 1):
         _point_cells_sc(cx, cy, fx, fy, r, sin_t[i], cos_t[i], x0, y0, h, nx, ny, bilinear, cells, wts, i)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _point_cells(cx, cy, fx, fy, r, phi, x0, y0, h, nx, ny, bilinear, cells, wts, i):
     _point_cells_sc(cx, cy, fx, fy, r, math.sin(phi), math.cos(phi), x0, y0, h, nx, ny, bilinear, cells, wts, i)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _point_cells_sc(cx, cy, fx, fy, r, s, c, x0, y0, h, nx, ny, bilinear, cells, wts, i):
     # x = feed (fx, fy), y = left normal (-fy, fx); point = centre + r (sin φ x + cos φ y)
     px = cx + r * (s * fx - c * fy)
@@ -312,7 +312,7 @@ def _point_cells_sc(cx, cy, fx, fy, r, s, c, x0, y0, h, nx, ny, bilinear, cells,
         cells[i, 0] = jj * nx + ii if (0 <= ii < nx and 0 <= jj < ny) else -1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _ring_height(cells, wts, i, bilinear, top, zf):
     """Height-field top under ring point i (bilinear between the four cell centres, or the cell's);
     z_floor outside the grid."""
@@ -328,14 +328,14 @@ def _ring_height(cells, wts, i, bilinear, top, zf):
     return (1 - wy) * ((1 - wx) * v0 + wx * v1) + wy * ((1 - wx) * v2 + wx * v3)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _plain_material(cells, wts, i, za, zb, bilinear, top, zf):
     """Material length in [za, zb] under ring point i of a stock without undercuts: the slice's
     share of [z_floor, H]."""
     return max(min(_ring_height(cells, wts, i, bilinear, top, zf), zb) - max(zf, za), 0.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi):
     if not has_multi:
         return _plain_material(cells, wts, i, za, zb, bilinear, top, zf)
@@ -349,7 +349,7 @@ def _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, id
     return (1 - wy) * ((1 - wx) * m00 + wx * m10) + wy * ((1 - wx) * m01 + wx * m11)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _ring_values(cells, wts, M, za, zb, bilinear, grid, mat):
     """mat[i] = material length in [za, zb] under ring point i, i = 0..M. Stock without undercuts
     has a loop of its own: interval code in the loop, even never run, makes it several times slower."""
@@ -362,7 +362,7 @@ def _ring_values(cells, wts, M, za, zb, bilinear, grid, mat):
             mat[i] = _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bisect(a, b, a_on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
             top, zf, has_multi, bits, ids, ptr, lo, hi):
     """Transition angle between a (engaged == a_on) and b (the opposite state)."""
@@ -377,7 +377,31 @@ def _bisect(a, b, a_on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bili
     return 0.5 * (a + b)
 
 
-@njit(cache=True, inline="always")
+
+@njit(cache=True, error_model="numpy")
+def _bisect_heights(a, b, a_on, tree, known, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
+                    top, zf):
+    """`_bisect` on stock without undercuts, the ring height at each bisection point kept in `tree`
+    (node 1 the midpoint of [a, b], nodes 2n and 2n + 1 those of node n's lower and upper halves;
+    `known` marks the ones read): another slice bisecting the same [a, b] reads each point once."""
+    node = 1
+    for _ in range(BISECT):
+        mid = 0.5 * (a + b)
+        if not known[node]:
+            _point_cells(cx, cy, fx, fy, r, mid, x0, y0, h, nx, ny, bilinear, pc, pw, 0)
+            tree[node] = _ring_height(pc, pw, 0, bilinear, top, zf)
+            known[node] = True
+        on = max(min(tree[node], zb) - max(zf, za), 0.0) > half
+        if on == a_on:
+            a = mid
+            node = 2 * node + 1
+        else:
+            b = mid
+            node = 2 * node
+    return 0.5 * (a + b)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _clip(lo, hi, a, b):
     """Narrow [lo, hi] to the x with a·x + b >= 0."""
     if a > 1e-15:
@@ -390,7 +414,7 @@ def _clip(lo, hi, a, b):
 
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
             has_multi, bits, ids, ptr, lo, hi, tol):
     """Cut (or check) the part of a level tool sweep at height pz (tip) that one step adds.
@@ -443,7 +467,7 @@ def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_
     return rem, ap, False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _level_step(k, n, xyz, fresh, shape):
     """Step k is a level, horizontal move of a non-flat tool (swept as bands, wedges and caps)."""
     if k < 1 or k >= n or fresh[k] or shape == FLAT:
@@ -452,7 +476,7 @@ def _level_step(k, n, xyz, fresh, shape):
     return abs(xyz[k, 2] - xyz[k - 1, 2]) <= 1e-9 and dx * dx + dy * dy > 1e-24
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, cells, wts, pc, pw, mat, g,
                 bilinear, grid, phi_st, phi_ex, dz, arc):
     """One axial slice with its own ring (cells already placed): outermost engaged arc refined by
@@ -490,7 +514,7 @@ def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, 
     return area, r * (math.cos(st) - math.cos(ex))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs,
                 bilinear, grid, phi_st, phi_ex, dz, arc):
     """Slices s0..K-1 on the vertical flank (radius R) of single-interval stock, from one ring of
@@ -513,6 +537,11 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
             area += 0.5 * dphi * R * (sin_t[i - 1] * min(max(H[i - 1] - max(zbase, zf), 0.0), T) + sin_t[i] * m)
     first, last = 0, M
     ae = 0.0
+    # heights met by the bisections at the start and at the exit, shared by the slices whose coarse
+    # transition lies in the same interval (on a vertical wall, all of them)
+    tree = np.empty((2, 1 << BISECT))
+    known = np.zeros((2, 1 << BISECT), np.bool_)
+    held = np.array([-1, -1])  # the coarse interval each tree belongs to
     for j in range(nk):
         while first <= last and cnt[first] <= j:
             first += 1
@@ -523,7 +552,18 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         s = s0 + j
         za = zbase + j * dzs
         zb = za + dzs
-        st, ex = _ends(first, last, M, cx, cy, fx, fy, R, za, zb, 0.5 * dzs, pc, pw, bilinear, grid)
+        if first != held[0]:  # another coarse interval: its tree of heights starts empty
+            held[0] = first
+            known[0, :] = False
+        if last != held[1]:
+            held[1] = last
+            known[1, :] = False
+        half = 0.5 * dzs
+        st = 0.0 if first == 0 else _bisect_heights((first - 1) * dphi, first * dphi, False, tree[0], known[0], cx, cy,
+                                                    fx, fy, R, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw, top, zf)
+        ex = math.pi if last == M else _bisect_heights(last * dphi, (last + 1) * dphi, True, tree[1], known[1], cx, cy,
+                                                       fx, fy, R, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw, top,
+                                                       zf)
         # this slice's share of the trapezoid in the two end intervals, replaced by the exact split
         for i in (first - 1, first, last, last + 1):
             if 0 <= i <= M:
@@ -540,7 +580,7 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
     return area, ae
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid):
     """Outer ends of the engaged arc from the first/last engaged coarse samples, by bisection."""
     top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
@@ -553,7 +593,7 @@ def _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid):
     return st, ex
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
     """Area correction for the two end intervals: the trapezoid of g·sin φ there is replaced by g
     of the off sample before st / after ex and of the on sample inside, integrated exactly."""
@@ -570,7 +610,7 @@ def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
     return d
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
         phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o):

@@ -394,19 +394,19 @@ class Interpreter:
         m = _FAST.fullmatch(raw)
         if m is None or self.feed_mode != 940 or self.comp.active:
             return False
-        g = m.group(1)
+        g, body = m.groups()
         motion = self.motion if g is None else (0 if g == "0" else 10)
-        if motion not in (0, 10):
+        if motion != 0 and motion != 10:
             return False
-        words = _FAST_WORD.findall(m.group(2))
-        letters = [w[0].upper() for w in words]
-        if len(set(letters)) != len(letters):
+        words = _FAST_WORD.findall(body.upper())
+        value_of = dict(words)
+        if len(value_of) != len(words):  # a letter twice: the general path says why
             return False
         x, y, z = start = self._xyz if self._xyz is not None else tuple(self._pos.tolist())
         f = self.f
         sc = self.scale
-        for L, v in zip(letters, words):
-            value = float(v[1])
+        for L, text in words:
+            value = float(text)
             if L == "F":
                 if not 0.0 <= value <= NUMBER_LIMIT:
                     return False
@@ -433,7 +433,7 @@ class Interpreter:
             self.motion = self.basic_motion = motion
             self.cycle_il = None
         self.blocks += 1
-        if len(letters) > ("F" in letters) or g is not None:
+        if len(words) > ("F" in value_of) or g is not None:
             self.emit_xyz(RAPID if motion == 0 else FEED, start, x, y, z, line_no, math.nan if motion == 0 else f)
         self.block_index += 1
         return True

@@ -59,7 +59,11 @@ class Block:
 
 
 def _number(text: str) -> float:
-    return float(text.replace(" ", "").replace("\t", ""))
+    """A matched number, spaces or tabs between its sign and digits allowed ("- 5")."""
+    try:
+        return float(text)  # the common case, no spaces inside
+    except ValueError:
+        return float(text.replace(" ", "").replace("\t", ""))
 
 
 def lex_line(text: str, line: int, file: str = "<string>", params: dict | None = None) -> Block:
