@@ -11,8 +11,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 from millpost.cli import build_parser, main
 from millpost.job import load_job
 from millpost.optimize import optimize

@@ -40,10 +40,6 @@ class Context:
         k = np.array([self.coef[n] for n in COEFS])[part]
         return self.rows.cut[channel][:, part] @ k
 
-    def force_xy_N(self) -> np.ndarray:
-        """In-plane cutting force magnitude (N) at K̂."""
-        return np.hypot(self.cutting("fx_N"), self.cutting("fy_N"))
-
     def measured(self, channels) -> list[str]:
         return [c for c in channels if c in self.rows.measured]
 
