@@ -46,7 +46,8 @@ def test_each_limit_signal_is_its_rows_load(drill_and_mill):
     for lim in limits:
         if isinstance(lim.constraint, SpeedLoad):
             rows = lim.constraint.alpha * v + lim.constraint.beta
-            np.testing.assert_allclose(lim.signal(sig, slice(None))[cut], rows[cut], rtol=1e-9, atol=1e-12, err_msg=lim.name)
+            np.testing.assert_allclose(lim.signal(sig, slice(None))[cut], rows[cut], rtol=1e-9, atol=1e-12,
+                                       err_msg=lim.name)
             checked += 1
     assert checked >= 10  # cutting force, power, torque, deflection, thrust, tool torque, chip load, 3 currents
 

@@ -296,7 +296,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
     load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], tool_torque_limit,
                lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
-    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max, lambda s, at: s.fz_mm * chip_factor[at])
+    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max,
+               lambda s, at: s.fz_mm * chip_factor[at])
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
