@@ -142,6 +142,8 @@ def _tool_z(kind, dx, dy, fx, fy, pz, shape, R, rc, r_tip, tan_half):
 @njit(cache=True, inline="always", error_model="numpy")
 def _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, tan_half, top, zf):
     """Columns row+i0..row+i1 of a stock without undercuts cut down to the tool: (removed, depth)."""
+    if shape == FLAT and kind == CAP:
+        return _cut_level(row, i0, i1, pz, top, zf)
     rem = 0.0
     ap = 0.0
     for i in range(i0, i1 + 1):
@@ -154,6 +156,22 @@ def _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, 
             if t > nt:
                 rem += t - nt
                 ap = max(ap, t - pz)
+    return rem, ap
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cut_level(row, i0, i1, pz, top, zf):
+    """`_cut_row` for a flat end over a row span inside its disk: every column is cut to the same
+    height max(pz, zf), without a radius test (branch-free, so the loop vectorises)."""
+    zc = max(pz, zf)
+    rem = 0.0
+    ap = 0.0
+    for i in range(row + i0, row + i1 + 1):
+        t = top[i]
+        nt = min(t, zc)
+        top[i] = nt
+        rem += t - nt
+        ap = max(ap, t - pz if t > nt else 0.0)
     return rem, ap
 
 
@@ -234,27 +252,31 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
     """
     rem = 0.0
     ap = 0.0
-    j0 = max(0, int(math.ceil((py - R - y0) / h - 0.5)))
-    j1 = min(ny - 1, int(math.floor((py + R - y0) / h - 0.5)))
+    # in cell units: column i's centre is at u = i, row j's at v = j; the disk's radius is Rc
+    Rc = R / h
+    Rc2 = Rc * Rc
+    u, v = (px - x0) / h - 0.5, (py - y0) / h - 0.5
+    uq, vq = (qx - x0) / h - 0.5, (qy - y0) / h - 0.5
+    j0 = max(0, int(math.ceil(v - Rc)))
+    j1 = min(ny - 1, int(math.floor(v + Rc)))
     A = 2.0 * (qx - px)
     for j in range(j0, j1 + 1):
         yc = y0 + (j + 0.5) * h
         dy = yc - py
-        w2 = R * R - dy * dy
+        w2 = Rc2 - (j - v) * (j - v)
         if w2 < 0.0:
             continue
         w = math.sqrt(w2)
-        ia = max(0, int(math.ceil((px - w - x0) / h - 0.5)))
-        ib = min(nx - 1, int(math.floor((px + w - x0) / h - 0.5)))
+        ia = max(0, int(math.ceil(u - w)))
+        ib = min(nx - 1, int(math.floor(u + w)))
         # up to two index ranges [a0, b0], [a1, b1] to visit on this row
         a0, b0, a1, b1 = ia, ib, 1, 0
         if mode == 1:
-            dq = yc - qy
-            wq2 = R * R - dq * dq
+            wq2 = Rc2 - (j - vq) * (j - vq)
             if wq2 >= 0.0:
                 wq = math.sqrt(wq2)
-                qa = int(math.ceil((qx - wq - x0) / h - 0.5))
-                qb = int(math.floor((qx + wq - x0) / h - 0.5))
+                qa = int(math.ceil(uq - wq))
+                qb = int(math.floor(uq + wq))
                 a0, b0 = ia, min(ib, qa - 1)
                 a1, b1 = max(ia, qb + 1), ib
         elif mode == 2:
