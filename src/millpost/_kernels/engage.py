@@ -537,11 +537,12 @@ def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, 
 
 
 @njit(cache=True, error_model="numpy")
-def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs,
-                bilinear, grid, phi_st, phi_ex, dz, arc):
+def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs, tree,
+                known, over, bilinear, grid, phi_st, phi_ex, dz, arc):
     """Slices s0..K-1 on the vertical flank (radius R) of single-interval stock, from one ring of
     column tops H(φ): slice s is engaged where H > its mid-height, so the engaged sets are nested
-    and one pass finds every slice's coarse ends. Returns (area, ae)."""
+    and one pass finds every slice's coarse ends. Returns (area, ae).
+    Work arrays: tree, known (2, 2**BISECT) float and bool (see below), over (K + 1,) int."""
     top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
     dphi = math.pi / M
     zbase = pz + s0 * dzs
@@ -549,21 +550,25 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
     T = nk * dzs
     area = 0.0
     hmax = -1e300
+    over[: nk + 1] = 0
     for i in range(M + 1):
         Hi = _ring_height(cells, wts, i, bilinear, top, zf)
         H[i] = Hi
         hmax = max(hmax, Hi)
         cnt[i] = min(max(int(math.floor((Hi - zbase) / dzs + 0.5)), 0), nk)
+        over[cnt[i]] += 1
         m = min(max(Hi - max(zbase, zf), 0.0), T)
         if i > 0:
             area += 0.5 * dphi * R * (sin_t[i - 1] * min(max(H[i - 1] - max(zbase, zf), 0.0), T) + sin_t[i] * m)
+    # over[j] becomes the number of samples engaged in slice j (cnt > j); they all lie in its [first, last]
+    above = 0
+    for j in range(nk, -1, -1):
+        above, over[j] = above + over[j], above
     first, last = 0, M
     ae = 0.0
     # heights met by the bisections at the start and at the exit, shared by the slices whose coarse
     # transition lies in the same interval (on a vertical wall, all of them)
-    tree = np.empty((2, 1 << BISECT))
-    known = np.zeros((2, 1 << BISECT), np.bool_)
-    held = np.array([-1, -1])  # the coarse interval each tree belongs to
+    held0, held1 = -1, -1  # the coarse interval each tree belongs to
     for j in range(nk):
         while first <= last and cnt[first] <= j:
             first += 1
@@ -574,11 +579,11 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         s = s0 + j
         za = zbase + j * dzs
         zb = za + dzs
-        if first != held[0]:  # another coarse interval: its tree of heights starts empty
-            held[0] = first
+        if first != held0:  # another coarse interval: its tree of heights starts empty
+            held0 = first
             known[0, :] = False
-        if last != held[1]:
-            held[1] = last
+        if last != held1:
+            held1 = last
             known[1, :] = False
         half = 0.5 * dzs
         st = 0.0 if first == 0 else _bisect_heights((first - 1) * dphi, first * dphi, False, tree[0], known[0], cx, cy,
@@ -591,9 +596,7 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
             if 0 <= i <= M:
                 gs[i] = R * min(max(H[i] - max(za, zf), 0.0), dzs)
         area += _split(first, last, M, st, ex, gs, sin_t, cos_t)
-        off = 0
-        for i in range(first, last + 1):
-            off += cnt[i] <= j
+        off = (last - first + 1) - over[j]  # samples inside [first, last] not engaged in this slice
         phi_st[k, s] = st
         phi_ex[k, s] = ex
         dz[k, s] = min(max(hmax - za, 0.0), dzs)
@@ -652,6 +655,9 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     mat = np.empty(M + 1, np.float64)
     g = np.empty(M + 1, np.float64)
     cnt = np.empty(M + 1, np.int64)
+    tree = np.empty((2, 1 << BISECT))
+    known = np.zeros((2, 1 << BISECT), np.bool_)
+    over = np.empty(K + 1, np.int64)
     fx, fy = prev_f[0], prev_f[1]
     for k in range(k0, k1):
         px, py, pz = xyz[k, 0], xyz[k, 1], xyz[k, 2]
@@ -731,7 +737,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         if s0 < K and not has_multi:
             _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
             da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw,
-                                 mat, cnt, g, bilinear, grid, phi_st, phi_ex, dz, arc)
+                                 mat, cnt, g, tree, known, over, bilinear, grid, phi_st, phi_ex, dz, arc)
             area += da
             ae = max(ae, de)
         ae_o[k] = ae
