@@ -528,12 +528,13 @@ def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, 
     if i_s < 0:
         return area, 0.0
     st, ex = _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid)
-    area += _split(i_s, i_e, M, st, ex, g, sin_t, cos_t)
+    cos_st, cos_ex = math.cos(st), math.cos(ex)
+    area += _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t)
     phi_st[k, s] = st
     phi_ex[k, s] = ex
     dz[k, s] = mmax
     arc[k, s] = ex - st - dphi * ((i_e - i_s + 1) - n_on)
-    return area, r * (math.cos(st) - math.cos(ex))
+    return area, r * (cos_st - cos_ex)
 
 
 @njit(cache=True, error_model="numpy")
@@ -569,6 +570,7 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
     # heights met by the bisections at the start and at the exit, shared by the slices whose coarse
     # transition lies in the same interval (on a vertical wall, all of them)
     held0, held1 = -1, -1  # the coarse interval each tree belongs to
+    st_c, cos_st, ex_c, cos_ex = 0.0, 1.0, math.pi, -1.0  # the last ends and their cosines (often shared)
     for j in range(nk):
         while first <= last and cnt[first] <= j:
             first += 1
@@ -595,13 +597,17 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         for i in (first - 1, first, last, last + 1):
             if 0 <= i <= M:
                 gs[i] = R * min(max(H[i] - max(za, zf), 0.0), dzs)
-        area += _split(first, last, M, st, ex, gs, sin_t, cos_t)
+        if st != st_c:
+            st_c, cos_st = st, math.cos(st)
+        if ex != ex_c:
+            ex_c, cos_ex = ex, math.cos(ex)
+        area += _split(first, last, M, cos_st, cos_ex, gs, sin_t, cos_t)
         off = (last - first + 1) - over[j]  # samples inside [first, last] not engaged in this slice
         phi_st[k, s] = st
         phi_ex[k, s] = ex
         dz[k, s] = min(max(hmax - za, 0.0), dzs)
         arc[k, s] = ex - st - dphi * off
-        ae = max(ae, R * (math.cos(st) - math.cos(ex)))
+        ae = max(ae, R * (cos_st - cos_ex))
     return area, ae
 
 
@@ -619,18 +625,19 @@ def _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid):
 
 
 @njit(cache=True, error_model="numpy")
-def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
+def _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t):
     """Area correction for the two end intervals: the trapezoid of g·sin φ there is replaced by g
-    of the off sample before st / after ex and of the on sample inside, integrated exactly."""
+    of the off sample before st / after ex and of the on sample inside, integrated exactly (given
+    cos st and cos ex)."""
     dphi = math.pi / M
     d = 0.0
     if i_s > 0:
         i = i_s - 1
-        d += (g[i] * (cos_t[i] - math.cos(st)) + g[i + 1] * (math.cos(st) - cos_t[i + 1])
+        d += (g[i] * (cos_t[i] - cos_st) + g[i + 1] * (cos_st - cos_t[i + 1])
               - 0.5 * dphi * (sin_t[i] * g[i] + sin_t[i + 1] * g[i + 1]))
     if i_e < M:
         i = i_e
-        d += (g[i] * (cos_t[i] - math.cos(ex)) + g[i + 1] * (math.cos(ex) - cos_t[i + 1])
+        d += (g[i] * (cos_t[i] - cos_ex) + g[i + 1] * (cos_ex - cos_t[i + 1])
               - 0.5 * dphi * (sin_t[i] * g[i] + sin_t[i + 1] * g[i + 1]))
     return d
 
