@@ -244,11 +244,14 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
 
 @njit(cache=True, error_model="numpy")
 def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
-               has_multi, bits, ids, ptr, lo, hi, tol):
+               has_multi, bits, ids, ptr, lo, hi, tol, spans, rows, spans_at_q):
     """Update (cut=True) or check (cut=False) the columns under the tool at tip (px, py, pz).
 
     mode 0: full disk; 1: crescent outside the disk at (qx, qy); 2: half-plane nearer to p than q.
     Returns (removed length sum, deepest cut below the old top, crash) in mm.
+    spans (ny, 2), rows (2,): each call leaves there the disk's column span (unclipped, empty when
+    the row has no centre inside) on its rows rows[0]..rows[1]; with spans_at_q they hold the disk at
+    q (the previous step's call), whose spans mode 1 then reads instead of recomputing them.
     """
     rem = 0.0
     ap = 0.0
@@ -260,23 +263,34 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
     j0 = max(0, int(math.ceil(v - Rc)))
     j1 = min(ny - 1, int(math.floor(v + Rc)))
     A = 2.0 * (qx - px)
+    q_rows0, q_rows1 = rows[0], rows[1]
+    rows[0], rows[1] = j0, j1
     for j in range(j0, j1 + 1):
         yc = y0 + (j + 0.5) * h
         dy = yc - py
         w2 = Rc2 - (j - v) * (j - v)
+        qa, qb = 1, 0
+        if mode == 1:
+            if spans_at_q:
+                if q_rows0 <= j <= q_rows1:
+                    qa, qb = spans[j, 0], spans[j, 1]
+            else:
+                wq2 = Rc2 - (j - vq) * (j - vq)
+                if wq2 >= 0.0:
+                    wq = math.sqrt(wq2)
+                    qa = int(math.ceil(uq - wq))
+                    qb = int(math.floor(uq + wq))
         if w2 < 0.0:
+            spans[j, 0], spans[j, 1] = 1, 0
             continue
         w = math.sqrt(w2)
-        ia = max(0, int(math.ceil(u - w)))
-        ib = min(nx - 1, int(math.floor(u + w)))
+        ia, ib = int(math.ceil(u - w)), int(math.floor(u + w))
+        spans[j, 0], spans[j, 1] = ia, ib
+        ia, ib = max(0, ia), min(nx - 1, ib)
         # up to two index ranges [a0, b0], [a1, b1] to visit on this row
         a0, b0, a1, b1 = ia, ib, 1, 0
         if mode == 1:
-            wq2 = Rc2 - (j - vq) * (j - vq)
-            if wq2 >= 0.0:
-                wq = math.sqrt(wq2)
-                qa = int(math.ceil(uq - wq))
-                qb = int(math.floor(uq + wq))
+            if qa <= qb:  # outside the disk at q (an empty span leaves the whole row)
                 a0, b0 = ia, min(ib, qa - 1)
                 a1, b1 = max(ia, qb + 1), ib
         elif mode == 2:
@@ -539,11 +553,11 @@ def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, 
 
 @njit(cache=True, error_model="numpy")
 def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs, tree,
-                known, over, bilinear, grid, phi_st, phi_ex, dz, arc):
+                known, bilinear, grid, phi_st, phi_ex, dz, arc):
     """Slices s0..K-1 on the vertical flank (radius R) of single-interval stock, from one ring of
     column tops H(φ): slice s is engaged where H > its mid-height, so the engaged sets are nested
     and one pass finds every slice's coarse ends. Returns (area, ae).
-    Work arrays: tree, known (2, 2**BISECT) float and bool (see below), over (K + 1,) int."""
+    Work arrays: tree, known (2, 2**BISECT) float and bool (see below)."""
     top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
     dphi = math.pi / M
     zbase = pz + s0 * dzs
@@ -551,20 +565,17 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
     T = nk * dzs
     area = 0.0
     hmax = -1e300
-    over[: nk + 1] = 0
+    base = max(zbase, zf)
+    m_prev = 0.0
     for i in range(M + 1):
         Hi = _ring_height(cells, wts, i, bilinear, top, zf)
         H[i] = Hi
         hmax = max(hmax, Hi)
         cnt[i] = min(max(int(math.floor((Hi - zbase) / dzs + 0.5)), 0), nk)
-        over[cnt[i]] += 1
-        m = min(max(Hi - max(zbase, zf), 0.0), T)
+        m = min(max(Hi - base, 0.0), T)
         if i > 0:
-            area += 0.5 * dphi * R * (sin_t[i - 1] * min(max(H[i - 1] - max(zbase, zf), 0.0), T) + sin_t[i] * m)
-    # over[j] becomes the number of samples engaged in slice j (cnt > j); they all lie in its [first, last]
-    above = 0
-    for j in range(nk, -1, -1):
-        above, over[j] = above + over[j], above
+            area += 0.5 * dphi * R * (sin_t[i - 1] * m_prev + sin_t[i] * m)
+        m_prev = m
     first, last = 0, M
     ae = 0.0
     # heights met by the bisections at the start and at the exit, shared by the slices whose coarse
@@ -602,7 +613,9 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         if ex != ex_c:
             ex_c, cos_ex = ex, math.cos(ex)
         area += _split(first, last, M, cos_st, cos_ex, gs, sin_t, cos_t)
-        off = (last - first + 1) - over[j]  # samples inside [first, last] not engaged in this slice
+        off = 0
+        for i in range(first, last + 1):
+            off += cnt[i] <= j
         phi_st[k, s] = st
         phi_ex[k, s] = ex
         dz[k, s] = min(max(hmax - za, 0.0), dzs)
@@ -662,9 +675,11 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     mat = np.empty(M + 1, np.float64)
     g = np.empty(M + 1, np.float64)
     cnt = np.empty(M + 1, np.int64)
+    spans = np.empty((ny, 2), np.int64)
+    rows = np.zeros(2, np.int64)
+    spans_k = -2  # the last sample whose disk spans are in `spans`
     tree = np.empty((2, 1 << BISECT))
     known = np.zeros((2, 1 << BISECT), np.bool_)
-    over = np.empty(K + 1, np.int64)
     fx, fy = prev_f[0], prev_f[1]
     for k in range(k0, k1):
         px, py, pz = xyz[k, 0], xyz[k, 1], xyz[k, 2]
@@ -709,7 +724,9 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
                 ap = max(ap, a2)
         else:
             rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
-                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
+                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol,
+                                        spans, rows, spans_k == k - 1)
+            spans_k = k
         if crash:
             prev_f[0], prev_f[1] = fx, fy
             return k
@@ -744,7 +761,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         if s0 < K and not has_multi:
             _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
             da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw,
-                                 mat, cnt, g, tree, known, over, bilinear, grid, phi_st, phi_ex, dz, arc)
+                                 mat, cnt, g, tree, known, bilinear, grid, phi_st, phi_ex, dz, arc)
             area += da
             ae = max(ae, de)
         ae_o[k] = ae
