@@ -299,14 +299,16 @@ def test_absurd_drilling_feed_is_lowered_to_the_drill_strength(tmp_path):
     assert 50 < feed < 6000 / 10
 
 
-def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
+def test_cycles_are_written_whole_and_taps_and_bores_keep_their_feed(tmp_path):
     """A canned cycle's block holds the hole's X Y Z R, not a move's end: its moves are never split (a split
     would write the cycle word with a split point as the hole bottom and drop R). A tap feeds at its pitch
     times the spindle speed (M8: 1.25 mm × 500 rpm = F625): the optimizer never changes that F, even where
-    the schedule would raise or lower it."""
+    the schedule would raise or lower it. A boring cycle (G85 in the drilled holes: the schedule sees air)
+    never gets a faster F than programmed: its feed sets the finish of the bore."""
     (tmp_path / "p.nc").write_text("G21 G90 G17 G94\nT1 M6\nS3000 M3\nG0 X0 Y0 Z10\n"
                                    "G99 G81 X0 Y0 Z-12 R2 F150\nX20\nG80\nG0 Z10\nT2 M6\nS500 M3\n"
-                                   "G99 G84 X0 Y0 Z-10 R2 F625\nX20\nG80\nG0 Z10\nM2\n")
+                                   "G99 G84 X0 Y0 Z-10 R2 F625\nX20\nG80\nG0 Z10\nT1 M6\nS3000 M3\n"
+                                   "G99 G85 X0 Y0 Z-8 R2 F90\nX20\nG80\nG0 Z10\nM2\n")
     (tmp_path / "job.toml").write_text(
         'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-10, -10, -15], [30, 10, 0]]\n'
         '[tools.1]\ndiameter_mm = 6.8\nflutes = 2\nshape = "drill"\ntip_angle_deg = 118\nflute_length_mm = 40\n'
@@ -321,6 +323,8 @@ def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
     np.testing.assert_allclose(emitted.toolpath.end, original.toolpath.end, atol=1e-9)
     tap = emitted.cycle == 840
     assert tap.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[tap & (emitted.toolpath.kind != 0)] == 625)
+    bore = emitted.cycle == 850
+    assert bore.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[bore & (emitted.toolpath.kind != 0)] <= 90)
 
 
 def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):
