@@ -233,15 +233,16 @@ def test_issue_plunge_not_raised_beyond_end_cutting_bound(tmp_path):
     """`G1 Z-4 F300`, Ø6 3-flute flat end mill into Al 6061 at 9000 rpm (was raised to F2430 with the
     end unmodelled, then to F1215 at half the chip load). Bound asserted: a straight plunge's axial chip
     f_z takes a quarter of the material's chip load (FANAR: entries at 25–50 % of the table feed, the
-    lower end for the harshest entry): F ≤ 0.25·h_max(6 mm)·z·n = 0.25·0.09·3·9000 = 607.5 mm/min, at
-    most about twice the programmed F300 (a machinist's plunge, not 4–8×); the chip-load limit binds
+    lower end for the harshest entry): F ≤ 0.25·h_max(6 mm)·z·n with h_max(6 mm) = 0.09·6/7 (the 7 mm
+    row scaled by diameter) = 0.25·0.0771·3·9000 = 520.7 mm/min, under twice the programmed F300 (a machinist's plunge, not 4–8×); the chip-load limit binds
     there, so the feed reaches it; and at the emitted feed the end's torque (k_c·f·D²/8) and power stay
     under the spindle's."""
     job = load_job(plunge_job(tmp_path))
     assert job.material.strategies.plunge_fz_ratio == 0.25
     result = optimize(job, progress=False)
     f = plunge_feed(result.text)
-    assert 0.25 * 0.09 * 3 * 9000 * 0.95 <= f <= 0.25 * 0.09 * 3 * 9000 + 0.1
+    bound = 0.25 * 0.09 * 6 / 7 * 3 * 9000
+    assert bound * 0.95 <= f <= bound + 0.1
     fz = f / (3 * 9000)
     M = 800 * fz ** -0.25 * fz * 3 * 36 / 8 / 1000
     assert M < job.machine.spindle.torque_Nm(9000) and M * 2 * math.pi * 150 < job.machine.spindle.power_W
