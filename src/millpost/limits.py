@@ -56,7 +56,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import MillpostError
-from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
+from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
 from .controller import ControllerModel, corner_speeds
 from .progress import Progress, silent
@@ -220,8 +220,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                 loads[f"{key}_a"][part] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
             sin_end[part] = end_chip_factor(eng_p, tool)
-            share = entry_chip_share(eng_p, tool, job.material.strategies.plunge_fz_ratio)
-            chip_factor[part] = np.maximum(sin_max[part], sin_end[part] / share)
+            chip_factor[part] = np.maximum(sin_max[part],
+                                           entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio))
             if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
                 # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
                 # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
