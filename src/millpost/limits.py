@@ -3,7 +3,8 @@
 A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus what it is:
 - `kind`: "hard" (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
   the end's thrust and torque on the tool, drive current, the machine's and the user's maxima (the
-  plunge feed cap included), the controller's block rate) or "quality" (exceeding it spoils the part
+  plunge feed cap included), the controller's block rate ("block_rate": the controller holds it by
+  itself, no F word carries it)) or "quality" (exceeding it spoils the part
   or the tool's life: deflection, maximum chip load, the chip floor);
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
@@ -170,10 +171,12 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     feed_max = m.feed_max_mm_min
     if job.limits["feed_max_mm_min"]:
         feed_max = min(feed_max, float(job.limits["feed_max_mm_min"]))
-    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate
-    move_len = toolpath.lengths()[samples.move]
-    block_cap = np.where(samples.kind != RAPID, move_len * m.controller.block_rate_Hz, np.inf)
-    limits = [Limit(FeedLimit(np.minimum(feed_max / 60.0, block_cap)), HARD, "feed"),
+    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate.
+    # It slows by itself there (an F word cannot make it faster or need make it slower): no F word
+    # carries this cap, which on a micro-segment would write a crawl into the moves around it
+    block_cap = np.where(samples.kind != RAPID, toolpath.lengths()[samples.move] * m.controller.block_rate_Hz, np.inf)
+    limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
+              Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False),
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
