@@ -331,7 +331,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
 
 def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all (in chunks of
+    by itself allow (loads, chip load, feed), of one kind or all (in chunks of
     LOAD_CHUNK samples: the rows of the whole program are never held at once)."""
     grid = PathGrid.from_samples(samples)
     mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind)]
