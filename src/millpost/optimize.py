@@ -19,7 +19,7 @@ import numpy as np
 
 from . import controller, safety
 from ._kernels import set_threads
-from .emit import FeedPlan, emitted_positions, whole_compensated_moves, write_feeds
+from .emit import FeedPlan, emitted_positions, whole_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import BORING_CYCLES, TAPPING_CYCLES, Program
 from .job import Job
@@ -103,6 +103,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
             stock = job.stock()
         samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                             progress=report)
+        samples = safety.check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)
         # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
         # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
         # speeds, whose loads do not change) the per-slice engagement once the loads are computed
@@ -165,7 +166,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         # corners the controller blends at the faster feed carry it into the slower move
         limit_mm_s = blend_limit(samples, limit_mm_s, np.cumsum(tp.lengths()),
                                  controller.blend_zones(tp, model, controller.path_modes(program, model)))
-        fragments = whole_compensated_moves(program, piecewise_feeds(
+        fragments = whole_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
         hard_cap = np.full(len(tp), np.inf)
