@@ -5,8 +5,9 @@ fragments: a move whose feed must change part-way is split at fractions of its l
 and arcs as arcs (keeping the line's IJK or R style, its distance modes and its number format).
 F is modal, so an F word is written wherever the wanted feed differs from the one in force; an F the
 program already had and that still holds keeps its bytes; a line holding only an F word just before
-the move (CAMotics' `F369.75` lines) takes the new value instead of the move getting a second F. Blocks that run several moves (canned
-cycles, G28) get the lowest feed any of their moves wants: never faster than the plan. Moves under
+the move (CAMotics' `F369.75` lines) takes the new value instead of the move getting a second F.
+Blocks that run several moves (canned cycles, G28) get the lowest feed any of their moves wants:
+never faster than the plan. Moves under
 cutter radius compensation (G41/G42) are never split: the controller offsets whatever coordinates are
 written, so a split point (a point of the offset path) would be offset again; they take one F. Neither
 are moves of canned cycles: a cycle block's X Y Z R are the hole's, not a move's end, nor moves of a

@@ -121,22 +121,23 @@ def check_program(program: Program) -> None:
                             "not a finite number")
 
 
-def check_tools(program: Program, tools: Tool | Mapping[int, Tool]) -> None:
-    """Every feed move runs with a tool the job describes. A program that cuts before any T word
-    selects a tool can only run with the job's only tool (`ReaderOptions.for_tools`); with several,
-    say what to write."""
+def check_tools(program: Program, tools: Tool | Mapping[int, Tool], stock_top_mm: float) -> None:
+    """Every feed move runs with a tool the job describes. A program that cuts (a feed move below the
+    stock top, Z mm) before any T word selects a tool can only run with the job's only tool
+    (`ReaderOptions.for_tools`); with several, say what to write."""
     if isinstance(tools, Tool):
         return
     tp = program.toolpath
     fed = tp.kind != RAPID
     described = ", ".join(f"[tools.{n}]" for n in sorted(tools)) or "none"
-    if np.any(fed & (tp.tool < 0)):
-        line = int(tp.line[np.argmax(fed & (tp.tool < 0))])
+    unloaded = fed & (tp.tool < 0) & (np.minimum(tp.start[:, 2], tp.end[:, 2]) < stock_top_mm)
+    if unloaded.any():
+        line = int(tp.line[np.argmax(unloaded)])
         raise MillpostError(f"{program.path}:{line}: the program cuts before any T word selects a tool; the job "
                             f"describes {described}: write `T<n> M6` (e.g. T{min(tools, default=1)} M6) before "
                             "this line, or describe only the tool it uses (a job with one [tools.N] table has "
                             "that tool loaded)")
-    missing = fed & ~np.isin(tp.tool, list(tools))
+    missing = fed & (tp.tool >= 0) & ~np.isin(tp.tool, list(tools))
     if missing.any():
         k = int(np.argmax(missing))
         empty = " (T0 is the empty spindle on LinuxCNC)" if tp.tool[k] == 0 else ""
@@ -210,9 +211,9 @@ def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: flo
     Returns the samples, the engagement and the warnings/notes the gates left."""
     notes: list[str] = []
     check_program(program)
-    check_tools(program, tools)
-    samples = resample(program, ds_mm, allow, notes, stage=stage)
     bounds = stock.bounds()
+    check_tools(program, tools, float(bounds[1][2]))
+    samples = resample(program, ds_mm, allow, notes, stage=stage)
     try:
         eng = engagement.simulate(stock, tools, samples, slices=slices, progress=progress,
                                   start=known_start(program, samples))
