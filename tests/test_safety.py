@@ -488,8 +488,11 @@ def test_cutting_with_the_spindle_off_is_a_gate_with_a_stated_speed(tmp_path, ca
     assert rc == 0, capsys.readouterr().err
     assert any(n.startswith("warning (spindle-off, allowed)") for n in summary["notes"])
     assert any("turns at 10000 rpm" in n for n in summary["notes"])
+    # the program's own S word (set without M3) is the speed when the job gives none
+    rc, by_s, out_s = optimized(small_job(tmp_path, NO_T.replace(" M3", ""), name="s"), "--allow", "spindle-off")
+    assert rc == 0 and any("the S word in force (S10000" in n for n in by_s["notes"])
     rc, _, out_m3 = optimized(small_job(tmp_path, NO_T, name="m3"))
-    assert rc == 0 and f_words(out) == f_words(out_m3)
+    assert rc == 0 and f_words(out) == f_words(out_m3) == f_words(out_s)
 
 
 def test_spindle_rpm_out_of_range_is_refused(tmp_path, capsys):

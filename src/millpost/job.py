@@ -6,7 +6,8 @@
     material = "al6061"               # built-in name or TOML file
     machine = "benchtop-belt"         # built-in name or TOML file
     spindle_rpm = 18000               # optional: a spindle switched by hand turns at this speed (rpm)
-                                      # where the program leaves it off (with --allow spindle-off)
+                                      # where the program leaves it off (with --allow spindle-off;
+                                      # without it: the program's S word in force)
     [stock]                           # box = [[xmin,ymin,zmin],[xmax,ymax,zmax]] (mm) or file = "x.stl|.step|.py"
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"

@@ -17,7 +17,8 @@ a rapid into material is a crash whatever the user says, and an output must neve
   cannot leave).
 - ``spindle-off``: the tool meets material where the program has not turned the spindle on (no M3/M4
   with S before it). Allowed for a spindle switched by hand (a trim router), whose speed is then the
-  job's ``spindle_rpm``; without it the job is refused: millpost never guesses a spindle speed.
+  job's ``spindle_rpm``, else the program's S word in force; with neither the job is refused: millpost
+  never guesses a spindle speed.
 - ``large``: the resampled path would need more than `MAX_SAMPLES` samples, or more than 80 % of the
   memory free now (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
 - ``clobber`` (always refused): an output path is an input (program, job, stock, tool, material or
@@ -226,15 +227,17 @@ def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: flo
 def spindle_off_message(path: str, line: int) -> str:
     """What is wrong and what to write when the tool cuts at `path`:`line` with the spindle off."""
     return (f"{path}:{line}: the tool cuts material with the spindle off: expected M3/M4 with S<rpm> before this "
-            "line, or, for a spindle switched by hand, spindle_rpm = <its speed> in the job and --allow spindle-off")
+            "line, or, for a spindle switched by hand, --allow spindle-off (its speed: spindle_rpm = <rpm> in the "
+            "job, else the program's S word)")
 
 
 def check_spindle(program: Program, samples: Samples, eng, hand_rpm: float | None, allow: Iterable[str],
                   notes: list[str]) -> Samples:
     """The ``spindle-off`` gate: samples where the tool meets material (ap > 0) with the spindle off
-    (programmed rpm 0). Allowed, the spindle is switched by hand and turns at `hand_rpm` (the job's
-    ``spindle_rpm``) wherever the program leaves it off: the samples are returned with that speed.
-    Allowed without `hand_rpm`, refused: a speed guessed would set every chip load and force."""
+    (programmed rpm 0). Allowed, the spindle is switched by hand and turns, wherever the program leaves
+    it off, at `hand_rpm` (the job's ``spindle_rpm``: what the dial is set to), else at the program's S
+    word in force (set without M3): the samples are returned with that speed. Allowed with neither,
+    refused: a guessed speed would set every chip load and force."""
     rpm = np.asarray(samples.rpm, float)
     off = (eng.ap_mm > 1e-9) & (rpm <= 0)
     if not off.any():
@@ -242,13 +245,25 @@ def check_spindle(program: Program, samples: Samples, eng, hand_rpm: float | Non
     line = int(samples.line[np.argmax(off)])
     msg = f"{spindle_off_message(program.path, line)} ({len(np.unique(samples.line[off]))} line(s))"
     refuse_or_note("spindle-off", msg, allow, notes)
-    if hand_rpm is None:
-        raise MillpostError(f"{program.path}:{line}: the tool cuts with the spindle off (allowed: switched by hand) "
-                            "but its speed is unknown: give spindle_rpm = <rpm> in the job (the speed it is set "
-                            "to), or M3 S<rpm> before this line; millpost does not guess a spindle speed")
-    notes.append(f"note: where the program leaves the spindle off, it turns at {hand_rpm:g} rpm (the job's "
-                 "spindle_rpm, switched by hand)")
-    return replace(samples, rpm=np.where(rpm > 0, rpm, float(hand_rpm)))
+    if hand_rpm is not None:
+        by_hand = np.full(len(rpm), float(hand_rpm))
+        notes.append(f"note: where the program leaves the spindle off, it turns at {hand_rpm:g} rpm (the job's "
+                     "spindle_rpm, switched by hand)")
+    else:  # the S word in force at each move: the last one set before it
+        words = [(e.move, float(e.value)) for e in program.events if e.kind == "s_word"]
+        at, value = np.array(words).T if words else (np.zeros(0), np.zeros(0))
+        k = np.searchsorted(at, np.asarray(samples.move), side="right") - 1
+        by_hand = np.where(k >= 0, value[np.maximum(k, 0)] if len(value) else 0.0, 0.0)
+        if np.any(off & (by_hand <= 0)):
+            bad = int(samples.line[np.argmax(off & (by_hand <= 0))])
+            raise MillpostError(f"{program.path}:{bad}: the tool cuts with the spindle off (allowed: switched by "
+                                "hand) but its speed is unknown: give spindle_rpm = <rpm> in the job (the speed "
+                                "it is set to), or an S<rpm> word before this line; millpost does not guess a "
+                                "spindle speed")
+        speeds = ", ".join(f"S{v:g}" for v in np.unique(by_hand[off]))
+        notes.append(f"note: where the program leaves the spindle off, it turns at the S word in force ({speeds}; "
+                     "switched by hand; spindle_rpm in the job sets another speed)")
+    return replace(samples, rpm=np.where(rpm > 0, rpm, by_hand))
 
 
 def _per_sample(tools: Tool | Mapping[int, Tool], numbers: np.ndarray, attr: str, missing: float) -> np.ndarray:

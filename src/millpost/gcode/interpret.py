@@ -130,7 +130,8 @@ class ReaderOptions:
 
 @dataclass
 class Event:
-    """A non-motion action at a block: tool change, spindle, coolant, dwell, stop, comment, ..."""
+    """A non-motion action at a block: tool change, spindle, coolant, dwell, stop, comment, ...
+    ("s_word": an S word's speed in rpm, whether or not the spindle runs)."""
 
     line: int
     kind: str
@@ -548,6 +549,7 @@ class Interpreter:
             if val["S"].value < 0:
                 raise self.err("negative spindle speed", b, val["S"], "S >= 0")
             self.s = val["S"].value
+            self.event(b.line, "s_word", self.s)  # the speed set, spindle on or off (a hand-switched one)
         # T select, M6 change, spindle, coolant
         if "T" in val:
             if val["T"].value < 0 or val["T"].value != int(val["T"].value):
