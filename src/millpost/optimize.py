@@ -226,7 +226,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
-        "notes": program.notes + _rpm_notes(job, program)
+        "notes": program.notes + _rpm_notes(job, samples)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
     if spindle:
@@ -303,14 +303,14 @@ def _held_lines(samples: Samples, limits: JobLimits) -> dict:
     return out
 
 
-def _rpm_notes(job: Job, program: Program) -> list[str]:
-    tp = program.toolpath
-    on = (tp.rpm > 0) & (tp.kind != RAPID)
+def _rpm_notes(job: Job, samples: Samples) -> list[str]:
+    """The speeds the feed moves ask for (S words, or a hand-switched spindle's) outside the spindle's range."""
+    on = (samples.rpm > 0) & (samples.kind != RAPID)
     out = []
-    for rpm in np.unique(tp.rpm[on]):
+    for rpm in np.unique(samples.rpm[on]):
         used = float(running_rpm(job, rpm))
         if used != rpm:
-            line = int(tp.line[np.flatnonzero(on & (tp.rpm == rpm))[0]])
+            line = int(samples.line[np.flatnonzero(on & (samples.rpm == rpm))[0]])
             out.append(f"{job.program}:{line}: S{rpm:g} is outside the spindle's range "
                        f"{job.machine.spindle.rpm_min:g}–{job.machine.spindle.rpm_max:g} rpm; "
                        f"the controller runs it at {used:g} rpm and the loads are computed there")
