@@ -463,10 +463,14 @@ def test_a_program_without_t_words_and_several_tools_says_what_to_write(tmp_path
 
 def test_the_programs_own_t_word_replaces_the_assumed_tool():
     """The job's tool is assumed only until the program selects one: `T4` without M6 after the first
-    rapid is the tool that cuts; `T0 M6` (the empty spindle on LinuxCNC) is kept as T0."""
+    rapid is the tool that cuts, and the rapid before it had none (Fusion's G28 before T1 M6: no note);
+    `T0 M6` (the empty spindle on LinuxCNC) is kept as T0; a cut before the T word keeps the job's tool."""
     from millpost.gcode import ReaderOptions, read_text
-    tp = read_text("G0 X0 Y0 Z5\nT4\nG1 Z-1 F100\nT0 M6\nG1 X5\n", "p.nc", ReaderOptions.for_tools({3: 6.0})).toolpath
-    assert tp.tool.tolist() == [3, 4, 0]
+    one = ReaderOptions.for_tools({3: 6.0})
+    p = read_text("G0 X0 Y0 Z5\nT4\nG1 Z-1 F100\nT0 M6\nG1 X5\n", "p.nc", one)
+    assert p.toolpath.tool.tolist() == [-1, 4, 0] and not any("only tool" in n for n in p.notes)
+    p = read_text("G0 X0 Y0 Z5\nG1 Z-1 F100\nT4 M6\nG1 X5\n", "p.nc", one)
+    assert p.toolpath.tool.tolist() == [3, 3, 4] and any("T3, the job's only tool" in n for n in p.notes)
     d = {3: 6.0, 4: 3.0}
     assert read_text("G0 X0 Y0 Z5\nG1 Z-1 F100\n", "p.nc", ReaderOptions.for_tools(d)).toolpath.tool.tolist() == [-1, -1]
 

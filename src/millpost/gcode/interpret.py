@@ -246,6 +246,7 @@ class Interpreter:
         self.tool = -1
         self.selected = -1
         self.assumed_tool = False  # the tool is `ReaderOptions.loaded_tool`, not one the program chose
+        self.assumed_from = 0  # the first move made with it
         self.retract_old_z = dialect.starts_g98
         self.cs = 1
         self.g5x = {i: np.array(v, float) for i, v in options.work_offsets_mm.items()}
@@ -305,9 +306,21 @@ class Interpreter:
             self.tool = self.selected
             self.notes.append(f"line {line}: T{self.selected} selected without M6: taken as loaded")
         elif self.opt.loaded_tool is not None:
-            self.tool, self.assumed_tool = self.opt.loaded_tool, True
+            self.tool, self.assumed_tool, self.assumed_from = self.opt.loaded_tool, True, len(self.m)
             self.notes.append(f"line {line}: the program moves before any T word selects a tool: "
                               f"T{self.tool}, the job's only tool, taken as loaded")
+
+    def drop_assumed_tool(self) -> None:
+        """A T word after moves made with the assumed tool: if none of them fed (rapids to a safe
+        height before the first tool change, Fusion's G28), they had no tool after all (tool -1, as
+        without the assumption) and the note goes; moves that cut keep the job's tool."""
+        moves = range(self.assumed_from, len(self.m))
+        if all(self.m.i[10 * k] == RAPID for k in moves):
+            for k in moves:
+                self.m.i[10 * k + 3] = -1
+            self.notes.pop(next(j for j in range(len(self.notes) - 1, -1, -1)
+                                if "the job's only tool, taken as loaded" in self.notes[j]))
+        self.tool, self.assumed_tool = -1, False
 
     def feed_rate(self, block: Block, length_mm: float) -> float:
         """Programmed feed of a move in mm/min from the modal F and feed mode."""
@@ -556,7 +569,7 @@ class Interpreter:
                 raise self.err("tool number must be a non-negative integer", b, val["T"], "T followed by an integer")
             self.selected = int(val["T"].value)
             if self.assumed_tool:  # the job's tool was only assumed: the program's own choice replaces it
-                self.tool, self.assumed_tool = -1, False
+                self.drop_assumed_tool()
         mset = {c for c, _ in mcodes}
         self.comp.check("M", mset)
         for code, w in mcodes:
