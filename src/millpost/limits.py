@@ -35,9 +35,10 @@ drive's current) and to the spindle torque and power; the thrust stays under the
 buckling load and the torque under its torsional strength, both over the tool safety factor (hard:
 "thrust", "tool_torque"). The end's axial chip f_z·descent·sin κ joins the chip-load limit (quality),
 up to the material's `plunge_fz_ratio` of the chip load for a milling cutter entering along its axis
-with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there (hard, "plunge_feed",
-a cap like the maximum feed: never held by the policy); a material without end-cutting data keeps
-the programmed feed there (its end loads are unknown).
+with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there, and so does
+`plunge_raise_max` (default 2) times the programmed feed (hard, "plunge_feed", a cap like the maximum
+feed: never held by the policy); a material without end-cutting data keeps the programmed feed there
+(its end loads are unknown).
 
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
@@ -293,8 +294,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
-    if end_model is None:  # the end's loads are unknown: the programmed feed stays the cap there
-        plunge_cap = np.minimum(plunge_cap, v_prog)
+    # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
+    # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
+    raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
+    plunge_cap = np.minimum(plunge_cap, np.where(v_prog > 0, raise_max * v_prog, np.inf))
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed"))
     limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
     rho = np.array([a.rho_m_per_rad for a in ax])
