@@ -65,6 +65,7 @@ from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
+from .safety import spindle_off_message
 from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
@@ -191,7 +192,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     spin = samples.rpm > 0
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
-        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+        raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
