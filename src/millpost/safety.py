@@ -41,7 +41,7 @@ from .files import check_writable
 from .gcode.convert import SourceBlocks
 from .gcode.interpret import Program
 from .progress import Progress
-from .toolpath import RAPID, Samples
+from .toolpath import RAPID, Samples, segments_per_move
 from .tools import Tool
 
 THROUGH_CUT_MM = 1.0  # below the stock bottom by at most this: a through-cut (noted), beyond: refused
@@ -152,8 +152,7 @@ def estimate_samples(program: Program, ds_mm: float) -> int:
     L = L[L > 1e-9]
     if not len(L):
         return 0
-    with np.errstate(over="ignore", invalid="ignore"):
-        n = np.maximum(np.ceil(L / ds_mm - 1e-9), 1.0)
+    n = segments_per_move(L, ds_mm)
     return int(min(float(n.sum()) + 1.0, 1e18)) if np.all(np.isfinite(n)) else 10**18
 
 
