@@ -3,7 +3,8 @@
 A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus what it is:
 - `kind`: "hard" (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
   the end's thrust and torque on the tool, drive current, the machine's and the user's maxima (the
-  plunge feed cap included), the controller's block rate) or "quality" (exceeding it spoils the part
+  plunge feed cap included), the controller's block rate ("block_rate": the controller holds it by
+  itself, no F word carries it)) or "quality" (exceeding it spoils the part
   or the tool's life: deflection, maximum chip load, the chip floor);
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
@@ -35,9 +36,10 @@ drive's current) and to the spindle torque and power; the thrust stays under the
 buckling load and the torque under its torsional strength, both over the tool safety factor (hard:
 "thrust", "tool_torque"). The end's axial chip f_z·descent·sin κ joins the chip-load limit (quality),
 up to the material's `plunge_fz_ratio` of the chip load for a milling cutter entering along its axis
-with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there (hard, "plunge_feed",
-a cap like the maximum feed: never held by the policy); a material without end-cutting data keeps
-the programmed feed there (its end loads are unknown).
+with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there, and so does
+`plunge_raise_max` (default 2) times the programmed feed (hard, "plunge_feed", a cap like the maximum
+feed: never held by the policy); a material without end-cutting data keeps the programmed feed there
+(its end loads are unknown).
 
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
@@ -57,7 +59,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import MillpostError
-from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
+from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
 from .controller import ControllerModel, corner_speeds
 from .progress import Progress, silent
@@ -65,6 +67,7 @@ from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
+from .safety import spindle_off_message
 from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
@@ -174,10 +177,12 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     feed_max = m.feed_max_mm_min
     if job.limits["feed_max_mm_min"]:
         feed_max = min(feed_max, float(job.limits["feed_max_mm_min"]))
-    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate
-    move_len = toolpath.lengths()[samples.move]
-    block_cap = np.where(samples.kind != RAPID, move_len * m.controller.block_rate_Hz, np.inf)
-    limits = [Limit(FeedLimit(np.minimum(feed_max / 60.0, block_cap)), HARD, "feed"),
+    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate.
+    # It slows by itself there (an F word cannot make it faster or need make it slower): no F word
+    # carries this cap, which on a micro-segment would write a crawl into the moves around it
+    block_cap = np.where(samples.kind != RAPID, toolpath.lengths()[samples.move] * m.controller.block_rate_Hz, np.inf)
+    limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
+              Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False),
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
@@ -192,7 +197,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     spin = samples.rpm > 0
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
-        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+        raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
@@ -225,8 +230,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
             sin_max[part] = max_sin(eng_p)  # per chunk: its (N, K) temporaries stay bounded
             sin_end[part] = end_chip_factor(eng_p, tool)
-            share = entry_chip_share(eng_p, tool, job.material.strategies.plunge_fz_ratio)
-            chip_factor[part] = np.maximum(sin_max[part], sin_end[part] / share)
+            chip_factor[part] = np.maximum(sin_max[part],
+                                           entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio))
             if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
                 # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
                 # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
@@ -301,8 +306,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
-    if end_model is None:  # the end's loads are unknown: the programmed feed stays the cap there
-        plunge_cap = np.minimum(plunge_cap, v_prog)
+    # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
+    # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
+    raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
+    plunge_cap = np.minimum(plunge_cap, np.where(v_prog > 0, raise_max * v_prog, np.inf))
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed"))
     limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
     rho = np.array([a.rho_m_per_rad for a in ax])
@@ -340,7 +347,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
 
 def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all (in chunks of
+    by itself allow (loads, chip load, feed), of one kind or all (in chunks of
     LOAD_CHUNK samples: the rows of the whole program are never held at once)."""
     grid = PathGrid.from_samples(samples)
     mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind)]
