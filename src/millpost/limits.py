@@ -8,6 +8,8 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
   accelerations, corners, jerk), so the baseline program's single F need not;
+- `baseline`: the baseline's single F obeys it (false for the air clearance, whose cap is the
+  program's own feed: the baseline keeps the programmed feed of its approach moves instead);
 - `f_word`: the emitted F words obey its speed cap (false for accelerations, jerk and corner caps,
   which the controller ramps to on its own);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
@@ -37,6 +39,17 @@ up to the material's `plunge_fz_ratio` of the chip load for a milling cutter ent
 with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there (hard, "plunge_feed",
 a cap like the maximum feed: never held by the policy); a material without end-cutting data keeps
 the programmed feed there (its end loads are unknown).
+
+Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
+maximum feed, except where the tool grown by c (radius R + c, tip c lower) meets the stock as it stands
+at that moment (`Engagement.near_stock`; material already removed is air). There a move that cuts
+nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its programmed
+feed at most; the air part of a move that cuts, its programmed feed or the lowest cap of its cut if
+higher (hard, "air_clearance": a cap like the plunge feed cap, lowered further only by the other hard
+limits). The stock model is a guess (the blank may be larger, the sheet thicker or bowed) and CAM posts
+approaches at the entry feed because the tool is about to cut: within c of the modelled stock the tool
+would otherwise meet unmodelled material at up to the machine's maximum feed. The baseline keeps the
+programmed feed of the approach moves (`JobLimits.approach`).
 
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
@@ -82,6 +95,7 @@ class Limit:
     kind: str
     effect: str
     controller: bool = False
+    baseline: bool = True
     f_word: bool = True
     default: str = ""
     signal: Callable[[Any], np.ndarray] | None = None
@@ -103,7 +117,8 @@ class JobLimits:
     power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3). held: {limit name: samples where the
     policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
     hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
-    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut)."""
+    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut);
+    approach: per toolpath move, it cuts nothing but passes within the air clearance of the stock."""
 
     limits: list[Limit]
     loads: dict
@@ -113,6 +128,7 @@ class JobLimits:
     deflection_mm: np.ndarray
     lower: str = HARD
     defaults: dict[str, str] = field(default_factory=dict)
+    approach: np.ndarray | None = None
 
     def __iter__(self):
         return iter(self.limits)
@@ -323,15 +339,37 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                                     tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
-    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
+    approach = None
+    if eng.near_stock is not None:  # air beside or just above the stock
+        cap, approach = _air_clearance(eng.near_stock & cutting, engaged, samples.move, len(toolpath), v_prog, v_cap)
+        limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
+    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults, approach)
 
 
-def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
+def _air_clearance(near: np.ndarray, engaged: np.ndarray, move: np.ndarray, n_moves: int, v_prog: np.ndarray,
+                   v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The air clearance's speed cap per sample (mm/s) and the approach moves (per toolpath move: it cuts
+    nothing but passes near the stock). near: feed samples that cut nothing within the clearance;
+    engaged: samples that cut; move: each sample's move; v_prog: the programmed speed; v_cap: the other
+    limits' speed caps. On an approach move (a plunge or a lead-in beside the stock, a link over it) the
+    cap is the programmed feed; on the air part of a move that cuts, the programmed feed or, if higher,
+    the lowest cap of its cut: the tool reaches material no faster than the cut it enters is allowed."""
+    v_cut = np.full(n_moves, np.inf)
+    np.minimum.at(v_cut, move[engaged], v_cap[engaged])
+    approach = np.zeros(n_moves, bool)
+    np.logical_or.at(approach, move, near)
+    approach &= np.isinf(v_cut)
+    entry = np.where(np.isinf(v_cut), 0.0, v_cut)[move]
+    return np.where(near, np.maximum(v_prog, entry), np.inf), approach
+
+
+def static_caps(samples: Samples, limits, kind: str | None = None, baseline: bool = False) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all (in chunks of
-    LOAD_CHUNK samples: the rows of the whole program are never held at once)."""
+    by itself allow (loads, chip load, feed, block rate), of one kind or all, or (baseline) those the
+    baseline's single F obeys (in chunks of LOAD_CHUNK samples: the rows of the whole program are
+    never held at once)."""
     grid = PathGrid.from_samples(samples)
-    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind)]
+    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind) and (lim.baseline or not baseline)]
     b_hi = np.empty(len(samples))
     for lo in range(0, len(samples), LOAD_CHUNK):
         hi = min(lo + LOAD_CHUNK, len(samples))
