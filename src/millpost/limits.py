@@ -41,15 +41,16 @@ a cap like the maximum feed: never held by the policy); a material without end-c
 the programmed feed there (its end loads are unknown).
 
 Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
-maximum feed, except where the tool grown by c (radius R + c, tip c lower) meets the stock as it stands
-at that moment (`Engagement.near_stock`; material already removed is air). There a move that cuts
-nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its programmed
-feed at most; the air part of a move that cuts, its programmed feed or the lowest cap of its cut if
-higher (hard, "air_clearance": a cap like the plunge feed cap, lowered further only by the other hard
-limits). The stock model is a guess (the blank may be larger, the sheet thicker or bowed) and CAM posts
-approaches at the entry feed because the tool is about to cut: within c of the modelled stock the tool
-would otherwise meet unmodelled material at up to the machine's maximum feed. The baseline keeps the
-programmed feed of the approach moves (`JobLimits.approach`).
+maximum feed, except where the tool grown by c (radius R + c, tip c lower) meets the stock as it
+stands at that moment (`Engagement.near_stock`; material already removed is air). There a block that
+cuts nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its
+programmed feed at most; the air part of a block that cuts (a move, or a canned cycle's moves at one
+hole), its programmed feed or the lowest cap of its cut if higher (hard, "air_clearance": a cap like
+the plunge feed cap, lowered further only by the other hard limits). The stock model is a guess (the
+blank may be larger, the sheet thicker or bowed) and CAM posts approaches at the entry feed because
+the tool is about to cut: within c of the modelled stock the tool would otherwise meet unmodelled
+material at up to the machine's maximum feed. The baseline keeps the programmed feed of the approach
+moves (`JobLimits.approach`).
 
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
@@ -118,7 +119,7 @@ class JobLimits:
     policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
     hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
     sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut);
-    approach: per toolpath move, it cuts nothing but passes within the air clearance of the stock."""
+    approach: per toolpath move, its block cuts nothing but passes within the air clearance of the stock."""
 
     limits: list[Limit]
     loads: dict
@@ -341,26 +342,29 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                         HARD, "current"))
     approach = None
     if eng.near_stock is not None:  # air beside or just above the stock
-        cap, approach = _air_clearance(eng.near_stock & cutting, engaged, samples.move, len(toolpath), v_prog, v_cap)
+        cap, approach = _air_clearance(eng.near_stock & cutting, engaged, samples.line, toolpath.line, v_prog, v_cap)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults, approach)
 
 
-def _air_clearance(near: np.ndarray, engaged: np.ndarray, move: np.ndarray, n_moves: int, v_prog: np.ndarray,
-                   v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The air clearance's speed cap per sample (mm/s) and the approach moves (per toolpath move: it cuts
-    nothing but passes near the stock). near: feed samples that cut nothing within the clearance;
-    engaged: samples that cut; move: each sample's move; v_prog: the programmed speed; v_cap: the other
-    limits' speed caps. On an approach move (a plunge or a lead-in beside the stock, a link over it) the
-    cap is the programmed feed; on the air part of a move that cuts, the programmed feed or, if higher,
-    the lowest cap of its cut: the tool reaches material no faster than the cut it enters is allowed."""
-    v_cut = np.full(n_moves, np.inf)
-    np.minimum.at(v_cut, move[engaged], v_cap[engaged])
-    approach = np.zeros(n_moves, bool)
-    np.logical_or.at(approach, move, near)
+def _air_clearance(near: np.ndarray, engaged: np.ndarray, line: np.ndarray, move_line: np.ndarray,
+                   v_prog: np.ndarray, v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The air clearance's speed cap per sample (mm/s) and the approach moves (per toolpath move: its
+    block cuts nothing but passes near the stock). near: feed samples that cut nothing within the
+    clearance; engaged: samples that cut; line: each sample's source line (a block: one move, or a
+    canned cycle's moves at one hole); move_line: each move's; v_prog: the programmed speed; v_cap: the
+    other limits' speed caps. In a block that cuts nothing (an approach, a plunge or lead-in beside the
+    stock, a link over it) the cap is the programmed feed; in the air part of a block that cuts, the
+    programmed feed or, if higher, the lowest cap of its cut: the tool reaches material no faster than
+    the cut it enters is allowed."""
+    size = int(max(line.max(initial=0), move_line.max(initial=0))) + 1
+    v_cut = np.full(size, np.inf)
+    np.minimum.at(v_cut, line[engaged], v_cap[engaged])
+    approach = np.zeros(size, bool)
+    np.logical_or.at(approach, line, near)
     approach &= np.isinf(v_cut)
-    entry = np.where(np.isinf(v_cut), 0.0, v_cut)[move]
-    return np.where(near, np.maximum(v_prog, entry), np.inf), approach
+    entry = np.where(np.isinf(v_cut), 0.0, v_cut)[line]
+    return np.where(near, np.maximum(v_prog, entry), np.inf), approach[move_line]
 
 
 def static_caps(samples: Samples, limits, kind: str | None = None, baseline: bool = False) -> np.ndarray:
