@@ -342,21 +342,23 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                         HARD, "current"))
     approach = None
     if eng.near_stock is not None:  # air beside or just above the stock
-        cap, approach = _air_clearance(eng.near_stock & cutting, engaged, samples.line, toolpath.line, v_prog, v_cap)
+        cap, approach = _air_clearance(eng.near_stock & cutting, engaged, samples, toolpath.line, v_prog, v_cap)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults, approach)
 
 
-def _air_clearance(near: np.ndarray, engaged: np.ndarray, line: np.ndarray, move_line: np.ndarray,
+def _air_clearance(near: np.ndarray, engaged: np.ndarray, samples: Samples, move_line: np.ndarray,
                    v_prog: np.ndarray, v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The air clearance's speed cap per sample (mm/s) and the approach moves (per toolpath move: its
     block cuts nothing but passes near the stock). near: feed samples that cut nothing within the
-    clearance; engaged: samples that cut; line: each sample's source line (a block: one move, or a
-    canned cycle's moves at one hole); move_line: each move's; v_prog: the programmed speed; v_cap: the
-    other limits' speed caps. In a block that cuts nothing (an approach, a plunge or lead-in beside the
-    stock, a link over it) the cap is the programmed feed; in the air part of a block that cuts, the
-    programmed feed or, if higher, the lowest cap of its cut: the tool reaches material no faster than
-    the cut it enters is allowed."""
+    clearance; engaged: samples that cut; blocks are source lines (one move, or a canned cycle's moves
+    at one hole); move_line: each move's line; v_prog: the programmed speed; v_cap: the other limits'
+    speed caps. In a block that cuts nothing (an approach, a plunge or lead-in beside the stock, a link
+    over it) the cap is the programmed feed; in the air part of a block that cuts, the programmed feed
+    or, if higher, the lowest cap of its cut: the tool reaches material no faster than the cut it enters
+    is allowed. The point where one move hands over to the next takes the higher of their caps (the
+    programmed program passes it at the faster of the two feeds: a blending planner's blend)."""
+    line = samples.line
     size = int(max(line.max(initial=0), move_line.max(initial=0))) + 1
     v_cut = np.full(size, np.inf)
     np.minimum.at(v_cut, line[engaged], v_cap[engaged])
@@ -364,7 +366,12 @@ def _air_clearance(near: np.ndarray, engaged: np.ndarray, line: np.ndarray, move
     np.logical_or.at(approach, line, near)
     approach &= np.isinf(v_cut)
     entry = np.where(np.isinf(v_cut), 0.0, v_cut)[line]
-    return np.where(near, np.maximum(v_prog, entry), np.inf), approach[move_line]
+    cap = np.where(near, np.maximum(v_prog, entry), np.inf)
+    handover = np.flatnonzero((samples.move[1:] != samples.move[:-1]) & ~np.asarray(samples.segment_start[1:], bool))
+    both = np.maximum(cap[handover], cap[handover + 1])
+    for k in (handover - 1, handover, handover + 1):  # within a step of it
+        cap[k[k >= 0]] = np.maximum(cap[k[k >= 0]], both[k >= 0])
+    return cap, approach[move_line]
 
 
 def static_caps(samples: Samples, limits, kind: str | None = None, baseline: bool = False) -> np.ndarray:
