@@ -233,15 +233,16 @@ def test_issue_plunge_not_raised_beyond_end_cutting_bound(tmp_path):
     """`G1 Z-4 F300`, Ø6 3-flute flat end mill into Al 6061 at 9000 rpm (was raised to F2430 with the
     end unmodelled, then to F1215 at half the chip load). Bound asserted: a straight plunge's axial chip
     f_z takes a quarter of the material's chip load (FANAR: entries at 25–50 % of the table feed, the
-    lower end for the harshest entry): F ≤ 0.25·h_max(6 mm)·z·n = 0.25·0.09·3·9000 = 607.5 mm/min, at
-    most about twice the programmed F300 (a machinist's plunge, not 4–8×); the chip-load limit binds
+    lower end for the harshest entry): F ≤ 0.25·h_max(6 mm)·z·n with h_max(6 mm) = 0.09·6/7 (the 7 mm
+    row scaled by diameter) = 0.25·0.0771·3·9000 = 520.7 mm/min, under twice the programmed F300 (a machinist's plunge, not 4–8×); the chip-load limit binds
     there, so the feed reaches it; and at the emitted feed the end's torque (k_c·f·D²/8) and power stay
     under the spindle's."""
     job = load_job(plunge_job(tmp_path))
     assert job.material.strategies.plunge_fz_ratio == 0.25
     result = optimize(job, progress=False)
     f = plunge_feed(result.text)
-    assert 0.25 * 0.09 * 3 * 9000 * 0.95 <= f <= 0.25 * 0.09 * 3 * 9000 + 0.1
+    bound = 0.25 * 0.09 * 6 / 7 * 3 * 9000
+    assert bound * 0.95 <= f <= bound + 0.1
     fz = f / (3 * 9000)
     M = 800 * fz ** -0.25 * fz * 3 * 36 / 8 / 1000
     assert M < job.machine.spindle.torque_Nm(9000) and M * 2 * math.pi * 150 < job.machine.spindle.power_W
@@ -299,14 +300,16 @@ def test_absurd_drilling_feed_is_lowered_to_the_drill_strength(tmp_path):
     assert 50 < feed < 6000 / 10
 
 
-def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
+def test_cycles_are_written_whole_and_taps_and_bores_keep_their_feed(tmp_path):
     """A canned cycle's block holds the hole's X Y Z R, not a move's end: its moves are never split (a split
     would write the cycle word with a split point as the hole bottom and drop R). A tap feeds at its pitch
     times the spindle speed (M8: 1.25 mm × 500 rpm = F625): the optimizer never changes that F, even where
-    the schedule would raise or lower it."""
+    the schedule would raise or lower it. A boring cycle (G85 in the drilled holes: the schedule sees air)
+    never gets a faster F than programmed: its feed sets the finish of the bore."""
     (tmp_path / "p.nc").write_text("G21 G90 G17 G94\nT1 M6\nS3000 M3\nG0 X0 Y0 Z10\n"
                                    "G99 G81 X0 Y0 Z-12 R2 F150\nX20\nG80\nG0 Z10\nT2 M6\nS500 M3\n"
-                                   "G99 G84 X0 Y0 Z-10 R2 F625\nX20\nG80\nG0 Z10\nM2\n")
+                                   "G99 G84 X0 Y0 Z-10 R2 F625\nX20\nG80\nG0 Z10\nT1 M6\nS3000 M3\n"
+                                   "G99 G85 X0 Y0 Z-8 R2 F90\nX20\nG80\nG0 Z10\nM2\n")
     (tmp_path / "job.toml").write_text(
         'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-10, -10, -15], [30, 10, 0]]\n'
         '[tools.1]\ndiameter_mm = 6.8\nflutes = 2\nshape = "drill"\ntip_angle_deg = 118\nflute_length_mm = 40\n'
@@ -321,6 +324,8 @@ def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
     np.testing.assert_allclose(emitted.toolpath.end, original.toolpath.end, atol=1e-9)
     tap = emitted.cycle == 840
     assert tap.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[tap & (emitted.toolpath.kind != 0)] == 625)
+    bore = emitted.cycle == 850
+    assert bore.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[bore & (emitted.toolpath.kind != 0)] <= 90)
 
 
 def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):
