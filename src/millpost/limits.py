@@ -379,9 +379,9 @@ def _air_clearance(near: np.ndarray, engaged: np.ndarray, samples: Samples, move
 
 def static_caps(samples: Samples, limits, kind: str | None = None, baseline: bool = False) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all, or (baseline) those the
-    baseline's single F obeys (in chunks of LOAD_CHUNK samples: the rows of the whole program are
-    never held at once)."""
+    by itself allow (loads, chip load, feed), of one kind or all, or (baseline) those the baseline's
+    single F obeys (in chunks of LOAD_CHUNK samples: the rows of the whole program are never held at
+    once)."""
     grid = PathGrid.from_samples(samples)
     mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind) and (lim.baseline or not baseline)]
     b_hi = np.empty(len(samples))

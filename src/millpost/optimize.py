@@ -43,6 +43,9 @@ class Result:
     trace: dict = field(default_factory=dict)
 
 
+SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
+
+
 def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray) -> FeedPlan:
     """The emitter's plan from the fragments. With control flow a line that runs several times gets
     one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
@@ -55,13 +58,22 @@ def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_m
     by_move: dict[int, list] = {}
     for f in fragments:
         by_move.setdefault(f.move, []).append(f)
+    programmed_mm_min = program.toolpath.feed_mm_min
+
+    def snapped(mv: int, f: float) -> float:
+        """A bound held at the programmed feed is met to the solver's tolerance: a feed within
+        SNAP_TO_PROGRAMMED under the programmed one, where no hard cap is under the programmed feed,
+        is the programmed feed (no F400 → F399.9 churn)."""
+        p = programmed_mm_min[mv]
+        return float(p) if p * (1 - SNAP_TO_PROGRAMMED) <= f < p <= hard_cap_mm_min[mv] else f
+
     for mv, frs in by_move.items():
         frs.sort(key=lambda f: f.u_start)
         if len(frs) == 1:
-            plan.feed_mm_min[mv] = frs[0].feed_mm_min
+            plan.feed_mm_min[mv] = snapped(mv, frs[0].feed_mm_min)
         else:
-            plan.feed_mm_min[mv] = min(f.feed_mm_min for f in frs)
-            plan.fragments[mv] = [(f.u_end, f.feed_mm_min) for f in frs]
+            plan.fragments[mv] = [(f.u_end, snapped(mv, f.feed_mm_min)) for f in frs]
+            plan.feed_mm_min[mv] = min(f for _, f in plan.fragments[mv])
     # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never
     # changed; a boring cycle's feed sets the finish of the bore: it is never raised (a hard limit may lower it)
     held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
