@@ -1,5 +1,6 @@
-"""The air clearance: a feed move that cuts nothing keeps its programmed feed where the tool grown by
-`air_clearance_mm` (radius R + c, tip c lower) meets the stock as it stands; farther away it is raised.
+"""The air clearance: a feed move that cuts nothing keeps its programmed feed in the shell of width
+`air_clearance_mm` around the stock as loaded (the tool grown by c, radius R + c and tip c lower, meets
+it and its tip disc is not inside it); farther away, and inside what the program cut, it is raised.
 The per-sample flag (`Engagement.near_stock`) is checked against the closed-form distance of a
 cylinder to a box, and end to end on a job whose approaches, far moves and pocket moves are known."""
 
@@ -60,19 +61,62 @@ def test_near_stock_is_the_grown_tool_meeting_the_box():
     assert not eng.near_stock[samples.kind == RAPID].any()  # rapids: not asked
 
 
-def test_removed_material_is_air():
-    """Over a pocket cut earlier in the same run the floor, not the old top, is the stock."""
-    text = "\n".join(["G21 G90 G94", "T1 M6", "S9000 M3", "G0 X18 Y13 Z2", "G1 Z-5 F100", "G1 X42 F600",
-                      "Y17", "X18", "Y21", "X42", "Y25", "X18", "Y27", "X42", "G1 X30 Y20",
-                      "G1 Z-1.5", "G1 X31", "G1 Z-4", "G1 X32", "M30"]) + "\n"
-    program = read_text(text, "pocket.nc")
+def _flags(lines: list[str]):
+    """Samples and near flags of a program (header prepended) cut through the uncut box."""
+    program = read_text("\n".join(["G21 G90 G94", "T1 M6", "S9000 M3", *lines, "M30"]) + "\n", "air.nc")
     samples = program.toolpath.resample(0.1)
     eng = simulate(box(*STOCK, cell_mm=0.05), {1: TOOL}, samples, clearance_mm=CLEAR, progress=False)
-    high = samples.line == 17  # X31 at Z-1.5: 3.5 mm over the floor (1.5 mm under the old top), walls 8 mm away
-    low = samples.line == 19  # X32 at Z-4: 1 mm over the floor
-    assert high.any() and low.any() and not eng.ap_mm[high | low].any()
-    assert not eng.near_stock[high].any()
-    assert eng.near_stock[low].all()
+    return samples, eng
+
+
+# a pocket X15..45 Y10..30 cleared to Z-5 (tool centre X18..42, Y13..27): zigzag, then its contour
+POCKET = ["G0 X18 Y13 Z2", "G1 Z-5 F100", "G1 X42 F600", "Y17", "X18", "Y21", "X42", "Y25", "X18", "Y27", "X42",
+          "Y13", "X18", "Y27", "X42"]
+
+
+def test_air_in_a_cut_pocket_is_not_near():
+    """The clearance guards the stock model, not the surfaces the program cut: air returns on the floor
+    of the pocket, 0.5 mm over it and 0.5 mm from its walls (a trochoid's return), are not near; a
+    re-plunge into it from above is near only while its tip is within c above the original top."""
+    samples, eng = _flags(POCKET + ["G1 X30 Y20",                              # 19: back along the floor
+                                    "G1 Z-4.5", "G1 X41.5 Y13.5",              # 20, 21: to a corner
+                                    "G1 Y26.5",                                # 22: 0.5 mm from the wall X45
+                                    "G1 X18.5",                                # 23: 0.5 mm from the wall Y30
+                                    "G0 Z6", "G0 X30 Y20",
+                                    "G1 Z-4 F100"])                            # 26: re-plunge from Z6
+    z = samples.xyz_mm[:, 2]
+    floor = np.isin(samples.line, (19, 20, 21, 22, 23))
+    plunge = samples.line == 26
+    assert floor.sum() > 400 and not eng.ap_mm[floor | plunge].any()
+    assert not eng.near_stock[floor].any()
+    # the grown tool's tip reaches the original top (Z0) below Z3; under Z0 the tip disc is inside it
+    above = plunge & (z > 3.0 + 1e-6)
+    shell = plunge & (z < 3.0 - 1e-6) & (z > 1e-6)
+    below = plunge & (z < -1e-6)
+    assert above.sum() > 20 and shell.sum() > 20 and below.sum() > 20
+    assert not eng.near_stock[above].any() and eng.near_stock[shell].all() and not eng.near_stock[below].any()
+
+
+def test_over_a_faced_top_only_the_original_sides_are_near():
+    """After facing the top 1 mm down, air 0.5 mm over the faced surface (under the original top) is not
+    near over the stock; moving off its side at that height it is near from where the tip disc leaves
+    the original stock (the tool's axis R from the side X60) to R + c beyond it, up to a block's error."""
+    face = ["G0 X-5 Y0 Z2", "G1 Z-1 F300"]
+    for k, y in enumerate(range(0, 44, 4)):
+        face += [f"G1 Y{y}", "G1 X65" if k % 2 == 0 else "G1 X-5"]
+    samples, eng = _flags(face + ["G0 Z5", "G0 X30 Y20", "G1 Z-0.5 F300", "G1 X35 Y22",
+                                  "G1 X30 Y20", "G1 X70 F600"])
+    n = len(face) + 3  # the header's three lines, then the first line after the facing is line n + 1
+    x, z = samples.xyz_mm[:, 0], samples.xyz_mm[:, 2]
+    down = samples.line == n + 3  # from Z5 to Z-0.5: near from Z3 (c over the original top) to Z0
+    inner = np.isin(samples.line, (n + 4, n + 5)) | (down & (z < -1e-6))
+    off = samples.line == n + 6
+    assert not eng.ap_mm[down | inner | off].any()
+    assert not eng.near_stock[inner].any() and eng.near_stock[down & (z > 1e-6) & (z < 3.0 - 1e-6)].all()
+    R, block = TOOL.radius_mm, 0.5 * np.sqrt(2)  # the snapshot's block: 10 × 10 cells of 0.05 mm
+    assert not eng.near_stock[off & (x < 60 - R - block)].any()
+    assert eng.near_stock[off & (x > 60 - R + 0.05) & (x < 60 + R + CLEAR - 0.05)].all()
+    assert not eng.near_stock[off & (x > 60 + R + CLEAR + block)].any()
 
 
 JOB = """program = "program.nc"
@@ -107,7 +151,7 @@ PROGRAM = [
     "G1 Z-1.5",               # 30: up to 3.5 mm over the floor
     "G1 X31.5 Y18.5",         # 31: air 3.5 mm over the floor, 9 mm from the walls: raised
     "G1 Z-4",                 # 32: down to 1 mm over the floor
-    "G1 X29 Y21",             # 33: air 1 mm over the floor: kept
+    "G1 X29 Y21",             # 33: air 1 mm over the floor: raised (the floor was cut, not guessed)
     "G0 Z10", "M30",
 ]
 
@@ -138,10 +182,10 @@ def test_approaches_beside_and_above_keep_their_feed_far_moves_are_raised(air_jo
     # kept (the schedule's solution lies within 0.1 % under its cap)
     for line in (11, 15):  # the plunge 2 mm beside the stock, the approach down to 2 mm over the top
         assert 0.999 * 300.0 <= f[line][0] <= f[line][1] <= 300.0, (line, f[line])
-    assert f[33][1] <= 600.0  # air 1 mm over the pocket floor
     # far from the stock: raised well beyond the programmed feed (the axes' rates and accelerations cap)
     assert f[7][1] > 10 * 300.0 and f[8][1] > 10 * 300.0
-    assert f[31][1] > 2 * 600.0  # over the floor by more than the clearance, far from the walls
+    # in the pocket the program cut: over its floor by more and by less than the clearance
+    assert f[31][1] > 2 * 600.0 and f[33][1] > 2 * 600.0
     assert result.summary["limits"]["air_clearance"] <= 1.0 + 1e-3
     assert "air_clearance" in result.summary["hard_limits"]
 

@@ -48,9 +48,12 @@ class Engagement:
     end's axial feed per tooth is f_z·descent. look_ahead_mm (N,): how far ahead along the path each
     sample's ring was taken (its engagement is the one the tool meets that much later). On a step with no horizontal motion (a plunge, a drill)
     the flank sweeps no new material: its slices are not engaged (the end carries the whole cut).
-    near_stock (N,) bool: a feed step that cuts nothing passes within `simulate`'s clearance c of the
-    stock as it stands then (material already removed is air): the tool grown by c (radius R + c, tip
-    c lower, whatever its shape) meets material (None when no clearance was asked for).
+    near_stock (N,) bool: a feed step that cuts nothing lies in the shell of `simulate`'s clearance c
+    around the stock as loaded (what the stock model may have got wrong; the surfaces the program has
+    cut since are known exactly): the tool grown by c (radius R + c, tip c lower, whatever its shape)
+    meets the original stock and its tip disc (radius R) is not inside it, so air over a pocket's
+    floor or a faced top is not near (None when no clearance was asked for). Read from the original
+    tops' range per block of ~0.5 mm: it errs towards near, by up to a block's diagonal.
     """
 
     phi_st: np.ndarray
@@ -233,11 +236,13 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool), depth=np.zeros(n),
                end=np.zeros((n, END_BINS)), near=np.zeros(n, bool))
     top = stock.top.reshape(-1)
-    # block maxima of the column tops for the clearance test (blocks of ~0.5 mm: a few hundred a test)
+    # the clearance's snapshot of the stock as loaded: its tops' range per block of ~0.5 mm (at least
+    # 4 × 4 columns: an eighth of the grid's size at most)
     clear = -1.0 if clearance_mm is None else float(clearance_mm)
-    B = max(2, round(0.5 / stock.cell_mm))
-    nbx = -(-stock.nx // B)
-    bmax = _k.block_max(top, stock.nx, stock.ny, B, stock.z_floor) if clear >= 0 else np.full(1, -np.inf, np.float32)
+    B = max(4, round(0.5 / stock.cell_mm))
+    omax, omin = (_k.block_range(top, stock.nx, stock.ny, B, stock.z_floor) if clear >= 0
+                  else (np.full(1, -np.inf, np.float32), np.full(1, np.inf, np.float32)))
+    zmax = float(omax.max())
     prev_f = np.array([1.0, 0.0])
     moving = steps[steps > 0]
     ds = float(np.median(moving)) if len(moving) else 0.0
@@ -263,7 +268,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                 bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny,
                              stock.x0, stock.y0, stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits,
                              stock.multi_ids, stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half,
-                             t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, clear, float(bmax.max()), bmax, B, nbx,
+                             t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, clear, zmax, omax, omin, B,
                              *(v[a:b] for v in out.values()))
             if bad != _k.OK:
                 bad += a
