@@ -42,8 +42,9 @@ a cap like the maximum feed: never held by the policy); a material without end-c
 the programmed feed there (its end loads are unknown).
 
 Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
-maximum feed, except where the tool grown by c (radius R + c, tip c lower) meets the stock as it
-stands at that moment (`Engagement.near_stock`; material already removed is air). There a block that
+maximum feed, except in the shell of width c around the stock as loaded (`Engagement.near_stock`: the
+tool grown by c meets the original stock, its tip disc is not inside it; the surfaces the program cut
+are known, air over them is raised). There a block that
 cuts nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its
 programmed feed at most; the air part of a block that cuts (a move, or a canned cycle's moves at one
 hole), its programmed feed or the lowest cap of its cut if higher (hard, "air_clearance": a cap like
