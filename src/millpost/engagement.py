@@ -127,6 +127,7 @@ class Engagement:
 
 _PER_SLICE = ("phi_st", "phi_ex", "dz_mm", "z_mm", "r_mm", "kappa")
 END_BINS = 8  # radial bins of the tool's end (Engagement.end_engaged)
+KAPPA_ROWS = 4096  # samples per chunk of the κ computation (its temporaries: ~0.5 MB each at K = 8)
 
 
 def _tool_params(tool: Tool) -> tuple[int, float, float, float, float]:
@@ -276,8 +277,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
             report("engagement", c1, n)
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:
-        for c0 in range(a, b, chunk):  # in chunks: the profile's temporaries stay small
-            kappa[c0:min(b, c0 + chunk)] = _kappa(t, out["zmid"][c0:min(b, c0 + chunk)])
+        for c0 in range(a, b, KAPPA_ROWS):  # in chunks: the profile's temporaries stay small
+            kappa[c0:min(b, c0 + KAPPA_ROWS)] = _kappa(t, out["zmid"][c0:min(b, c0 + KAPPA_ROWS)])
     feed3 = np.column_stack([out["feed"], np.zeros(n)])
     dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
     with np.errstate(divide="ignore", invalid="ignore"):

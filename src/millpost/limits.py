@@ -37,9 +37,10 @@ drive's current) and to the spindle torque and power; the thrust stays under the
 buckling load and the torque under its torsional strength, both over the tool safety factor (hard:
 "thrust", "tool_torque"). The end's axial chip f_z·descent·sin κ joins the chip-load limit (quality),
 up to the material's `plunge_fz_ratio` of the chip load for a milling cutter entering along its axis
-with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there (hard, "plunge_feed",
-a cap like the maximum feed: never held by the policy); a material without end-cutting data keeps
-the programmed feed there (its end loads are unknown).
+with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there, and so does
+`plunge_raise_max` (default 2) times the programmed feed (hard, "plunge_feed", a cap like the maximum
+feed: never held by the policy); a material without end-cutting data keeps the programmed feed there
+(its end loads are unknown).
 
 Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
 maximum feed, except in the shell of width c around the stock as loaded (`Engagement.near_stock`: the
@@ -80,6 +81,7 @@ from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
+from .safety import spindle_off_message
 from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
@@ -209,7 +211,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     spin = samples.rpm > 0
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
-        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+        raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
@@ -310,8 +312,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
-    if end_model is None:  # the end's loads are unknown: the programmed feed stays the cap there
-        plunge_cap = np.minimum(plunge_cap, v_prog)
+    # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
+    # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
+    raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
+    plunge_cap = np.minimum(plunge_cap, np.where(v_prog > 0, raise_max * v_prog, np.inf))
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed"))
     limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
     rho = np.array([a.rho_m_per_rad for a in ax])

@@ -19,7 +19,7 @@ import numpy as np
 
 from . import controller, safety
 from ._kernels import set_threads
-from .emit import FeedPlan, emitted_positions, whole_compensated_moves, write_feeds
+from .emit import FeedPlan, emitted_positions, whole_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import BORING_CYCLES, TAPPING_CYCLES, Program
 from .job import Job
@@ -115,6 +115,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
             stock = job.stock()
         samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                             progress=report, clearance_mm=float(job.limits["air_clearance_mm"]))
+        samples = safety.check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)
         # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
         # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
         # speeds, whose loads do not change) the per-slice engagement once the loads are computed
@@ -177,7 +178,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         # corners the controller blends at the faster feed carry it into the slower move
         limit_mm_s = blend_limit(samples, limit_mm_s, np.cumsum(tp.lengths()),
                                  controller.blend_zones(tp, model, controller.path_modes(program, model)))
-        fragments = whole_compensated_moves(program, piecewise_feeds(
+        fragments = whole_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
         hard_cap = np.full(len(tp), np.inf)
@@ -237,7 +238,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
-        "notes": program.notes + _rpm_notes(job, program)
+        "notes": program.notes + _rpm_notes(job, samples)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
     if spindle:
@@ -314,14 +315,14 @@ def _held_lines(samples: Samples, limits: JobLimits) -> dict:
     return out
 
 
-def _rpm_notes(job: Job, program: Program) -> list[str]:
-    tp = program.toolpath
-    on = (tp.rpm > 0) & (tp.kind != RAPID)
+def _rpm_notes(job: Job, samples: Samples) -> list[str]:
+    """The speeds the feed moves ask for (S words, or a hand-switched spindle's) outside the spindle's range."""
+    on = (samples.rpm > 0) & (samples.kind != RAPID)
     out = []
-    for rpm in np.unique(tp.rpm[on]):
+    for rpm in np.unique(samples.rpm[on]):
         used = float(running_rpm(job, rpm))
         if used != rpm:
-            line = int(tp.line[np.flatnonzero(on & (tp.rpm == rpm))[0]])
+            line = int(samples.line[np.flatnonzero(on & (samples.rpm == rpm))[0]])
             out.append(f"{job.program}:{line}: S{rpm:g} is outside the spindle's range "
                        f"{job.machine.spindle.rpm_min:g}–{job.machine.spindle.rpm_max:g} rpm; "
                        f"the controller runs it at {used:g} rpm and the loads are computed there")
