@@ -152,6 +152,7 @@ PROGRAM = [
     "G1 X31.5 Y18.5",         # 31: air 3.5 mm over the floor, 9 mm from the walls: raised
     "G1 Z-4",                 # 32: down to 1 mm over the floor
     "G1 X29 Y21",             # 33: air 1 mm over the floor: raised (the floor was cut, not guessed)
+    "G1 Z1 F300",             # 34: a retract straight up through the top's shell: raised (meets nothing new)
     "G0 Z10", "M30",
 ]
 
@@ -186,6 +187,7 @@ def test_approaches_beside_and_above_keep_their_feed_far_moves_are_raised(air_jo
     assert f[7][1] > 10 * 300.0 and f[8][1] > 10 * 300.0
     # in the pocket the program cut: over its floor by more and by less than the clearance
     assert f[31][1] > 2 * 600.0 and f[33][1] > 2 * 600.0
+    assert f[34][0] > 1.5 * 300.0
     assert result.summary["limits"]["air_clearance"] <= 1.0 + 1e-3
     assert "air_clearance" in result.summary["hard_limits"]
 

@@ -45,7 +45,8 @@ feed: never held by the policy); a material without end-cutting data keeps the p
 Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
 maximum feed, except in the shell of width c around the stock as loaded (`Engagement.near_stock`: the
 tool grown by c meets the original stock, its tip disc is not inside it; the surfaces the program cut
-are known, air over them is raised). There a block that
+are known, air over them is raised; a retract straight up is raised too: it meets no material the tool
+is not already in). There a block that
 cuts nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its
 programmed feed at most; the air part of a block that cuts (a move, or a canned cycle's moves at one
 hole), its programmed feed or the lowest cap of its cut if higher (hard, "air_clearance": a cap like
@@ -89,6 +90,7 @@ from .tools.beam import ToolBeam, default_safety_factor
 HARD, QUALITY = "hard", "quality"
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
+RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
 LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
 
 
@@ -349,8 +351,9 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
     approach = None
-    if eng.near_stock is not None:  # air beside or just above the stock
-        cap, approach = _air_clearance(eng.near_stock & cutting, engaged, samples, toolpath.line, v_prog, v_cap)
+    if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
+        near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
+        cap, approach = _air_clearance(near, engaged, samples, toolpath.line, v_prog, v_cap)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults, approach)
 
