@@ -93,6 +93,18 @@ def test_fragments_bound_the_limit_and_respect_length_and_count():
     assert ideal * (1 - 1e-3) <= t_fine <= ideal * 1.02 < t_coarse
 
 
+def test_a_slow_move_does_not_hold_the_next_moves_first_fragment():
+    """A plunge limited to 5 mm/s, then a 20 mm cut limited to 20 mm/s: the sample at the corner is the
+    plunge's (its step arrives there), so the cut runs at 20 mm/s from the corner on (the corner itself
+    is held by the plunge's F and the controller's blend, `blend_limit`); each move's fragments at its
+    own limit."""
+    tp = make_toolpath((0, 0, 2), [("line", (0, 0, -1)), ("line", (20, 0, -1))])
+    smp = tp.resample(0.1)
+    lim = np.where(smp.move == 0, 5.0, 20.0)
+    frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, step=0.0)
+    assert [(f.move, f.u_start, f.u_end, f.feed_mm_min) for f in frs] == [(0, 0.0, 1.0, 300.0), (1, 0.0, 1.0, 1200.0)]
+
+
 def test_split_toolpath_keeps_geometry():
     tp = make_toolpath((4, 0, 0), [("arc", (4, 0, -3), (0, 0, 0), True, 2), ("line", (10, 0, -3))])
     smp = tp.resample(0.05)

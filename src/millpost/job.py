@@ -19,7 +19,9 @@
                                       # programmed feed, 2),
                                       # lower ("hard"|"all"), feed_step (relative, 0.05),
                                       # solver ("auto"|"clarabel": Clarabel on every segment),
-                                      # rpm ("programmed"|"optimize": choose S per operation)
+                                      # rpm ("programmed"|"optimize": choose S per operation),
+                                      # air_clearance_mm (3: feed moves that cut nothing within it
+                                      # of the stock keep their programmed feed)
     [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
 
 A folder stands for the `job.toml` inside it. Every number must be finite and inside its stated
@@ -44,14 +46,15 @@ from .tools.library import load_tool, tool_from_table
 
 _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
                "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None,
-               "plunge_raise_max": 2.0, "lower": "hard", "feed_step": 0.05, "solver": "auto", "rpm": "programmed"}
+               "plunge_raise_max": 2.0, "lower": "hard", "feed_step": 0.05, "solver": "auto", "rpm": "programmed",
+               "air_clearance_mm": 3.0}
 _CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel"), "rpm": ("programmed", "optimize")}
 # the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
 # a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
 # budget of 5 mm or a feed of 1000 m/min is no limit at all.
 LIMIT_RANGES = {"deflection_mm": (1e-4, 5.0), "feed_max_mm_min": (1.0, 1e6), "tool_safety_factor": (1.0, 100.0),
                 "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9), "plunge_feed_max_mm_min": (1.0, 1e6),
-                "plunge_raise_max": (1.0, 100.0)}
+                "plunge_raise_max": (1.0, 100.0), "air_clearance_mm": (0.0, 100.0)}
 CELL_RANGE_MM = (1e-3, 10.0)
 SPINDLE_RPM_RANGE = (1.0, 2e5)  # rpm: no milling spindle turns faster than 200 000 rpm
 STOCK_SPAN_MM = 1e5  # no stock corner is 100 m from the work zero

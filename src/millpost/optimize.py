@@ -114,7 +114,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         with stage(report, "stock"):
             stock = job.stock()
         samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                                            progress=report)
+                                            progress=report, clearance_mm=float(job.limits["air_clearance_mm"]))
         samples = safety.check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)
         # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
         # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed

@@ -204,11 +204,12 @@ def known_start(program: Program, samples: Samples) -> int:
 
 
 def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: float, allow: Iterable[str],
-           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None
-           ) -> tuple[Samples, "engagement.Engagement", list[str]]:
+           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None,
+           clearance_mm: float | None = None) -> tuple[Samples, "engagement.Engagement", list[str]]:
     """Resample (``large`` gate), step the tools through `stock` (cut in place; ``rapid`` gate from the
     first known position) and check the cut (``no-cut``, ``below-stock``, ``flute-length``).
-    Returns the samples, the engagement and the warnings/notes the gates left."""
+    clearance_mm: see `engagement.simulate`. Returns the samples, the engagement and the warnings/notes
+    the gates left."""
     notes: list[str] = []
     check_program(program)
     bounds = stock.bounds()
@@ -216,7 +217,7 @@ def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: flo
     samples = resample(program, ds_mm, allow, notes, stage=stage)
     try:
         eng = engagement.simulate(stock, tools, samples, slices=slices, progress=progress,
-                                  start=known_start(program, samples))
+                                  start=known_start(program, samples), clearance_mm=clearance_mm)
     except CrashError as exc:
         raise CrashError(exc.line, exc.xyz, file=program.path) from None
     check_cut(program, bounds, tools, samples, eng, allow, notes)

@@ -15,6 +15,10 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
 3. End band (descending feed steps only, read before the cut): per radial bin of the tool's end, the
    share of its columns whose band [surface, surface + drop] just above the new tool surface holds
    material: where the end edges cut a full axial feed (`_end_band`).
+4. Clearance (feed steps that cut nothing): whether the tool is in the shell of width c around the
+   stock as loaded (`_near_original`): the tool grown by c (radius R + c, tip c lower) meets the
+   original stock and its tip disc is not inside it, read from a coarse snapshot of the original
+   column tops (per block of columns their maximum and minimum, `block_range`).
 
 Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer or drill (a cone).
 These closed forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
@@ -240,6 +244,52 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
                 out[b] += min(m / drop, 1.0)
     for b in range(J):
         out[b] = out[b] / cnt[b] if cnt[b] > 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def block_range(top, nx, ny, B, zf):
+    """Maximum and minimum of the column tops (mm) per block of B × B columns (row-major blocks)."""
+    nbx, nby = (nx + B - 1) // B, (ny + B - 1) // B
+    hi = np.full(nbx * nby, np.float32(zf), np.float32)
+    lo = np.full(nbx * nby, np.float32(np.inf), np.float32)
+    for j in range(ny):
+        for i in range(nx):
+            b = (j // B) * nbx + i // B
+            hi[b] = max(hi[b], top[j * nx + i])
+            lo[b] = min(lo[b], top[j * nx + i])
+    return hi, lo
+
+
+@njit(cache=True, error_model="numpy")
+def _near_original(px, py, pz, R, c, omax, omin, B, nx, ny, x0, y0, h, zf):
+    """Whether a tool of radius R (mm) with its tip at (px, py, pz) lies in the shell of width c (mm)
+    around the original stock: (a) the tool grown by c (radius R + c, tip c lower, a cylinder) meets
+    it, and (b) its tip disc (radius R at pz) is not inside it (not every column within R of the axis
+    held material above pz). omax/omin: the original tops' maximum/minimum per block of B × B columns
+    (`block_range`); a block is read whole, so both answers err towards near: by up to a block's
+    diagonal beside the stock, and inside it within a block of its edge."""
+    w = B * h
+    nbx, nby = (nx + B - 1) // B, (ny + B - 1) // B
+    rc = R + c
+    zc = max(pz - c, zf)  # a column at the floor holds no material
+    zt = max(pz, zf)
+    meets = False
+    inside = px - R >= x0 and px + R <= x0 + nx * h and py - R >= y0 and py + R <= y0 + ny * h
+    bi0 = min(max(int(math.floor((px - rc - x0) / w)), 0), nbx - 1)
+    bi1 = min(max(int(math.floor((px + rc - x0) / w)), 0), nbx - 1)
+    bj0 = min(max(int(math.floor((py - rc - y0) / w)), 0), nby - 1)
+    bj1 = min(max(int(math.floor((py + rc - y0) / w)), 0), nby - 1)
+    for bj in range(bj0, bj1 + 1):
+        ddy = max(y0 + bj * w - py, 0.0, py - y0 - min((bj + 1) * B, ny) * h)
+        for bi in range(bi0, bi1 + 1):
+            ddx = max(x0 + bi * w - px, 0.0, px - x0 - min((bi + 1) * B, nx) * h)
+            d2 = ddx * ddx + ddy * ddy
+            b = bj * nbx + bi
+            if d2 <= rc * rc and omax[b] > zc:
+                meets = True
+            if d2 < R * R and not omin[b] > zt:
+                inside = False
+    return meets and not inside
 
 
 @njit(cache=True, error_model="numpy")
@@ -657,14 +707,17 @@ def _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t):
 
 @njit(cache=True, error_model="numpy")
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
-        shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
-        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o):
+        shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol, clear, zmax, omax, omin, B,
+        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o, near_o):
     """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
     ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
     of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place).
     depth_o[k]: the depth of material the step meets, before ap is clipped to the flute length.
-    end_o[k]: the end's radial engagement of a descending feed step (`_end_band`)."""
+    end_o[k]: the end's radial engagement of a descending feed step (`_end_band`). near_o[k]: a feed
+    step that cuts nothing lies within `clear` mm of the original stock (`_near_original` with its
+    tops' block maxima omax and minima omin of B × B columns; zmax: the highest original top); not
+    computed when clear < 0."""
     dphi = math.pi / M
     sin_t = np.sin(np.arange(M + 1) * dphi)
     cos_t = np.cos(np.arange(M + 1) * dphi)
@@ -736,6 +789,8 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         ap_o[k] = ap
         if ap <= 1e-6 or step == 0.0:
             area_o[k] = vol_o[k] / step if step > 0.0 else 0.0
+            if ap <= 1e-6 and clear >= 0.0 and not rapid[k] and pz - clear < zmax:
+                near_o[k] = _near_original(px, py, pz, R, clear, omax, omin, B, nx, ny, x0, y0, h, zf)
             continue
         dzs = ap / K
         cx, cy = ring_at[k, 0], ring_at[k, 1]
