@@ -15,8 +15,9 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
   which the controller ramps to on its own);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
   limit binds);
-- for a load limit, `signal`: the load it bounds, from the forward model's signals
-  (`millpost.signals.Signals` → per-sample values; the replay check evaluates it at the executed speed),
+- for a load limit, `signal(signals, at)`: the load it bounds, from the forward model's signals of the
+  samples `at` (a slice: `millpost.signals.Signals` of those samples → their values; the replay check
+  evaluates it at the executed speed, in chunks),
   and `bound`: its bound per sample before the feed policy.
 
 The feed policy (`[limits] lower`): millpost raises feeds freely under every limit. With
@@ -68,7 +69,7 @@ user's `deflection_mm`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
 import numpy as np
@@ -105,7 +106,7 @@ class Limit:
     baseline: bool = True
     f_word: bool = True
     default: str = ""
-    signal: Callable[[Any], np.ndarray] | None = None
+    signal: Callable[[Any, slice], np.ndarray] | None = None
     bound: np.ndarray | None = None
 
     @property
@@ -182,9 +183,12 @@ def _corners(job: Job, samples: Samples, toolpath: Toolpath):
     return CornerSpeed(cap)
 
 
-def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent) -> JobLimits:
+def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
+                 release_slices: bool = False) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
-    `millpost.progress` callback (stage "forces", in samples)."""
+    `millpost.progress` callback (stage "forces", in samples). release_slices: once the loads are
+    computed, `eng` (changed in place) keeps only what `Engagement.per_sample` keeps (memory: its
+    per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built)."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])
@@ -221,7 +225,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
     chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
     # chip thickness per unit feed per tooth: flank (chip thinning) and end (axial chip over its share)
-    sin_max, sin_end, chip_factor = max_sin(eng), np.zeros(n), np.zeros(n)
+    sin_max, sin_end, chip_factor = np.zeros(n), np.zeros(n), np.zeros(n)
     thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
     defaults: dict[str, str] = {}
     rough_by_tool: dict[int, float] = {}
@@ -244,6 +248,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
             for key in ("peak", "power", "torque", "force"):
                 loads[f"{key}_a"][part] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
+            sin_max[part] = max_sin(eng_p)  # per chunk: its (N, K) temporaries stay bounded
             sin_end[part] = end_chip_factor(eng_p, tool)
             chip_factor[part] = np.maximum(sin_max[part],
                                            entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio))
@@ -279,6 +284,11 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         # the floor: the thickest chip, flank's or end's, reaches the minimum chip
         floor[cut_here] = h_min / np.maximum(sin_max[cut_here], sin_end[cut_here]) * per_tooth
     progress("forces", n, n)
+    if release_slices:  # below, only the per-sample fields are read
+        lean = eng.per_sample()
+        for f in fields(eng):
+            setattr(eng, f.name, getattr(lean, f.name))
+        del lean
     del sin_max  # memory: every use is above
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
@@ -297,20 +307,22 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
                             bound=bound))
 
-    # each load is affine in the speed (the schedule's rows); `signal` is the same load in the signals
+    # each load is affine in the speed (the schedule's rows); `signal` is the same load in the signals of the
+    # samples `at`
     load_limit("cutting_force", HARD, "cutting force", loads["peak_a"], loads["peak_b"], peak_limit,
-               lambda s: s.peak_force_xy_N, defaults.get("cutting_force", ""))
+               lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
     load_limit("power", HARD, "power", loads["power_a"], loads["power_b"],
-               np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s: s.cutting_power_W)
+               np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s, at: s.cutting_power_W)
     load_limit("torque", HARD, "power", loads["torque_a"], loads["torque_b"],
-               np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s: s.torque_Nm)
+               np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s, at: s.torque_Nm)
     load_limit("deflection", QUALITY, "deflection", loads["peak_a"] * defl_per_N, loads["peak_b"] * defl_per_N,
-               defl_limit, lambda s: s.peak_force_xy_N * defl_per_N, defaults.get("deflection", ""))
+               defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at], defaults.get("deflection", ""))
     load_limit("thrust", HARD, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2], thrust_limit,
-               lambda s: s.force_tool_N[:, 2], defaults.get("thrust", ""))
+               lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
     load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], tool_torque_limit,
-               lambda s: s.torque_Nm, defaults.get("tool_torque", ""))
-    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max, lambda s: s.fz_mm * chip_factor)
+               lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
+    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max,
+               lambda s, at: s.fz_mm * chip_factor[at])
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
@@ -334,7 +346,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
     for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
         load_limit("cutting_current", HARD, "current", slope[:, k], static[:, k], np.where(engaged, capacity[k], np.inf),
-                   lambda s, k=k: slope[:, k] * s.speed_mm_s + static[:, k])
+                   lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
     stalled = held["cutting_current"]
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.

@@ -124,8 +124,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         t_engage = time.perf_counter()
         limits = None
         if job.limits["rpm"] != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report)
-            eng = eng.per_sample()
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True)
         t_limits = time.perf_counter()
         result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
     result.summary["notes"] += notes

@@ -46,10 +46,10 @@ from .tools import Tool
 
 THROUGH_CUT_MM = 1.0  # below the stock bottom by at most this: a through-cut (noted), beyond: refused
 MAX_SAMPLES = 10_000_000  # path samples of one run, whatever the memory
-# peak bytes per path sample at 8 axial slices, measured with tracemalloc on the sample jobs: the
-# engagement 1.1-1.4 kB; optimize adds loads, schedule and replay (4.6 kB), rounded up for what the
-# solver allocates outside Python's view
-BYTES_PER_SAMPLE = {"simulate": 1_500, "optimize": 8_000}
+# peak bytes per path sample at 8 axial slices: the engagement 1.1-1.4 kB (tracemalloc, sample jobs);
+# optimize 1.3 kB of peak resident memory a sample at 0.76-2.3 M samples (benchmarks/end_to_end.py,
+# streamed forces, limits and replay), rounded up to 4 kB for Clarabel windows and denser engagements
+BYTES_PER_SAMPLE = {"simulate": 1_500, "optimize": 4_000}
 
 
 @dataclass(frozen=True)
