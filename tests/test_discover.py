@@ -167,3 +167,32 @@ def test_umich_axis_friction_from_inertia_only():
             r2_disc = 1 - np.sum((y[held] - pred[c][held]) ** 2) / ss
             print(f"UMich {exp} {c}: held-out R² hand {r2_hand:.3f}, discover {r2_disc:.3f}")
             assert r2_disc >= r2_hand - 1e-3
+
+
+def test_base_refit_keeps_cutting_coefficients_non_negative():
+    """Data whose best unconstrained K_rc is negative: the refit puts K_rc on its bound 0, and the other
+    parameters are then the ordinary least squares with K_rc's column left out (the bounded optimum
+    when the gradient pushes K_rc below 0), computed here by numpy's lstsq."""
+    from millpost.discover.model import design, solve
+    from millpost.discover.rows import COEFS, Rows
+    rng = np.random.default_rng(3)
+    n = 400
+    chans = ("fx_N", "spindle_power_W")
+    cut = {c: np.abs(rng.normal(1.0, 0.5, (n, 6))) for c in ("fx_N", "fy_N", "fz_N", "spindle_power_W")}
+    truth = np.array([600.0, -40.0, 250.0, 12.0, 9.0, 3.0])
+    measured = {c: cut[c] @ truth + 5.0 + rng.normal(0, 2.0, n) for c in chans}
+    rows = Rows(np.arange(n) * 0.01, measured, cut, {c: {"offset": np.ones(n)} for c in chans}, {})
+    d = design(rows)
+    train = np.ones(n, bool)
+    sigma = {c: 1.0 for c in chans}
+    fit = solve(d, rows, train, sigma)
+    p = fit.params()
+    assert p["Krc"] == 0.0 and min(p[k] for k in COEFS) >= 0.0
+    X = np.vstack([d.X[c] for c in chans])
+    y = np.concatenate([measured[c] for c in chans])
+    keep = [k for k, name in enumerate(d.names) if name != "Krc"]
+    beta, *_ = np.linalg.lstsq(X[:, keep], y, rcond=None)
+    assert np.allclose([p[d.names[k]] for k in keep], beta, rtol=1e-6, atol=1e-6)
+    grad = X[:, d.names.index("Krc")] @ (y - X[:, keep] @ beta)
+    assert grad < 0      # K_rc pushed below 0: the bound is active
+    assert fit.stderr()["Krc"] == 0.0 and fit.stderr()["Ktc"] > 0
