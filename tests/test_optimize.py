@@ -147,3 +147,23 @@ def test_cli_report_says_why_slower():
     assert "deflection 2.00" not in text  # a quality limit the program exceeds does not make it slower
     assert "default cutting_force: tool safety factor 3" in text and "deflection (quality) held on 2 lines" in text
     assert "T1" in text and "333.3-1000" in text and "594.9-20000" in text
+
+
+def test_micro_segments_do_not_write_a_crawl(tmp_path):
+    """A program's 5 µm moves between long cuts (CAM arc fitting and V-carving leave such): the controller
+    reads at most 1000 blocks/s (hobby-router), so it runs each at ≤ 5 µm × 1000/s = 0.3 mm/min by itself
+    for one block's time; millpost's schedule counts that, but writes no F word for it (that wrote F3 on
+    the next 2 mm of plywood and made the program 18× slower). Every F in force on the cuts stays at
+    least the programmed F1200, and the optimized program is no slower."""
+    (tmp_path / "p.nc").write_text("G21 G90 G17\nT1 M6\nS18000 M3\nG0 X-10 Y5 Z5\nG1 Z-3 F400\nG1 X20 F1200\n"
+                                   "G1 X20.005\nG1 X40\nG1 X40.005\nG1 X60\nG0 Z5\nM5\nM30\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "plywood"\nmachine = "hobby-router"\n[stock]\nbox = [[0, 0, -12], [60, 10, 0]]\n'
+        'cell_mm = 0.1\n[tools.1]\ndiameter_mm = 6.35\nflutes = 2\nshape = "flat"\nflute_length_mm = 22\n'
+        'stickout_mm = 30\n')
+    result = optimize(load_job(tmp_path / "job.toml"), progress=False)
+    s = result.summary
+    assert s["status"] == "solved" and s["cycle_time_after_s"] <= s["cycle_time_before_s"]
+    tp = read_text(result.text).toolpath
+    along_x = (tp.kind != 0) & (tp.end[:, 0] != tp.start[:, 0])
+    assert tp.feed_mm_min[along_x].min() >= 1200

@@ -3,7 +3,8 @@
 A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus what it is:
 - `kind`: "hard" (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
   the end's thrust and torque on the tool, drive current, the machine's and the user's maxima (the
-  plunge feed cap included), the controller's block rate) or "quality" (exceeding it spoils the part
+  plunge feed cap included), the controller's block rate ("block_rate": the controller holds it by
+  itself, no F word carries it)) or "quality" (exceeding it spoils the part
   or the tool's life: deflection, maximum chip load, the chip floor);
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
@@ -56,7 +57,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import MillpostError
-from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
+from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
 from .controller import ControllerModel, corner_speeds
 from .progress import Progress, silent
@@ -170,10 +171,12 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     feed_max = m.feed_max_mm_min
     if job.limits["feed_max_mm_min"]:
         feed_max = min(feed_max, float(job.limits["feed_max_mm_min"]))
-    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate
-    move_len = toolpath.lengths()[samples.move]
-    block_cap = np.where(samples.kind != RAPID, move_len * m.controller.block_rate_Hz, np.inf)
-    limits = [Limit(FeedLimit(np.minimum(feed_max / 60.0, block_cap)), HARD, "feed"),
+    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate.
+    # It slows by itself there (an F word cannot make it faster or need make it slower): no F word
+    # carries this cap, which on a micro-segment would write a crawl into the moves around it
+    block_cap = np.where(samples.kind != RAPID, toolpath.lengths()[samples.move] * m.controller.block_rate_Hz, np.inf)
+    limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
+              Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False),
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
@@ -220,8 +223,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                 loads[f"{key}_a"][part] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
             sin_end[part] = end_chip_factor(eng_p, tool)
-            share = entry_chip_share(eng_p, tool, job.material.strategies.plunge_fz_ratio)
-            chip_factor[part] = np.maximum(sin_max[part], sin_end[part] / share)
+            chip_factor[part] = np.maximum(sin_max[part],
+                                           entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio))
             if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
                 # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
                 # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)

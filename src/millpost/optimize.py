@@ -21,7 +21,7 @@ from . import controller, safety
 from ._kernels import set_threads
 from .emit import FeedPlan, emitted_positions, whole_compensated_moves, write_feeds
 from .gcode import read_program, read_text
-from .gcode.interpret import Program
+from .gcode.interpret import BORING_CYCLES, TAPPING_CYCLES, Program
 from .job import Job
 from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
@@ -62,10 +62,13 @@ def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_m
         else:
             plan.feed_mm_min[mv] = min(f.feed_mm_min for f in frs)
             plan.fragments[mv] = [(f.u_end, f.feed_mm_min) for f in frs]
-    # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never changed
-    tapping = np.flatnonzero(np.isin(program.cycle, (740, 840)))
-    plan.feed_mm_min[tapping] = program.toolpath.feed_mm_min[tapping]
-    for mv in tapping:
+    # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never
+    # changed; a boring cycle's feed sets the finish of the bore: it is never raised (a hard limit may lower it)
+    held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
+    programmed = program.toolpath.feed_mm_min[held]
+    plan.feed_mm_min[held] = np.where(np.isin(program.cycle[held], TAPPING_CYCLES), programmed,
+                                      np.fmin(plan.feed_mm_min[held], programmed))
+    for mv in held:
         plan.fragments.pop(int(mv), None)
     if program.control_flow:
         tp = program.toolpath

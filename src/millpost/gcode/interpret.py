@@ -28,6 +28,8 @@ INCH = 25.4
 # G codes as integers: round(value * 10)
 _MOTION = {0, 10, 20, 30, 730, 740, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 _CYCLES = {730, 740, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
+TAPPING_CYCLES = (740, 840)  # the feed is the tap's pitch times the spindle speed (synchronised)
+BORING_CYCLES = (760, 850, 860, 870, 880, 890)  # the feed sets the finish of the bore
 _MODAL_GROUPS = {
     **{g: "motion" for g in _MOTION | {800}},
     170: "plane", 180: "plane", 190: "plane", 200: "units", 210: "units", 900: "distance", 910: "distance",
@@ -1009,9 +1011,6 @@ class Interpreter:
                 raise self.err(f"canned cycle G{code / 10:g} without {need}", b, None, f"an {need} word")
         if code in (730, 830) and cyc.get("Q", 0) <= 0:
             raise self.err(f"peck cycle G{code / 10:g} needs Q > 0", b, val.get("Q"), "Q (peck depth) > 0")
-        if code in (740, 840) and cyc.get("Q", 0) > 0:  # read by dialects with peck tapping (tap_peck_q)
-            raise self.err(f"peck tapping (G{code / 10:g} with Q) is not supported", b, val.get("Q"),
-                           "a tapping cycle without Q (its retract depends on the control's parameters)")
         repeats = 1
         count = val.get("L") or (val.get("K") if self.dialect.cycle_k_repeats and code != 870 else None)
         if count is not None:
@@ -1070,7 +1069,7 @@ class Interpreter:
         """Refuse a cycle block that would expand to more than `MAX_CYCLE_MOVES` moves, or take the
         program's canned cycles past `MAX_CYCLE_MOVES_TOTAL` (peck count = depth / Q, times L)."""
         per_hole = 6.0
-        if code in (730, 830):
+        if code in (730, 830) or (code in (740, 840) and cyc.get("Q", 0) > 0):
             per_hole += 3.0 * (r - bottom) / (cyc["Q"] * self.scale)
         moves = repeats * per_hole
         if moves > MAX_CYCLE_MOVES or self.cycle_moves + moves > MAX_CYCLE_MOVES_TOTAL:
@@ -1086,6 +1085,21 @@ class Interpreter:
         p = self.pos.copy()
         p[an] = depth
         self.emit(kind, p, b, feed_mm_min=feed if kind == FEED else math.nan)
+
+    def tap_pecks(self, b: Block, r: float, bottom: float, delta: float, feed: float) -> None:
+        """The pecks of a peck tapping cycle before its last one (G84/G74 with Q). The tap feeds down Q
+        deeper each time and reverses out at the same synchronised feed. Fanuc's deep-hole form
+        retracts to R; the high-speed form backs off by a control parameter only. Both are modelled as
+        the deep-hole form (the longer one) and noted; a tapping feed is never changed."""
+        depth = r - delta
+        while depth > bottom:
+            self.to_depth(FEED, depth, b, feed)
+            self.to_depth(FEED, r, b, feed)
+            if depth - delta >= depth:
+                break
+            depth -= delta
+        self.notes.append(f"line {b.line}: peck tapping modelled as Fanuc's deep-hole form (the tap reverses "
+                          "out to R after each peck; the high-speed form backs off by a control parameter)")
 
     def cycle_body(self, code: int, b: Block, r: float, bottom: float, clear: float, feed: float, cyc: dict) -> None:
         sc = self.scale
@@ -1115,6 +1129,8 @@ class Interpreter:
             self.to_depth(FEED, bottom, b, feed)
             self.to_depth(RAPID, clear, b)
         elif code in (840, 740):  # tapping: in, reverse, feed out to the clear plane
+            if delta > 0:  # peck tapping (tap_peck_q dialects): each peck reverses out to R and back in
+                self.tap_pecks(b, r, bottom, delta, feed)
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
             self.to_depth(FEED, clear, b, feed)
