@@ -265,6 +265,17 @@ def test_ball_and_v_plunges_take_the_entry_share_of_the_axial_feed(tmp_path, sha
     assert 300 <= f <= 0.25 * 0.09 * 6 / 7 * 3 * 9000 + 0.1
 
 
+def test_plunge_raised_at_most_twice_the_programmed_feed(tmp_path):
+    """`G1 Z-4 F100` (the chip-load bound allows F520): at most plunge_raise_max = 2 × F100 by default
+    (the programmer may have slowed it on purpose); with plunge_raise_max = 10 the load bound binds."""
+    def feed(limits: str = "") -> float:
+        job_path = plunge_job(tmp_path, limits)
+        job_path.with_name("p.nc").write_text(job_path.with_name("p.nc").read_text().replace("Z-4 F300", "Z-4 F100"))
+        return plunge_feed(optimize(load_job(job_path), progress=False).text)
+    assert 190 <= feed() <= 200
+    assert 0.95 * 520.7 <= feed("plunge_raise_max = 10\n") <= 520.8
+
+
 def test_plunge_held_without_end_cutting_data(tmp_path):
     """A material without [end_cutting] data: the loads of the end are unknown, the plunge keeps F300."""
     src = Path(__file__).resolve().parents[1] / "src/millpost/data/materials/al6061.toml"

@@ -9,6 +9,8 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
   accelerations, corners, jerk), so the baseline program's single F need not;
+- `baseline`: the baseline's single F obeys it (false for the air clearance, whose cap is the
+  program's own feed: the baseline keeps the programmed feed of its approach moves instead);
 - `f_word`: the emitted F words obey its speed cap (false for accelerations, jerk and corner caps,
   which the controller ramps to on its own);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
@@ -35,9 +37,24 @@ drive's current) and to the spindle torque and power; the thrust stays under the
 buckling load and the torque under its torsional strength, both over the tool safety factor (hard:
 "thrust", "tool_torque"). The end's axial chip f_z·descent·sin κ joins the chip-load limit (quality),
 up to the material's `plunge_fz_ratio` of the chip load for a milling cutter entering along its axis
-with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there (hard, "plunge_feed",
-a cap like the maximum feed: never held by the policy); a material without end-cutting data keeps
-the programmed feed there (its end loads are unknown).
+with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there, and so does
+`plunge_raise_max` (default 2) times the programmed feed (hard, "plunge_feed", a cap like the maximum
+feed: never held by the policy); a material without end-cutting data keeps the programmed feed there
+(its end loads are unknown).
+
+Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
+maximum feed, except in the shell of width c around the stock as loaded (`Engagement.near_stock`: the
+tool grown by c meets the original stock, its tip disc is not inside it; the surfaces the program cut
+are known, air over them is raised; a retract straight up is raised too: it meets no material the tool
+is not already in). There a block that
+cuts nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its
+programmed feed at most; the air part of a block that cuts (a move, or a canned cycle's moves at one
+hole), its programmed feed or the lowest cap of its cut if higher (hard, "air_clearance": a cap like
+the plunge feed cap, lowered further only by the other hard limits). The stock model is a guess (the
+blank may be larger, the sheet thicker or bowed) and CAM posts approaches at the entry feed because
+the tool is about to cut: within c of the modelled stock the tool would otherwise meet unmodelled
+material at up to the machine's maximum feed. The baseline keeps the programmed feed of the approach
+moves (`JobLimits.approach`).
 
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
@@ -65,6 +82,7 @@ from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
+from .safety import spindle_off_message
 from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
@@ -72,6 +90,7 @@ from .tools.beam import ToolBeam, default_safety_factor
 HARD, QUALITY = "hard", "quality"
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
+RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
 LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
 
 
@@ -83,6 +102,7 @@ class Limit:
     kind: str
     effect: str
     controller: bool = False
+    baseline: bool = True
     f_word: bool = True
     default: str = ""
     signal: Callable[[Any], np.ndarray] | None = None
@@ -104,7 +124,8 @@ class JobLimits:
     power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3). held: {limit name: samples where the
     policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
     hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
-    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut)."""
+    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut);
+    approach: per toolpath move, its block cuts nothing but passes within the air clearance of the stock."""
 
     limits: list[Limit]
     loads: dict
@@ -114,6 +135,7 @@ class JobLimits:
     deflection_mm: np.ndarray
     lower: str = HARD
     defaults: dict[str, str] = field(default_factory=dict)
+    approach: np.ndarray | None = None
 
     def __iter__(self):
         return iter(self.limits)
@@ -191,7 +213,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     spin = samples.rpm > 0
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
-        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+        raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
@@ -292,8 +314,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
-    if end_model is None:  # the end's loads are unknown: the programmed feed stays the cap there
-        plunge_cap = np.minimum(plunge_cap, v_prog)
+    # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
+    # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
+    raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
+    plunge_cap = np.minimum(plunge_cap, np.where(v_prog > 0, raise_max * v_prog, np.inf))
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed"))
     limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
     rho = np.array([a.rho_m_per_rad for a in ax])
@@ -326,15 +350,48 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                                     tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
-    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
+    approach = None
+    if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
+        near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
+        cap, approach = _air_clearance(near, engaged, samples, toolpath.line, v_prog, v_cap)
+        limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
+    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults, approach)
 
 
-def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
+def _air_clearance(near: np.ndarray, engaged: np.ndarray, samples: Samples, move_line: np.ndarray,
+                   v_prog: np.ndarray, v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The air clearance's speed cap per sample (mm/s) and the approach moves (per toolpath move: its
+    block cuts nothing but passes near the stock). near: feed samples that cut nothing within the
+    clearance; engaged: samples that cut; blocks are source lines (one move, or a canned cycle's moves
+    at one hole); move_line: each move's line; v_prog: the programmed speed; v_cap: the other limits'
+    speed caps. In a block that cuts nothing (an approach, a plunge or lead-in beside the stock, a link
+    over it) the cap is the programmed feed; in the air part of a block that cuts, the programmed feed
+    or, if higher, the lowest cap of its cut: the tool reaches material no faster than the cut it enters
+    is allowed. The point where one move hands over to the next takes the higher of their caps (the
+    programmed program passes it at the faster of the two feeds: a blending planner's blend)."""
+    line = samples.line
+    size = int(max(line.max(initial=0), move_line.max(initial=0))) + 1
+    v_cut = np.full(size, np.inf)
+    np.minimum.at(v_cut, line[engaged], v_cap[engaged])
+    approach = np.zeros(size, bool)
+    np.logical_or.at(approach, line, near)
+    approach &= np.isinf(v_cut)
+    entry = np.where(np.isinf(v_cut), 0.0, v_cut)[line]
+    cap = np.where(near, np.maximum(v_prog, entry), np.inf)
+    handover = np.flatnonzero((samples.move[1:] != samples.move[:-1]) & ~np.asarray(samples.segment_start[1:], bool))
+    both = np.maximum(cap[handover], cap[handover + 1])
+    for k in (handover - 1, handover, handover + 1):  # within a step of it
+        cap[k[k >= 0]] = np.maximum(cap[k[k >= 0]], both[k >= 0])
+    return cap, approach[move_line]
+
+
+def static_caps(samples: Samples, limits, kind: str | None = None, baseline: bool = False) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all (in chunks of
-    LOAD_CHUNK samples: the rows of the whole program are never held at once)."""
+    by itself allow (loads, chip load, feed), of one kind or all, or (baseline) those the baseline's
+    single F obeys (in chunks of LOAD_CHUNK samples: the rows of the whole program are never held at
+    once)."""
     grid = PathGrid.from_samples(samples)
-    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind)]
+    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind) and (lim.baseline or not baseline)]
     b_hi = np.empty(len(samples))
     for lo in range(0, len(samples), LOAD_CHUNK):
         hi = min(lo + LOAD_CHUNK, len(samples))

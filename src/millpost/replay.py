@@ -29,9 +29,10 @@ from .toolpath import RAPID, Samples, Toolpath
 
 def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tuple[np.ndarray, dict]:
     """The honest baseline: per tool one constant feed (mm/min), the highest that exceeds no
-    speed-only limit anywhere that tool cuts (what a careful CAM user would program)."""
+    speed-only limit anywhere that tool cuts (what a careful CAM user would program); its approach
+    moves (`JobLimits.approach`) keep their programmed feed where that is lower."""
     tp = program.toolpath
-    cap = static_caps(samples, limits) * 60.0
+    cap = static_caps(samples, limits, baseline=True) * 60.0
     feeds = tp.feed_mm_min.copy()
     per_tool = {}
     for number in np.unique(tp.tool[tp.kind != RAPID]):
@@ -42,6 +43,8 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
         f = float(np.floor(cap[sel].min()))
         per_tool[int(number)] = f
         feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
+    if limits.approach is not None:
+        feeds[limits.approach] = np.minimum(feeds[limits.approach], tp.feed_mm_min[limits.approach])
     return feeds, per_tool
 
 
