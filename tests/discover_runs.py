@@ -214,7 +214,8 @@ def make_run(folder: Path, seed: int, effect: str, *, noise: float | None = None
         sig = simulate(load_job(job_path))
         if signals_cache is not None:
             signals_cache[key] = sig
-    noise = rng.uniform(0.01, 0.05) if noise is None else noise
+    drawn = rng.uniform(0.01, 0.05)          # drawn always, so that a given noise leaves the rest of the run as is
+    noise = drawn if noise is None else noise
     offset = rng.uniform(-1.0, 3.0)
     tau = (rng.uniform(0, 1) + np.arange(int((sig.t_s[-1] + 1.0) * rate_hz))) / rate_hz - 0.5
     xyz = np.column_stack([np.interp(tau, sig.t_s, sig.xyz_mm[:, k]) for k in range(3)])

@@ -25,11 +25,10 @@ NAMES = ("tool_wear", "size_effect", "deflection", "inertia", "sensor_lag", "spi
          "axis_friction", "runout")
 # seeds per effect: 3 in the shared suite (fast), MILLPOST_DISCOVER_RUNS=10 for the full bar
 RUNS = int(os.environ.get("MILLPOST_DISCOVER_RUNS", "3"))
-# named right 10/10, but the raw held-out shrink falls short (median 0.56 over 10 runs): after the refit of
-# the edge coefficients (the linear edge-force law is the first-order size effect) what is left is 2–8 % of
-# the force, which 1–5 % noise caps (noiseless the median is 0.83); the rest is the model's floor against
-# this generator (0.5–1.2 % RMS on noiseless null runs, 3 % where an axial slice straddles two material
-# levels of a side cut deeper than the one before it)
+# named right 10/10, but the raw held-out shrink falls short of 0.6 because the noise caps it: after the
+# refit of the edge coefficients (the linear edge-force law is the first-order size effect) what is left is
+# 1.3–6 times the noise, so even a model whose residual is the noise alone shrinks the RMS by a median 0.57
+# (10 runs, from each run's noiseless twin); discover's own is within 0.08 of that (median 0.015)
 SHRINK_SHORT = {"size_effect": "the gap left after the coefficient refit is of the order of the noise"}
 
 
@@ -43,6 +42,17 @@ def run_one(cache, effect: str, seed: int):
     r = make_run(folder, seed, effect, signals_cache=cache["signals"])
     d = discover(load_job(r.job_path), r.log, signals=cache["signals"][str(r.job_path)])
     return r, d.summary(), d.predictions()
+
+
+def noise_bound(r, clean, pred: dict, channels: list[str]) -> float:
+    """The held-out shrink of a model whose residual is the noise alone (run r's log minus its noiseless
+    twin `clean`), median over the channels: what the noise leaves any model."""
+    held = pred["held_out"] == 1
+    out = []
+    for c in channels:
+        before = np.sqrt(np.mean((pred[f"{c}_measured"] - pred[f"{c}_before"])[held] ** 2))
+        out.append(1 - np.sqrt(np.mean((r.log[c] - clean.log[c])[held] ** 2)) / before)
+    return float(np.median(out))
 
 
 def raw_shrink(pred: dict, channels: list[str]) -> float:
@@ -66,7 +76,7 @@ def test_registry_has_the_named_effects():
 
 @pytest.mark.parametrize("effect", EFFECTS)
 def test_seeded_runs_name_the_hidden_effect(cache, effect):
-    named, shrink = [], []
+    named, shrink, bound = [], [], []
     runs = RUNS if effect != "runout" else max(RUNS // 3, 1)   # 1 kHz logs: ten times the rows
     for seed in range(runs):
         r, s, pred = run_one(cache, effect, seed)
@@ -74,6 +84,9 @@ def test_seeded_runs_name_the_hidden_effect(cache, effect):
         named.append(names[0] if names else "none")
         if names and names[0] == effect:
             shrink.append(raw_shrink(pred, s["effects"][0]["channels"]))
+            if effect in SHRINK_SHORT:
+                clean = make_run(cache["dir"] / f"job{seed}", seed, effect, noise=0.0, signals_cache=cache["signals"])
+                bound.append(noise_bound(r, clean, pred, s["effects"][0]["channels"]))
     right = sum(n == effect for n in named)
     print(f"{effect}: named {named}, held-out RMS shrink {np.round(shrink, 2).tolist()}")
     if effect == "none":
@@ -86,7 +99,10 @@ def test_seeded_runs_name_the_hidden_effect(cache, effect):
     # the bar (median over 10 runs ≥ 0.6); a few runs scatter more (single runs go from 0.44 to 0.95)
     bar = 0.6 if runs >= 10 else 0.45
     if effect in SHRINK_SHORT and np.median(shrink) < bar:
-        pytest.xfail(f"{effect}: median held-out RMS shrink {np.median(shrink):.2f} < {bar}: {SHRINK_SHORT[effect]}")
+        # what is asserted instead: discover's shrink is the noise's bound to within 0.1 in every run
+        assert all(a >= b - 0.1 for a, b in zip(shrink, bound)), (shrink, bound)
+        pytest.xfail(f"{effect}: median held-out RMS shrink {np.median(shrink):.2f} < {bar} (noise-only model: "
+                     f"{np.median(bound):.2f}): {SHRINK_SHORT[effect]}")
     assert np.median(shrink) >= bar, shrink
 
 
@@ -167,3 +183,53 @@ def test_umich_axis_friction_from_inertia_only():
             r2_disc = 1 - np.sum((y[held] - pred[c][held]) ** 2) / ss
             print(f"UMich {exp} {c}: held-out R² hand {r2_hand:.3f}, discover {r2_disc:.3f}")
             assert r2_disc >= r2_hand - 1e-3
+
+
+def test_base_refit_keeps_cutting_coefficients_non_negative():
+    """Data whose best unconstrained K_rc is negative: the refit puts K_rc on its bound 0, and the other
+    parameters are then the ordinary least squares with K_rc's column left out (the bounded optimum
+    when the gradient pushes K_rc below 0), computed here by numpy's lstsq."""
+    from millpost.discover.model import design, solve
+    from millpost.discover.rows import COEFS, Rows
+    rng = np.random.default_rng(3)
+    n = 400
+    chans = ("fx_N", "spindle_power_W")
+    cut = {c: np.abs(rng.normal(1.0, 0.5, (n, 6))) for c in ("fx_N", "fy_N", "fz_N", "spindle_power_W")}
+    truth = np.array([600.0, -40.0, 250.0, 12.0, 9.0, 3.0])
+    measured = {c: cut[c] @ truth + 5.0 + rng.normal(0, 2.0, n) for c in chans}
+    rows = Rows(np.arange(n) * 0.01, measured, cut, {c: {"offset": np.ones(n)} for c in chans}, {})
+    d = design(rows)
+    train = np.ones(n, bool)
+    sigma = {c: 1.0 for c in chans}
+    fit = solve(d, rows, train, sigma)
+    p = fit.params()
+    assert p["Krc"] == 0.0 and min(p[k] for k in COEFS) >= 0.0
+    X = np.vstack([d.X[c] for c in chans])
+    y = np.concatenate([measured[c] for c in chans])
+    keep = [k for k, name in enumerate(d.names) if name != "Krc"]
+    beta, *_ = np.linalg.lstsq(X[:, keep], y, rcond=None)
+    assert np.allclose([p[d.names[k]] for k in keep], beta, rtol=1e-6, atol=1e-6)
+    grad = X[:, d.names.index("Krc")] @ (y - X[:, keep] @ beta)
+    assert grad < 0      # K_rc pushed below 0: the bound is active
+    assert fit.stderr()["Krc"] == 0.0 and fit.stderr()["Ktc"] > 0
+
+
+def test_first_order_lag_of_a_ramp():
+    """τ ẏ = x − y from rest at 0 with x = t: y = t − τ(1 − e^(−t/τ)) (closed form), sampled at 100 Hz."""
+    from millpost.discover.effects.sensor_lag import first_order
+    t = np.arange(0, 2.0, 0.01)
+    for tau in (0.02, 0.15, 0.6):
+        y = first_order(0.01, tau)(np.column_stack([t, 3 * t]))
+        exact = t - tau * (1 - np.exp(-t / tau))
+        assert np.allclose(y[:, 0], exact, atol=1e-12) and np.allclose(y[:, 1], 3 * exact, atol=1e-12)
+
+
+def test_lag_input_bridges_the_rows_fits_leave_out():
+    """Rows outside `use` are replaced by the straight line between the used rows around them (held at the
+    ends), so the lag does not carry the forward model's known-wrong values into the rows after them."""
+    from millpost.discover.effects.sensor_lag import bridge
+    use = np.array([0, 1, 1, 0, 0, 1, 0, 0], bool)
+    m = np.arange(8.0) ** 2
+    assert np.allclose(bridge(use)(m), [1, 1, 4, 11, 18, 25, 25, 25])
+    assert np.allclose(bridge(use)(np.column_stack([m, -m]))[:, 1], [-1, -1, -4, -11, -18, -25, -25, -25])
+    assert bridge(None)(m) is m

@@ -3,7 +3,8 @@ fitted jointly by weighted least squares (each channel weighted by 1/σ², σ it
 newtons and watts are comparable), with the parameter covariance.
 
 A term is a column of one channel under a parameter name; a name that appears in several channels is one
-parameter shared by them (the cutting coefficients; an effect's physical constant). An effect may also
+parameter shared by them (the cutting coefficients; an effect's physical constant). The cutting
+coefficients are bounded below by 0 (`nonnegative`). An effect may also
 filter a channel's whole prediction (a sensor lag): a linear filter of a linear model is the same model
 on filtered columns, so it stays linear.
 """
@@ -11,9 +12,10 @@ on filtered columns, so it stays linear.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
 from ..errors import MillpostError
 from .rows import COEFS, CUTTING, Rows
@@ -53,9 +55,10 @@ def design(rows: Rows, terms: list[Terms] = (), filters: dict[str, Filter] | Non
         names += [k for k in cols[c] if k not in names]
     X = {}
     for c in cols:
-        m = np.zeros((len(rows), len(names)))
+        m = np.zeros((len(names), len(rows)))     # column-major: each column written contiguously
         for k, col in cols[c].items():
-            m[:, names.index(k)] = col
+            m[names.index(k)] = col
+        m = m.T
         if c in filters:
             m = filters[c](m)
             fixed[c] = filters[c](fixed[c][:, None])[:, 0]
@@ -65,12 +68,16 @@ def design(rows: Rows, terms: list[Terms] = (), filters: dict[str, Filter] | Non
 
 @dataclass
 class Fit:
-    """beta: parameters by name; cov: their covariance; sigma: per-channel residual scale used as weight."""
+    """beta: parameters by name; cov: their covariance; sigma: per-channel residual scale used as weight;
+    predicted: the prediction on the design it was fitted on (channel → (n,)); chi2: its weighted sum of
+    squared training residuals."""
 
     names: list[str]
     beta: np.ndarray
     cov: np.ndarray
     sigma: dict[str, float]
+    predicted: dict[str, np.ndarray] = field(default_factory=dict)
+    chi2: float = float("nan")
 
     def params(self) -> dict[str, float]:
         return dict(zip(self.names, self.beta.tolist()))
@@ -100,19 +107,37 @@ def solve(d: Design, rows: Rows, train: np.ndarray, sigma: dict[str, float]) -> 
     if dof <= 0:
         raise MillpostError(f"too few log rows ({dof + P}) for {P} parameters")
     scale = np.sqrt(np.maximum(np.diag(A), 1e-300))
-    As = A / np.outer(scale, scale)
-    inv = np.linalg.pinv(As, rcond=1e-10)
-    beta = inv @ (b / scale) / scale
-    fit = Fit(list(d.names), beta, np.zeros((P, P)), dict(sigma))
-    pred = fit.predict(d)
-    chi2 = sum(float(np.nansum(((rows.measured[c] - pred[c])[train]) ** 2)) / sigma[c] ** 2 for c in d.X)
-    fit.cov = chi2 / dof * inv / np.outer(scale, scale)
+    As, bs = A / np.outer(scale, scale), b / scale
+    free = np.ones(P, bool)
+    x = np.linalg.pinv(As, rcond=1e-10) @ bs
+    coef = np.array([n in COEFS for n in d.names])
+    if (x[coef] < 0).any():
+        x = nonnegative(As, bs, coef)
+        free = ~coef | (x > 0)
+    inv = np.zeros((P, P))
+    inv[np.ix_(free, free)] = np.linalg.pinv(As[np.ix_(free, free)], rcond=1e-10)
+    fit = Fit(list(d.names), x / scale, np.zeros((P, P)), dict(sigma))
+    fit.predicted = fit.predict(d)
+    fit.chi2 = sum(float(np.nansum(((rows.measured[c] - fit.predicted[c])[train]) ** 2)) / sigma[c] ** 2
+                   for c in d.X)
+    fit.cov = fit.chi2 / dof * inv / np.outer(scale, scale)
     return fit
+
+
+def nonnegative(A: np.ndarray, b: np.ndarray, lower: np.ndarray) -> np.ndarray:
+    """argmin xᵀAx − 2bᵀx with x ≥ 0 where `lower` (the cutting coefficients: a negative K_rc or K_te is a
+    mismatch of the model absorbed by a coefficient, not a material's property), free elsewhere: the
+    bounded least squares ‖Mx − c‖² with A = MᵀM, Mᵀc = b (M from A's eigendecomposition)."""
+    s, V = np.linalg.eigh(A)
+    keep = s > 1e-10 * s.max()
+    M = np.sqrt(s[keep])[:, None] * V[:, keep].T
+    c = (V[:, keep].T @ b) / np.sqrt(s[keep])
+    return lsq_linear(M, c, bounds=(np.where(lower, 0.0, -np.inf), np.inf), method="bvls").x
 
 
 def residual_scale(d: Design, rows: Rows, train: np.ndarray, fit: Fit | None = None) -> dict[str, float]:
     """Per channel σ: the RMS training residual of `fit` (or the measured values' spread without one)."""
-    pred = fit.predict(d) if fit is not None else None
+    pred = fit.predicted if fit is not None else None
     out = {}
     for c in d.X:
         y = rows.measured[c][train]

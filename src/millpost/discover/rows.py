@@ -9,8 +9,11 @@ Base model per channel (linear in its parameters, refitted on the log):
   rotated to machine XYZ; power = torque·ω) + a zero offset per channel; spindle power also carries the
   machine file's no-load power P_idle(n) as a fixed term;
 - spindle_current_A: a gain on the forward model's current + an offset;
-- ix_A, iy_A, iz_A (axis motor current): inertia k_a·a + a gain on the cutting force along the axis + an
-  offset (friction is a candidate effect, not part of the base).
+- ix_A, iy_A, iz_A (axis motor current): inertia k_a·a + the cutting force along the axis through the
+  drive's A per N, k_f·F = Σ_j (k_f·K_j)·regressor_j (the cutting law's six regressors, each product a
+  parameter of the channel: linear, and free of the nominal coefficients' ±20 % error, which a single
+  gain on the forward model's force would carry) + an offset (friction is a candidate effect, not part
+  of the base).
 """
 
 from __future__ import annotations
@@ -119,7 +122,12 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
         raise MillpostError(f"{log.path}: only {len(inside)} log rows fall inside the program after alignment "
                             f"(offset {alignment.offset_s:.3f} s)")
     j = j_all[inside]
-    ka, kb, w = engaged_between(signals, alignment.program_time(log.t_s[inside]))
+    tau = alignment.program_time(log.t_s[inside])
+    ka, kb, w = engaged_between(signals, tau)
+    # the axis kinematics at each row's instant, linear in time between the path samples around it (the
+    # nearest sample would move a rapid's acceleration step by up to half a sample interval)
+    velocity, accel = (np.column_stack([np.interp(tau, signals.t_s, v[:, k]) for k in range(3)])
+                       for v in (signals.axis_velocity_mm_s, signals.axis_accel_mm_s2))
     je = np.where(w < 0.5, ka, kb)
     measured = {c: np.asarray(log[c][inside], float) for c in CHANNELS if log.has(c)}
     if not measured:
@@ -157,12 +165,13 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
             columns[c]["gain"] = np.nan_to_num(signals.spindle_current_A[j])
         elif c in CURRENTS:
             k = CURRENTS.index(c)
-            columns[c]["inertia_A_per_m_s2"] = signals.axis_accel_mm_s2[j, k] / 1000.0
-            columns[c]["cut_force_gain"] = -signals.force_tool_N[je, k]
+            columns[c]["inertia_A_per_m_s2"] = accel[:, k] / 1000.0
+            for name, col in zip(COEF_NAMES, cut[FORCE[k]].T):   # k_f·K per coefficient: A per (N/mm², N/mm)
+                columns[c][f"cut_{name}"] = col
     exiting = exit_zone(signals, diameter)
     features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[je], "ae_mm": signals.ae_mm[je],
                 "ap_mm": signals.ap_mm[je], "diameter_mm": diameter[je], "cut_length_m": length[je],
-                "velocity_mm_s": signals.axis_velocity_mm_s[j], "accel_mm_s2": signals.axis_accel_mm_s2[j]}
+                "velocity_mm_s": velocity, "accel_mm_s2": accel}
     use = ~exiting[je] & ~entry_zone(signals)[j] & (cutting[j] == cutting[ka]) & (cutting[j] == cutting[kb])
     return Rows(np.asarray(log.t_s[inside], float), measured, cut, columns, fixed, features, inside, use, cuts)
 

@@ -28,7 +28,7 @@ from scipy import stats
 from ..errors import MillpostError
 from ..registry import plugins
 from .effects.base import Context, Effect
-from .model import Design, Fit, design, residual_scale, solve
+from .model import Fit, design, residual_scale, solve
 from .rows import COEFS, Rows
 
 BLOCK_S = 1.5        # time block length (s), between MIN_BLOCKS and MAX_BLOCKS blocks in all
@@ -112,7 +112,6 @@ class Selection:
     held-out split."""
 
     base: Fit
-    base_design: Design
     sigma: dict[str, float]
     train: np.ndarray
     block: np.ndarray
@@ -122,19 +121,19 @@ class Selection:
     steps: list[tuple[dict, dict]] = field(default_factory=list)   # (before, after) predictions per kept effect
 
     def predict_before(self) -> dict[str, np.ndarray]:
-        return self.base.predict(self.base_design)
+        return self.base.predicted
 
     def predict_after(self) -> dict[str, np.ndarray]:
         return self.effects[-1].predict() if self.effects else self.predict_before()
 
 
-def fit_base(rows: Rows, train: np.ndarray) -> tuple[Fit, Design, dict[str, float]]:
+def fit_base(rows: Rows, train: np.ndarray) -> tuple[Fit, dict[str, float]]:
     """The base model refitted on the training rows; σ per channel from a first pass, then refitted."""
     d = design(rows)
     sigma = residual_scale(d, rows, train)
     f = solve(d, rows, train, sigma)
     sigma = residual_scale(d, rows, train, f)
-    return solve(d, rows, train, sigma), d, sigma
+    return solve(d, rows, train, sigma), sigma
 
 
 def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect]] | None = None, *,
@@ -143,9 +142,9 @@ def select(rows: Rows, nominal: dict[str, float], effects: dict[str, type[Effect
     nominal: the job material's cutting coefficients (used where the log does not inform them)."""
     effects = candidates() if effects is None else effects
     train, block = split(rows.t_s, rows.use)
-    base, d, sigma = fit_base(rows, train)
+    base, sigma = fit_base(rows, train)
     coef = {n: base.params().get(n, nominal.get(n, 0.0)) for n in COEFS}
-    sel = Selection(base, d, sigma, train, block, coef)
+    sel = Selection(base, sigma, train, block, coef)
     current = sel.predict_before()
     level = alpha / max(len(effects), 1)
     for _ in range(max_effects):

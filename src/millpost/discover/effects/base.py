@@ -97,12 +97,8 @@ class Effect:
     def evaluate(self, ctx: Context, v: Variant) -> tuple[float, Variant, Fit]:
         """(training χ², variant, joint fit) of one variant refitted with the base and the kept effects
         (the design is not kept: on a long log it is the largest array)."""
-        d = self.joint_design(ctx, v)
-        f = solve(d, ctx.rows, ctx.train, ctx.sigma)
-        pred = f.predict(d)
-        chi2 = sum(float(np.nansum((ctx.rows.measured[c] - pred[c])[ctx.train] ** 2)) / ctx.sigma[c] ** 2
-                   for c in d.X)
-        return chi2, v, f
+        f = solve(self.joint_design(ctx, v), ctx.rows, ctx.train, ctx.sigma)
+        return f.chi2, v, f
 
     def refine(self, ctx: Context, best: tuple, grid: np.ndarray, at, steps: int = 8) -> tuple:
         """Golden-section search of the training χ² over a scalar setting between the grid neighbours of
@@ -130,7 +126,7 @@ class Effect:
             self.variant_ = None
             return self
         _, v, f = best
-        self.variant_, self.fit_, self.design_ = v, f, self.joint_design(ctx, v)
+        self.variant_, self.fit_ = v, f
         own = [n for n in f.names if n.startswith(self.name + ":")]
         p, s = f.params(), f.stderr()
         self.params_ = {**v.setting, **{n.split(":", 1)[1]: p[n] for n in own}}
@@ -150,7 +146,7 @@ class Effect:
         """The joint model's prediction with this effect on the rows it was fitted on."""
         if not self.applicable:
             raise NotFittedError(f"{self.name}: not applicable to this log")
-        return self.fit_.predict(self.design_)
+        return self.fit_.predicted
 
     def param(self, key: str) -> str:
         return f"{self.name}:{key}"
