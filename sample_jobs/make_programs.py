@@ -50,7 +50,8 @@ def slotting() -> str:
         out += [f"G0 X-5 Y{fmt(y)}", "G0 Z2"]
         for z in (-1.5, -3.0):
             out += [f"G1 Z{fmt(z)} F300", "G1 X65 F700", "G0 Z2", f"G0 X-5 Y{fmt(y)}"]
-    out += ["G0 Z10", "G0 X-4 Y-4", "G0 Z2", "G1 Z-4 F300", "G1 X64 F900", "Y44", "X-4", "Y-4", "G0 Z10", "M30"]
+    # the contour's centre line 2 mm outside the block (R − ae), entered 2 mm beside the -X face
+    out += ["G0 Z10", "G0 X-5 Y-2", "G0 Z2", "G1 Z-4 F300", "G1 X62 F900", "Y42", "X-2", "Y-2", "G0 Z10", "M30"]
     return "\n".join(out) + "\n"
 
 

@@ -151,7 +151,11 @@ def test_mechanistic_from_forces_within_1_percent_and_covered(mechanistic_runs):
         worst = max(worst, float(np.max(np.abs(est / AL6061 - 1))))
         covered += np.abs(est - AL6061) <= 2 * se
     assert worst < 0.01, worst
-    assert np.all(covered >= 0.9 * len(SEEDS)), covered
+    # the 2σ intervals hold the truth 95.4 % of the time if the standard errors are honest: pooled over the
+    # 6 coefficients × 20 seeds, fewer than 90 % has probability 0.3 %; per coefficient, fewer than 17 of 20
+    # has probability 1.2 % (a per-coefficient bar of 18 would fail an honest fit 6 × 6 % of the time)
+    assert covered.sum() >= 0.9 * covered.size * len(SEEDS), covered
+    assert np.all(covered >= 17), covered
 
 
 def test_ktc_kte_from_spindle_power_alone_within_3_percent(mechanistic_runs):

@@ -16,7 +16,7 @@ import pytest
 import rs274_oracle
 from conftest import shared_data
 from millpost import engagement, stock
-from millpost.emit import FeedPlan, whole_compensated_moves, write_feeds
+from millpost.emit import FeedPlan, whole_moves, write_feeds
 from millpost.errors import MillpostError, ParseError
 from millpost.gcode import ReaderOptions, dialects, read_text
 from millpost.gcode.convert import convert
@@ -333,7 +333,7 @@ def test_compensated_moves_are_never_split():
     tp = p.toolpath
     i = int(np.flatnonzero((tp.line == 7) & (tp.kind == FEED))[0])  # the X10 side
     frags = [Fragment(i, 0.0, 0.5, 700.0), Fragment(i, 0.5, 1.0, 450.0), Fragment(1, 0.0, 1.0, 200.0)]
-    whole = whole_compensated_moves(p, frags)
+    whole = whole_moves(p, frags)
     assert Fragment(i, 0.0, 1.0, 450.0) in whole and Fragment(1, 0.0, 1.0, 200.0) in whole and len(whole) == 2
     plan = FeedPlan.programmed(p)
     plan.feed_mm_min[i] = 450.0

@@ -10,10 +10,11 @@ import pytest
 
 import rs274_oracle
 from conftest import SHARED_DATA
-from millpost.emit import FeedPlan, write_feeds
+from millpost.emit import FeedPlan, _Unknown, computed, write_feeds
 from millpost.files import write_atomic
 from millpost.errors import ParseError
 from millpost.gcode import ReaderOptions, read_program, read_text
+from millpost.gcode.lexer import lex_line
 from millpost.toolpath import RAPID
 
 EXT = {".ngc", ".nc", ".gcode", ".tap"}
@@ -81,7 +82,9 @@ def test_split_moves_keep_the_path_and_take_each_feed():
             plan.fragments[int(i)] = [(0.25, round(f * 0.5, 1)), (0.6, round(f * 0.8, 1)), (1.0, round(f, 1))]
         text = write_feeds(program, plan)
         back = read_text(text, program.path, ReaderOptions.linuxcnc())
-        assert len(back.toolpath) == len(tp) + 2 * len(single[:60]), program.path
+        lines = program.text.splitlines()  # a line computing a word (`G1 Z#2`) is never split
+        whole = sum(computed(lex_line(lines[tp.line[i] - 1], 1, "", _Unknown())) for i in single[:60])
+        assert len(back.toolpath) == len(tp) + 2 * (len(single[:60]) - whole), program.path
         _same_path(program, back)
         if rs274_oracle.RS274 and single:
             out = Path(program.path).parent / ".millpost-emit-test.ngc"
@@ -170,3 +173,53 @@ def test_split_points_take_one_more_digit_and_stay_on_the_path():
     plan = FeedPlan.programmed(prog)
     plan.fragments[1] = [(1 / 3, 127.0), (1.0, 254.0)]
     assert write_feeds(prog, plan).splitlines()[2] == "G1 X0.4115 Y0.16667 F5"
+
+
+# --- lines that compute a word, lines that hold only F -------------------------------------------
+PARAMETRIC = ("G21 G90\nT1 M6\nM3 S10000\n#<z_cut> = -1\n#<drill_speed> = 50\nG0 X0 Y0 Z2\n"
+              "G1 Z#<z_cut> F#<drill_speed>\nN8510 X[2*10] Y0\nG0 Z2\nM2\n")
+
+
+def test_a_line_that_computes_a_word_is_never_split_only_its_f_changes():
+    """A plan that asks to split `G1 Z#<z_cut>` and `X[2*10]` (an optimizer's fragments) gets one F per
+    line, the lowest its fragments want (`whole_moves`), and every other byte of the line as written:
+    the parameters stay parameters (a split would write them as numbers)."""
+    from millpost.emit import whole_moves
+    from millpost.schedule.feeds import Fragment
+
+    p = read_text(PARAMETRIC, "p.ngc", ReaderOptions())
+    tp = p.toolpath
+    plunge, cut = (int(np.flatnonzero(tp.line == n)[0]) for n in (7, 8))
+    frags = [Fragment(plunge, 0.0, 0.4, 80.0), Fragment(plunge, 0.4, 1.0, 60.0),
+             Fragment(cut, 0.0, 0.5, 900.0), Fragment(cut, 0.5, 1.0, 700.0)]
+    assert sorted(whole_moves(p, frags), key=lambda f: f.move) == [
+        Fragment(plunge, 0.0, 1.0, 60.0), Fragment(cut, 0.0, 1.0, 700.0)]
+    plan = FeedPlan.programmed(p)
+    plan.feed_mm_min[[plunge, cut]] = [60.0, 700.0]
+    plan.fragments = {plunge: [(0.4, 80.0), (1.0, 60.0)], cut: [(0.5, 900.0), (1.0, 700.0)]}
+    out = write_feeds(p, plan).splitlines()
+    src = PARAMETRIC.splitlines()
+    assert len(out) == len(src)
+    assert out[6] == "G1 Z#<z_cut> F60" and out[7] == "N8510 X[2*10] Y0 F700"
+    assert [a for a, b in zip(out, src) if a != b] == [out[6], out[7]]
+    back = read_text("\n".join(out) + "\n", "p.ngc", ReaderOptions()).toolpath
+    assert np.allclose(back.end, tp.end) and np.allclose(back.feed_mm_min[[plunge, cut]], [60.0, 700.0])
+
+
+def test_a_line_holding_only_f_takes_the_new_feed_instead_of_a_second_f():
+    """CAMotics writes `F369.75` on its own line before each move: the new feed goes into that line
+    (one F word per move as in the input, no conflicting feeds to read), and the written program runs
+    each move at its planned feed (read back by the interpreter). A feed line followed by a line with
+    other words before the move is left alone, and the move takes its own F."""
+    text = ("G21 G90\nT1 M6\nM3 S10000\nG0 X0 Y0 Z3\nF437.5\nG1 Z-0.625\n(note)\nF369.75\nG1 X4 Z-1.3\nG1 X5\n"
+            "F300\nM8\nG1 X6\nM2\n")
+    p = read_text(text, "w.gcode", ReaderOptions())
+    plan = FeedPlan.programmed(p)
+    feeds = [np.nan, 500.0, 800.0, 900.0, 250.0]
+    plan.feed_mm_min[:] = feeds
+    out = write_feeds(p, plan)
+    assert out.splitlines()[4:13] == ["F500", "G1 Z-0.625", "(note)", "F800", "G1 X4 Z-1.3", "G1 X5 F900", "F300",
+                                      "M8", "G1 X6 F250"]
+    assert out.upper().count("F") == text.upper().count("F") + 2  # X5 (no F line before it) and X6 (M8 between)
+    back = read_text(out, "w.gcode", ReaderOptions()).toolpath
+    assert np.allclose(back.feed_mm_min[1:], feeds[1:])

@@ -22,7 +22,7 @@ import pytest
 
 from millpost import stock
 from millpost.engagement import Engagement, simulate
-from millpost.forces.endcut import EndCut, chisel_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
+from millpost.forces.endcut import EndCut, chisel_factor, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from millpost.gcode import read_text
 from millpost.job import load_job
 from millpost.materials import Material
@@ -153,7 +153,9 @@ def test_end_engagement_annulus_over_a_hole():
     drop = -np.diff(samples.xyz_mm[:, 2], prepend=samples.xyz_mm[0, 2])
     assert eng.volume_mm3[sel] == pytest.approx(np.pi * (25 - 4) * drop[sel], rel=0.01)
     assert np.all(eng.end_engaged[sel][:, 0] == 0)    # the hole: nothing under the centre
-    assert np.all(entry_chip_share(eng, tools[2], 0.5)[sel] == 1.0)   # not enclosed: chips fall into the hole
+    # not enclosed: chips fall into the hole; the end's chip is its axial chip f_z·descent·sin κ (flat: 1)
+    assert np.all(entry_chip_factor(eng, tools[2], 0.5)[sel] == end_chip_factor(eng, tools[2])[sel])
+    assert np.all(end_chip_factor(eng, tools[2])[sel] == 1.0)
 
 
 def test_ramp_and_helix_descent_and_whole_end_engaged():
@@ -166,7 +168,8 @@ def test_ramp_and_helix_descent_and_whole_end_engaged():
     assert eng.descent[steady] == pytest.approx(math.sin(alpha), rel=1e-6)
     assert eng.end_engaged[steady].mean() == pytest.approx(1.0, abs=0.02)
     assert np.all(np.isfinite(eng.phi_st[steady]).any(axis=1))          # and the flank cuts the slot
-    assert np.all(entry_chip_share(eng, tool, 0.5)[steady] == 0.5)           # an enclosed end: entry chip load
+    # an enclosed end: the axial feed per tooth f_z·sin α over the entry share 0.5
+    assert entry_chip_factor(eng, tool, 0.5)[steady] == pytest.approx(math.sin(alpha) / 0.5, rel=1e-6)
     # helix of radius 4 (path Ø8), pitch 1 mm per turn, two turns down from the surface
     samples, eng = box_plunge(tool, "G21 G90 G0 X4 Y0 Z0\nS8000 M3\nG17 G2 X4 Y0 Z-1 I-4 J0 F600\nG2 X4 Y0 Z-2 I-4 J0\n")
     tan_a = 1.0 / (math.pi * 8)
@@ -212,12 +215,12 @@ def test_tool_allowances():
     assert torque_limit_Nm(drill, 1.0) == pytest.approx(0.577 * 2000 * math.pi * 3.4 ** 3 / 16 / 1000, rel=1e-9)
 
 
-def plunge_job(tmp_path, limits: str = "") -> Path:
+def plunge_job(tmp_path, limits: str = "", shape: str = 'shape = "flat"') -> Path:
     (tmp_path / "p.nc").write_text("%\nG21 G90 G17\nT1 M6\nS9000 M3\nG0 X20 Y20 Z2\nG1 Z-4 F300\n"
                                    "G1 X30 F900\nG0 Z10\nM30\n%\n")
     (tmp_path / "job.toml").write_text(
         'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0, 0, -15], [40, 40, 0]]\n'
-        'cell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = "flat"\nflute_length_mm = 16\n'
+        f'cell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\nflutes = 3\n{shape}\nflute_length_mm = 16\n'
         f'stickout_mm = 24\n[limits]\n{limits}')
     return tmp_path / "job.toml"
 
@@ -233,21 +236,44 @@ def test_issue_plunge_not_raised_beyond_end_cutting_bound(tmp_path):
     """`G1 Z-4 F300`, Ø6 3-flute flat end mill into Al 6061 at 9000 rpm (was raised to F2430 with the
     end unmodelled, then to F1215 at half the chip load). Bound asserted: a straight plunge's axial chip
     f_z takes a quarter of the material's chip load (FANAR: entries at 25–50 % of the table feed, the
-    lower end for the harshest entry): F ≤ 0.25·h_max(6 mm)·z·n = 0.25·0.09·3·9000 = 607.5 mm/min, at
-    most about twice the programmed F300 (a machinist's plunge, not 4–8×); the chip-load limit binds
+    lower end for the harshest entry): F ≤ 0.25·h_max(6 mm)·z·n with h_max(6 mm) = 0.09·6/7 (the 7 mm
+    row scaled by diameter) = 0.25·0.0771·3·9000 = 520.7 mm/min, under twice the programmed F300 (a machinist's plunge, not 4–8×); the chip-load limit binds
     there, so the feed reaches it; and at the emitted feed the end's torque (k_c·f·D²/8) and power stay
     under the spindle's."""
     job = load_job(plunge_job(tmp_path))
     assert job.material.strategies.plunge_fz_ratio == 0.25
     result = optimize(job, progress=False)
     f = plunge_feed(result.text)
-    assert 0.25 * 0.09 * 3 * 9000 * 0.95 <= f <= 0.25 * 0.09 * 3 * 9000 + 0.1
+    bound = 0.25 * 0.09 * 6 / 7 * 3 * 9000
+    assert bound * 0.95 <= f <= bound + 0.1
     fz = f / (3 * 9000)
     M = 800 * fz ** -0.25 * fz * 3 * 36 / 8 / 1000
     assert M < job.machine.spindle.torque_Nm(9000) and M * 2 * math.pi * 150 < job.machine.spindle.power_W
     assert result.summary["limits"]["thrust"] < 1 and result.summary["limits"]["tool_torque"] < 1
     capped = optimize(load_job(plunge_job(tmp_path, "plunge_feed_max_mm_min = 500\n")), progress=False)
     assert plunge_feed(capped.text) <= 500
+
+
+@pytest.mark.parametrize("shape", ['shape = "ball"', 'shape = "chamfer"\ntip_angle_deg = 28',
+                                   'shape = "chamfer"\ntip_angle_deg = 90'])
+def test_ball_and_v_plunges_take_the_entry_share_of_the_axial_feed(tmp_path, shape):
+    """The same plunge with a ball or a V (28°, 90°) end: the centre of a round or pointed end cuts at
+    no speed, so an enclosed entry gets the flat end's bound on the axial feed per tooth, F ≤ 0.25·h_max·z·n
+    = 520.7 mm/min, with no chip-thinning credit for sin κ < 1 (a 28° V was raised 33×, a ball 14×)."""
+    result = optimize(load_job(plunge_job(tmp_path, shape=shape)), progress=False)
+    f = plunge_feed(result.text)
+    assert 300 <= f <= 0.25 * 0.09 * 6 / 7 * 3 * 9000 + 0.1
+
+
+def test_plunge_raised_at_most_twice_the_programmed_feed(tmp_path):
+    """`G1 Z-4 F100` (the chip-load bound allows F520): at most plunge_raise_max = 2 × F100 by default
+    (the programmer may have slowed it on purpose); with plunge_raise_max = 10 the load bound binds."""
+    def feed(limits: str = "") -> float:
+        job_path = plunge_job(tmp_path, limits)
+        job_path.with_name("p.nc").write_text(job_path.with_name("p.nc").read_text().replace("Z-4 F300", "Z-4 F100"))
+        return plunge_feed(optimize(load_job(job_path), progress=False).text)
+    assert 190 <= feed() <= 200
+    assert 0.95 * 520.7 <= feed("plunge_raise_max = 10\n") <= 520.8
 
 
 def test_plunge_held_without_end_cutting_data(tmp_path):
@@ -299,14 +325,16 @@ def test_absurd_drilling_feed_is_lowered_to_the_drill_strength(tmp_path):
     assert 50 < feed < 6000 / 10
 
 
-def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
+def test_cycles_are_written_whole_and_taps_and_bores_keep_their_feed(tmp_path):
     """A canned cycle's block holds the hole's X Y Z R, not a move's end: its moves are never split (a split
     would write the cycle word with a split point as the hole bottom and drop R). A tap feeds at its pitch
     times the spindle speed (M8: 1.25 mm × 500 rpm = F625): the optimizer never changes that F, even where
-    the schedule would raise or lower it."""
+    the schedule would raise or lower it. A boring cycle (G85 in the drilled holes: the schedule sees air)
+    never gets a faster F than programmed: its feed sets the finish of the bore."""
     (tmp_path / "p.nc").write_text("G21 G90 G17 G94\nT1 M6\nS3000 M3\nG0 X0 Y0 Z10\n"
                                    "G99 G81 X0 Y0 Z-12 R2 F150\nX20\nG80\nG0 Z10\nT2 M6\nS500 M3\n"
-                                   "G99 G84 X0 Y0 Z-10 R2 F625\nX20\nG80\nG0 Z10\nM2\n")
+                                   "G99 G84 X0 Y0 Z-10 R2 F625\nX20\nG80\nG0 Z10\nT1 M6\nS3000 M3\n"
+                                   "G99 G85 X0 Y0 Z-8 R2 F90\nX20\nG80\nG0 Z10\nM2\n")
     (tmp_path / "job.toml").write_text(
         'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-10, -10, -15], [30, 10, 0]]\n'
         '[tools.1]\ndiameter_mm = 6.8\nflutes = 2\nshape = "drill"\ntip_angle_deg = 118\nflute_length_mm = 40\n'
@@ -321,6 +349,8 @@ def test_cycles_are_written_whole_and_taps_keep_their_feed(tmp_path):
     np.testing.assert_allclose(emitted.toolpath.end, original.toolpath.end, atol=1e-9)
     tap = emitted.cycle == 840
     assert tap.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[tap & (emitted.toolpath.kind != 0)] == 625)
+    bore = emitted.cycle == 850
+    assert bore.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[bore & (emitted.toolpath.kind != 0)] <= 90)
 
 
 def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):

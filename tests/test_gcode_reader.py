@@ -151,6 +151,22 @@ def test_fanuc_fine_boring_back_boring_and_g80_return_to_g0():
     assert ends[16] == [20, 0, 10]
 
 
+def test_fanuc_peck_tapping_reverses_out_to_r_after_each_peck():
+    """Fanuc G84 with Q (Fusion's peck tapping): the tap feeds Q deeper each peck and reverses out to R
+    at the same synchronised feed, then the last peck to Z and out to the clear level. R2 Z-10 Q4: pecks to
+    -2 and -6, then -10 and out to the clear level Z10: 2·(4 + 8) + 12 + 20 = 56 mm fed, all at F625."""
+    text = "%\nO0001\nG21 G90 G17\nG0 X0 Y0 Z10\nS500 M3\nG98 G84 X0 Y0 Z-10 R2 Q4 F625\nG80\nM30\n%\n"
+    prog = read_text(text, "t.nc", ReaderOptions(dialect="fanuc"))
+    tp = prog.toolpath
+    tap = prog.cycle == 840
+    assert tp.end[tap, 2].tolist() == [10, 2, -2, 2, -6, 2, -10, 10]
+    fed = tap & (tp.kind == 1)
+    lengths = np.linalg.norm(tp.end[fed] - tp.start[fed], axis=1)
+    assert lengths.sum() == pytest.approx(56)
+    assert np.all(tp.feed_mm_min[fed] == 625)
+    assert any("peck tapping" in n and "line 6" in n for n in prog.notes)
+
+
 def test_dialect_facts_live_in_the_dialect():
     """The reader asks the Dialect, not its name: a dwell P in Fanuc counts milliseconds (G4 only
     without a decimal point, a canned cycle's always); G4 P1500 and G4 P1.5 wait 1.5 s on Fanuc,

@@ -114,14 +114,15 @@ def test_chip_thinning_feed_per_tooth():
 def test_small_tool_in_titanium():
     # A 2 mm end mill in Ti-6Al-4V on a rigid VMC: titanium wants low surface speed (≤ 60 m/min → ≤ 9549
     # rpm at 2 mm) and the thin tool, not the 5.5 kW spindle, limits the cut. The answer a machinist
-    # recognises is high-efficiency milling: most of the flute length deep, a tiny stepover (≤ 10 % of D)
-    # with the chip-thinned feed, the tool working near its strength, the spindle idling (a few % of power),
+    # recognises is high-efficiency milling: most of the flute length deep, a small stepover (≤ 20 % of D;
+    # the 2 mm tool's chip load is the table's 7 mm row scaled by 2/7, so little thinning is needed) with
+    # the chip-thinned feed, the tool working near its strength, the spindle idling (a few % of power),
     # and a removal rate far below the same tool in aluminium.
     tool = Tool(diameter_mm=2, flutes=2, flute_length_mm=6, stickout_mm=15, shank_diameter_mm=4)
     mach = Machine.load("vmc-small")
     rec = recommend(tool, Material.load("ti6al4v"), mach)
     assert rec.rpm <= 1000 * 60 / (math.pi * 2) * (1 + 1e-9)
-    assert rec.ap_mm >= 0.8 * 6 and rec.ae_mm <= 0.1 * 2
+    assert rec.ap_mm >= 0.8 * 6 and rec.ae_mm <= 0.2 * 2
     assert rec.fz_mm > rec.h_max_mm                       # chip thinning in use
     assert max(rec.break_ratio, rec.deflection_mm / 0.025) >= 0.9
     assert rec.power_W < 0.05 * mach.spindle.power_W

@@ -83,7 +83,8 @@ def test_rpm_window_and_chip_interpolation():
     m = Material.from_dict(data)
     assert m.rpm_window(10)[0] == pytest.approx(9549.3, abs=0.1)          # PHYSICS.md §3.2
     assert m.chip_load_mm(9) == pytest.approx((0.075, 0.105))             # midway 7 → 11 mm
-    assert m.chip_load_mm(3) == pytest.approx((0.06, 0.09))               # clamped below
+    assert m.chip_load_mm(3) == pytest.approx((0.06 * 3 / 7, 0.09 * 3 / 7))  # below 7 mm: ∝ D
+    assert m.chip_load_mm(30) == pytest.approx((0.12, 0.15))              # above 18 mm: the last row
     assert m.min_chip_mm(0.006) == pytest.approx(0.0018)
 
 

@@ -116,7 +116,7 @@ def test_dialect_plugin_is_used(site, tmp_path):
     done = _millpost(["convert", str(program), "--to", "democnc", "-o", str(out)], site)
     assert done.returncode == 0, done.stderr
     text = out.read_text()
-    assert "M30" in text and "X-4." in text  # the plug-in's end code and trailing points
+    assert "M30" in text and "X-2." in text  # the plug-in's end code and trailing points
     marked = tmp_path / "marked.nc"
     marked.write_text("(post: democnc)\nG21 G90\nG0 X1 Y2\nG1 X5 F300\nM30\n")
     summary = _millpost(["inspect", str(marked)], site)

@@ -46,7 +46,8 @@ def test_each_limit_signal_is_its_rows_load(drill_and_mill):
     for lim in limits:
         if isinstance(lim.constraint, SpeedLoad):
             rows = lim.constraint.alpha * v + lim.constraint.beta
-            np.testing.assert_allclose(lim.signal(sig)[cut], rows[cut], rtol=1e-9, atol=1e-12, err_msg=lim.name)
+            np.testing.assert_allclose(lim.signal(sig, slice(None))[cut], rows[cut], rtol=1e-9, atol=1e-12,
+                                       err_msg=lim.name)
             checked += 1
     assert checked >= 10  # cutting force, power, torque, deflection, thrust, tool torque, chip load, 3 currents
 
@@ -73,11 +74,29 @@ def test_exact_model_against_the_schedules_affine_loads(drill_and_mill):
 def test_replayed_kinematics_stay_within_the_machines_accelerations(drill_and_mill):
     job, samples, eng, limits, executed = drill_and_mill
     checked = replay(job, samples, eng, limits, executed)
+    sig = predict(job, samples, eng, executed, loads=limits.loads)  # the whole program at once
     amax = np.array([job.machine.axes[a].amax_mm_s2 for a in "xyz"])
-    peak = np.abs(checked.signals.axis_accel_mm_s2).max(axis=0)
+    peak = np.abs(sig.axis_accel_mm_s2).max(axis=0)
     assert np.all(peak <= amax * 1.01), (peak, amax)  # the controller plans within them
     assert np.any(peak >= amax * 0.9)  # and uses them
     limit_A = np.array([job.machine.axes[a].motor.current_limit_A for a in "xyz"])
     keep = (samples.kind != RAPID) & ~limits.held["cutting_current"]
-    assert checked.ratios["current"] == pytest.approx(
-        float(np.max(np.abs(checked.signals.axis_current_A[keep]) / limit_A)))
+    assert checked.ratios["current"] == pytest.approx(float(np.max(np.abs(sig.axis_current_A[keep]) / limit_A)))
+
+
+def test_replay_in_chunks_is_the_whole_programs(drill_and_mill, monkeypatch):
+    """The replay predicts in chunks (memory) with one neighbour each side for the path acceleration:
+    ratios and per-sample columns are those of chunks larger than the program (to rounding: np.gradient
+    takes a chunk whose samples are evenly spaced with its uniform-step formula)."""
+    import millpost.replay as replay_module
+    job, samples, eng, limits, executed = drill_and_mill
+    monkeypatch.setattr(replay_module, "LOAD_CHUNK", 10 * len(samples))
+    whole = replay(job, samples, eng, limits, executed)
+    monkeypatch.setattr(replay_module, "LOAD_CHUNK", 97)
+    chunked = replay(job, samples, eng, limits, executed)
+    assert len(samples) > 20 * 97
+    assert chunked.ratios.keys() == whole.ratios.keys()
+    for key, ratio in whole.ratios.items():
+        assert chunked.ratios[key] == pytest.approx(ratio, rel=1e-12, abs=0), key
+    for key, column in whole.trace_columns().items():
+        np.testing.assert_allclose(chunked.trace_columns()[key], column, rtol=1e-12, atol=0, err_msg=key)

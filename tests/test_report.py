@@ -68,10 +68,12 @@ def test_report_numbers_and_self_contained(slotting_result):
     assert len(re.findall(r"<svg data-figure=", page)) == 5
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", page)  # nothing fetched: opens offline
     assert "<script" not in page
-    # the final stock: the slots' floors are cut to the deepest Z programmed over the stock
+    # the final stock: cut down to the deepest Z programmed where the tool overlaps the stock (the slots'
+    # floors, the side contour's step)
     (x0, y0, _), (x1, y1, _) = job.stock_box
+    r = job.tools[1].radius_mm
     end = result.samples.xyz_mm[result.samples.kind != RAPID]
-    inside = (end[:, 0] > x0) & (end[:, 0] < x1) & (end[:, 1] > y0) & (end[:, 1] < y1)
+    inside = (end[:, 0] > x0 - r) & (end[:, 0] < x1 + r) & (end[:, 1] > y0 - r) & (end[:, 1] < y1 + r)
     z_cut = float(np.min(end[inside, 2]))
     assert np.nanmin(data.stock.top) == pytest.approx(z_cut, abs=0.05)
 

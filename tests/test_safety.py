@@ -411,3 +411,94 @@ def test_fusion_through_cut_deeper_than_assumed_flutes_is_refused(tmp_path, caps
     err = capsys.readouterr().err
     assert rc == 2 and not (tmp_path / "t.csv").exists()
     assert f"{path}:" in err and "deeper than its flute length 7.95 mm (3·D assumed: give flute_length_mm)" in err
+
+
+# --- programs without a T word or without M3 ----------------------------------------------------
+TOOL = "diameter_mm = 6\nflutes = 2\nflute_length_mm = 15\nstickout_mm = 25\n"
+NO_T = "G21 G90\nG0 X-5 Y10 Z5\nS10000 M3\nG1 Z-2 F300\nG1 X25 F600\nG0 Z5\nM30\n"
+
+
+def small_job(tmp_path, program: str, tools=(1,), extra: str = "", name="job") -> Path:
+    d = tmp_path / name
+    d.mkdir()
+    (d / "p.nc").write_text(program)
+    (d / "job.toml").write_text(f'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n{extra}\n'
+                                '[stock]\nbox = [[0, 0, -10], [20, 20, 0]]\ncell_mm = 0.1\n'
+                                + "".join(f"[tools.{n}]\n{TOOL}" for n in tools))
+    return d
+
+
+def optimized(d: Path, *extra: str) -> tuple[int, dict, str]:
+    rc = main(["optimize", str(d), "-o", str(d / "out.nc"), "--json", str(d / "s.json"), *extra])
+    out = (d / "out.nc").read_text() if rc == 0 else ""
+    return rc, (strict_json((d / "s.json").read_text()) if rc == 0 else {}), out
+
+
+def f_words(text: str) -> list[str]:
+    import re
+    return re.findall(r"F[\d.]+", text)
+
+
+@pytest.mark.parametrize("number", [0, 4])
+def test_a_program_without_t_words_runs_with_the_jobs_only_tool(number, tmp_path, capsys):
+    """No T word (most LinuxCNC samples, CAMotics, PyCAM): the job's one tool, whatever its number (T0
+    too), is the one loaded and the summary says so; the result is the one of the same program with
+    `T<n> M6` written at its start (same feeds, same cycle time)."""
+    rc, summary, out = optimized(small_job(tmp_path, NO_T, tools=(number,), name="bare"))
+    assert rc == 0, capsys.readouterr().err
+    assert any(f"T{number}, the job's only tool, taken as loaded" in n for n in summary["notes"])
+    rc2, with_t, out_t = optimized(small_job(tmp_path, f"T{number} M6\n" + NO_T, tools=(number,), name="t"))
+    assert rc2 == 0
+    assert f_words(out) == f_words(out_t) and len(f_words(out)) >= 2
+    assert summary["cycle_time_after_s"] == with_t["cycle_time_after_s"]
+
+
+def test_a_program_without_t_words_and_several_tools_says_what_to_write(tmp_path, capsys):
+    d = small_job(tmp_path, NO_T, tools=(1, 2))
+    assert optimized(d)[0] == 2
+    err = capsys.readouterr().err
+    assert (f"{d / 'p.nc'}:4: the program cuts before any T word selects a tool; the job describes [tools.1], "
+            "[tools.2]: write `T<n> M6`") in err and "Traceback" not in err
+
+
+def test_the_programs_own_t_word_replaces_the_assumed_tool():
+    """The job's tool is assumed only until the program selects one: `T4` without M6 after the first
+    rapid is the tool that cuts, and the rapid before it had none (Fusion's G28 before T1 M6: no note);
+    `T0 M6` (the empty spindle on LinuxCNC) is kept as T0; a cut before the T word keeps the job's tool."""
+    from millpost.gcode import ReaderOptions, read_text
+    one = ReaderOptions.for_tools({3: 6.0})
+    p = read_text("G0 X0 Y0 Z5\nT4\nG1 Z-1 F100\nT0 M6\nG1 X5\n", "p.nc", one)
+    assert p.toolpath.tool.tolist() == [-1, 4, 0] and not any("only tool" in n for n in p.notes)
+    p = read_text("G0 X0 Y0 Z5\nG1 Z-1 F100\nT4 M6\nG1 X5\n", "p.nc", one)
+    assert p.toolpath.tool.tolist() == [3, 3, 4] and any("T3, the job's only tool" in n for n in p.notes)
+    d = {3: 6.0, 4: 3.0}
+    assert read_text("G0 X0 Y0 Z5\nG1 Z-1 F100\n", "p.nc", ReaderOptions.for_tools(d)).toolpath.tool.tolist() == [-1, -1]
+
+
+def test_cutting_with_the_spindle_off_is_a_gate_with_a_stated_speed(tmp_path, capsys):
+    """No M3 (a trim router switched by hand): refused naming the line and what to write; allowed
+    without the job's spindle_rpm, refused again (no guessed speed); allowed with it, the result is the
+    one of the same program with `S<rpm> M3` written (same feeds), and the notes say so."""
+    no_m3 = NO_T.replace("S10000 M3\n", "")
+    d = small_job(tmp_path, no_m3, name="off")
+    assert optimized(d)[0] == 2
+    err = capsys.readouterr().err
+    assert (f"{d / 'p.nc'}:4: the tool cuts material with the spindle off: expected M3/M4 with S<rpm> before this "
+            "line") in err and "--allow spindle-off" in err
+    assert optimized(d, "--allow", "spindle-off")[0] == 2
+    assert "its speed is unknown: give spindle_rpm = <rpm> in the job" in capsys.readouterr().err
+    hand = small_job(tmp_path, no_m3, extra="spindle_rpm = 10000", name="hand")
+    rc, summary, out = optimized(hand, "--allow", "spindle-off")
+    assert rc == 0, capsys.readouterr().err
+    assert any(n.startswith("warning (spindle-off, allowed)") for n in summary["notes"])
+    assert any("turns at 10000 rpm" in n for n in summary["notes"])
+    # the program's own S word (set without M3) is the speed when the job gives none
+    rc, by_s, out_s = optimized(small_job(tmp_path, NO_T.replace(" M3", ""), name="s"), "--allow", "spindle-off")
+    assert rc == 0 and any("the S word in force (S10000" in n for n in by_s["notes"])
+    rc, _, out_m3 = optimized(small_job(tmp_path, NO_T, name="m3"))
+    assert rc == 0 and f_words(out) == f_words(out_m3) == f_words(out_s)
+
+
+def test_spindle_rpm_out_of_range_is_refused(tmp_path, capsys):
+    assert optimized(small_job(tmp_path, NO_T, extra="spindle_rpm = 0"))[0] == 2
+    assert "spindle_rpm" in capsys.readouterr().err

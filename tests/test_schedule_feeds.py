@@ -8,6 +8,8 @@ import pytest
 from test_schedule import AMAX, VMAX, make_toolpath, pocket_toolpath
 
 from millpost.controller import ControllerModel, execute
+from millpost.gcode import read_text
+from millpost.optimize import SNAP_TO_PROGRAMMED, _plan_from_fragments
 from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, schedule_samples
 from millpost.schedule.feeds import Fragment, emission_limit, piecewise_feeds
 from millpost.schedule.rows import PathGrid
@@ -91,6 +93,18 @@ def test_fragments_bound_the_limit_and_respect_length_and_count():
     assert ideal * (1 - 1e-3) <= t_fine <= ideal * 1.02 < t_coarse
 
 
+def test_a_slow_move_does_not_hold_the_next_moves_first_fragment():
+    """A plunge limited to 5 mm/s, then a 20 mm cut limited to 20 mm/s: the sample at the corner is the
+    plunge's (its step arrives there), so the cut runs at 20 mm/s from the corner on (the corner itself
+    is held by the plunge's F and the controller's blend, `blend_limit`); each move's fragments at its
+    own limit."""
+    tp = make_toolpath((0, 0, 2), [("line", (0, 0, -1)), ("line", (20, 0, -1))])
+    smp = tp.resample(0.1)
+    lim = np.where(smp.move == 0, 5.0, 20.0)
+    frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, step=0.0)
+    assert [(f.move, f.u_start, f.u_end, f.feed_mm_min) for f in frs] == [(0, 0.0, 1.0, 300.0), (1, 0.0, 1.0, 1200.0)]
+
+
 def test_split_toolpath_keeps_geometry():
     tp = make_toolpath((4, 0, 0), [("arc", (4, 0, -3), (0, 0, 0), True, 2), ("line", (10, 0, -3))])
     smp = tp.resample(0.05)
@@ -159,3 +173,19 @@ def test_reachable_joins_short_peaks_only():
     out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05)
     # 1 µm: it peaks at sqrt(100 + 3) mm/s = 609 mm/min, within 5 % of 600: joined to its neighbours
     np.testing.assert_array_equal(out, [600.0, 600.0, 600.0, 6000.0])
+
+
+def test_feeds_within_solver_tolerance_under_the_programmed_are_the_programmed():
+    """A bound held at the programmed feed is met by the solver to ~1e-4: F400 would be written F399.9
+    (an F word that changes nothing on the machine). Within 0.1 % under the programmed feed, and no hard
+    cap under it, the plan keeps the programmed feed, on whole moves and on fragments; a hard cap under
+    the programmed feed, or a feed 1 % under, is kept as the schedule gave it."""
+    prog = read_text("G21 G90\nG0 X0 Y0 Z1\nG1 Z-1 F400\nG1 X50\nG1 X100\n")
+    near = 400 * (1 - SNAP_TO_PROGRAMMED / 2)
+    frags = [Fragment(1, 0.0, 1.0, near), Fragment(2, 0.0, 0.5, near), Fragment(2, 0.5, 1.0, 700.0),
+             Fragment(3, 0.0, 1.0, 396.0)]
+    plan = _plan_from_fragments(prog, frags, 0.05, np.full(4, np.inf))
+    assert plan.feed_mm_min[1] == 400 and plan.fragments[2] == [(0.5, 400.0), (1.0, 700.0)]
+    assert plan.feed_mm_min[3] == 396.0
+    capped = _plan_from_fragments(prog, frags, 0.05, np.full(4, 399.9))
+    assert capped.feed_mm_min[1] == near

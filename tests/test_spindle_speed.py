@@ -43,14 +43,15 @@ def _geometry_lines(text: str) -> list[str]:
 
 def _only_s_and_f_changed(before: str, after: str) -> None:
     """Every input line is in the output, in order, with only its S and F words changed; lines the output
-    adds are straight feed moves (a long move split where its feed changes)."""
+    adds are straight feed moves (a long move split where its feed changes; written like their line, so
+    without G1 where the line had none)."""
     a, b = _geometry_lines(before), _geometry_lines(after)
     i = 0
     for line in b:
         if i < len(a) and line == a[i]:
             i += 1
         else:
-            assert re.fullmatch(r"G1( [XYZ][-\d.]+)+", line), (line, a[i] if i < len(a) else None)
+            assert re.fullmatch(r"(G1 )?[XYZ][-\d.]+( [XYZ][-\d.]+)*", line), (line, a[i] if i < len(a) else None)
     assert i == len(a)
 
 

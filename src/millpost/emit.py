@@ -4,11 +4,15 @@ A `FeedPlan` gives, per move of the program's toolpath, the feed (mm/min) to run
 fragments: a move whose feed must change part-way is split at fractions of its length, lines as lines
 and arcs as arcs (keeping the line's IJK or R style, its distance modes and its number format).
 F is modal, so an F word is written wherever the wanted feed differs from the one in force; an F the
-program already had and that still holds keeps its bytes. Blocks that run several moves (canned
-cycles, G28) get the lowest feed any of their moves wants: never faster than the plan. Moves under
+program already had and that still holds keeps its bytes; a line holding only an F word just before
+the move (CAMotics' `F369.75` lines) takes the new value instead of the move getting a second F.
+Blocks that run several moves (canned cycles, G28) get the lowest feed any of their moves wants:
+never faster than the plan. Moves under
 cutter radius compensation (G41/G42) are never split: the controller offsets whatever coordinates are
 written, so a split point (a point of the offset path) would be offset again; they take one F. Neither
-are moves of canned cycles: a cycle block's X Y Z R are the hole's, not a move's end.
+are moves of canned cycles: a cycle block's X Y Z R are the hole's, not a move's end, nor moves of a
+line that computes a word (a parameter or an expression, ``G1 Z#<depth>``): split pieces would replace
+the expressions by numbers; the line keeps its words and only its F changes.
 """
 
 from __future__ import annotations
@@ -139,6 +143,10 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     if flow and not plan.fragments and np.array_equal(plan.feed_mm_min, tp.feed_mm_min, equal_nan=True):
         return program.text
     params: dict = _Unknown() if flow else {}
+    # a line holding only an F word (`F369.75` before `G1 X4`), followed by nothing but comments and
+    # blank lines up to the next cutting line: (its index in out, its text, block, ending). Where that
+    # line needs a new F, the F line's value is rewritten instead of a second F being added.
+    f_line: tuple[int, str, Block, str] | None = None
     for n, raw in enumerate(lines, start=1):
         body = raw.rstrip("\r\n")
         ending = raw[len(body):]
@@ -147,6 +155,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             out.append(raw)
             continue
         if moves is None:
+            if re.sub(r"\([^)]*\)|;.*", "", body).strip():
+                f_line = None
             if "#" in body or "f" in body.lower():  # parameters to carry, or an F that sets the modal feed
                 try:
                     block = lex_line(body, n, program.path, params)
@@ -157,8 +167,11 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
                 f = next((w for w in block.words if w.letter == "F"), None)
                 if f is not None:
                     modal_f = f.value
+                    if not flow and len(block.words) == 1 and not block.assigns:
+                        f_line = (len(out), body, block, ending)
             out.append(raw)
             continue
+        standalone_f, f_line = f_line, None
         block = lex_line(body, n, program.path, params)
         params.update(block.assigns)
         inch = bool(program.move_inch[moves[0]])
@@ -184,7 +197,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             d = (2 if inch else 1) + (2 if value < 10 else 0)
             return _fmt(math.floor(value * 10**d * (1 + 1e-12)) / 10**d, d, trailing_point)
 
-        split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]]
+        split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
+                 and not computed(block)]
         if split and len(moves) == 1:
             i = moves[0]
             new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, trailing_point,
@@ -212,6 +226,11 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
               and (_same(modal_f, value) or _same(modal_f, float(f_text(value))))):
             out.append(raw)
+        elif standalone_f is not None and f_word is None and program.feed_mode[k] != 930:
+            at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
+            out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": f_text(value)}) + f_ending
+            out.append(raw)
+            value = float(f_text(value))
         else:
             out.append(writer.replace({"F": f_text(value)}) + ending)
             value = float(f_text(value))
@@ -284,13 +303,31 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     return out, modal
 
 
-def whole_compensated_moves(program: Program, fragments: list) -> list:
-    """Fragments (`schedule.feeds.Fragment`) with those of each compensated move, and of each move a canned
-    cycle runs (its block's words are the cycle's, not a move's end point), merged into one over the whole
-    move at their lowest feed (such moves are written with one F, see the module docstring)."""
+def computed(block: Block) -> bool:
+    """Whether a word other than F holds a parameter or an expression (``Z#<z_cut>``, ``Y[#1*2]``). Such
+    a line is never split: split pieces would write the computed values as numbers. Only its F changes."""
+    return any("#" in w.text or "[" in w.text for w in block.words if w.letter != "F")
+
+
+def _computed_line(text: str, n: int, path: str) -> bool:
+    try:
+        return computed(lex_line(text, n, path, _Unknown()))
+    except MillpostError:  # not a line the lexer reads alone (control flow): the interpreter ran it
+        return True
+
+
+def whole_moves(program: Program, fragments: list) -> list:
+    """Fragments (`schedule.feeds.Fragment`) with those of each compensated move, of each move a canned
+    cycle runs (its block's words are the cycle's, not a move's end point), and of each move whose line
+    computes a word (`computed`), merged into one over the whole move at their lowest feed (such moves
+    are written with one F, see the module docstring)."""
     out, whole = [], {}
+    lines, move_line = program.text.splitlines(), program.toolpath.line
+    suspect = {int(move_line[f.move]) for f in fragments}
+    computed_lines = {n for n in suspect if 0 < n <= len(lines) and ("#" in lines[n - 1] or "[" in lines[n - 1])
+                      and _computed_line(lines[n - 1], n, program.path)}
     for f in fragments:
-        if not (program.compensated[f.move] or program.cycle[f.move]):
+        if not (program.compensated[f.move] or program.cycle[f.move] or int(move_line[f.move]) in computed_lines):
             out.append(f)
         elif f.move not in whole or f.feed_mm_min < whole[f.move].feed_mm_min:
             whole[f.move] = replace(f, u_start=0.0, u_end=1.0)

@@ -48,6 +48,12 @@ class Engagement:
     end's axial feed per tooth is f_z·descent. look_ahead_mm (N,): how far ahead along the path each
     sample's ring was taken (its engagement is the one the tool meets that much later). On a step with no horizontal motion (a plunge, a drill)
     the flank sweeps no new material: its slices are not engaged (the end carries the whole cut).
+    near_stock (N,) bool: a feed step that cuts nothing lies in the shell of `simulate`'s clearance c
+    around the stock as loaded (what the stock model may have got wrong; the surfaces the program has
+    cut since are known exactly): the tool grown by c (radius R + c, tip c lower, whatever its shape)
+    meets the original stock and its tip disc (radius R) is not inside it, so air over a pocket's
+    floor or a faced top is not near (None when no clearance was asked for). Read from the original
+    tops' range per block of ~0.5 mm: it errs towards near, by up to a block's diagonal.
     """
 
     phi_st: np.ndarray
@@ -70,6 +76,7 @@ class Engagement:
     end_engaged: np.ndarray | None = None
     descent: np.ndarray | None = None
     look_ahead_mm: np.ndarray | None = None
+    near_stock: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ap_mm)
@@ -120,6 +127,7 @@ class Engagement:
 
 _PER_SLICE = ("phi_st", "phi_ex", "dz_mm", "z_mm", "r_mm", "kappa")
 END_BINS = 8  # radial bins of the tool's end (Engagement.end_engaged)
+KAPPA_ROWS = 4096  # samples per chunk of the κ computation (its temporaries: ~0.5 MB each at K = 8)
 
 
 def _tool_params(tool: Tool) -> tuple[int, float, float, float, float]:
@@ -183,7 +191,8 @@ def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: 
 
 def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices: int = 8,
              ring_samples: int = 180, look_ahead_mm: float | None = None, smooth_steps: float = 1.0,
-             progress: Progress | bool | None = None, start: int | None = None) -> Engagement:
+             progress: Progress | bool | None = None, start: int | None = None,
+             clearance_mm: float | None = None) -> Engagement:
     """Step the tool(s) through `stock` (cut in place) along `samples` and return the engagement.
 
     tool: one Tool, or tools by number (samples.tool picks one; a change restarts the footprint).
@@ -198,7 +207,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     sample whose position is known (`millpost.safety.known_start`); the samples before it start
     from an unknown position and are neither cut nor checked (default: the first feed move's).
     progress: a `millpost.progress` callback (stages "compile kernels" on the first run, "engagement"
-    in steps), or True/False/None as `millpost.progress.resolve` reads it.
+    in steps), or True/False/None as `millpost.progress.resolve` reads it. clearance_mm: c of
+    `Engagement.near_stock` (mm; None: not computed).
     """
     n = len(samples)
     if slices < 1 or ring_samples < 4:
@@ -225,8 +235,15 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
                rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
                area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool), depth=np.zeros(n),
-               end=np.zeros((n, END_BINS)))
+               end=np.zeros((n, END_BINS)), near=np.zeros(n, bool))
     top = stock.top.reshape(-1)
+    # the clearance's snapshot of the stock as loaded: its tops' range per block of ~0.5 mm (at least
+    # 4 × 4 columns: an eighth of the grid's size at most)
+    clear = -1.0 if clearance_mm is None else float(clearance_mm)
+    B = max(4, round(0.5 / stock.cell_mm))
+    omax, omin = (_k.block_range(top, stock.nx, stock.ny, B, stock.z_floor) if clear >= 0
+                  else (np.full(1, -np.inf, np.float32), np.full(1, np.inf, np.float32)))
+    zmax = float(omax.max())
     prev_f = np.array([1.0, 0.0])
     moving = steps[steps > 0]
     ds = float(np.median(moving)) if len(moving) else 0.0
@@ -252,15 +269,16 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                 bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny,
                              stock.x0, stock.y0, stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits,
                              stock.multi_ids, stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half,
-                             t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, *(v[a:b] for v in out.values()))
+                             t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, clear, zmax, omax, omin, B,
+                             *(v[a:b] for v in out.values()))
             if bad != _k.OK:
                 bad += a
                 raise CrashError(int(samples.line[bad]), xyz[bad])
             report("engagement", c1, n)
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:
-        for c0 in range(a, b, chunk):  # in chunks: the profile's temporaries stay small
-            kappa[c0:min(b, c0 + chunk)] = _kappa(t, out["zmid"][c0:min(b, c0 + chunk)])
+        for c0 in range(a, b, KAPPA_ROWS):  # in chunks: the profile's temporaries stay small
+            kappa[c0:min(b, c0 + KAPPA_ROWS)] = _kappa(t, out["zmid"][c0:min(b, c0 + KAPPA_ROWS)])
     feed3 = np.column_stack([out["feed"], np.zeros(n)])
     dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -273,4 +291,5 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         kappa=kappa, feed_dir=feed3, ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
         volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
         step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
-        depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead)
+        depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead,
+        near_stock=out["near"] if clearance_mm is not None else None)

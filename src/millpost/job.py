@@ -5,6 +5,9 @@
     dialect = "fanuc"                 # optional (default: detected)
     material = "al6061"               # built-in name or TOML file
     machine = "benchtop-belt"         # built-in name or TOML file
+    spindle_rpm = 18000               # optional: a spindle switched by hand turns at this speed (rpm)
+                                      # where the program leaves it off (with --allow spindle-off;
+                                      # without it: the program's S word in force)
     [stock]                           # box = [[xmin,ymin,zmin],[xmax,ymax,zmax]] (mm) or file = "x.stl|.step|.py"
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
@@ -12,9 +15,13 @@
                                       # tool_safety_factor, ds_mm, model ("mechanistic"|"kienzle"),
                                       # plunge_feed_max_mm_min (cap on the feed of moves going down
                                       # into material: plunges, drilling, ramps),
+                                      # plunge_raise_max (those moves at most this × their
+                                      # programmed feed, 2),
                                       # lower ("hard"|"all"), feed_step (relative, 0.05),
                                       # solver ("auto"|"clarabel": Clarabel on every segment),
-                                      # rpm ("programmed"|"optimize": choose S per operation)
+                                      # rpm ("programmed"|"optimize": choose S per operation),
+                                      # air_clearance_mm (3: feed moves that cut nothing within it
+                                      # of the stock keep their programmed feed)
     [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
 
 A folder stands for the `job.toml` inside it. Every number must be finite and inside its stated
@@ -39,14 +46,17 @@ from .tools.library import load_tool, tool_from_table
 
 _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
                "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None,
-               "lower": "hard", "feed_step": 0.05, "solver": "auto", "rpm": "programmed"}
+               "plunge_raise_max": 2.0, "lower": "hard", "feed_step": 0.05, "solver": "auto", "rpm": "programmed",
+               "air_clearance_mm": 3.0}
 _CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel"), "rpm": ("programmed", "optimize")}
 # the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
 # a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
 # budget of 5 mm or a feed of 1000 m/min is no limit at all.
 LIMIT_RANGES = {"deflection_mm": (1e-4, 5.0), "feed_max_mm_min": (1.0, 1e6), "tool_safety_factor": (1.0, 100.0),
-                "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9), "plunge_feed_max_mm_min": (1.0, 1e6)}
+                "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9), "plunge_feed_max_mm_min": (1.0, 1e6),
+                "plunge_raise_max": (1.0, 100.0), "air_clearance_mm": (0.0, 100.0)}
 CELL_RANGE_MM = (1e-3, 10.0)
+SPINDLE_RPM_RANGE = (1.0, 2e5)  # rpm: no milling spindle turns faster than 200 000 rpm
 STOCK_SPAN_MM = 1e5  # no stock corner is 100 m from the work zero
 
 
@@ -67,10 +77,12 @@ class Job:
     limits: dict = field(default_factory=lambda: dict(_LIMIT_KEYS))
     allow: frozenset[str] = frozenset()  # safety gates the user overrides ([safety] allow)
     inputs: tuple[Path, ...] = ()  # every file the job reads (outputs must not replace one)
+    spindle_rpm: float | None = None  # a spindle switched by hand: its speed (rpm) where the program has none
 
     def reader_options(self) -> ReaderOptions:
-        """How to read the program: the job's dialect, and its tools' diameters for cutter compensation."""
-        return ReaderOptions(dialect=self.dialect, tool_diameters_mm={n: t.diameter_mm for n, t in self.tools.items()})
+        """How to read the program: the job's dialect, its tools' diameters for cutter compensation, and
+        its only tool (when it describes one) loaded before any T word."""
+        return ReaderOptions.for_tools({n: t.diameter_mm for n, t in self.tools.items()}, self.dialect)
 
     def stock(self):
         """Build the stock height field (mm, program frame)."""
@@ -100,7 +112,7 @@ def load_job(path: str | Path) -> Job:
         return data[key]
 
     unknown = set(data) - {"program", "output", "dialect", "material", "machine", "stock", "tools", "limits",
-                           "safety"}
+                           "safety", "spindle_rpm"}
     if unknown:
         raise ConfigError(sorted(unknown)[0], data[sorted(unknown)[0]], "unknown field", file=f)
     program = base / str(need("program"))
@@ -148,7 +160,9 @@ def load_job(path: str | Path) -> Job:
     tools = {}
     for key, spec in _table(need("tools"), "tools", f).items():
         if not str(key).isdigit():
-            raise ConfigError(f"tools.{key}", spec, "tool tables are named by tool number, e.g. [tools.1]", file=f)
+            raise ConfigError(f"tools.{key}", spec, "tool tables are named by tool number (T word), e.g. [tools.1]; "
+                              "for a program without T words, one table with any number is the tool loaded",
+                              file=f)
         n = int(key)
         if not isinstance(spec, dict):
             raise ConfigError(f"tools.{key}", spec, "must be a table", file=f)
@@ -181,6 +195,10 @@ def load_job(path: str | Path) -> Job:
             if not (_number(value) and lo <= value <= hi):
                 raise ConfigError(f"limits.{key}", value, f"must be a number in [{lo:g}, {hi:g}]", file=f)
         limits[key] = value
+    spindle_rpm = data.get("spindle_rpm")
+    lo, hi = SPINDLE_RPM_RANGE
+    if spindle_rpm is not None and not (_number(spindle_rpm) and lo <= spindle_rpm <= hi):
+        raise ConfigError("spindle_rpm", spindle_rpm, f"must be a number in [{lo:g}, {hi:g}] rpm", file=f)
     dialect = data.get("dialect")
     if dialect is not None:
         from .errors import MillpostError
@@ -193,7 +211,8 @@ def load_job(path: str | Path) -> Job:
             raise ConfigError("dialect", dialect, f"one of {', '.join(dialects.names())} (haas = fanuc)",
                               file=f) from None
     return Job(path, program, output, material, machine, tools, box, file, cell, dialect, limits,
-               _allowed(data.get("safety", {}), f), tuple(inputs))
+               _allowed(data.get("safety", {}), f), tuple(inputs),
+               None if spindle_rpm is None else float(spindle_rpm))
 
 
 def _table(value: object, key: str, f: str) -> dict:

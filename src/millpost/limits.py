@@ -3,17 +3,21 @@
 A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus what it is:
 - `kind`: "hard" (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
   the end's thrust and torque on the tool, drive current, the machine's and the user's maxima (the
-  plunge feed cap included), the controller's block rate) or "quality" (exceeding it spoils the part
+  plunge feed cap included), the controller's block rate ("block_rate": the controller holds it by
+  itself, no F word carries it)) or "quality" (exceeding it spoils the part
   or the tool's life: deflection, maximum chip load, the chip floor);
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
   accelerations, corners, jerk), so the baseline program's single F need not;
+- `baseline`: the baseline's single F obeys it (false for the air clearance, whose cap is the
+  program's own feed: the baseline keeps the programmed feed of its approach moves instead);
 - `f_word`: the emitted F words obey its speed cap (false for accelerations, jerk and corner caps,
   which the controller ramps to on its own);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
   limit binds);
-- for a load limit, `signal`: the load it bounds, from the forward model's signals
-  (`millpost.signals.Signals` → per-sample values; the replay check evaluates it at the executed speed),
+- for a load limit, `signal(signals, at)`: the load it bounds, from the forward model's signals of the
+  samples `at` (a slice: `millpost.signals.Signals` of those samples → their values; the replay check
+  evaluates it at the executed speed, in chunks),
   and `bound`: its bound per sample before the feed policy.
 
 The feed policy (`[limits] lower`): millpost raises feeds freely under every limit. With
@@ -34,9 +38,24 @@ drive's current) and to the spindle torque and power; the thrust stays under the
 buckling load and the torque under its torsional strength, both over the tool safety factor (hard:
 "thrust", "tool_torque"). The end's axial chip f_z·descent·sin κ joins the chip-load limit (quality),
 up to the material's `plunge_fz_ratio` of the chip load for a milling cutter entering along its axis
-with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there (hard, "plunge_feed",
-a cap like the maximum feed: never held by the policy); a material without end-cutting data keeps
-the programmed feed there (its end loads are unknown).
+with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there, and so does
+`plunge_raise_max` (default 2) times the programmed feed (hard, "plunge_feed", a cap like the maximum
+feed: never held by the policy); a material without end-cutting data keeps the programmed feed there
+(its end loads are unknown).
+
+Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
+maximum feed, except in the shell of width c around the stock as loaded (`Engagement.near_stock`: the
+tool grown by c meets the original stock, its tip disc is not inside it; the surfaces the program cut
+are known, air over them is raised; a retract straight up is raised too: it meets no material the tool
+is not already in). There a block that
+cuts nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its
+programmed feed at most; the air part of a block that cuts (a move, or a canned cycle's moves at one
+hole), its programmed feed or the lowest cap of its cut if higher (hard, "air_clearance": a cap like
+the plunge feed cap, lowered further only by the other hard limits). The stock model is a guess (the
+blank may be larger, the sheet thicker or bowed) and CAM posts approaches at the entry feed because
+the tool is about to cut: within c of the modelled stock the tool would otherwise meet unmodelled
+material at up to the machine's maximum feed. The baseline keeps the programmed feed of the approach
+moves (`JobLimits.approach`).
 
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
@@ -50,13 +69,13 @@ user's `deflection_mm`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Callable
 
 import numpy as np
 
 from .errors import MillpostError
-from .forces.endcut import EndCut, end_chip_factor, entry_chip_share, thrust_limit_N, torque_limit_Nm
+from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
 from .controller import ControllerModel, corner_speeds
 from .progress import Progress, silent
@@ -64,6 +83,7 @@ from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
+from .safety import spindle_off_message
 from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
@@ -71,6 +91,7 @@ from .tools.beam import ToolBeam, default_safety_factor
 HARD, QUALITY = "hard", "quality"
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
+RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
 LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
 
 
@@ -82,9 +103,10 @@ class Limit:
     kind: str
     effect: str
     controller: bool = False
+    baseline: bool = True
     f_word: bool = True
     default: str = ""
-    signal: Callable[[Any], np.ndarray] | None = None
+    signal: Callable[[Any, slice], np.ndarray] | None = None
     bound: np.ndarray | None = None
 
     @property
@@ -103,7 +125,8 @@ class JobLimits:
     power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3). held: {limit name: samples where the
     policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
     hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
-    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut)."""
+    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut);
+    approach: per toolpath move, its block cuts nothing but passes within the air clearance of the stock."""
 
     limits: list[Limit]
     loads: dict
@@ -113,6 +136,7 @@ class JobLimits:
     deflection_mm: np.ndarray
     lower: str = HARD
     defaults: dict[str, str] = field(default_factory=dict)
+    approach: np.ndarray | None = None
 
     def __iter__(self):
         return iter(self.limits)
@@ -159,9 +183,12 @@ def _corners(job: Job, samples: Samples, toolpath: Toolpath):
     return CornerSpeed(cap)
 
 
-def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent) -> JobLimits:
+def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
+                 release_slices: bool = False) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
-    `millpost.progress` callback (stage "forces", in samples)."""
+    `millpost.progress` callback (stage "forces", in samples). release_slices: once the loads are
+    computed, `eng` (changed in place) keeps only what `Engagement.per_sample` keeps (memory: its
+    per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built)."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])
@@ -170,10 +197,12 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     feed_max = m.feed_max_mm_min
     if job.limits["feed_max_mm_min"]:
         feed_max = min(feed_max, float(job.limits["feed_max_mm_min"]))
-    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate
-    move_len = toolpath.lengths()[samples.move]
-    block_cap = np.where(samples.kind != RAPID, move_len * m.controller.block_rate_Hz, np.inf)
-    limits = [Limit(FeedLimit(np.minimum(feed_max / 60.0, block_cap)), HARD, "feed"),
+    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate.
+    # It slows by itself there (an F word cannot make it faster or need make it slower): no F word
+    # carries this cap, which on a micro-segment would write a crawl into the moves around it
+    block_cap = np.where(samples.kind != RAPID, toolpath.lengths()[samples.move] * m.controller.block_rate_Hz, np.inf)
+    limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
+              Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False),
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
@@ -188,7 +217,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     spin = samples.rpm > 0
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
-        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+        raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
@@ -196,7 +225,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
     chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
     # chip thickness per unit feed per tooth: flank (chip thinning) and end (axial chip over its share)
-    sin_max, sin_end, chip_factor = max_sin(eng), np.zeros(n), np.zeros(n)
+    sin_max, sin_end, chip_factor = np.zeros(n), np.zeros(n), np.zeros(n)
     thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
     defaults: dict[str, str] = {}
     rough_by_tool: dict[int, float] = {}
@@ -219,9 +248,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
             for key in ("peak", "power", "torque", "force"):
                 loads[f"{key}_a"][part] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
+            sin_max[part] = max_sin(eng_p)  # per chunk: its (N, K) temporaries stay bounded
             sin_end[part] = end_chip_factor(eng_p, tool)
-            share = entry_chip_share(eng_p, tool, job.material.strategies.plunge_fz_ratio)
-            chip_factor[part] = np.maximum(sin_max[part], sin_end[part] / share)
+            chip_factor[part] = np.maximum(sin_max[part],
+                                           entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio))
             if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
                 # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
                 # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
@@ -254,6 +284,11 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         # the floor: the thickest chip, flank's or end's, reaches the minimum chip
         floor[cut_here] = h_min / np.maximum(sin_max[cut_here], sin_end[cut_here]) * per_tooth
     progress("forces", n, n)
+    if release_slices:  # below, only the per-sample fields are read
+        lean = eng.per_sample()
+        for f in fields(eng):
+            setattr(eng, f.name, getattr(lean, f.name))
+        del lean
     del sin_max  # memory: every use is above
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
@@ -272,25 +307,29 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
                             bound=bound))
 
-    # each load is affine in the speed (the schedule's rows); `signal` is the same load in the signals
+    # each load is affine in the speed (the schedule's rows); `signal` is the same load in the signals of the
+    # samples `at`
     load_limit("cutting_force", HARD, "cutting force", loads["peak_a"], loads["peak_b"], peak_limit,
-               lambda s: s.peak_force_xy_N, defaults.get("cutting_force", ""))
+               lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
     load_limit("power", HARD, "power", loads["power_a"], loads["power_b"],
-               np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s: s.cutting_power_W)
+               np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s, at: s.cutting_power_W)
     load_limit("torque", HARD, "power", loads["torque_a"], loads["torque_b"],
-               np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s: s.torque_Nm)
+               np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s, at: s.torque_Nm)
     load_limit("deflection", QUALITY, "deflection", loads["peak_a"] * defl_per_N, loads["peak_b"] * defl_per_N,
-               defl_limit, lambda s: s.peak_force_xy_N * defl_per_N, defaults.get("deflection", ""))
+               defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at], defaults.get("deflection", ""))
     load_limit("thrust", HARD, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2], thrust_limit,
-               lambda s: s.force_tool_N[:, 2], defaults.get("thrust", ""))
+               lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
     load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], tool_torque_limit,
-               lambda s: s.torque_Nm, defaults.get("tool_torque", ""))
-    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max, lambda s: s.fz_mm * chip_factor)
+               lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
+    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max,
+               lambda s, at: s.fz_mm * chip_factor[at])
     plunging = sin_end > 0
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
-    if end_model is None:  # the end's loads are unknown: the programmed feed stays the cap there
-        plunge_cap = np.minimum(plunge_cap, v_prog)
+    # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
+    # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
+    raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
+    plunge_cap = np.minimum(plunge_cap, np.where(v_prog > 0, raise_max * v_prog, np.inf))
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed"))
     limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
     rho = np.array([a.rho_m_per_rad for a in ax])
@@ -307,7 +346,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
     for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
         load_limit("cutting_current", HARD, "current", slope[:, k], static[:, k], np.where(engaged, capacity[k], np.inf),
-                   lambda s, k=k: slope[:, k] * s.speed_mm_s + static[:, k])
+                   lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
     stalled = held["cutting_current"]
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
@@ -323,15 +362,48 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                                     tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
-    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
+    approach = None
+    if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
+        near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
+        cap, approach = _air_clearance(near, engaged, samples, toolpath.line, v_prog, v_cap)
+        limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
+    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults, approach)
 
 
-def static_caps(samples: Samples, limits, kind: str | None = None) -> np.ndarray:
+def _air_clearance(near: np.ndarray, engaged: np.ndarray, samples: Samples, move_line: np.ndarray,
+                   v_prog: np.ndarray, v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The air clearance's speed cap per sample (mm/s) and the approach moves (per toolpath move: its
+    block cuts nothing but passes near the stock). near: feed samples that cut nothing within the
+    clearance; engaged: samples that cut; blocks are source lines (one move, or a canned cycle's moves
+    at one hole); move_line: each move's line; v_prog: the programmed speed; v_cap: the other limits'
+    speed caps. In a block that cuts nothing (an approach, a plunge or lead-in beside the stock, a link
+    over it) the cap is the programmed feed; in the air part of a block that cuts, the programmed feed
+    or, if higher, the lowest cap of its cut: the tool reaches material no faster than the cut it enters
+    is allowed. The point where one move hands over to the next takes the higher of their caps (the
+    programmed program passes it at the faster of the two feeds: a blending planner's blend)."""
+    line = samples.line
+    size = int(max(line.max(initial=0), move_line.max(initial=0))) + 1
+    v_cut = np.full(size, np.inf)
+    np.minimum.at(v_cut, line[engaged], v_cap[engaged])
+    approach = np.zeros(size, bool)
+    np.logical_or.at(approach, line, near)
+    approach &= np.isinf(v_cut)
+    entry = np.where(np.isinf(v_cut), 0.0, v_cut)[line]
+    cap = np.where(near, np.maximum(v_prog, entry), np.inf)
+    handover = np.flatnonzero((samples.move[1:] != samples.move[:-1]) & ~np.asarray(samples.segment_start[1:], bool))
+    both = np.maximum(cap[handover], cap[handover + 1])
+    for k in (handover - 1, handover, handover + 1):  # within a step of it
+        cap[k[k >= 0]] = np.maximum(cap[k[k >= 0]], both[k >= 0])
+    return cap, approach[move_line]
+
+
+def static_caps(samples: Samples, limits, kind: str | None = None, baseline: bool = False) -> np.ndarray:
     """Per sample the highest speed (mm/s) that the speed-only limits the controller does not hold
-    by itself allow (loads, chip load, feed, block rate), of one kind or all (in chunks of
-    LOAD_CHUNK samples: the rows of the whole program are never held at once)."""
+    by itself allow (loads, chip load, feed), of one kind or all, or (baseline) those the baseline's
+    single F obeys (in chunks of LOAD_CHUNK samples: the rows of the whole program are never held at
+    once)."""
     grid = PathGrid.from_samples(samples)
-    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind)]
+    mine = [lim for lim in limits if not lim.controller and kind in (None, lim.kind) and (lim.baseline or not baseline)]
     b_hi = np.empty(len(samples))
     for lo in range(0, len(samples), LOAD_CHUNK):
         hi = min(lo + LOAD_CHUNK, len(samples))

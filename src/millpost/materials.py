@@ -188,9 +188,13 @@ class Material:
 
     # --- guidance -------------------------------------------------------------------------------
     def chip_load_mm(self, diameter_mm: float) -> tuple[float, float]:
-        """Recommended (min, max) chip thickness per tooth for a tool diameter (mm)."""
-        return (float(np.interp(diameter_mm, self.chip_diameters_mm, self.fz_min_mm)),
-                float(np.interp(diameter_mm, self.chip_diameters_mm, self.fz_max_mm)))
+        """Recommended (min, max) chip thickness per tooth for a tool diameter (mm): the table's rows
+        interpolated; above its largest diameter, that row; below its smallest diameter D0, that row
+        scaled by D / D0 (a small end mill's chip load falls in proportion to its diameter: the
+        tool's section, and so its strength against the chip's force, shrinks with D)."""
+        scale = min(1.0, diameter_mm / float(self.chip_diameters_mm[0]))
+        return (scale * float(np.interp(diameter_mm, self.chip_diameters_mm, self.fz_min_mm)),
+                scale * float(np.interp(diameter_mm, self.chip_diameters_mm, self.fz_max_mm)))
 
     def rpm_window(self, diameter_mm: float, tool_material: str = "carbide") -> tuple[float, float]:
         """Spindle speed window n = 1000 v_c / (π D) for the surface-speed window (rpm)."""

@@ -19,9 +19,9 @@ import numpy as np
 
 from . import controller, safety
 from ._kernels import set_threads
-from .emit import FeedPlan, emitted_positions, whole_compensated_moves, write_feeds
+from .emit import FeedPlan, emitted_positions, whole_moves, write_feeds
 from .gcode import read_program, read_text
-from .gcode.interpret import Program
+from .gcode.interpret import BORING_CYCLES, TAPPING_CYCLES, Program
 from .job import Job
 from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
@@ -43,6 +43,9 @@ class Result:
     trace: dict = field(default_factory=dict)
 
 
+SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
+
+
 def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray) -> FeedPlan:
     """The emitter's plan from the fragments. With control flow a line that runs several times gets
     one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
@@ -55,17 +58,29 @@ def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_m
     by_move: dict[int, list] = {}
     for f in fragments:
         by_move.setdefault(f.move, []).append(f)
+    programmed_mm_min = program.toolpath.feed_mm_min
+
+    def snapped(mv: int, f: float) -> float:
+        """A bound held at the programmed feed is met to the solver's tolerance: a feed within
+        SNAP_TO_PROGRAMMED under the programmed one, where no hard cap is under the programmed feed,
+        is the programmed feed (no F400 → F399.9 churn)."""
+        p = programmed_mm_min[mv]
+        return float(p) if p * (1 - SNAP_TO_PROGRAMMED) <= f < p <= hard_cap_mm_min[mv] else f
+
     for mv, frs in by_move.items():
         frs.sort(key=lambda f: f.u_start)
         if len(frs) == 1:
-            plan.feed_mm_min[mv] = frs[0].feed_mm_min
+            plan.feed_mm_min[mv] = snapped(mv, frs[0].feed_mm_min)
         else:
-            plan.feed_mm_min[mv] = min(f.feed_mm_min for f in frs)
-            plan.fragments[mv] = [(f.u_end, f.feed_mm_min) for f in frs]
-    # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never changed
-    tapping = np.flatnonzero(np.isin(program.cycle, (740, 840)))
-    plan.feed_mm_min[tapping] = program.toolpath.feed_mm_min[tapping]
-    for mv in tapping:
+            plan.fragments[mv] = [(f.u_end, snapped(mv, f.feed_mm_min)) for f in frs]
+            plan.feed_mm_min[mv] = min(f for _, f in plan.fragments[mv])
+    # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never
+    # changed; a boring cycle's feed sets the finish of the bore: it is never raised (a hard limit may lower it)
+    held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
+    programmed = program.toolpath.feed_mm_min[held]
+    plan.feed_mm_min[held] = np.where(np.isin(program.cycle[held], TAPPING_CYCLES), programmed,
+                                      np.fmin(plan.feed_mm_min[held], programmed))
+    for mv in held:
         plan.fragments.pop(int(mv), None)
     if program.control_flow:
         tp = program.toolpath
@@ -99,7 +114,8 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         with stage(report, "stock"):
             stock = job.stock()
         samples, eng, notes = safety.engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                                            progress=report)
+                                            progress=report, clearance_mm=float(job.limits["air_clearance_mm"]))
+        samples = safety.check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)
         # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
         # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
         # speeds, whose loads do not change) the per-slice engagement once the loads are computed
@@ -108,8 +124,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         t_engage = time.perf_counter()
         limits = None
         if job.limits["rpm"] != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report)
-            eng = eng.per_sample()
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True)
         t_limits = time.perf_counter()
         result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
     result.summary["notes"] += notes
@@ -162,7 +177,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         # corners the controller blends at the faster feed carry it into the slower move
         limit_mm_s = blend_limit(samples, limit_mm_s, np.cumsum(tp.lengths()),
                                  controller.blend_zones(tp, model, controller.path_modes(program, model)))
-        fragments = whole_compensated_moves(program, piecewise_feeds(
+        fragments = whole_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
         hard_cap = np.full(len(tp), np.inf)
@@ -222,7 +237,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
-        "notes": program.notes + _rpm_notes(job, program)
+        "notes": program.notes + _rpm_notes(job, samples)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
     if spindle:
@@ -299,14 +314,14 @@ def _held_lines(samples: Samples, limits: JobLimits) -> dict:
     return out
 
 
-def _rpm_notes(job: Job, program: Program) -> list[str]:
-    tp = program.toolpath
-    on = (tp.rpm > 0) & (tp.kind != RAPID)
+def _rpm_notes(job: Job, samples: Samples) -> list[str]:
+    """The speeds the feed moves ask for (S words, or a hand-switched spindle's) outside the spindle's range."""
+    on = (samples.rpm > 0) & (samples.kind != RAPID)
     out = []
-    for rpm in np.unique(tp.rpm[on]):
+    for rpm in np.unique(samples.rpm[on]):
         used = float(running_rpm(job, rpm))
         if used != rpm:
-            line = int(tp.line[np.flatnonzero(on & (tp.rpm == rpm))[0]])
+            line = int(samples.line[np.flatnonzero(on & (samples.rpm == rpm))[0]])
             out.append(f"{job.program}:{line}: S{rpm:g} is outside the spindle's range "
                        f"{job.machine.spindle.rpm_min:g}–{job.machine.spindle.rpm_max:g} rpm; "
                        f"the controller runs it at {used:g} rpm and the loads are computed there")

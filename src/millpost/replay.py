@@ -11,7 +11,7 @@ compared with the bound the schedule was given (after the feed policy of `millpo
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -23,15 +23,16 @@ from .job import Job
 from .limits import LOAD_CHUNK, JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
 from .schedule.constraints import window_blocks
-from .signals import Signals, predict, step_times_s
+from .signals import predict, step_times_s
 from .toolpath import RAPID, Samples, Toolpath
 
 
 def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tuple[np.ndarray, dict]:
     """The honest baseline: per tool one constant feed (mm/min), the highest that exceeds no
-    speed-only limit anywhere that tool cuts (what a careful CAM user would program)."""
+    speed-only limit anywhere that tool cuts (what a careful CAM user would program); its approach
+    moves (`JobLimits.approach`) keep their programmed feed where that is lower."""
     tp = program.toolpath
-    cap = static_caps(samples, limits) * 60.0
+    cap = static_caps(samples, limits, baseline=True) * 60.0
     feeds = tp.feed_mm_min.copy()
     per_tool = {}
     for number in np.unique(tp.tool[tp.kind != RAPID]):
@@ -42,6 +43,8 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
         f = float(np.floor(cap[sel].min()))
         per_tool[int(number)] = f
         feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
+    if limits.approach is not None:
+        feeds[limits.approach] = np.minimum(feeds[limits.approach], tp.feed_mm_min[limits.approach])
     return feeds, per_tool
 
 
@@ -55,76 +58,94 @@ def feed_at_samples(original: Toolpath, emitted: Toolpath, samples: Samples) -> 
 
 @dataclass
 class Replay:
-    """A schedule checked at the executed speeds. signals: the forward model's prediction there;
-    ratios: per limit the largest value / bound over the cutting samples (bounds after the feed policy);
-    loads: per load limit, per sample (its value, its bound before the policy), of the row with the
-    highest ratio where several rows share the name; current_ratio: per sample the largest axis motor
-    current over its drive's limit."""
+    """A schedule checked at the executed speeds. ratios: per limit the largest value / bound over the
+    cutting samples (bounds after the feed policy); loads: per load limit, per sample (its value, its
+    bound before the policy), of the row with the highest ratio where several rows share the name;
+    current_ratio: per sample the largest axis motor current over its drive's limit; cut_loads: per
+    sample the forward model's peak in-plane force (N), cutting power (W), thrust on the tool (N, +Z)
+    and cutting torque (N·m), 0 off the cut; cut: the cutting samples."""
 
-    signals: Signals
     ratios: dict[str, float]
     loads: dict[str, tuple[np.ndarray, np.ndarray]]
     current_ratio: np.ndarray
+    cut_loads: dict[str, np.ndarray]
+    cut: np.ndarray
 
     def trace_columns(self) -> dict[str, np.ndarray]:
         """Per-sample columns for the optimize trace (0 off the cut; a bound is nan where there is none):
         the loads and their bounds the job report plots."""
-        s, cut = self.signals, self.signals.kind != RAPID
-
-        def on_cut(x):
-            return np.where(cut, x, 0.0)
+        cut = self.cut
 
         def bound(name):
             b = self.loads[name][1]
             return np.where(cut & np.isfinite(b), b, np.nan)
 
-        return {"peak_force_N": on_cut(s.peak_force_xy_N), "power_W": on_cut(s.cutting_power_W),
-                "thrust_N": on_cut(s.force_tool_N[:, 2]), "torque_Nm": on_cut(s.torque_Nm),
-                "peak_force_limit_N": bound("cutting_force"), "power_limit_W": bound("power"),
-                "deflection_mm": on_cut(self.loads["deflection"][0]), "chip_mm": on_cut(self.loads["chip_load_max"][0]),
-                "chip_limit_mm": bound("chip_load_max"), "current_ratio": on_cut(self.current_ratio)}
+        return {**self.cut_loads, "peak_force_limit_N": bound("cutting_force"), "power_limit_W": bound("power"),
+                "deflection_mm": np.where(cut, self.loads["deflection"][0], 0.0),
+                "chip_mm": np.where(cut, self.loads["chip_load_max"][0], 0.0),
+                "chip_limit_mm": bound("chip_load_max"), "current_ratio": np.where(cut, self.current_ratio, 0.0)}
+
+
+def _sample_range(samples: Samples, lo: int, hi: int) -> Samples:
+    """Samples lo..hi−1 (views)."""
+    return Samples(**{f.name: getattr(samples, f.name)[lo:hi] for f in fields(samples)})
 
 
 def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_s: np.ndarray) -> Replay:
     """The signals at the executed speeds (mm/s per sample) from the forward model (`signals.predict`
     with the schedule's affine loads), every limit's value there against its bound, and the drives'
-    motor currents against their limits (off the samples where the policy held the cutting current)."""
-    sig = predict(job, samples, eng, v_mm_s, loads=limits.loads)
+    motor currents against their limits (off the samples where the policy held the cutting current).
+    In chunks of LOAD_CHUNK samples (memory: the signals of the whole program are never held at once),
+    each predicted with one neighbour on either side so the path acceleration (central differences of
+    v² over s) is the whole program's."""
+    n = len(samples)
+    v_mm_s = np.asarray(v_mm_s, float)
     grid = PathGrid.from_samples(samples)
     cut = samples.kind != RAPID
-    v = sig.speed_mm_s
-    ratios: dict[str, float] = {}
-    rows: dict[str, tuple] = {}  # name: value, raw bound, value / raw bound
-    shared = Counter(lim.name for lim in limits if isinstance(lim.constraint, SpeedLoad))
-    for lim in limits:
-        c = lim.constraint
-        if isinstance(c, SpeedLoad):
-            shared[lim.name] -= 1  # rows of this name still to come
-            value = lim.signal(sig)
-            with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked
-                ratio = np.where(cut, value / np.broadcast_to(np.asarray(c.limit, float), value.shape), 0.0)
-                raw = np.where(cut, value / lim.bound, 0.0)
-            ratios[lim.name] = max(ratios.get(lim.name, 0.0), float(np.nanmax(ratio, initial=0)))
-            bound = lim.bound
-            if lim.name in rows:  # several rows of one name (per axis): the highest per sample
-                old_value, old_bound, old_raw = rows[lim.name]
-                higher = raw > old_raw
-                value, bound, raw = (np.where(higher, value, old_value), np.where(higher, bound, old_bound),
-                                     np.maximum(raw, old_raw))
-            # the ratio per sample is kept only while another row of the name may come (memory)
-            rows[lim.name] = (value, bound, raw if shared[lim.name] else None)
-        elif lim.f_word and not lim.controller:  # speed caps only millpost holds (in chunks: memory)
-            for lo in range(0, len(samples), LOAD_CHUNK):
-                hi = min(lo + LOAD_CHUNK, len(samples))
-                for blk in window_blocks(grid, [lim], lo, hi, caps_only=True):
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        r = np.where(cut[lo:hi] & (blk.b_hi > 0), v[lo:hi] / np.sqrt(blk.b_hi), 0.0)
-                    ratios[blk.name] = max(ratios.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
+    keep_current = cut & ~limits.held["cutting_current"]
     limit_A = np.array([job.machine.axes[a].motor.current_limit_A for a in "xyz"])
-    current = np.max(np.abs(sig.axis_current_A) / limit_A, axis=1)
-    keep = cut & ~limits.held["cutting_current"]
-    ratios["current"] = float(np.max(current[keep], initial=0.0))
-    return Replay(sig, ratios, {name: (value, bound) for name, (value, bound, _) in rows.items()}, current)
+    loads = [lim for lim in limits if isinstance(lim.constraint, SpeedLoad)]
+    caps = [lim for lim in limits if not isinstance(lim.constraint, SpeedLoad) and lim.f_word and not lim.controller]
+    rows_of = Counter(lim.name for lim in loads)
+    value = {name: np.zeros(n) for name in rows_of}
+    # a name of one row keeps that row's bound (no copy); of several, the bound of the highest per sample
+    bound = {lim.name: lim.bound if rows_of[lim.name] == 1 else np.zeros(n) for lim in loads}
+    cut_loads = {key: np.zeros(n) for key in ("peak_force_N", "power_W", "thrust_N", "torque_Nm")}
+    current, ratios = np.zeros(n), {}
+    for lo in range(0, n, LOAD_CHUNK):
+        hi = min(lo + LOAD_CHUNK, n)
+        a, b = max(lo - 1, 0), min(hi + 1, n)
+        sig = predict(job, _sample_range(samples, a, b), eng.select(slice(a, b)), v_mm_s[a:b],
+                      loads={key: x[a:b] for key, x in limits.loads.items()}).select(slice(lo - a, hi - a))
+        at, on = slice(lo, hi), cut[lo:hi]
+        raw_best: dict[str, np.ndarray] = {}  # per name: the highest value / raw bound so far in the chunk
+        for lim in loads:
+            c = lim.constraint
+            val, lim_bound = lim.signal(sig, at), lim.bound[at]
+            with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked
+                ratio = np.where(on, val / np.broadcast_to(np.asarray(c.limit, float), (n,))[at], 0.0)
+                raw = np.where(on, val / lim_bound, 0.0)
+            ratios[lim.name] = max(ratios.get(lim.name, 0.0), float(np.nanmax(ratio, initial=0)))
+            if lim.name in raw_best:  # several rows of one name (per axis): the highest per sample
+                higher = raw > raw_best[lim.name]
+                value[lim.name][at] = np.where(higher, val, value[lim.name][at])
+                bound[lim.name][at] = np.where(higher, lim_bound, bound[lim.name][at])
+                raw_best[lim.name] = np.maximum(raw, raw_best[lim.name])
+            else:
+                value[lim.name][at] = val
+                if rows_of[lim.name] > 1:
+                    bound[lim.name][at] = lim_bound
+                raw_best[lim.name] = raw
+        for blk in window_blocks(grid, caps, lo, hi, caps_only=True):  # speed caps only millpost holds
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = np.where(on & (blk.b_hi > 0), sig.speed_mm_s / np.sqrt(blk.b_hi), 0.0)
+            ratios[blk.name] = max(ratios.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
+        current[at] = np.max(np.abs(sig.axis_current_A) / limit_A, axis=1)
+        for key, x in (("peak_force_N", sig.peak_force_xy_N), ("power_W", sig.cutting_power_W),
+                       ("thrust_N", sig.force_tool_N[:, 2]), ("torque_Nm", sig.torque_Nm)):
+            cut_loads[key][at] = np.where(on, x, 0.0)
+    ratios["current"] = float(np.max(current[keep_current], initial=0.0))
+    return Replay(ratios, {name: (value[name], bound[name]) for name in rows_of}, current, cut_loads, cut)
 
 
 def binding_shares(samples: Samples, sched, limits: JobLimits) -> tuple[dict[str, float], dict[str, float]]:

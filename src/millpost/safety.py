@@ -15,6 +15,10 @@ a rapid into material is a crash whatever the user says, and an output must neve
   spoilboard, noted.
 - ``flute-length``: the tool meets material deeper than its flute length (the shank rubs, chips
   cannot leave).
+- ``spindle-off``: the tool meets material where the program has not turned the spindle on (no M3/M4
+  with S before it). Allowed for a spindle switched by hand (a trim router), whose speed is then the
+  job's ``spindle_rpm``, else the program's S word in force; with neither the job is refused: millpost
+  never guesses a spindle speed.
 - ``large``: the resampled path would need more than `MAX_SAMPLES` samples, or more than 80 % of the
   memory free now (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
 - ``clobber`` (always refused): an output path is an input (program, job, stock, tool, material or
@@ -26,7 +30,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,15 +41,15 @@ from .files import check_writable
 from .gcode.convert import SourceBlocks
 from .gcode.interpret import Program
 from .progress import Progress
-from .toolpath import RAPID, Samples
+from .toolpath import RAPID, Samples, segments_per_move
 from .tools import Tool
 
 THROUGH_CUT_MM = 1.0  # below the stock bottom by at most this: a through-cut (noted), beyond: refused
 MAX_SAMPLES = 10_000_000  # path samples of one run, whatever the memory
-# peak bytes per path sample at 8 axial slices, measured with tracemalloc on the sample jobs: the
-# engagement 1.1-1.4 kB; optimize adds loads, schedule and replay (4.6 kB), rounded up for what the
-# solver allocates outside Python's view
-BYTES_PER_SAMPLE = {"simulate": 1_500, "optimize": 8_000}
+# peak bytes per path sample at 8 axial slices: the engagement 1.1-1.4 kB (tracemalloc, sample jobs);
+# optimize 1.3 kB of peak resident memory a sample at 0.76-2.3 M samples (benchmarks/end_to_end.py,
+# streamed forces, limits and replay), rounded up to 4 kB for Clarabel windows and denser engagements
+BYTES_PER_SAMPLE = {"simulate": 1_500, "optimize": 4_000}
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,7 @@ GATES = {g.name: g for g in (
     Gate("no-cut", True, "the feed moves remove no material"),
     Gate("below-stock", True, f"the tool goes more than {THROUGH_CUT_MM:g} mm below the stock bottom"),
     Gate("flute-length", True, "the tool meets material deeper than its flute length"),
+    Gate("spindle-off", True, "the tool cuts material with the spindle off"),
     Gate("large", True, "the path needs more samples or memory than stated"),
     Gate("clobber", False, "an output would replace an input or another output"),
 )}
@@ -117,14 +122,37 @@ def check_program(program: Program) -> None:
                             "not a finite number")
 
 
+def check_tools(program: Program, tools: Tool | Mapping[int, Tool], stock_top_mm: float) -> None:
+    """Every feed move runs with a tool the job describes. A program that cuts (a feed move below the
+    stock top, Z mm) before any T word selects a tool can only run with the job's only tool
+    (`ReaderOptions.for_tools`); with several, say what to write."""
+    if isinstance(tools, Tool):
+        return
+    tp = program.toolpath
+    fed = tp.kind != RAPID
+    described = ", ".join(f"[tools.{n}]" for n in sorted(tools)) or "none"
+    unloaded = fed & (tp.tool < 0) & (np.minimum(tp.start[:, 2], tp.end[:, 2]) < stock_top_mm)
+    if unloaded.any():
+        line = int(tp.line[np.argmax(unloaded)])
+        raise MillpostError(f"{program.path}:{line}: the program cuts before any T word selects a tool; the job "
+                            f"describes {described}: write `T<n> M6` (e.g. T{min(tools, default=1)} M6) before "
+                            "this line, or describe only the tool it uses (a job with one [tools.N] table has "
+                            "that tool loaded)")
+    missing = fed & (tp.tool >= 0) & ~np.isin(tp.tool, list(tools))
+    if missing.any():
+        k = int(np.argmax(missing))
+        empty = " (T0 is the empty spindle on LinuxCNC)" if tp.tool[k] == 0 else ""
+        raise MillpostError(f"{program.path}:{int(tp.line[k])}: tool T{int(tp.tool[k])} cuts{empty} but the job "
+                            f"has no [tools.{int(tp.tool[k])}] (it describes {described})")
+
+
 def estimate_samples(program: Program, ds_mm: float) -> int:
     """How many samples `Toolpath.resample(ds_mm)` will make, without making them."""
     L = program.toolpath.lengths()
     L = L[L > 1e-9]
     if not len(L):
         return 0
-    with np.errstate(over="ignore", invalid="ignore"):
-        n = np.maximum(np.ceil(L / ds_mm - 1e-9), 1.0)
+    n = segments_per_move(L, ds_mm)
     return int(min(float(n.sum()) + 1.0, 1e18)) if np.all(np.isfinite(n)) else 10**18
 
 
@@ -176,22 +204,66 @@ def known_start(program: Program, samples: Samples) -> int:
 
 
 def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: float, allow: Iterable[str],
-           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None
-           ) -> tuple[Samples, "engagement.Engagement", list[str]]:
+           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None,
+           clearance_mm: float | None = None) -> tuple[Samples, "engagement.Engagement", list[str]]:
     """Resample (``large`` gate), step the tools through `stock` (cut in place; ``rapid`` gate from the
     first known position) and check the cut (``no-cut``, ``below-stock``, ``flute-length``).
-    Returns the samples, the engagement and the warnings/notes the gates left."""
+    clearance_mm: see `engagement.simulate`. Returns the samples, the engagement and the warnings/notes
+    the gates left."""
     notes: list[str] = []
     check_program(program)
-    samples = resample(program, ds_mm, allow, notes, stage=stage)
     bounds = stock.bounds()
+    check_tools(program, tools, float(bounds[1][2]))
+    samples = resample(program, ds_mm, allow, notes, stage=stage)
     try:
         eng = engagement.simulate(stock, tools, samples, slices=slices, progress=progress,
-                                  start=known_start(program, samples))
+                                  start=known_start(program, samples), clearance_mm=clearance_mm)
     except CrashError as exc:
         raise CrashError(exc.line, exc.xyz, file=program.path) from None
     check_cut(program, bounds, tools, samples, eng, allow, notes)
     return samples, eng, notes
+
+
+def spindle_off_message(path: str, line: int) -> str:
+    """What is wrong and what to write when the tool cuts at `path`:`line` with the spindle off."""
+    return (f"{path}:{line}: the tool cuts material with the spindle off: expected M3/M4 with S<rpm> before this "
+            "line, or, for a spindle switched by hand, --allow spindle-off (its speed: spindle_rpm = <rpm> in the "
+            "job, else the program's S word)")
+
+
+def check_spindle(program: Program, samples: Samples, eng, hand_rpm: float | None, allow: Iterable[str],
+                  notes: list[str]) -> Samples:
+    """The ``spindle-off`` gate: samples where the tool meets material (ap > 0) with the spindle off
+    (programmed rpm 0). Allowed, the spindle is switched by hand and turns, wherever the program leaves
+    it off, at `hand_rpm` (the job's ``spindle_rpm``: what the dial is set to), else at the program's S
+    word in force (set without M3): the samples are returned with that speed. Allowed with neither,
+    refused: a guessed speed would set every chip load and force."""
+    rpm = np.asarray(samples.rpm, float)
+    off = (eng.ap_mm > 1e-9) & (rpm <= 0)
+    if not off.any():
+        return samples
+    line = int(samples.line[np.argmax(off)])
+    msg = f"{spindle_off_message(program.path, line)} ({len(np.unique(samples.line[off]))} line(s))"
+    refuse_or_note("spindle-off", msg, allow, notes)
+    if hand_rpm is not None:
+        by_hand = np.full(len(rpm), float(hand_rpm))
+        notes.append(f"note: where the program leaves the spindle off, it turns at {hand_rpm:g} rpm (the job's "
+                     "spindle_rpm, switched by hand)")
+    else:  # the S word in force at each move: the last one set before it
+        words = [(e.move, float(e.value)) for e in program.events if e.kind == "s_word"]
+        at, value = np.array(words).T if words else (np.zeros(0), np.zeros(0))
+        k = np.searchsorted(at, np.asarray(samples.move), side="right") - 1
+        by_hand = np.where(k >= 0, value[np.maximum(k, 0)] if len(value) else 0.0, 0.0)
+        if np.any(off & (by_hand <= 0)):
+            bad = int(samples.line[np.argmax(off & (by_hand <= 0))])
+            raise MillpostError(f"{program.path}:{bad}: the tool cuts with the spindle off (allowed: switched by "
+                                "hand) but its speed is unknown: give spindle_rpm = <rpm> in the job (the speed "
+                                "it is set to), or an S<rpm> word before this line; millpost does not guess a "
+                                "spindle speed")
+        speeds = ", ".join(f"S{v:g}" for v in np.unique(by_hand[off]))
+        notes.append(f"note: where the program leaves the spindle off, it turns at the S word in force ({speeds}; "
+                     "switched by hand; spindle_rpm in the job sets another speed)")
+    return replace(samples, rpm=np.where(rpm > 0, rpm, by_hand))
 
 
 def _per_sample(tools: Tool | Mapping[int, Tool], numbers: np.ndarray, attr: str, missing: float) -> np.ndarray:

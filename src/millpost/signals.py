@@ -37,6 +37,7 @@ from .gcode import read_program
 from .gcode.interpret import Program
 from .job import Job
 from .progress import Progress, reporting, resolve
+from .safety import check_spindle, spindle_off_message
 from .toolpath import RAPID, Samples
 from .tools.beam import ToolBeam
 
@@ -163,7 +164,7 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
     engaged = eng.ap_mm > 1e-9
     if np.any(engaged & (rpm <= 0)):
         k = int(np.flatnonzero(engaged & (rpm <= 0))[0])
-        raise MillpostError(f"{job.program}:{samples.line[k]}: the tool cuts material with the spindle off")
+        raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     model = job.material.force_model(job.limits["model"])
     end_model = EndCut.from_material(job.material)
     force = np.zeros((n, 3))
@@ -222,6 +223,7 @@ def simulate(job: Job, feed_mm_min: np.ndarray | None = None, *, program: Progra
     report = resolve(progress)
     with reporting(report):  # the controller kernel's first compile too
         eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=report)
+        samples = check_spindle(program, samples, eng, job.spindle_rpm, job.allow, [])  # a hand-switched spindle
         execution = controller.execute(program.toolpath, controller_model(job), feed_mm_min)
     return predict(job, samples, eng, execution.speed_at_samples(samples),
                    time_s=time_base(program, samples, execution), peaks=peaks)

@@ -17,6 +17,13 @@ KIND_NAMES = ("rapid", "feed", "arc_cw", "arc_ccw")
 PLANE_AXES = ((0, 1, 2), (2, 0, 1), (1, 2, 0))
 
 
+def segments_per_move(length_mm: np.ndarray, ds_mm: float) -> np.ndarray:
+    """Segments `Toolpath.resample` cuts each move of nonzero length into (float: inf-safe for the
+    sample-count estimate): at most ds_mm long, and at least two (see `resample`)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.maximum(np.ceil(np.asarray(length_mm, float) / ds_mm - 1e-9), 2.0)
+
+
 @dataclass
 class Toolpath:
     """Moves as arrays, all lengths in mm in the program's coordinate frame.
@@ -165,7 +172,10 @@ class Toolpath:
         """Samples at most ds_mm apart along every move of the given kinds, each move's end included.
 
         Sample 0 is the start of the first selected move; every sample k > 0 ends a segment that
-        belongs to move `move[k]`. Moves of zero length contribute no sample.
+        belongs to move `move[k]`. Moves of zero length contribute no sample. Every other move gets at
+        least two segments: a move may start and end at a stop (a rapid on either side, a reversal, an
+        exact-stop corner), and the schedule, which holds the acceleration constant between samples,
+        needs a sample inside it to speed up and brake again (one segment from rest to rest never moves).
         """
         if ds_mm <= 0:
             raise ValueError("ds_mm must be > 0")
@@ -175,7 +185,7 @@ class Toolpath:
         sel, L = sel[keep], L[keep]
         if len(sel) == 0:
             return Samples.empty()
-        nseg = np.maximum(np.ceil(L / ds_mm - 1e-9).astype(np.int64), 1)
+        nseg = segments_per_move(L, ds_mm).astype(np.int64)
         move = np.repeat(sel, nseg)
         first = np.repeat(np.cumsum(nseg) - nseg, nseg)
         j = np.arange(len(move)) - first + 1

@@ -15,6 +15,10 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
 3. End band (descending feed steps only, read before the cut): per radial bin of the tool's end, the
    share of its columns whose band [surface, surface + drop] just above the new tool surface holds
    material: where the end edges cut a full axial feed (`_end_band`).
+4. Clearance (feed steps that cut nothing): whether the tool is in the shell of width c around the
+   stock as loaded (`_near_original`): the tool grown by c (radius R + c, tip c lower) meets the
+   original stock and its tip disc is not inside it, read from a coarse snapshot of the original
+   column tops (per block of columns their maximum and minimum, `block_range`).
 
 Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer or drill (a cone).
 These closed forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
@@ -142,6 +146,8 @@ def _tool_z(kind, dx, dy, fx, fy, pz, shape, R, rc, r_tip, tan_half):
 @njit(cache=True, inline="always", error_model="numpy")
 def _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, tan_half, top, zf):
     """Columns row+i0..row+i1 of a stock without undercuts cut down to the tool: (removed, depth)."""
+    if shape == FLAT and kind == CAP:
+        return _cut_level(row, i0, i1, pz, top, zf)
     rem = 0.0
     ap = 0.0
     for i in range(i0, i1 + 1):
@@ -154,6 +160,22 @@ def _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, 
             if t > nt:
                 rem += t - nt
                 ap = max(ap, t - pz)
+    return rem, ap
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cut_level(row, i0, i1, pz, top, zf):
+    """`_cut_row` for a flat end over a row span inside its disk: every column is cut to the same
+    height max(pz, zf), without a radius test (branch-free, so the loop vectorises)."""
+    zc = max(pz, zf)
+    rem = 0.0
+    ap = 0.0
+    for i in range(row + i0, row + i1 + 1):
+        t = top[i]
+        nt = min(t, zc)
+        top[i] = nt
+        rem += t - nt
+        ap = max(ap, t - pz if t > nt else 0.0)
     return rem, ap
 
 
@@ -225,36 +247,100 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
 
 
 @njit(cache=True, error_model="numpy")
+def block_range(top, nx, ny, B, zf):
+    """Maximum and minimum of the column tops (mm) per block of B × B columns (row-major blocks)."""
+    nbx, nby = (nx + B - 1) // B, (ny + B - 1) // B
+    hi = np.full(nbx * nby, np.float32(zf), np.float32)
+    lo = np.full(nbx * nby, np.float32(np.inf), np.float32)
+    for j in range(ny):
+        for i in range(nx):
+            b = (j // B) * nbx + i // B
+            hi[b] = max(hi[b], top[j * nx + i])
+            lo[b] = min(lo[b], top[j * nx + i])
+    return hi, lo
+
+
+@njit(cache=True, error_model="numpy")
+def _near_original(px, py, pz, R, c, omax, omin, B, nx, ny, x0, y0, h, zf):
+    """Whether a tool of radius R (mm) with its tip at (px, py, pz) lies in the shell of width c (mm)
+    around the original stock: (a) the tool grown by c (radius R + c, tip c lower, a cylinder) meets
+    it, and (b) its tip disc (radius R at pz) is not inside it (not every column within R of the axis
+    held material above pz). omax/omin: the original tops' maximum/minimum per block of B × B columns
+    (`block_range`); a block is read whole, so both answers err towards near: by up to a block's
+    diagonal beside the stock, and inside it within a block of its edge."""
+    w = B * h
+    nbx, nby = (nx + B - 1) // B, (ny + B - 1) // B
+    rc = R + c
+    zc = max(pz - c, zf)  # a column at the floor holds no material
+    zt = max(pz, zf)
+    meets = False
+    inside = px - R >= x0 and px + R <= x0 + nx * h and py - R >= y0 and py + R <= y0 + ny * h
+    bi0 = min(max(int(math.floor((px - rc - x0) / w)), 0), nbx - 1)
+    bi1 = min(max(int(math.floor((px + rc - x0) / w)), 0), nbx - 1)
+    bj0 = min(max(int(math.floor((py - rc - y0) / w)), 0), nby - 1)
+    bj1 = min(max(int(math.floor((py + rc - y0) / w)), 0), nby - 1)
+    for bj in range(bj0, bj1 + 1):
+        ddy = max(y0 + bj * w - py, 0.0, py - y0 - min((bj + 1) * B, ny) * h)
+        for bi in range(bi0, bi1 + 1):
+            ddx = max(x0 + bi * w - px, 0.0, px - x0 - min((bi + 1) * B, nx) * h)
+            d2 = ddx * ddx + ddy * ddy
+            b = bj * nbx + bi
+            if d2 <= rc * rc and omax[b] > zc:
+                meets = True
+            if d2 < R * R and not omin[b] > zt:
+                inside = False
+    return meets and not inside
+
+
+@njit(cache=True, error_model="numpy")
 def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
-               has_multi, bits, ids, ptr, lo, hi, tol):
+               has_multi, bits, ids, ptr, lo, hi, tol, spans, rows, spans_at_q):
     """Update (cut=True) or check (cut=False) the columns under the tool at tip (px, py, pz).
 
     mode 0: full disk; 1: crescent outside the disk at (qx, qy); 2: half-plane nearer to p than q.
     Returns (removed length sum, deepest cut below the old top, crash) in mm.
+    spans (ny, 2), rows (2,): each call leaves there the disk's column span (unclipped, empty when
+    the row has no centre inside) on its rows rows[0]..rows[1]; with spans_at_q they hold the disk at
+    q (the previous step's call), whose spans mode 1 then reads instead of recomputing them.
     """
     rem = 0.0
     ap = 0.0
-    j0 = max(0, int(math.ceil((py - R - y0) / h - 0.5)))
-    j1 = min(ny - 1, int(math.floor((py + R - y0) / h - 0.5)))
+    # in cell units: column i's centre is at u = i, row j's at v = j; the disk's radius is Rc
+    Rc = R / h
+    Rc2 = Rc * Rc
+    u, v = (px - x0) / h - 0.5, (py - y0) / h - 0.5
+    uq, vq = (qx - x0) / h - 0.5, (qy - y0) / h - 0.5
+    j0 = max(0, int(math.ceil(v - Rc)))
+    j1 = min(ny - 1, int(math.floor(v + Rc)))
     A = 2.0 * (qx - px)
+    q_rows0, q_rows1 = rows[0], rows[1]
+    rows[0], rows[1] = j0, j1
     for j in range(j0, j1 + 1):
         yc = y0 + (j + 0.5) * h
         dy = yc - py
-        w2 = R * R - dy * dy
+        w2 = Rc2 - (j - v) * (j - v)
+        qa, qb = 1, 0
+        if mode == 1:
+            if spans_at_q:
+                if q_rows0 <= j <= q_rows1:
+                    qa, qb = spans[j, 0], spans[j, 1]
+            else:
+                wq2 = Rc2 - (j - vq) * (j - vq)
+                if wq2 >= 0.0:
+                    wq = math.sqrt(wq2)
+                    qa = int(math.ceil(uq - wq))
+                    qb = int(math.floor(uq + wq))
         if w2 < 0.0:
+            spans[j, 0], spans[j, 1] = 1, 0
             continue
         w = math.sqrt(w2)
-        ia = max(0, int(math.ceil((px - w - x0) / h - 0.5)))
-        ib = min(nx - 1, int(math.floor((px + w - x0) / h - 0.5)))
+        ia, ib = int(math.ceil(u - w)), int(math.floor(u + w))
+        spans[j, 0], spans[j, 1] = ia, ib
+        ia, ib = max(0, ia), min(nx - 1, ib)
         # up to two index ranges [a0, b0], [a1, b1] to visit on this row
         a0, b0, a1, b1 = ia, ib, 1, 0
         if mode == 1:
-            dq = yc - qy
-            wq2 = R * R - dq * dq
-            if wq2 >= 0.0:
-                wq = math.sqrt(wq2)
-                qa = int(math.ceil((qx - wq - x0) / h - 0.5))
-                qb = int(math.floor((qx + wq - x0) / h - 0.5))
+            if qa <= qb:  # outside the disk at q (an empty span leaves the whole row)
                 a0, b0 = ia, min(ib, qa - 1)
                 a1, b1 = max(ia, qb + 1), ib
         elif mode == 2:
@@ -506,20 +592,22 @@ def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, 
     if i_s < 0:
         return area, 0.0
     st, ex = _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid)
-    area += _split(i_s, i_e, M, st, ex, g, sin_t, cos_t)
+    cos_st, cos_ex = math.cos(st), math.cos(ex)
+    area += _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t)
     phi_st[k, s] = st
     phi_ex[k, s] = ex
     dz[k, s] = mmax
     arc[k, s] = ex - st - dphi * ((i_e - i_s + 1) - n_on)
-    return area, r * (math.cos(st) - math.cos(ex))
+    return area, r * (cos_st - cos_ex)
 
 
 @njit(cache=True, error_model="numpy")
-def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs,
-                bilinear, grid, phi_st, phi_ex, dz, arc):
+def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs, tree,
+                known, bilinear, grid, phi_st, phi_ex, dz, arc):
     """Slices s0..K-1 on the vertical flank (radius R) of single-interval stock, from one ring of
     column tops H(φ): slice s is engaged where H > its mid-height, so the engaged sets are nested
-    and one pass finds every slice's coarse ends. Returns (area, ae)."""
+    and one pass finds every slice's coarse ends. Returns (area, ae).
+    Work arrays: tree, known (2, 2**BISECT) float and bool (see below)."""
     top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
     dphi = math.pi / M
     zbase = pz + s0 * dzs
@@ -527,21 +615,23 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
     T = nk * dzs
     area = 0.0
     hmax = -1e300
+    base = max(zbase, zf)
+    m_prev = 0.0
     for i in range(M + 1):
         Hi = _ring_height(cells, wts, i, bilinear, top, zf)
         H[i] = Hi
         hmax = max(hmax, Hi)
         cnt[i] = min(max(int(math.floor((Hi - zbase) / dzs + 0.5)), 0), nk)
-        m = min(max(Hi - max(zbase, zf), 0.0), T)
+        m = min(max(Hi - base, 0.0), T)
         if i > 0:
-            area += 0.5 * dphi * R * (sin_t[i - 1] * min(max(H[i - 1] - max(zbase, zf), 0.0), T) + sin_t[i] * m)
+            area += 0.5 * dphi * R * (sin_t[i - 1] * m_prev + sin_t[i] * m)
+        m_prev = m
     first, last = 0, M
     ae = 0.0
     # heights met by the bisections at the start and at the exit, shared by the slices whose coarse
     # transition lies in the same interval (on a vertical wall, all of them)
-    tree = np.empty((2, 1 << BISECT))
-    known = np.zeros((2, 1 << BISECT), np.bool_)
-    held = np.array([-1, -1])  # the coarse interval each tree belongs to
+    held0, held1 = -1, -1  # the coarse interval each tree belongs to
+    st_c, cos_st, ex_c, cos_ex = 0.0, 1.0, math.pi, -1.0  # the last ends and their cosines (often shared)
     for j in range(nk):
         while first <= last and cnt[first] <= j:
             first += 1
@@ -552,11 +642,11 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         s = s0 + j
         za = zbase + j * dzs
         zb = za + dzs
-        if first != held[0]:  # another coarse interval: its tree of heights starts empty
-            held[0] = first
+        if first != held0:  # another coarse interval: its tree of heights starts empty
+            held0 = first
             known[0, :] = False
-        if last != held[1]:
-            held[1] = last
+        if last != held1:
+            held1 = last
             known[1, :] = False
         half = 0.5 * dzs
         st = 0.0 if first == 0 else _bisect_heights((first - 1) * dphi, first * dphi, False, tree[0], known[0], cx, cy,
@@ -568,7 +658,11 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         for i in (first - 1, first, last, last + 1):
             if 0 <= i <= M:
                 gs[i] = R * min(max(H[i] - max(za, zf), 0.0), dzs)
-        area += _split(first, last, M, st, ex, gs, sin_t, cos_t)
+        if st != st_c:
+            st_c, cos_st = st, math.cos(st)
+        if ex != ex_c:
+            ex_c, cos_ex = ex, math.cos(ex)
+        area += _split(first, last, M, cos_st, cos_ex, gs, sin_t, cos_t)
         off = 0
         for i in range(first, last + 1):
             off += cnt[i] <= j
@@ -576,7 +670,7 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         phi_ex[k, s] = ex
         dz[k, s] = min(max(hmax - za, 0.0), dzs)
         arc[k, s] = ex - st - dphi * off
-        ae = max(ae, R * (math.cos(st) - math.cos(ex)))
+        ae = max(ae, R * (cos_st - cos_ex))
     return area, ae
 
 
@@ -594,32 +688,36 @@ def _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid):
 
 
 @njit(cache=True, error_model="numpy")
-def _split(i_s, i_e, M, st, ex, g, sin_t, cos_t):
+def _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t):
     """Area correction for the two end intervals: the trapezoid of g·sin φ there is replaced by g
-    of the off sample before st / after ex and of the on sample inside, integrated exactly."""
+    of the off sample before st / after ex and of the on sample inside, integrated exactly (given
+    cos st and cos ex)."""
     dphi = math.pi / M
     d = 0.0
     if i_s > 0:
         i = i_s - 1
-        d += (g[i] * (cos_t[i] - math.cos(st)) + g[i + 1] * (math.cos(st) - cos_t[i + 1])
+        d += (g[i] * (cos_t[i] - cos_st) + g[i + 1] * (cos_st - cos_t[i + 1])
               - 0.5 * dphi * (sin_t[i] * g[i] + sin_t[i + 1] * g[i + 1]))
     if i_e < M:
         i = i_e
-        d += (g[i] * (cos_t[i] - math.cos(ex)) + g[i + 1] * (math.cos(ex) - cos_t[i + 1])
+        d += (g[i] * (cos_t[i] - cos_ex) + g[i + 1] * (cos_ex - cos_t[i + 1])
               - 0.5 * dphi * (sin_t[i] * g[i] + sin_t[i + 1] * g[i + 1]))
     return d
 
 
 @njit(cache=True, error_model="numpy")
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
-        shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol,
-        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o):
+        shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol, clear, zmax, omax, omin, B,
+        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o, near_o):
     """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
     ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
     of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place).
     depth_o[k]: the depth of material the step meets, before ap is clipped to the flute length.
-    end_o[k]: the end's radial engagement of a descending feed step (`_end_band`)."""
+    end_o[k]: the end's radial engagement of a descending feed step (`_end_band`). near_o[k]: a feed
+    step that cuts nothing lies within `clear` mm of the original stock (`_near_original` with its
+    tops' block maxima omax and minima omin of B × B columns; zmax: the highest original top); not
+    computed when clear < 0."""
     dphi = math.pi / M
     sin_t = np.sin(np.arange(M + 1) * dphi)
     cos_t = np.cos(np.arange(M + 1) * dphi)
@@ -630,6 +728,11 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     mat = np.empty(M + 1, np.float64)
     g = np.empty(M + 1, np.float64)
     cnt = np.empty(M + 1, np.int64)
+    spans = np.empty((ny, 2), np.int64)
+    rows = np.zeros(2, np.int64)
+    spans_k = -2  # the last sample whose disk spans are in `spans`
+    tree = np.empty((2, 1 << BISECT))
+    known = np.zeros((2, 1 << BISECT), np.bool_)
     fx, fy = prev_f[0], prev_f[1]
     for k in range(k0, k1):
         px, py, pz = xyz[k, 0], xyz[k, 1], xyz[k, 2]
@@ -674,7 +777,9 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
                 ap = max(ap, a2)
         else:
             rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
-                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol)
+                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol,
+                                        spans, rows, spans_k == k - 1)
+            spans_k = k
         if crash:
             prev_f[0], prev_f[1] = fx, fy
             return k
@@ -684,6 +789,8 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         ap_o[k] = ap
         if ap <= 1e-6 or step == 0.0:
             area_o[k] = vol_o[k] / step if step > 0.0 else 0.0
+            if ap <= 1e-6 and clear >= 0.0 and not rapid[k] and pz - clear < zmax:
+                near_o[k] = _near_original(px, py, pz, R, clear, omax, omin, B, nx, ny, x0, y0, h, zf)
             continue
         dzs = ap / K
         cx, cy = ring_at[k, 0], ring_at[k, 1]
@@ -709,7 +816,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         if s0 < K and not has_multi:
             _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
             da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw,
-                                 mat, cnt, g, bilinear, grid, phi_st, phi_ex, dz, arc)
+                                 mat, cnt, g, tree, known, bilinear, grid, phi_st, phi_ex, dz, arc)
             area += da
             ae = max(ae, de)
         ae_o[k] = ae

@@ -10,6 +10,8 @@ leaves material, down-facing ones where it enters.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -36,10 +38,10 @@ def _in_triangle(ax, ay, bx, by, cx, cy, px, py) -> bool:
 
 
 @njit(cache=True)
-def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from):
-    """Cells whose centre lies in the triangle's XY projection, row by row from row j_from (-1: the
-    first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z and returns
-    (count, up, next row or -1 when done), up +1 for an up-facing triangle, -1 down-facing. On each
+def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from, j_to):
+    """Cells whose centre lies in the triangle's XY projection, on rows j_from..j_to-1 (j_from = -1:
+    from the first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z and
+    returns (count, up, next row or -1 when done), up +1 for an up-facing triangle, -1 down-facing. On each
     row the inside cells are an interval: its ends are estimated from the edges, widened by a cell
     and trimmed with the exact test."""
     X = np.empty(3, np.int64)
@@ -68,7 +70,7 @@ def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from):
     j1 = min(ny - 1, (max(ay, max(by, cy)) - half) // SUB)
     n = 0
     cap = out_c.shape[0]
-    for j in range(max(j0, j_from), j1 + 1):
+    for j in range(max(j0, j_from), min(j1, j_to - 1) + 1):
         if n + (i1 - i0 + 1) > cap:
             return n, up, j
         py = j * SUB + half
@@ -129,80 +131,110 @@ def first_pass(tris, x0, y0, h, nx, ny, z_floor, tol, top, count):
     for t in range(tris.shape[0]):
         j = -1
         while True:
-            n, up, j = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, j)
+            n, up, j = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, j, ny)
             _count_crossings(cells, zs, n, up, flat, count, z_floor, tol)
             if j < 0:
                 break
 
 
 @njit(cache=True)
-def second_pass(tris, x0, y0, h, nx, ny, multi_ids, ptr, zc, up_c):
-    """Collect every crossing (z, facing) of the multi columns into CSR slots."""
-    cells = np.empty(BUFFER_ROWS * nx, np.int64)
-    zs = np.empty(BUFFER_ROWS * nx, np.float64)
-    fill = ptr[:-1].copy()
-    for t in range(tris.shape[0]):
-        j = -1
-        while True:
-            n, up, j = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, j)
-            for k in range(n):
-                m = np.searchsorted(multi_ids, cells[k])
-                if m < multi_ids.shape[0] and multi_ids[m] == cells[k] and fill[m] < ptr[m + 1]:
-                    zc[fill[m]] = zs[k]
-                    up_c[fill[m]] = up
-                    fill[m] += 1
-            if j < 0:
-                break
-
-
-@njit(cache=True)
-def intervals_from_crossings(ptr, zc, up_c, out_ptr, lo, hi):
-    """Per column: sort crossings by z (entries before exits at equal z), walk up counting inside
-    depth, emit non-empty intervals top-down. Returns the number of intervals written."""
+def multi_intervals(tris, x0, y0, h, nx, ny, multi_ids, ptr, lo, hi):
+    """Material intervals of the multi columns, BUFFER_ROWS rows of the grid at a time (only one band's
+    crossings are held: 5 B each). On entry ptr[m + 1] is column m's crossing count (capped as in
+    `first_pass`); on return ptr holds the CSR pointers of its intervals in lo/hi (top-down per
+    column), and the number of intervals is returned."""
+    nt = tris.shape[0]
+    band = min(BUFFER_ROWS, ny)
+    cells = np.empty(band * nx, np.int64)
+    zs = np.empty(band * nx, np.float64)
+    slot = np.full(band * nx, -1, np.int64)  # band cell -> its multi column's place in the band
+    # rows each triangle can touch (a cell centre row beyond its y extent cannot be inside it)
+    t_lo = np.empty(nt, np.int64)
+    t_hi = np.empty(nt, np.int64)
+    for t in range(nt):
+        ya = min(tris[t, 0, 1], min(tris[t, 1, 1], tris[t, 2, 1]))
+        yb = max(tris[t, 0, 1], max(tris[t, 1, 1], tris[t, 2, 1]))
+        t_lo[t] = int(math.floor((ya - y0) / h - 0.5))
+        t_hi[t] = int(math.ceil((yb - y0) / h - 0.5))
     w = 0
-    for m in range(ptr.shape[0] - 1):
-        a, b = ptr[m], ptr[m + 1]
-        out_ptr[m] = w
-        key = np.empty(b - a, np.float64)
-        for k in range(a, b):
-            key[k - a] = zc[k]
-        order = np.argsort(key, kind="mergesort")
-        # stable sort by z; at equal z put entries (down-facing, -1) first
-        n = b - a
-        for p in range(1, n):
-            q = p
-            while q > 0 and zc[a + order[q]] == zc[a + order[q - 1]] and up_c[a + order[q]] < up_c[a + order[q - 1]]:
-                order[q], order[q - 1] = order[q - 1], order[q]
-                q -= 1
-        start = w
-        depth = 0
-        z_in = 0.0
-        for p in range(n):
-            k = a + order[p]
-            if up_c[k] < 0:
-                if depth == 0:
-                    z_in = zc[k]
-                depth += 1
-            elif depth > 0:
-                depth -= 1
-                if depth == 0 and zc[k] > z_in:
-                    lo[w] = z_in
-                    hi[w] = zc[k]
-                    w += 1
-        # reverse this column's intervals to top-down order
-        i, j = start, w - 1
-        while i < j:
-            lo[i], lo[j] = lo[j], lo[i]
-            hi[i], hi[j] = hi[j], hi[i]
-            i += 1
-            j -= 1
-    out_ptr[ptr.shape[0] - 1] = w
+    m0 = 0
+    nm = multi_ids.shape[0]
+    for ja in range(0, ny, band):
+        jb = min(ny, ja + band)
+        m1 = m0
+        while m1 < nm and multi_ids[m1] < jb * nx:
+            m1 += 1
+        if m1 == m0:
+            continue
+        lptr = np.empty(m1 - m0 + 1, np.int64)
+        lptr[0] = 0
+        for m in range(m0, m1):
+            lptr[m - m0 + 1] = lptr[m - m0] + ptr[m + 1]
+            slot[multi_ids[m] - ja * nx] = m - m0
+        fill = lptr[:-1].copy()
+        zc = np.empty(lptr[-1], np.float32)  # the stock's own precision
+        up_c = np.empty(lptr[-1], np.int8)
+        for t in range(nt):
+            if t_hi[t] < ja or t_lo[t] >= jb:
+                continue
+            n, up, _ = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, ja, jb)
+            for k in range(n):
+                q = slot[cells[k] - ja * nx]
+                if q >= 0 and fill[q] < lptr[q + 1]:
+                    zc[fill[q]] = zs[k]
+                    up_c[fill[q]] = up
+                    fill[q] += 1
+        for m in range(m0, m1):
+            slot[multi_ids[m] - ja * nx] = -1
+            ptr[m] = w
+            w = _column_intervals(zc, up_c, lptr[m - m0], lptr[m - m0 + 1], lo, hi, w)
+        m0 = m1
+    ptr[nm] = w
     return w
 
 
 @njit(cache=True)
-def multi_columns(count):
-    """Flat ids of the columns that need intervals: crossing count other than 0 or 2, or MULTI set."""
+def _column_intervals(zc, up_c, a, b, lo, hi, w):
+    """One column's crossings zc[a:b] (facing up_c) to intervals lo/hi[w:], top-down: sort by z (at
+    equal z entries, down-facing −1, first), walk up counting the inside depth, emit the non-empty
+    intervals. Sorts zc/up_c[a:b] in place (insertion sort: a column holds at most 127). Returns the
+    new w."""
+    for p in range(a + 1, b):
+        z, u = zc[p], up_c[p]
+        q = p
+        while q > a and (zc[q - 1] > z or (zc[q - 1] == z and up_c[q - 1] > u)):
+            zc[q] = zc[q - 1]
+            up_c[q] = up_c[q - 1]
+            q -= 1
+        zc[q] = z
+        up_c[q] = u
+    start = w
+    depth = 0
+    z_in = np.float32(0.0)
+    for k in range(a, b):
+        if up_c[k] < 0:
+            if depth == 0:
+                z_in = zc[k]
+            depth += 1
+        elif depth > 0:
+            depth -= 1
+            if depth == 0 and zc[k] > z_in:
+                lo[w] = z_in
+                hi[w] = zc[k]
+                w += 1
+    i, j = start, w - 1
+    while i < j:
+        lo[i], lo[j] = lo[j], lo[i]
+        hi[i], hi[j] = hi[j], hi[i]
+        i += 1
+        j -= 1
+    return w
+
+
+@njit(cache=True)
+def multi_columns(count, bits):
+    """Flat ids of the columns that need intervals: crossing count other than 0 or 2, or MULTI set.
+    Sets their bits in `bits` (little-endian bitset, zeroed)."""
     n = 0
     for c in range(count.shape[0]):
         k = count[c]
@@ -214,6 +246,7 @@ def multi_columns(count):
         k = count[c]
         if (k & MULTI) != 0 or ((k & 127) != 2 and k != 0):
             ids[n] = c
+            bits[c >> 3] |= np.uint8(1 << (c & 7))
             n += 1
     return ids
 

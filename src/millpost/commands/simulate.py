@@ -137,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     program_path, stock, tools, step, dialect, allow = _inputs(args)
     diameters = {n: t.diameter_mm for n, t in tools.items()} if isinstance(tools, dict) else {}  # for G41/G42
-    program = read_program(program_path, ReaderOptions(dialect=dialect, tool_diameters_mm=diameters))
+    program = read_program(program_path, ReaderOptions.for_tools(diameters, dialect))
     v0 = stock.volume_mm3()
     with Bars() as bars:
         samples, eng, notes = engage(program, stock, tools, step, allow | set(args.allow), stage="simulate",

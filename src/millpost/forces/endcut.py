@@ -87,16 +87,21 @@ def end_chip_factor(engagement: Engagement, tool: Tool) -> np.ndarray:
     return _descent(engagement) * s
 
 
-def entry_chip_share(engagement: Engagement, tool: Tool, plunge_fz_ratio: float) -> np.ndarray:
-    """Per sample the share of the material's chip load the end may take: 1 for a drill (its job);
-    for a milling cutter `plunge_fz_ratio` (the material's entry rule, e.g. Kyocera's −50 % for ramps
-    and plunges, FANAR's 25–50 %) where it enters along its axis with the end enclosed (material all
-    round at every radius: a plunge, ramp or helical entry; chips leave only up the flutes), 1 where
-    the end cuts only part of the circle (e.g. a ball going down a slope, a plunge over a hole)."""
-    n = len(engagement)
+def entry_chip_factor(engagement: Engagement, tool: Tool, plunge_fz_ratio: float) -> np.ndarray:
+    """Per sample the end's chip per unit feed per tooth as the chip-load limit sees it (0 where the end
+    does not cut). A milling cutter entering along its axis with its end enclosed (material all round
+    at every radius that cuts: a plunge, ramp or helical entry; chips leave only up the flutes) takes
+    `plunge_fz_ratio` of the chip load (the material's entry rule, e.g. Kyocera's −50 % for ramps and
+    plunges, FANAR's 25–50 %) on its axial feed per tooth f_z·descent, with no chip-thinning credit
+    for a ball or pointed end: its centre cuts at no speed and crushes the axial feed whatever κ.
+    Elsewhere (an end cutting part of the circle: a ball going down a slope, a plunge over a hole;
+    and a drill, whose lips are made for it) the axial chip f_z·descent·sin κ (`end_chip_factor`)."""
+    chip = end_chip_factor(engagement, tool)
     if tool.shape == "drill" or engagement.end_engaged is None:
-        return np.ones(n)
-    return np.where(engagement.end_engaged.min(axis=1) > 0.5, plunge_fz_ratio, 1.0)
+        return chip
+    w = engagement.end_engaged
+    enclosed = np.where(w > 0, w, np.inf).min(axis=1) > 0.5
+    return np.where(enclosed & (chip > 0), _descent(engagement) / plunge_fz_ratio, chip)
 
 
 def thrust_limit_N(tool: Tool, safety_factor: float | None = None) -> float:

@@ -38,7 +38,7 @@ class Dialect:
     G87's K, a depth; Fanuc), besides L. zero_repeats_refused: L0 is an error (LinuxCNC) rather than
     "set the cycle up, do not run it". cycle_dwell_any: every canned cycle reads P (dwell), not only
     G82/G86/G88/G89. boring_shift_q: G76/G87 read Q (the shift off the wall). tap_peck_q: G74/G84
-    read Q (peck tapping; the reader refuses it: its retract is a control parameter). g49_takes_h:
+    read Q (peck tapping, modelled with a retract to R after each peck). g49_takes_h:
     G49 may carry H (H0, the cancelled offset; Centroid and Haas postambles). Dwell units: `dwell_s`.
     What the writer needs to know: g43_without_h: G43 with no H takes the loaded tool's length
     (LinuxCNC); path_modes: the controller has G61/G61.1/G64 path control modes (grbl has not).

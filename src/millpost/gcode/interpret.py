@@ -28,6 +28,8 @@ INCH = 25.4
 # G codes as integers: round(value * 10)
 _MOTION = {0, 10, 20, 30, 730, 740, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
 _CYCLES = {730, 740, 760, 810, 820, 830, 840, 850, 860, 870, 880, 890}
+TAPPING_CYCLES = (740, 840)  # the feed is the tap's pitch times the spindle speed (synchronised)
+BORING_CYCLES = (760, 850, 860, 870, 880, 890)  # the feed sets the finish of the bore
 _MODAL_GROUPS = {
     **{g: "motion" for g in _MOTION | {800}},
     170: "plane", 180: "plane", 190: "plane", 200: "units", 210: "units", 900: "distance", 910: "distance",
@@ -87,6 +89,9 @@ class ReaderOptions:
     tool_diameters_mm: tool diameters by tool number for cutter compensation (G41/G42 D); a program that
     compensates with a tool whose diameter is not given is refused.
     dialect: name of the controller dialect (None: detect from the text).
+    loaded_tool: the tool in the spindle when the program starts (a job that describes one tool): the
+    moves made before any T word selects a tool run with it (said in `Program.notes`); None: no tool
+    is loaded, those moves have tool -1.
     block_delete: when True, lines starting with '/' are skipped (switch on); default off, as LinuxCNC.
     """
 
@@ -99,6 +104,7 @@ class ReaderOptions:
     safe_z_mm: float | None = None
     dialect: str | None = None
     block_delete: bool = False
+    loaded_tool: int | None = None
 
     def use_tool_table(self, path, units: str = "mm") -> "ReaderOptions":
         """Tool lengths (G43) and diameters (G41/G42) from a LinuxCNC tool table file in `units`. Lathe
@@ -109,6 +115,13 @@ class ReaderOptions:
         return self
 
     @classmethod
+    def for_tools(cls, diameters_mm: dict[int, float], dialect: str | None = None) -> "ReaderOptions":
+        """Options for a job's tools (diameters in mm by tool number, for cutter compensation): when it
+        describes exactly one tool, that tool is the one loaded before any T word."""
+        only = next(iter(diameters_mm)) if len(diameters_mm) == 1 else None
+        return cls(dialect=dialect, tool_diameters_mm=dict(diameters_mm), loaded_tool=only)
+
+    @classmethod
     def linuxcnc(cls) -> "ReaderOptions":
         """The frame LinuxCNC's standalone interpreter assumes: homes and offsets at machine zero."""
         return cls(home_g28_mm=(0.0, 0.0, 0.0), home_g30_mm=(0.0, 0.0, 0.0), machine_frame_known=True,
@@ -117,7 +130,8 @@ class ReaderOptions:
 
 @dataclass
 class Event:
-    """A non-motion action at a block: tool change, spindle, coolant, dwell, stop, comment, ..."""
+    """A non-motion action at a block: tool change, spindle, coolant, dwell, stop, comment, ...
+    ("s_word": an S word's speed in rpm, whether or not the spindle runs)."""
 
     line: int
     kind: str
@@ -231,6 +245,8 @@ class Interpreter:
         self.spindle_on = False
         self.tool = -1
         self.selected = -1
+        self.assumed_tool = False  # the tool is `ReaderOptions.loaded_tool`, not one the program chose
+        self.assumed_from = 0  # the first move made with it
         self.retract_old_z = dialect.starts_g98
         self.cs = 1
         self.g5x = {i: np.array(v, float) for i, v in options.work_offsets_mm.items()}
@@ -275,14 +291,36 @@ class Interpreter:
 
     def emit(self, kind: int, end, block: Block, center=(math.nan,) * 3, turns: int = 0,
              feed_mm_min: float = math.nan) -> None:
-        if self.tool < 0 and self.selected >= 0:  # no M6 yet: the selected tool is the one in the spindle
-            self.tool = self.selected
-            self.notes.append(f"line {block.line}: T{self.selected} selected without M6: taken as loaded")
+        if self.tool < 0:
+            self.take_loaded(block.line)
         if self.comp.active:
             self.comp.move(kind, self.pos, end, center, turns, feed_mm_min, block.line, self.modal())
         else:
             self.record(kind, self.pos.tolist(), end, center, turns, feed_mm_min, block.line)
         self.pos = np.array(end, float)
+
+    def take_loaded(self, line: int) -> None:
+        """A move with no tool changed in: the selected tool (T without M6) is the one in the spindle,
+        else the job's only tool (`ReaderOptions.loaded_tool`) when no T word came before."""
+        if self.selected >= 0:
+            self.tool = self.selected
+            self.notes.append(f"line {line}: T{self.selected} selected without M6: taken as loaded")
+        elif self.opt.loaded_tool is not None:
+            self.tool, self.assumed_tool, self.assumed_from = self.opt.loaded_tool, True, len(self.m)
+            self.notes.append(f"line {line}: the program moves before any T word selects a tool: "
+                              f"T{self.tool}, the job's only tool, taken as loaded")
+
+    def drop_assumed_tool(self) -> None:
+        """A T word after moves made with the assumed tool: if none of them fed (rapids to a safe
+        height before the first tool change, Fusion's G28), they had no tool after all (tool -1, as
+        without the assumption) and the note goes; moves that cut keep the job's tool."""
+        moves = range(self.assumed_from, len(self.m))
+        if all(self.m.i[10 * k] == RAPID for k in moves):
+            for k in moves:
+                self.m.i[10 * k + 3] = -1
+            self.notes.pop(next(j for j in range(len(self.notes) - 1, -1, -1)
+                                if "the job's only tool, taken as loaded" in self.notes[j]))
+        self.tool, self.assumed_tool = -1, False
 
     def feed_rate(self, block: Block, length_mm: float) -> float:
         """Programmed feed of a move in mm/min from the modal F and feed mode."""
@@ -441,9 +479,8 @@ class Interpreter:
     def emit_xyz(self, kind: int, start: tuple, x: float, y: float, z: float, line: int, feed_mm_min: float) -> None:
         """Append a straight move from the current point `start` (floats, mm) — the fast path's `emit`.
         The position stays a tuple until the general path reads it (`pos`): no numpy per line."""
-        if self.tool < 0 and self.selected >= 0:
-            self.tool = self.selected
-            self.notes.append(f"line {line}: T{self.selected} selected without M6: taken as loaded")
+        if self.tool < 0:
+            self.take_loaded(line)
         self.record(kind, start, (x, y, z), _NO_CENTRE, 0, feed_mm_min, line)
         self._xyz, self._pos = (x, y, z), None
 
@@ -525,11 +562,14 @@ class Interpreter:
             if val["S"].value < 0:
                 raise self.err("negative spindle speed", b, val["S"], "S >= 0")
             self.s = val["S"].value
+            self.event(b.line, "s_word", self.s)  # the speed set, spindle on or off (a hand-switched one)
         # T select, M6 change, spindle, coolant
         if "T" in val:
             if val["T"].value < 0 or val["T"].value != int(val["T"].value):
                 raise self.err("tool number must be a non-negative integer", b, val["T"], "T followed by an integer")
             self.selected = int(val["T"].value)
+            if self.assumed_tool:  # the job's tool was only assumed: the program's own choice replaces it
+                self.drop_assumed_tool()
         mset = {c for c, _ in mcodes}
         self.comp.check("M", mset)
         for code, w in mcodes:
@@ -549,7 +589,7 @@ class Interpreter:
                 self.notes.append(f"line {b.line}: M{code} passed through (no motion)")
         if 6 in mset:
             tool = self.selected if self.selected >= 0 else (int(val["T"].value) if "T" in val else -1)
-            self.tool = tool
+            self.tool, self.assumed_tool = tool, False
             self.event(b.line, "tool_change", tool)
         for code in (3, 4, 5):
             if code in mset:
@@ -1009,9 +1049,6 @@ class Interpreter:
                 raise self.err(f"canned cycle G{code / 10:g} without {need}", b, None, f"an {need} word")
         if code in (730, 830) and cyc.get("Q", 0) <= 0:
             raise self.err(f"peck cycle G{code / 10:g} needs Q > 0", b, val.get("Q"), "Q (peck depth) > 0")
-        if code in (740, 840) and cyc.get("Q", 0) > 0:  # read by dialects with peck tapping (tap_peck_q)
-            raise self.err(f"peck tapping (G{code / 10:g} with Q) is not supported", b, val.get("Q"),
-                           "a tapping cycle without Q (its retract depends on the control's parameters)")
         repeats = 1
         count = val.get("L") or (val.get("K") if self.dialect.cycle_k_repeats and code != 870 else None)
         if count is not None:
@@ -1070,7 +1107,7 @@ class Interpreter:
         """Refuse a cycle block that would expand to more than `MAX_CYCLE_MOVES` moves, or take the
         program's canned cycles past `MAX_CYCLE_MOVES_TOTAL` (peck count = depth / Q, times L)."""
         per_hole = 6.0
-        if code in (730, 830):
+        if code in (730, 830) or (code in (740, 840) and cyc.get("Q", 0) > 0):
             per_hole += 3.0 * (r - bottom) / (cyc["Q"] * self.scale)
         moves = repeats * per_hole
         if moves > MAX_CYCLE_MOVES or self.cycle_moves + moves > MAX_CYCLE_MOVES_TOTAL:
@@ -1086,6 +1123,21 @@ class Interpreter:
         p = self.pos.copy()
         p[an] = depth
         self.emit(kind, p, b, feed_mm_min=feed if kind == FEED else math.nan)
+
+    def tap_pecks(self, b: Block, r: float, bottom: float, delta: float, feed: float) -> None:
+        """The pecks of a peck tapping cycle before its last one (G84/G74 with Q). The tap feeds down Q
+        deeper each time and reverses out at the same synchronised feed. Fanuc's deep-hole form
+        retracts to R; the high-speed form backs off by a control parameter only. Both are modelled as
+        the deep-hole form (the longer one) and noted; a tapping feed is never changed."""
+        depth = r - delta
+        while depth > bottom:
+            self.to_depth(FEED, depth, b, feed)
+            self.to_depth(FEED, r, b, feed)
+            if depth - delta >= depth:
+                break
+            depth -= delta
+        self.notes.append(f"line {b.line}: peck tapping modelled as Fanuc's deep-hole form (the tap reverses "
+                          "out to R after each peck; the high-speed form backs off by a control parameter)")
 
     def cycle_body(self, code: int, b: Block, r: float, bottom: float, clear: float, feed: float, cyc: dict) -> None:
         sc = self.scale
@@ -1115,6 +1167,8 @@ class Interpreter:
             self.to_depth(FEED, bottom, b, feed)
             self.to_depth(RAPID, clear, b)
         elif code in (840, 740):  # tapping: in, reverse, feed out to the clear plane
+            if delta > 0:  # peck tapping (tap_peck_q dialects): each peck reverses out to R and back in
+                self.tap_pecks(b, r, bottom, delta, feed)
             self.to_depth(FEED, bottom, b, feed)
             self.add_dwell(b, dwell)
             self.to_depth(FEED, clear, b, feed)

@@ -148,12 +148,14 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
         return []
     starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
     ends = np.r_[starts[1:], len(mv)]
-    # a move's samples run from the one it starts at (the previous move's last, unless the path jumps)
+    # a move's samples run from the one it starts at (the previous move's last, unless the path jumps);
+    # that corner sample's limit is the previous move's (its step arrives there): the previous F word
+    # holds it, and the corner's blend `blend_limit`, so it does not hold this move's first fragment
     first = np.where((starts > 0) & ~np.asarray(samples.segment_start, bool)[starts], starts - 1, starts)
     L = samples.s_mm[ends - 1] - samples.s_mm[first]
-    v_min = np.minimum(np.minimum.reduceat(lim, starts), lim[first])  # nan where a sample is nan
+    v_min = np.minimum.reduceat(lim, starts)  # nan where a sample is nan
     finite = np.where(np.isfinite(lim), lim, np.inf)
-    v_fin = np.minimum(np.minimum.reduceat(finite, starts), finite[first])  # inf: no finite limit
+    v_fin = np.minimum.reduceat(finite, starts)  # inf: no finite limit
     keep = (samples.kind[starts] != RAPID) & (L > 0) & np.isfinite(v_fin)
     t = np.abs(samples.tangent)
     with np.errstate(divide="ignore"):  # the path acceleration the axes allow along the move, at most
@@ -168,8 +170,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     parts = [(k1, np.zeros(len(k1)), np.ones(len(k1)), q[k1] * 60.0, L[k1])]  # move, u0, u1, feed, length
     for k in np.flatnonzero(keep & ~one):
         b, f = ends[k], first[k]
-        Lf, Vf = _move_cells(samples.s_mm[f:b] - samples.s_mm[f], lim[f:b], float(L[k]), min_fragment_mm,
-                             max_changes_per_mm)
+        Lf, Vf = _move_cells(samples.s_mm[f:b] - samples.s_mm[f], np.r_[np.inf, lim[f + 1:b]] if f < starts[k]
+                             else lim[f:b], float(L[k]), min_fragment_mm, max_changes_per_mm)
         u = np.r_[0.0, np.cumsum(Lf) / L[k]]
         u[-1] = 1.0
         parts.append((np.full(len(Lf), k), u[:-1], u[1:], Vf * 60.0, Lf))

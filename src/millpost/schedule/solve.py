@@ -143,6 +143,13 @@ def _solve_window(grid: PathGrid, blocks: list[Block], v0: np.ndarray, vref: flo
     return lay.b(sol.x), lay.slack(sol.x), sol
 
 
+def _failure(sol, opts: ScheduleOptions) -> str:
+    """Why a window's solution was refused: the solver's status, or (solved) its residual too large."""
+    if sol.status.ok:
+        return f"{sol.raw_status} with a constraint violation {sol.primal_residual:.2g} above {opts.accept_residual:g}"
+    return str(sol.raw_status)
+
+
 def _solve_chunk(args) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
     """Receding windows over one chunk. Returns (b, slack, solver seconds, windows, error message)."""
     grid, blocks, v0, vref, aref, opts, k_lo, k_hi, b_first, b_last, nfix = args
@@ -166,7 +173,7 @@ def _solve_chunk(args) -> tuple[np.ndarray | None, np.ndarray, float, int, str]:
         secs += sol.solve_s
         count += 1
         if bw is None:
-            return None, slack, secs, count, f"window [{s0}, {end}) {sol.raw_status}"
+            return None, slack, secs, count, f"window [{s0}, {end}) {_failure(sol, opts)}"
         commit = end if last else max(end - O, pos + 2)
         b[pos + 1:commit] = bw[pos + 1 - s0:commit - s0]
         slack[pos + 1:commit] = sw[pos + 1 - s0:commit - s0]
@@ -417,7 +424,7 @@ def _solve_linearised(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions
     if n <= opts.monolithic_max:
         bw, sw, sol = _solve_window(grid, blocks, v0, vref, aref, opts, first, (last[-1], last[-1]),
                                     last if len(last) > 1 else None)
-        return bw, sw, sol.solve_s, 1, "" if bw is not None else f"conic solve: {sol.raw_status}"
+        return bw, sw, sol.solve_s, 1, "" if bw is not None else f"conic solve: {_failure(sol, opts)}"
     parts = max(1, round(n / opts.chunk))
     cuts = [0, *_anchors(rc.b, b_hi, parts, margin=opts.window // 4 + nfix), n - 1]
     jobs = []

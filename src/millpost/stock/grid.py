@@ -72,7 +72,7 @@ class Stock:
         if self.n_multi:
             flat = self.top.reshape(-1)
             single -= float(np.sum(flat[self.multi_ids], dtype=np.float64)) - self.n_multi * self.z_floor
-            single += float(np.sum(self.hi.astype(np.float64) - self.lo))
+            single += float(np.sum(self.hi, dtype=np.float64) - np.sum(self.lo, dtype=np.float64))  # no temporaries
         return single * h2
 
     def intervals(self, i: int, j: int) -> list[tuple[float, float]]:

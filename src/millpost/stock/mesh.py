@@ -41,25 +41,19 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     count = np.zeros(nx * ny, np.uint8)
     with compiling(raster.first_pass):
         raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
-    multi_ids = raster.multi_columns(count)
-    ptr = np.zeros(len(multi_ids) + 1, np.int64)
-    np.cumsum(count[multi_ids] & 127, dtype=np.int64, out=ptr[1:])
-    del count
-    # crossings and intervals in float32, the stock's own precision (halves the peak memory)
-    zc = np.empty(ptr[-1], np.float32)
-    up = np.empty(ptr[-1], np.int8)
-    with compiling(raster.second_pass):
-        raster.second_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, multi_ids, ptr, zc, up)
-    out_ptr = np.empty_like(ptr)
-    lo = np.empty(ptr[-1] // 2 + 1, np.float32)
-    hi = np.empty_like(lo)
-    w = raster.intervals_from_crossings(ptr, zc, up, out_ptr, lo, hi)
-    del zc, up, ptr
-    lo, hi = lo[:w], hi[:w]
-    raster.tops_from_intervals(top.reshape(-1), multi_ids, out_ptr, hi, np.float32(zf))
     bits = np.zeros((nx * ny + 7) // 8, np.uint8)
-    np.bitwise_or.at(bits, multi_ids >> 3, (1 << (multi_ids & 7)).astype(np.uint8))
-    return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, multi_ids, out_ptr, lo, hi, bits)
+    multi_ids = raster.multi_columns(count, bits)
+    ptr = np.zeros(len(multi_ids) + 1, np.int64)
+    ptr[1:] = count[multi_ids] & 127  # crossings per multi column, then (in place) its interval pointers
+    del count
+    # at most one interval per two crossings
+    lo = np.empty(int(ptr.sum()) // 2 + 1, np.float32)
+    hi = np.empty_like(lo)
+    with compiling(raster.multi_intervals):
+        w = raster.multi_intervals(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, multi_ids, ptr, lo, hi)
+    lo, hi = lo[:w], hi[:w]
+    raster.tops_from_intervals(top.reshape(-1), multi_ids, ptr, hi, np.float32(zf))
+    return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, multi_ids, ptr, lo, hi, bits)
 
 
 def from_stl(path: str | os.PathLike, cell_mm: float | None = None, **kw) -> Stock:
