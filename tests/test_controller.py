@@ -106,7 +106,7 @@ def test_bad_model_is_a_config_error():
 VMC = dict(max_rate_mm_s=(400.0, 400.0, 1000.0 / 3.0), accel_mm_s2=(3000.0, 2500.0, 2500.0), planner="linuxcnc",
            lookahead_blocks=50)
 MEASURED = {"G0 X100": 0.517, "G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000": 2.150, "square 20 mm F6000 twice": 1.505,
-            "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655}
+            "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655, "sine relief F6000": 1.365}
 
 
 def lcnc(**kw):
@@ -158,6 +158,24 @@ def test_linuxcnc_blend_speed_is_the_arc_within_tolerance():
     v = math.sqrt(math.sqrt(0.75) * 2500 * r)  # a in the XY plane: the weaker of X and Y
     assert ex.vnom[1] == pytest.approx(v, rel=1e-9)
     assert ex.length[1] + ex.length[2] == pytest.approx(r * math.pi / 2, rel=1e-9)  # its halves on each line
+
+
+def test_linuxcnc_short_rests_run_as_the_blend_arcs_lead_in():
+    # a 3-D raster row as CAM writes it: 0.32 mm X steps, Z on a 0.008 mm grid following a relief (sine,
+    # 3 mm amplitude, 0.6·2π mm period) at F6000. Between the blend arcs most lines keep rests of
+    # 0.01-0.3 mm, shorter than 4 servo periods at the arcs' 25-95 mm/s: LinuxCNC drops them from the
+    # queue and runs them as the next arc's straight lead-in, at the arc's speed and acceleration (with
+    # the lines' own acceleration and speed the model was 5 % fast here)
+    x, moves = 2.0, [("line", (2.0, 0, 0))]
+    for _ in range(60):
+        x += 0.32
+        moves.append(("line", (x, 0, round(3.0 * math.sin(x / 0.6) / 0.008) * 0.008)))
+    moves.append(("line", (x + 2, 0, moves[-1][1][2])))
+    ex = execute(feed_tp(moves, 6000), lcnc())
+    assert ex.time_s == pytest.approx(MEASURED["sine relief F6000"], abs=0.003)
+    # every move a block of its own and each of the 61 arcs two halves, less the rests that joined an arc
+    consumed = 3 * len(moves) - 2 - len(ex.length)
+    assert consumed > len(moves) / 2
 
 
 def test_pauses_add_their_time_and_stop_the_motion():

@@ -32,12 +32,7 @@ SAMPLES = ["adaptive_pocket", "ball_roughing", "drill_and_mill", "slotting"]
 REAL = [
     "fusion-ledfloor/1024_block_14bit.nc", "fusion-ledfloor/1055_utab_265bit.nc",
     "fusion-ledfloor/1071_surface_40mm_10overlap.nc", "fusion-ledfloor/1117_wall_28bit.nc",
-    "freecad-tests/fanuc_legacy_drilling_peck__default.gcode",
-    pytest.param("camotics/examples/bear/bear.nc", marks=pytest.mark.xfail(
-        reason="3-D raster of 0.3-0.5 mm XZ steps at 100 mm/s: the model is 2.4 % faster than LinuxCNC. Flat "
-               "raster rows match (0.0 %); relief rows (blend arcs holding 30-90 mm/s, rests of 0.07-0.3 mm "
-               "between them) are 3.8 % fast at F6000, 0.5 % at F3000, 0.0 % at F1500: segments of 1-4 servo "
-               "periods, not yet found which rule")),
+    "freecad-tests/fanuc_legacy_drilling_peck__default.gcode", "camotics/examples/bear/bear.nc",
     "camotics/examples/buildbotics/buildbotics.gcode",
     "camotics/examples/cat/tiny_cat_outline.ngc", "camotics/examples/cds/cds.gcode",
     "camotics/examples/flower_mold/flower_mold.nc", "camotics/examples/genes-encoder/genes-encoder.ngc",

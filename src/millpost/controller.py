@@ -19,9 +19,11 @@ Two planners, chosen by the machine's controller kind (`planner`):
   their acceleration); otherwise a blend arc tangent to both segments, at most the blend tolerance
   from the corner (`G64 P`; without P: a quarter of the shorter segment), using at most half of
   each segment, run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic
-  blend at half acceleration. Speeds are planned backwards over `lookahead_blocks` segments (LinuxCNC:
-  50), a segment is never faster than its length per servo period, and one that ends at rest ends
-  half a servo period late on average (the period's rest is lost). A feed segment that takes less
+  blend at half acceleration. The rest of a line before a blend arc that would take less than 4 servo
+  periods at the arc's speed is no segment of its own: it runs as the arc's straight lead-in, at the
+  arc's speed and acceleration. Speeds are planned backwards over `lookahead_blocks` segments
+  (LinuxCNC: 50), a segment lasts at least 1.02 servo periods (its speed is at most its length over
+  that), and one that ends at rest ends half a servo period late on average (the period's rest is lost). A feed segment that takes less
   than 10 ms (1/ARC_BLEND_RAMP_FREQ) and flows into the next changes speed linearly from end to end.
   The last segment before the motion queue runs empty (a command, the end) keeps its parabolic end
   and half its acceleration.
@@ -50,7 +52,8 @@ PLANNERS = ("grbl", "linuxcnc")
 NORMAL_SHARE = math.sqrt(1.0 - 0.5**2)  # BLEND_ACC_RATIO_NORMAL: share of a kept for the turn
 TANGENTIAL_SHARE = 0.5  # BLEND_ACC_RATIO_TANGENTIAL: share of a along an arc
 KINK_RATIO = 0.1  # ARC_BLEND_TANGENT_KINK_RATIO
-GAP_CYCLES = 4  # ARC_BLEND_GAP_CYCLES: a rest of a segment shorter than this many periods is merged
+GAP_CYCLES = 4  # ARC_BLEND_GAP_CYCLES: a line's rest shorter than this many periods joins the next blend arc
+MIN_SEGMENT_CYCLES = 1.02  # TP_MIN_SEGMENT_CYCLES: a segment lasts at least this many periods
 RAMP_TIME_S = 1.0 / 100.0  # 1 / ARC_BLEND_RAMP_FREQ: shorter feed segments ramp linearly end to end
 SHARP_CORNER_COS = math.cos(math.pi * (1.0 - 2.0 / 180.0))  # reversal within 2°: stop
 ANGLE_EPS = 1e-6
@@ -346,17 +349,21 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         first, last = move[0], move[-1]
         inside = np.arange(len(pauses))
         pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
-    if split:  # blend arcs as two halves, one on each move they join, for speeds along the program
+    if split:  # blend arcs in two pieces (lead-in and first half, second half), one on each move they join
         k = np.array([b[0] for b in split])
-        mid = np.minimum.reduce([np.sqrt(ve[k] ** 2 + acc[k] * L[k]), vnom[k], np.sqrt(ve[k + 1] ** 2 + acc[k] * L[k])])
+        f = np.array([b[1] for b in split])
+        mid = np.minimum.reduce([np.sqrt(ve[k] ** 2 + 2 * acc[k] * f * L[k]), vnom[k],
+                                 np.sqrt(ve[k + 1] ** 2 + 2 * acc[k] * (1 - f) * L[k])])
         at = k + 1
-        t[k] *= 0.5
-        L = L.copy()
-        L[k] *= 0.5
-        t, L, vnom, acc = (np.insert(x, at, x[k]) for x in (t, L, vnom, acc))
+        t, L = t.copy(), L.copy()
+        rest_t, rest_L = t[k] * (1 - f), L[k] * (1 - f)
+        t[k] *= f
+        L[k] *= f
+        t, L = np.insert(t, at, rest_t), np.insert(L, at, rest_L)
+        vnom, acc = (np.insert(x, at, x[k]) for x in (vnom, acc))
         ve = np.insert(ve, at, mid)
-        move = np.insert(move, at, [b[1] for b in split])
-        u_end = np.insert(u_end, at, [b[2] for b in split])
+        move = np.insert(move, at, [b[2] for b in split])
+        u_end = np.insert(u_end, at, [b[3] for b in split])
     return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, pause)
 
 
@@ -663,31 +670,42 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     for j, s in enumerate(segs):  # the last queued segment before a pause keeps its parabolic term
         if j + 1 == len(segs) or joints[j + 1][0] == "pause":
             s.halved = True
+    # blendCheckConsume: a line whose rest before a blend arc would take less than GAP_CYCLES periods at
+    # the arc's speed is dropped from the queue and its rest becomes the straight lead-in of that arc
+    consumed = [j + 1 < len(segs) and joints[j + 1][0] == "blend" and not s.arc
+                and s.length < GAP_CYCLES * dt * joints[j + 1][2][2] for j, s in enumerate(segs)]
     L, vnom, acc, vj2, move, u_end, ramps, split = [], [], [], [], [], [], [], []
+    lead, lead_vj2 = 0.0, np.inf  # a consumed rest waiting for its arc, and the speed cap at its start
     for j, s in enumerate(segs):
         joint = joints[j]
         if joint is not None and joint[0] == "blend":  # the arc; its second half lies on the next move
             d, s_arc, v, a = joint[2]
-            vj2.append(np.inf)
-            L.append(s_arc)
-            vnom.append(min(v, s_arc / dt))
+            length = lead + s_arc
+            vj2.append(lead_vj2)
+            L.append(length)
+            vnom.append(min(v, length / (MIN_SEGMENT_CYCLES * dt)))
             acc.append(a)
             move.append(segs[j - 1].move)
             u_end.append(1.0)
-            ramps.append(True)
-            split.append((len(L) - 1, s.move, d / s.nominal))
+            ramps.append(not s.rapid)
+            split.append((len(L) - 1, (lead + 0.5 * s_arc) / length, s.move, d / s.nominal))
+            lead, lead_vj2 = 0.0, np.inf
         if joint is None or joint[0] in ("stop", "pause"):
-            vj2.append(0.0)
+            start_vj2 = 0.0
         elif joint[0] == "blend":
-            vj2.append(np.inf)
+            start_vj2 = np.inf
         elif joint[0] == "tangent":
-            vj2.append(joint[1] ** 2)
+            start_vj2 = joint[1] ** 2
         else:
-            vj2.append(_parabolic_speed(segs[j - 1], s) ** 2)
+            start_vj2 = _parabolic_speed(segs[j - 1], s) ** 2
+        if consumed[j]:
+            lead, lead_vj2 = max(s.length, 0.0), start_vj2
+            continue
+        vj2.append(start_vj2)
         a = s.acc * (0.5 if s.halved else 1.0) * (1.0 - s.kink_share)
         vmax = min(s.req, _arc_maxvel(s, s.halved) if s.arc else s.maxvel, s.nominal * model.block_rate_hz)
-        if s.length >= GAP_CYCLES * dt * vmax or s.length == s.nominal:  # shorter rests join the blend arc
-            vmax = min(vmax, s.length / dt)
+        if s.length > 0:
+            vmax = min(vmax, s.length / (MIN_SEGMENT_CYCLES * dt))
         if s.arc:
             a *= TANGENTIAL_SHARE
         L.append(max(s.length, 0.0))
