@@ -154,7 +154,8 @@ def test_end_engagement_annulus_over_a_hole():
     assert eng.volume_mm3[sel] == pytest.approx(np.pi * (25 - 4) * drop[sel], rel=0.01)
     assert np.all(eng.end_engaged[sel][:, 0] == 0)    # the hole: nothing under the centre
     # not enclosed: chips fall into the hole; the end's chip is its axial chip f_z·descent·sin κ (flat: 1)
-    assert np.all(entry_chip_factor(eng, tools[2], 0.5)[sel] == end_chip_factor(eng, tools[2])[sel])
+    chip = end_chip_factor(eng, tools[2])
+    assert np.all(entry_chip_factor(eng, tools[2], 0.5, chip)[sel] == chip[sel])
     assert np.all(end_chip_factor(eng, tools[2])[sel] == 1.0)
 
 
@@ -169,7 +170,8 @@ def test_ramp_and_helix_descent_and_whole_end_engaged():
     assert eng.end_engaged[steady].mean() == pytest.approx(1.0, abs=0.02)
     assert np.all(np.isfinite(eng.phi_st[steady]).any(axis=1))          # and the flank cuts the slot
     # an enclosed end: the axial feed per tooth f_z·sin α over the entry share 0.5
-    assert entry_chip_factor(eng, tool, 0.5)[steady] == pytest.approx(math.sin(alpha) / 0.5, rel=1e-6)
+    entry = entry_chip_factor(eng, tool, 0.5, end_chip_factor(eng, tool))
+    assert entry[steady] == pytest.approx(math.sin(alpha) / 0.5, rel=1e-6)
     # helix of radius 4 (path Ø8), pitch 1 mm per turn, two turns down from the surface
     samples, eng = box_plunge(tool, "G21 G90 G0 X4 Y0 Z0\nS8000 M3\nG17 G2 X4 Y0 Z-1 I-4 J0 F600\nG2 X4 Y0 Z-2 I-4 J0\n")
     tan_a = 1.0 / (math.pi * 8)
@@ -237,7 +239,8 @@ def test_issue_plunge_not_raised_beyond_end_cutting_bound(tmp_path):
     end unmodelled, then to F1215 at half the chip load). Bound asserted: a straight plunge's axial chip
     f_z takes a quarter of the material's chip load (FANAR: entries at 25–50 % of the table feed, the
     lower end for the harshest entry): F ≤ 0.25·h_max(6 mm)·z·n with h_max(6 mm) = 0.09·6/7 (the 7 mm
-    row scaled by diameter) = 0.25·0.0771·3·9000 = 520.7 mm/min, under twice the programmed F300 (a machinist's plunge, not 4–8×); the chip-load limit binds
+    row scaled by diameter) = 0.25·0.0771·3·9000 = 520.7 mm/min, under twice the programmed F300 (a
+    machinist's plunge, not 4–8×); the chip-load limit binds
     there, so the feed reaches it; and at the emitted feed the end's torque (k_c·f·D²/8) and power stay
     under the spindle's."""
     job = load_job(plunge_job(tmp_path))

@@ -251,7 +251,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
             sin_max[part] = max_sin(eng_p)  # per chunk: its (N, K) temporaries stay bounded
             sin_end[part] = end_chip_factor(eng_p, tool)
             chip_factor[part] = np.maximum(sin_max[part],
-                                           entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio))
+                                           entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio,
+                                                             sin_end[part]))
             if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
                 # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
                 # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)

@@ -87,7 +87,7 @@ def end_chip_factor(engagement: Engagement, tool: Tool) -> np.ndarray:
     return _descent(engagement) * s
 
 
-def entry_chip_factor(engagement: Engagement, tool: Tool, plunge_fz_ratio: float) -> np.ndarray:
+def entry_chip_factor(engagement: Engagement, tool: Tool, plunge_fz_ratio: float, chip: np.ndarray) -> np.ndarray:
     """Per sample the end's chip per unit feed per tooth as the chip-load limit sees it (0 where the end
     does not cut). A milling cutter entering along its axis with its end enclosed (material all round
     at every radius that cuts: a plunge, ramp or helical entry; chips leave only up the flutes) takes
@@ -95,8 +95,7 @@ def entry_chip_factor(engagement: Engagement, tool: Tool, plunge_fz_ratio: float
     plunges, FANAR's 25–50 %) on its axial feed per tooth f_z·descent, with no chip-thinning credit
     for a ball or pointed end: its centre cuts at no speed and crushes the axial feed whatever κ.
     Elsewhere (an end cutting part of the circle: a ball going down a slope, a plunge over a hole;
-    and a drill, whose lips are made for it) the axial chip f_z·descent·sin κ (`end_chip_factor`)."""
-    chip = end_chip_factor(engagement, tool)
+    and a drill, whose lips are made for it) the axial chip f_z·descent·sin κ, `chip` (`end_chip_factor`)."""
     if tool.shape == "drill" or engagement.end_engaged is None:
         return chip
     w = engagement.end_engaged
