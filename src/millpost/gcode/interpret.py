@@ -1129,13 +1129,9 @@ class Interpreter:
         deeper each time and reverses out at the same synchronised feed. Fanuc's deep-hole form
         retracts to R; the high-speed form backs off by a control parameter only. Both are modelled as
         the deep-hole form (the longer one) and noted; a tapping feed is never changed."""
-        depth = r - delta
-        while depth > bottom:
+        for depth in _peck_depths(r, bottom, delta):
             self.to_depth(FEED, depth, b, feed)
             self.to_depth(FEED, r, b, feed)
-            if depth - delta >= depth:
-                break
-            depth -= delta
         self.notes.append(f"line {b.line}: peck tapping modelled as Fanuc's deep-hole form (the tap reverses "
                           "out to R after each peck; the high-speed form backs off by a control parameter)")
 
@@ -1153,17 +1149,11 @@ class Interpreter:
             self.add_dwell(b, dwell)
             self.to_depth(RAPID, clear, b)
         elif code in (730, 830):
-            depth = r - delta
-            while depth > bottom:
+            for depth in _peck_depths(r, bottom, delta):
                 self.to_depth(FEED, depth, b, feed)
                 if code == 830:
                     self.to_depth(RAPID, r, b)
-                    self.to_depth(RAPID, depth + rapid_delta, b)
-                else:
-                    self.to_depth(RAPID, depth + rapid_delta, b)
-                if depth - delta >= depth:  # a peck below the float resolution at this depth: no progress
-                    break
-                depth -= delta
+                self.to_depth(RAPID, depth + rapid_delta, b)
             self.to_depth(FEED, bottom, b, feed)
             self.to_depth(RAPID, clear, b)
         elif code in (840, 740):  # tapping: in, reverse, feed out to the clear plane
@@ -1258,3 +1248,14 @@ class Interpreter:
             incremental=ints[:, 8].astype(bool), arc_absolute=ints[:, 9].astype(bool), events=self.events, notes=self.notes,
             dwell_s=self.dwell_s, compensated=compensated, control_flow=self.control_flow,
             cycle=cycle)
+
+
+def _peck_depths(r: float, bottom: float, delta: float):
+    """The depths of a peck cycle's pecks above its bottom (mm): R − Q, R − 2Q, ...; they stop where a
+    peck falls below the float resolution at that depth (no progress)."""
+    depth = r - delta
+    while depth > bottom:
+        yield depth
+        if depth - delta >= depth:
+            return
+        depth -= delta
