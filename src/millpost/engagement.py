@@ -268,7 +268,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
             with reporting(report), compiling(_k.run):
                 bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny,
                              stock.x0, stock.y0, stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits,
-                             stock.multi_ids, stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half,
+                             stock.multi_rank, stock.gap_ptr, stock.gap_lo, stock.gap_hi, shape, R, rc, r_tip, tan_half,
                              t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, clear, zmax, omax, omin, B,
                              *(v[a:b] for v in out.values()))
             if bad != _k.OK:
