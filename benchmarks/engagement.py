@@ -2,7 +2,8 @@
 steps, on a slot pattern, a zig-zag pocket (ae = 0.4D) and a trochoid; plus rasterising a mesh
 with an undercut into the stock. Prints one JSON object: steps/s, the process's peak RSS, and the
 peak RSS of each phase (engagement; mesh to stock), which includes what the process held when the
-phase began (interpreter, numpy, compiled kernels). The test part's triangles are made in a child
+phase began (interpreter, numpy, compiled kernels: `loaded_rss_mb`, the RSS once they are loaded and
+before the first stock). The test part's triangles are made in a child
 process, as a file would be read: manifold3d's booleans leave ~15 MB of freed heap with the allocator
 that is the benchmark's input, not the stock's. CPU seconds of the whole run as `cpu_s`;
 `steps_per_cpu_s` counts this thread's CPU time only (on a shared machine the wall-clock rate also
@@ -146,13 +147,18 @@ def reset_peak() -> None:
         pass
 
 
-def peak_mb() -> float | None:
-    """Peak RSS since the last `reset_peak` (MB; VmHWM), or None where /proc is missing."""
+def status_mb(field: str) -> float | None:
+    """A memory field of /proc/self/status (MB), or None where /proc is missing."""
     try:
         with open("/proc/self/status") as f:
-            return next(round(int(ln.split()[1]) / 1024, 1) for ln in f if ln.startswith("VmHWM:"))
+            return next(round(int(ln.split()[1]) / 1024, 1) for ln in f if ln.startswith(field + ":"))
     except (OSError, StopIteration):
         return None
+
+
+def peak_mb() -> float | None:
+    """Peak RSS since the last `reset_peak` (MB; VmHWM)."""
+    return status_mb("VmHWM")
 
 
 def main() -> None:
@@ -167,6 +173,7 @@ def main() -> None:
         simulate(stk.box((0, 0, 0), (10, 10, 5), 0.1), t, polyline(np.array([(45, 50), (55, 50)]), 4.0).resample(0.1),
                  progress=False)
     rates, cpu_rates, ratio, steps = {}, {}, {}, {}
+    loaded = status_mb("VmRSS")
     reset_peak()
     for tname, tool in tools.items():
         for pname, tp in paths.items():
@@ -196,6 +203,7 @@ def main() -> None:
     print(json.dumps({
         "cell_mm": args.cell,
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+        "loaded_rss_mb": loaded,
         "engagement_peak_rss_mb": engagement_peak,
         "mesh_to_stock_peak_rss_mb": peak_mb(),
         "cpu_s": round(time.process_time(), 1),
