@@ -217,6 +217,7 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
     the own bottom, 0 over a hole, partial while the tip enters a surface). Read only (before cutting)."""
     J = out.shape[0]
     cnt = np.zeros(J)
+    acc = np.zeros(J)  # in float64 whatever out's precision
     j0 = int(math.ceil((py - R - y0) / h - 0.5))
     j1 = int(math.floor((py + R - y0) / h - 0.5))
     for j in range(j0, j1 + 1):
@@ -235,9 +236,9 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
             if 0 <= i < nx and 0 <= j < ny:  # columns off the grid are air
                 zs = pz + surface_height(d, shape, R, rc, r_tip, tan_half)
                 m = _material(j * nx + i, zs, zs + drop, top, zf, has_multi, bits, rank, ptr, lo, hi)
-                out[b] += min(m / drop, 1.0)
+                acc[b] += min(m / drop, 1.0)
     for b in range(J):
-        out[b] = out[b] / cnt[b] if cnt[b] > 0 else 0.0
+        out[b] = acc[b] / cnt[b] if cnt[b] > 0 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -708,6 +709,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
     of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place).
     depth_o[k]: the depth of material the step meets, before ap is clipped to the flute length.
+    feed_o[k, :2]: the ring's feed direction (the rest of the row is left as it is).
     end_o[k]: the end's radial engagement of a descending feed step (`_end_band`). near_o[k]: a feed
     step that cuts nothing lies within `clear` mm of the original stock (`_near_original` with its
     tops' block maxima omax and minima omin of B × B columns; zmax: the highest original top); not
