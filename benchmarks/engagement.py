@@ -161,25 +161,16 @@ def peak_mb() -> float | None:
     return status_mb("VmHWM")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cell", type=float, default=0.025)
-    ap.add_argument("--numpy-steps", type=int, default=1500)
-    args = ap.parse_args()
-    tools = {"flat": Tool(6.0, flutes=3), "ball": Tool(6.0, flutes=3, shape="ball")}
+def engagement_phase(tools: dict[str, Tool], cell: float, numpy_n: int) -> tuple[dict, dict, dict, dict]:
+    """Each tool along each path through a fresh block: (steps/s, steps/CPU s, ratio to numpy, steps)
+    per "tool_path" key. Its paths and samples go when it returns (the mesh phase does not hold them)."""
     paths = {"slot": slot_path(), "zigzag": zigzag_path(), "trochoid": trochoid_path()}
-    # compile (or load the cached compilation) on a small case first
-    for t in tools.values():
-        simulate(stk.box((0, 0, 0), (10, 10, 5), 0.1), t, polyline(np.array([(45, 50), (55, 50)]), 4.0).resample(0.1),
-                 progress=False)
     rates, cpu_rates, ratio, steps = {}, {}, {}, {}
-    loaded = status_mb("VmRSS")
-    reset_peak()
     for tname, tool in tools.items():
         for pname, tp in paths.items():
             key = f"{tname}_{pname}"
             sm = tp.resample(0.1)
-            stock = stk.box((0, 0, 0), (100, 100, TOP), args.cell)  # a fresh block (no second copy kept)
+            stock = stk.box((0, 0, 0), (100, 100, TOP), cell)  # a fresh block (no second copy kept)
             t0, c0 = time.perf_counter(), time.thread_time()
             simulate(stock, tool, sm, progress=False)
             dt, dc = time.perf_counter() - t0, time.thread_time() - c0
@@ -187,12 +178,28 @@ def main() -> None:
             cpu_rates[key] = len(sm) / dc
             steps[key] = len(sm)
             del stock  # before the next block: one 64 MB stock at a time
-            stock = stk.box((0, 0, 0), (100, 100, TOP), args.cell)
-            n = min(args.numpy_steps, len(sm))
+            stock = stk.box((0, 0, 0), (100, 100, TOP), cell)
+            n = min(numpy_n, len(sm))
             t0 = time.perf_counter()
             numpy_steps(stock, tool, sm.xyz_mm[:n])
             ratio[key] = rates[key] / (n / (time.perf_counter() - t0))
             del stock
+    return rates, cpu_rates, ratio, steps
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cell", type=float, default=0.025)
+    ap.add_argument("--numpy-steps", type=int, default=1500)
+    args = ap.parse_args()
+    tools = {"flat": Tool(6.0, flutes=3), "ball": Tool(6.0, flutes=3, shape="ball")}
+    # compile (or load the cached compilation) on a small case first
+    for t in tools.values():
+        simulate(stk.box((0, 0, 0), (10, 10, 5), 0.1), t, polyline(np.array([(45, 50), (55, 50)]), 4.0).resample(0.1),
+                 progress=False)
+    loaded = status_mb("VmRSS")
+    reset_peak()
+    rates, cpu_rates, ratio, steps = engagement_phase(tools, args.cell, args.numpy_steps)
     engagement_peak = peak_mb()
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         tris, vol = pool.submit(mesh_part).result()
