@@ -242,3 +242,14 @@ def test_a_line_holding_only_f_takes_the_new_feed_instead_of_a_second_f():
     assert out.upper().count("F") == text.upper().count("F") + 2  # X5 (no F line before it) and X6 (M8 between)
     back = read_text(out, "w.gcode", ReaderOptions()).toolpath
     assert np.allclose(back.feed_mm_min[1:], feeds[1:])
+
+
+def test_f_in_force_is_the_one_written():
+    """A move whose wanted feed rounds down to the F in force keeps its line (F500 runs at 500 ≤ 500.04)
+    and the F in force stays F500: the split line after it writes no F500 again on its first piece."""
+    prog = read_text("G21 G90 G17\nG0 X0 Y0 Z-1\nG1 F500\nG1 X1\nG1 X10\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    line = prog.toolpath.line
+    plan.feed_mm_min[line == 4] = 500.04
+    plan.fragments[int(np.flatnonzero(line == 5)[0])] = [(0.5, 500.04), (1.0, 900.0)]
+    assert write_feeds(prog, plan).splitlines()[3:6] == ["G1 X1", "G1 X5.5", "G1 X10 F900"]

@@ -249,6 +249,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
               and (_same(modal_f, value) or _same(modal_f, float(f_text(value))))):
             out.append(raw)
+            value = modal_f  # the F in force stays the one written
         elif standalone_f is not None and f_word is None and program.feed_mode[k] != 930:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
             out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": f_text(value)}) + f_ending
