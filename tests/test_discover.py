@@ -124,7 +124,7 @@ def test_empty_registry_is_a_clear_error(monkeypatch):
         search.candidates()
 
 
-def test_cli_end_to_end_reviewer_format(tmp_path):
+def test_cli_end_to_end_reviewer_format(tmp_path, capsys):
     """Straight passes in a box, 100 Hz log with t_s, x/y/z, spindle_rpm, fx/fy/fz, spindle_power_W,
     nominal coefficients off: the CLI names the hidden inertia and the predictions file recomputes the
     JSON's held-out RMS."""
@@ -155,6 +155,9 @@ def test_cli_end_to_end_reviewer_format(tmp_path):
     assert "<svg" in html.read_text()
     model = load_job(tmp_path / "model" / "job.toml")
     assert model.material.mechanistic is not None
+    said = capsys.readouterr().err.splitlines()   # each file written is said once
+    for name in ("material.toml", "machine.toml", "job.toml"):
+        assert said.count(f"millpost: wrote {tmp_path / 'model' / name}") == 1, said
 
 
 def test_umich_axis_friction_from_inertia_only():
