@@ -105,8 +105,8 @@ def test_runout_at_1_khz_null_run_names_nothing(cache):
 def test_runout_chip_offsets_from_harmonics(flutes):
     """Per-flute radii r_j (an axis offset ρ at ψ plus grinding errors): the chip offsets δ_j = r_j − r_(j−1)
     held while flute j cuts make a staircase over the revolution; its Fourier coefficients a_k, b_k
-    (k = 1 … N−1, by numerical integration on a fine grid) give back √(2·mean δ_j²) and, for N ≥ 3 with
-    no grinding error, ρ."""
+    (k = 1 … N−1, by numerical integration on a fine grid) give back √(2·mean δ_j²), also from harmonics
+    1 … N/2 only, and, for N ≥ 3 with no grinding error, ρ."""
     from millpost.discover.effects.runout import eccentricity, offsets
     rng = np.random.default_rng(flutes)
     theta = (np.arange(360 * flutes * 50) + 0.5) / (360 * flutes * 50) * 2 * np.pi
@@ -118,6 +118,11 @@ def test_runout_chip_offsets_from_harmonics(flutes):
         stair = delta[np.floor(theta * flutes / (2 * np.pi)).astype(int)]
         ab = np.array([2 * np.mean(stair * f(k * theta)) for k in harmonics for f in (np.cos, np.sin)])
         assert offsets(ab, flutes, harmonics)[0] == pytest.approx(np.sqrt(2 * np.mean(delta ** 2)), rel=1e-6)
+        m = flutes // 2     # the harmonics above N/2 left out (beyond a log's reach): their mirrors stand in
+        assert offsets(ab[:2 * m], flutes, harmonics[:m])[0] == pytest.approx(np.sqrt(2 * np.mean(delta ** 2)),
+                                                                               rel=1e-6)
+        if flutes >= 4:
+            assert offsets(ab[:2], flutes, harmonics[:1])[0] is None
         if grind == 0.0:   # two flutes show only ρ·cos ψ
             rho_fit = eccentricity(ab, flutes, harmonics)[0]
             assert rho_fit is None if flutes == 2 else rho_fit == pytest.approx(rho, rel=1e-6)

@@ -15,8 +15,8 @@ acquisition): each column is cos kθ, sin kθ averaged over the row's Ω·Δt.
 What is reported: runout_mm, the amplitude of the per-flute chip offsets √(2·mean_j δ_j²) (2ρ·sin(π/N)
 for a pure axis offset ρ), and for N ≥ 3 eccentricity_mm, the axis offset ρ that the once-per-revolution
 part of the radii amounts to; both from each cut's harmonics (staircase: harmonic k's amplitude is
-2·|Δ_k|·sinc(πk/N), |Δ_k| the k-th DFT magnitude of δ_j over N; Parseval gives mean_j δ_j²), combined over
-the cuts by inverse variance, with their standard errors (linearised from the fit's covariance).
+2·|Δ_k|/N·sinc(πk/N), |Δ_k| the k-th DFT magnitude of δ_j over N, |Δ_(N−k)| = |Δ_k|; Parseval gives
+mean_j δ_j²), combined over the cuts by inverse variance, with their standard errors (linearised from the fit's covariance).
 
 It shows only when the log samples the revolution: a harmonic is fitted in a cut when the log has at
 least ROWS_PER_PERIOD rows per period of it (below 80 % of the Nyquist frequency); when not even the
@@ -82,8 +82,7 @@ class Runout(Effect):
     def fit(self, ctx: Context) -> "Runout":
         super().fit(ctx)
         if not self.applicable and self.reason_ is None:
-            self.reason_ = (f"no cut has {MIN_TRAIN_ROWS} training rows and {ROWS_PER_PERIOD} rows per revolution "
-                            "of a flute-count harmonic")
+            self.reason_ = f"no cut has both {MIN_TRAIN_ROWS} training rows and {ROWS_PER_PERIOD} log rows per revolution"
         if self.applicable:
             names = self.fit_.names
             beta, cov = self.fit_.beta, self.fit_.cov
@@ -125,10 +124,20 @@ def row_means(k: int, angle: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, 
     return cos, sin
 
 
-def offsets(ab: np.ndarray, n: int, harmonics: list[int]) -> tuple[float, np.ndarray]:
+def offsets(ab: np.ndarray, n: int, harmonics: list[int]) -> tuple[float | None, np.ndarray]:
     """Amplitude √(2·mean_j δ_j²) of the per-flute chip offsets from one cut's harmonics (a_k, b_k pairs
-    in `ab`), and its gradient: mean_j δ_j² = Σ_k (a_k² + b_k²) / (4·sinc²(πk/N))."""
-    scale = np.repeat([1.0 / (4 * np.sinc(k / n) ** 2) for k in harmonics], 2)
+    in `ab`), and its gradient. Parseval: mean_j δ_j² = Σ_(r=1…N−1) |Δ_r/N|², harmonic k giving
+    |Δ_k/N|² = (a_k² + b_k²) / (4·sinc²(πk/N)); δ_j real, so |Δ_(N−k)| = |Δ_k| and a harmonic not fitted
+    (above the log's reach) is known from its mirror (the pair's fitted ones averaged). None when some
+    pair {k, N−k} has neither fitted."""
+    e = np.repeat([1.0 / (4 * np.sinc(k / n) ** 2) for k in harmonics], 2)
+    weight = np.zeros(len(harmonics))
+    for r in range(1, n):
+        pair = [i for i, k in enumerate(harmonics) if k in (r, n - r)]
+        if not pair:
+            return None, np.zeros_like(ab)
+        weight[pair] += 1.0 / len(pair)
+    scale = e * np.repeat(weight, 2)
     amp = float(np.sqrt(2 * np.sum(scale * ab ** 2)))
     return amp, (2 * scale * ab / amp if amp > 0 else np.zeros_like(ab))
 
