@@ -60,22 +60,26 @@ def test_registry_has_the_named_effects():
 
 @pytest.mark.parametrize("effect", EFFECTS)
 def test_seeded_runs_name_the_hidden_effect(cache, effect):
-    named, shrink = [], []
+    named, shrink, rho = [], [], []
     runs = RUNS if effect != "runout" else max(RUNS // 3, 1)   # 1 kHz logs: ten times the rows
     for seed in range(runs):
-        _, s, pred = run_one(cache, effect, seed)
+        r, s, pred = run_one(cache, effect, seed)
         names = [e["name"] for e in s["effects"]]
         named.append(names[0] if names else "none")
         if names and names[0] == effect:
             shrink.append(raw_shrink(pred, s["effects"][0]["channels"]))
+            if effect == "runout" and s["effects"][0]["params"].get("eccentricity_mm") is not None:
+                rho.append(s["effects"][0]["params"]["eccentricity_mm"] / r.truth["runout_mm"])
     right = sum(n == effect for n in named)
-    print(f"{effect}: named {named}, held-out RMS shrink {np.round(shrink, 2).tolist()}")
+    print(f"{effect}: named {named}, held-out RMS shrink {np.round(shrink, 2).tolist()}"
+          + (f", eccentricity found/true {np.round(rho, 3).tolist()}" if rho else ""))
     if effect == "none":
         assert right >= 0.95 * runs, named   # no false alarm
         return
     assert right >= 0.9 * runs - 1e-9 or right >= runs - 1, named
     if effect == "runout":   # 1 to 3 runs (the README's figures): the bar on their median
         assert np.median(shrink) >= 0.6, shrink
+        assert all(abs(q - 1) < 0.15 for q in rho), rho   # the axis offset ρ (3 and 4 flutes): 0.94–1.08
         return
     # the bar (median over 10 runs ≥ 0.6); a few runs scatter more (single runs go from 0.44 to 0.95)
     bar = 0.6 if runs >= 10 else 0.45
