@@ -35,7 +35,7 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     programmed feed. On the moves a cap from the program's own feeds applies to (the limits the group's
     F does not obey: the plunge feed cap on ramps and plunges, the air clearance on approaches) the feed
     is at most that cap. Rapids are untouched. Returns the feed per move and, per tool, {programmed F:
-    the group's baseline F} (before those per-move caps)."""
+    the highest feed that group's moves run at}."""
     tp = program.toolpath
     cap = static_caps(samples, limits, baseline=True) * 60.0
     feeds = tp.feed_mm_min.copy()
@@ -51,14 +51,16 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     np.minimum.at(lowest, at[on], cap[on])
     base = np.where(np.isfinite(lowest), np.floor(lowest), groups[:, 1])  # nothing sampled: as programmed
     feeds[moving] = base[group]
-    per_tool: dict[int, dict[float, float]] = {}
-    for (number, programmed), f in zip(groups, base):
-        per_tool.setdefault(int(number), {})[float(programmed)] = float(f)
     own = [lim for lim in limits if not lim.baseline]
     if own:
         move_cap = np.full(len(tp), np.inf)
         np.minimum.at(move_cap, samples.move, static_caps(samples, own) * 60.0)
         feeds = np.where(tp.kind != RAPID, np.minimum(feeds, move_cap), feeds)
+    runs = np.zeros(len(groups))
+    np.maximum.at(runs, group, feeds[moving])
+    per_tool: dict[int, dict[float, float]] = {}
+    for (number, programmed), f in zip(groups, runs):
+        per_tool.setdefault(int(number), {})[float(programmed)] = float(f)
     return feeds, per_tool
 
 
