@@ -49,7 +49,9 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     on = at >= 0
     lowest = np.full(len(groups), np.inf)
     np.minimum.at(lowest, at[on], cap[on])
-    base = np.where(np.isfinite(lowest), np.floor(lowest), groups[:, 1])  # nothing sampled: as programmed
+    # floored to a whole mm/min, with a relative 1e-9 so a cap that is the programmed feed (a bound the
+    # feed policy held at its load) is not lost to rounding; nothing sampled: as programmed
+    base = np.where(np.isfinite(lowest), np.floor(lowest * (1 + 1e-9)), groups[:, 1])
     feeds[moving] = base[group]
     own = [lim for lim in limits if not lim.baseline]
     if own:
