@@ -62,8 +62,8 @@ def render(data: ReportData) -> str:
     parts += ["<h2>Cycle time per operation</h2>",
               "<p>Feed moves only, rapids left out: at the programmed F, at the baseline F (per tool and programmed "
               "F, as a machinist tunes a CAM program's cutting, plunge and lead-in feeds: the highest constant feed "
-              "that exceeds no limit anywhere those moves cut; plunges and approaches at most their caps) and as the controller model executes the optimized "
-              "program (with its ramps). The headline's totals are the controller model's for the whole program.</p>",
+              "that exceeds no limit anywhere those moves cut; plunges and approaches at most their caps) and as "
+              "the controller model executes the optimized program (with its ramps). The headline's totals are the controller model's for the whole program.</p>",
               _table(rows, [("operation", "operation", ""), ("tool", "tool", "d"), ("length_mm", "cut length (mm)", ".0f"),
                             ("programmed_s", "programmed (s)", ".1f"), ("baseline_s", "baseline (s)", ".1f"),
                             ("optimized_s", "optimized (s)", ".1f")]),
