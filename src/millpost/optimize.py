@@ -4,7 +4,8 @@ feeds → replay. Only wiring: the limits and the feed policy are `millpost.limi
 forward model `millpost.signals`), the spindle speeds (opt-in) `millpost.spindle_speed`.
 
 Cycle times are always the controller model's (`millpost.controller`), before and after, and against
-the honest baseline: per tool, the highest single constant feed that exceeds no limit anywhere.
+the honest baseline: per tool and per programmed feed (a CAM user's separate cutting, plunge, ramp and
+lead-in feeds), the highest single constant feed that exceeds no limit anywhere those moves cut.
 When the solver fails, the programmed feeds are kept and the summary says why; when the optimized
 program is slower than the programmed one (a hard limit the program exceeds), the status says so.
 """
@@ -189,6 +190,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
              "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
+             "feed_baseline_mm_min": np.where(cut, base_feeds[samples.move], np.nan),
              "feed_schedule_mm_min": sched.feed_mm_s * 60.0, "feed_executed_mm_min": executed * 60.0,
              "feed_min_chip_mm_min": limits.floor_mm_s * 60.0,
              "feed_hard_cap_mm_min": static_caps(samples, limits, HARD) * 60.0,
