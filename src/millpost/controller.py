@@ -10,7 +10,9 @@ Two planners, chosen by the machine's controller kind (`planner`):
   and must be able to stop at the end of the last one.
 - "linuxcnc": LinuxCNC 2.9's trajectory planner (tp.c, blendmath.c), the model for look-ahead
   controllers that blend corners within a tolerance (LinuxCNC, Mach3, Fanuc-like). Lines and arcs
-  are segments of their own. A line's speed and acceleration are the largest the axes allow along
+  are segments of their own, except consecutive straight feeds whose points all lie within the
+  naive-CAM tolerance (G64 Q) of one line: up to 101 of them run as that line (LinuxCNC's canon layer
+  merges them before its planner sees them; `naive_cam_chains`). A line's speed and acceleration are the largest the axes allow along
   it; an arc's are those of its plane's weaker axis, its speed at most √(0.87·a·r) (87 % of the
   acceleration normal to the path) and its acceleration along the path half of a (the other half is
   kept for the turn). A corner between two segments is, in this order: a stop (rapid ↔ feed, a
