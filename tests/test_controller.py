@@ -285,6 +285,11 @@ def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
     u0, u1 = np.array([0.0, 1.0, 0.0]), np.array([-0.1, 50.0, 0.0]) / math.hypot(0.1, 50.0)
     kink = 0.1 * 0.001 / np.max(np.abs(u1 - u0) / [3000.0, 2500.0, 2500.0])
     assert cap[3] == pytest.approx(max(kink, blend_zones(tp, ctl)[1][4]), rel=1e-12) and cap[3] > kink
+    # with a naive-CAM tolerance the canon layer merges straight feeds into lines that depend on the feeds
+    # written (here the bend, its corner 0.04999 mm off the chord, into one line at 0.05 mm): no corner
+    # between two feeds is sure to slow the tool; the stop before the rapid still is
+    merged = corner_speeds(tp, lcnc(blend_tolerance_mm=0.05, naive_cam_mm=0.05))
+    assert (merged[1:4] == np.inf).all() and merged[4] == 0.0
     for feed in (600, 6000, 60000):
         tp.feed_mm_min[:4] = feed
         ex = execute(tp, ctl)

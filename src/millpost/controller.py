@@ -68,7 +68,9 @@ PAUSE_KINDS = {"dwell": None, "tool_change": "tool_change_s", "coolant": "coolan
 class ControllerModel:
     """Planner settings. Rates mm/s, accelerations mm/s², lengths mm, times s (grbl: $110-$112 in
     mm/min, $120-$122, $11 junction deviation, $12 arc tolerance; a buffer of 16 blocks on an AVR.
-    LinuxCNC: [AXIS_*] MAX_VELOCITY/MAX_ACCELERATION, G64 P, ARC_BLEND_OPTIMIZATION_DEPTH 50)."""
+    LinuxCNC: [AXIS_*] MAX_VELOCITY/MAX_ACCELERATION, G64 P, ARC_BLEND_OPTIMIZATION_DEPTH 50).
+    naive_cam_mm: the naive-CAM tolerance before the program sets a path mode (LinuxCNC's startup
+    G64 Q, or P without Q); 0 for controllers that merge no straight feeds (all but LinuxCNC)."""
 
     max_rate_mm_s: tuple[float, float, float]
     accel_mm_s2: tuple[float, float, float]
@@ -79,6 +81,7 @@ class ControllerModel:
     exact_stop: bool = False
     planner: str = "grbl"
     blend_tolerance_mm: float = 0.0
+    naive_cam_mm: float = 0.0
     servo_period_s: float = 0.001
     tool_change_s: float = 0.0
     spindle_start_s: float = 0.0
@@ -90,7 +93,7 @@ class ControllerModel:
             v = np.asarray(getattr(self, name), float)
             if v.shape != (3,) or not (v > 0).all():
                 raise ConfigError(name, getattr(self, name), "three positive numbers (X, Y, Z)")
-        for name in ("junction_deviation_mm", "blend_tolerance_mm", "tool_change_s", "spindle_start_s", "coolant_s",
+        for name in ("junction_deviation_mm", "blend_tolerance_mm", "naive_cam_mm", "tool_change_s", "spindle_start_s", "coolant_s",
                      "command_s"):
             if not getattr(self, name) >= 0:
                 raise ConfigError(name, getattr(self, name), "must be ≥ 0")
@@ -107,13 +110,15 @@ class ControllerModel:
 
     @classmethod
     def from_machine(cls, machine) -> "ControllerModel":
-        """The model of a machine's controller: its axis rates and accelerations, its planner."""
+        """The model of a machine's controller: its axis rates and accelerations, its planner (a
+        LinuxCNC controller's blend tolerance is its startup G64 P, which sets the naive-CAM tolerance too)."""
         ax = [machine.axes[a] for a in "xyz"]
         c = machine.controller
         return cls(max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
                    junction_deviation_mm=c.junction_deviation_mm, block_rate_hz=c.block_rate_Hz,
                    planner=c.planner, lookahead_blocks=16 if c.planner == "grbl" else 50,
                    blend_tolerance_mm=c.blend_tolerance_mm, tool_change_s=c.tool_change_s,
+                   naive_cam_mm=c.blend_tolerance_mm if c.kind == "linuxcnc" else 0.0,
                    spindle_start_s=c.spindle_start_s, coolant_s=c.coolant_s, command_s=c.command_s)
 
 
@@ -201,16 +206,21 @@ class Execution:
     vnom: np.ndarray
     acc: np.ndarray
     v_entry: np.ndarray  # (n+1,)
+    move_start_mm: np.ndarray  # (len(program moves)+1,): the program's arc length where each move starts
     pause_s: float = 0.0  # of time_s, spent stopped between moves (dwells, tool changes, commands)
 
     def _locate(self, move: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Block index and distance into it (mm) of fraction u of move `move` (by fraction on blocks)."""
-        key = self.move.astype(float) + self.u_end
-        q = np.asarray(move, float) + np.clip(u, 0, 1)
-        k = np.clip(np.searchsorted(key, q - 1e-12), 0, len(key) - 1)
-        prev = np.maximum(k - 1, 0)
-        ustart = np.where((k > 0) & (self.move[prev] == self.move[k]), self.u_end[prev], 0.0)
-        frac = np.clip((np.clip(u, 0, 1) - ustart) / np.maximum(self.u_end[k] - ustart, 1e-300), 0, 1)
+        """Block index and distance into it (mm) of fraction u of move `move`: by the program's arc
+        length between the places where the blocks end, so that moves no block ends on (too short for
+        a block, inside a blend arc or a merged line) lie in proportion along the block over them."""
+        move = np.asarray(move, np.int64)
+        at = self.move_start_mm
+        length = np.diff(at)
+        end = at[self.move] + self.u_end * length[self.move]
+        q = at[move] + np.clip(u, 0, 1) * length[move]
+        k = np.clip(np.searchsorted(end, q - 1e-12), 0, len(end) - 1)
+        start = np.where(k > 0, end[np.maximum(k - 1, 0)], 0.0)
+        frac = np.clip((q - start) / np.maximum(end[k] - start, 1e-300), 0, 1)
         return k, frac * self.length[k]
 
     def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -303,14 +313,13 @@ class PathModes:
 
     @classmethod
     def uniform(cls, n: int, model: "ControllerModel") -> "PathModes":
-        """The controller's own mode on every move (a startup G64 P sets the naive-CAM tolerance too)."""
-        tol = np.full(n, model.blend_tolerance_mm)
-        return cls(tol, tol.copy(), np.zeros(n, bool))
+        """The controller's own modes on every move."""
+        return cls(np.full(n, model.blend_tolerance_mm), np.full(n, model.naive_cam_mm), np.zeros(n, bool))
 
 
 def path_modes(program, model: ControllerModel) -> PathModes:
     """The path modes the program sets (`PathModes`); before it sets one, the controller's own
-    `blend_tolerance_mm` (for blending and naive-CAM merging alike, as a startup `G64 P` sets both).
+    (`blend_tolerance_mm`, `naive_cam_mm`).
     The moves of a canned cycle (after its climb to R) run in exact path whatever the mode (LinuxCNC's
     convert_cycle sets G61 for them and restores it after). Tolerances in a G20 program are inches."""
     n = len(program.toolpath)
@@ -437,7 +446,8 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
     if cuts:
         t, L, vnom, acc, ve, move, u_end = _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
-    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, pause)
+    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, np.r_[0.0, np.cumsum(tp.lengths())],
+                     pause)
 
 
 def _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
@@ -707,10 +717,11 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None 
     at which it passes the corner whatever the feeds: 0 where it stops (rapid ↔ feed, a reversal, a
     jump, G61/G61.1), else the larger of the tangent-kink speed (the velocity jump v·Δu in one servo
     period within 10 % of the axes' acceleration) and the blend arc's top speed √(0.87·a·r_geom) (or,
-    where no arc fits, the parabolic blend's); inf at the ends and between collinear moves. Per
-    programmed move: the naive-CAM merge (`naive_cam_chains`) depends on the feeds written and only
-    removes corners, so these speeds never exceed the planner's."""
+    where no arc fits, the parabolic blend's); inf at the ends and between collinear moves, and between
+    two straight feeds wherever a naive-CAM tolerance is set (`naive_cam_chains`): which corners the
+    canon layer merges away, and the directions of the lines it makes, follow the feeds written."""
     out = np.full(len(tp) + 1, np.inf)
+    modes = PathModes.uniform(len(tp), model) if modes is None else modes
     segs = _segments(tp, model, np.full(len(tp), np.inf), modes)
     amax, dt = model.accel_mm_s2, model.servo_period_s
     for prev, cur in zip(segs[:-1], segs[1:]):
@@ -730,6 +741,9 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None 
         else:
             v = max(v, _parabolic_speed(prev, cur))
         out[cur.move] = v
+    straight = tp.kind == FEED
+    merging = np.r_[False, straight[:-1] & straight[1:] & (modes.merge_mm[1:] > 0) & ~modes.flush[1:], False]
+    out[merging] = np.inf
     return out
 
 
