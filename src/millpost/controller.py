@@ -9,25 +9,25 @@ Two planners, chosen by the machine's controller kind (`planner`):
   acceleration the axes allow along the direction change. The planner sees `lookahead_blocks` blocks
   and must be able to stop at the end of the last one.
 - "linuxcnc": LinuxCNC 2.9's trajectory planner (tp.c, blendmath.c), the model for look-ahead
-  controllers that blend corners within a tolerance (LinuxCNC, Mach3, Fanuc-like). Lines and arcs
-  are segments of their own, except consecutive straight feeds whose points all lie within the
-  naive-CAM tolerance (G64 Q) of one line: up to 101 of them run as that line (LinuxCNC's canon layer
-  merges them before its planner sees them; `naive_cam_chains`). A line's speed and acceleration are the largest the axes allow along
-  it; an arc's are those of its plane's weaker axis, its speed at most √(0.87·a·r) (87 % of the
-  acceleration normal to the path) and its acceleration along the path half of a (the other half is
-  kept for the turn). A corner between two segments is, in this order: a stop (rapid ↔ feed, a
-  reversal, a command between them); "tangent" when the velocity jump v·Δu in one servo period
-  (1 ms) needs less than 10 % of the axes' acceleration (both segments then lose that share of
-  their acceleration); otherwise a blend arc tangent to both segments, at most the blend tolerance
-  from the corner (`G64 P`; without P: a quarter of the shorter segment), using at most half of
-  each segment, run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic
-  blend at half acceleration. The rest of a line before a blend arc that would take less than 4 servo
-  periods at the arc's speed is no segment of its own: it runs as the arc's straight lead-in, at the
-  arc's speed and acceleration. Speeds are planned backwards over `lookahead_blocks` segments
-  (LinuxCNC: 50), a segment lasts at least 1.02 servo periods (its speed is at most its length over
-  that), and one that ends at rest ends half a servo period late on average (the period's rest is lost). A feed segment that takes less
-  than 10 ms (1/ARC_BLEND_RAMP_FREQ) and flows into the next changes speed linearly from end to end.
-  The last segment before the motion queue runs empty (a command, the end) keeps its parabolic end
+  controllers that blend corners within a tolerance (LinuxCNC, Mach3, Fanuc-like). Lines and arcs are
+  segments of their own, except consecutive straight feeds whose points all lie within the naive-CAM
+  tolerance (G64 Q) of one line: up to 101 of them run as that line (LinuxCNC's canon layer merges them
+  before its planner sees them; `naive_cam_chains`). A line's speed and acceleration are the largest
+  the axes allow along it; an arc's are those of its plane's weaker axis, its speed at most √(0.87·a·r)
+  (87 % of the acceleration normal to the path) and its acceleration along the path half of a (the
+  other half is kept for the turn). A corner between two segments is, in this order: a stop (rapid ↔
+  feed, a reversal, a command between them); "tangent" when the velocity jump v·Δu in one servo period
+  (1 ms) needs less than 10 % of the axes' acceleration (both segments then lose that share of their
+  acceleration); otherwise a blend arc tangent to both segments, at most the blend tolerance from the
+  corner (`G64 P`; without P: a quarter of the shorter segment), using at most half of each segment,
+  run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic blend at half
+  acceleration. The rest of a line before a blend arc that would take less than 4 servo periods at the
+  arc's speed is no segment of its own: it runs as the arc's straight lead-in, at the arc's speed and
+  acceleration. Speeds are planned backwards over `lookahead_blocks` segments (LinuxCNC: 50), a segment
+  lasts at least 1.02 servo periods (its speed is at most its length over that), and one that ends at
+  rest ends half a servo period late on average (the period's rest is lost). A feed segment that takes
+  less than 10 ms (1/ARC_BLEND_RAMP_FREQ) and flows into the next changes speed linearly from end to
+  end. The last segment before the motion queue runs empty (a command, the end) keeps its parabolic end
   and half its acceleration.
 
 A controller that processes at most `block_rate_hz` blocks per second cannot finish a block of
@@ -93,8 +93,8 @@ class ControllerModel:
             v = np.asarray(getattr(self, name), float)
             if v.shape != (3,) or not (v > 0).all():
                 raise ConfigError(name, getattr(self, name), "three positive numbers (X, Y, Z)")
-        for name in ("junction_deviation_mm", "blend_tolerance_mm", "naive_cam_mm", "tool_change_s", "spindle_start_s", "coolant_s",
-                     "command_s"):
+        for name in ("junction_deviation_mm", "blend_tolerance_mm", "naive_cam_mm", "tool_change_s", "spindle_start_s",
+                     "coolant_s", "command_s"):
             if not getattr(self, name) >= 0:
                 raise ConfigError(name, getattr(self, name), "must be ≥ 0")
         if self.lookahead_blocks < 1:
