@@ -34,6 +34,19 @@ from .toolpath import ARC_CW, PLANE_AXES, RAPID, Toolpath
 SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
 _AXIS_LETTERS = "XYZ"
 _ARC_LETTERS = "IJK"
+_WORD_ORDER = "XYZIJKRF"  # where a word a line lacks goes among its words
+
+
+def _slot(letter: str, line_letters: list[str]) -> tuple[int, int] | None:
+    """Where a word the line lacks goes among the line's words (indices into line_letters): after the
+    last one that comes before it in X Y Z I J K R F (+1), else before the first that comes after it
+    (-1); None when the line has neither (a split arc's Y goes after X, not after I J)."""
+    k = _WORD_ORDER.index(letter)
+    before = [n for n, L in enumerate(line_letters) if L in _WORD_ORDER[:k]]
+    if before:
+        return max(before), 1
+    after = [n for n, L in enumerate(line_letters) if L in _WORD_ORDER[k + 1:]]
+    return (min(after), -1) if after else None
 
 
 @dataclass
@@ -148,7 +161,8 @@ class _LineWriter:
         self.sep = " " if (spaced if one_word else re.search(_SPACED, raw)) else ""
 
     def replace(self, new: dict[str, str], drop: set[str] = frozenset()) -> str:
-        """Words by letter set to new text (added after the last word when absent); `drop` removed."""
+        """Words by letter set to new text (added where `_slot` puts them when absent, else after the
+        last word); `drop` removed."""
         text = self.raw
         edits = []  # (start, end, replacement)
         placed = set()
@@ -162,13 +176,22 @@ class _LineWriter:
                 while s > 0 and text[s - 1] in " \t" and self.sep:
                     s -= 1
                 edits.append((s, w.end, ""))
-        missing = [L for L in new if L not in placed]
-        if missing:
-            anchor = [w.end for w in self.block.words if w.letter in "GXYZIJKR" and w.letter not in drop]
-            at = max(anchor) if anchor else self.block.code_end
-            case = str.lower if self.lower else str.upper
-            edits.append((at, at, "".join(self.sep + case(L) + new[L] if (at > 0 or i) else case(L) + new[L]
-                                          for i, L in enumerate(missing))))
+        missing = sorted((L for L in new if L not in placed), key=_WORD_ORDER.index)
+        case = str.lower if self.lower else str.upper
+        kept = [w for w in self.block.words if w.letter in _WORD_ORDER and w.letter not in drop]
+        inserts: dict[tuple[int, int], str] = {}  # (position, side) -> text, in X Y Z I J K R F order
+        for L in missing:
+            slot = _slot(L, [w.letter for w in kept])
+            if slot is None:
+                anchor = [w.end for w in self.block.words if w.letter in "GXYZIJKR" and w.letter not in drop]
+                slot_at, side = (max(anchor) if anchor else self.block.code_end), 1
+            else:
+                slot_at, side = (kept[slot[0]].end, 1) if slot[1] > 0 else (kept[slot[0]].start, -1)
+            word = case(L) + new[L]
+            before = inserts.get((slot_at, side), "")
+            inserts[(slot_at, side)] = before + (self.sep + word if (side > 0 and (slot_at > 0 or before))
+                                                 else word + self.sep)
+        edits += [(at, at, text) for (at, _), text in inserts.items()]
         for s, e, rep in sorted(edits, key=lambda t: (t[0], t[1]), reverse=True):
             text = text[:s] + rep + text[e:]
         return text
@@ -257,7 +280,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         if split and len(moves) == 1:
             i = moves[0]
             new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, trailing_point,
-                                             lambda j, f, L: f_text(f_value(j, f, L)), lengths[i])
+                                             lambda j, f, L: f_text(f_value(j, f, L)), lengths[i], modal_f)
             out.extend(new_lines)
             continue
         wanted = [plan.feed_mm_min[i] for i in moves if not math.isnan(plan.feed_mm_min[i])]
@@ -281,6 +304,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
               and (_same(modal_f, value) or _same(modal_f, float(f_text(value))))):
             out.append(raw)
+            value = modal_f  # the F in force stays the one written
         elif standalone_f is not None and f_word is None and program.feed_mode[k] != 930:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
             out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": f_text(value)}) + f_ending
@@ -301,11 +325,13 @@ def split_decimals(block: Block, inch: bool) -> int:
 
 
 def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
-                trailing_point: bool, f_text, length_mm: float) -> tuple[list[str], float]:
+                trailing_point: bool, f_text, length_mm: float, modal_f: float | None) -> tuple[list[str], float]:
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
     words changed; later pieces are new lines in the style of the original (its motion word as written
-    or none when it had none, its word order, letter case and spacing) with the end point, arc centre
-    and F. Split points take `split_decimals`."""
+    or none when it had none, its word order, letter case and spacing; a word it lacks where `_slot`
+    puts it) with the end point, arc centre and F. A piece writes no F where the F in force (modal_f,
+    program units, before the line) already holds, except in inverse time (G93: F on every block).
+    Split points take `split_decimals`. Returns the lines and the F in force after them."""
     tp = program.toolpath
     inch = bool(program.move_inch[i])
     scale = INCH if inch else 1.0
@@ -314,13 +340,14 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     arc = tp.kind[i] >= ARC_CW
     uses_r = any(w.letter == "R" for w in block.words)
     g_word = next((w for w in block.words if w.letter == "G" and int(round(w.value)) in (1, 2, 3)), None)
-    order = [w.letter for w in block.words if w.letter in _AXIS_LETTERS + _ARC_LETTERS + "RF" or w is g_word]
+    order = [w.letter for w in block.words if w.letter in _WORD_ORDER or w is g_word]
+    has_f = any(w.letter == "F" for w in block.words)
     us = np.array([0.0] + [u for u, _ in fragments])
     points = tp.points(np.full(len(us), i), us)
     a1, a2, an = PLANE_AXES[int(tp.plane[i])]
     written_axes = {w.letter for w in block.words if w.letter in _AXIS_LETTERS}
     out = []
-    modal = None
+    modal = modal_f
     for k, (u_end, feed) in enumerate(fragments):
         start, end = points[k], points[k + 1]
         seg_len = length_mm * (u_end - us[k])
@@ -342,12 +369,20 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
                     c = tp.center[i, ax] if program.arc_absolute[i] else tp.center[i, ax] - written
                     words[_ARC_LETTERS[ax]] = _fmt(c / scale, decimals, trailing_point)
         f = f_text(i, feed, seg_len)
-        words["F"] = f
+        if (modal is None or not _same(modal, float(f)) or program.feed_mode[i] == 930
+                or (k == 0 and has_f)):
+            words["F"] = f
         if k == 0:
             drop = set(_AXIS_LETTERS + _ARC_LETTERS + "R") - set(words)
             out.append(writer.replace(words, drop=drop) + ending)
         else:
-            ranked = sorted(words, key=lambda L: order.index(L) if L in order else len(order) + "XYZIJKRF".index(L))
+            def rank(L: str) -> tuple[int, int, int]:
+                if L in order:
+                    return order.index(L), 0, 0
+                slot = _slot(L, order)
+                return (len(order), 1, _WORD_ORDER.index(L)) if slot is None else (*slot, _WORD_ORDER.index(L))
+
+            ranked = sorted(words, key=rank)
             texts = [(L.lower() if writer.lower else L) + words[L] for L in ranked]
             if g_word is not None:
                 at = order.index("G") if "G" in order else 0
