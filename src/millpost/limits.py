@@ -77,7 +77,7 @@ import numpy as np
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
-from .controller import ControllerModel, corner_speeds
+from .controller import ControllerModel, PathModes, corner_speeds
 from .progress import Progress, silent
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
@@ -167,14 +167,14 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
-def _corners(job: Job, samples: Samples, toolpath: Toolpath):
+def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes | None):
     """The corner rule of the machine's own planner (`ControllerModel.from_machine`): grbl's junction
-    deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds`), on the
-    last sample before each corner."""
+    deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds` in the
+    path modes `modes`), on the last sample before each corner."""
     model = ControllerModel.from_machine(job.machine)
     if model.planner == "grbl":
         return Junction(model.accel_mm_s2, model.junction_deviation_mm)
-    corner = corner_speeds(toolpath, model)
+    corner = corner_speeds(toolpath, model, modes)
     cap = np.full(len(samples), np.inf)
     last = np.flatnonzero(samples.move[:-1] != samples.move[1:])
     cap[last] = corner[samples.move[last + 1]]
@@ -182,11 +182,13 @@ def _corners(job: Job, samples: Samples, toolpath: Toolpath):
 
 
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
-                 release_slices: bool = False) -> JobLimits:
+                 release_slices: bool = False, modes: PathModes | None = None) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
     `millpost.progress` callback (stage "forces", in samples). release_slices: once the loads are
     computed, `eng` (changed in place) keeps only what `Engagement.per_sample` keeps (memory: its
-    per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built)."""
+    per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built). modes: the
+    program's path modes (`controller.path_modes`: where its corners blend and its straight feeds
+    merge); default: the machine controller's own on every move."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])
@@ -204,7 +206,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
-              Limit(_corners(job, samples, toolpath), HARD, "inertia", controller=True, f_word=False)]
+              Limit(_corners(job, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
                             f_word=False))
