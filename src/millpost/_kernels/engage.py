@@ -318,18 +318,22 @@ def _sweep_record(px, py, pz, qx, qy, skip_q, R, shape, rc, r_tip, tan_half, swe
         ya, yb = sy0 + j * W, sy0 + (j + 1) * W
         a, b = _covered(px, py, R, ya, yb, sx0, W)
         a, b = max(a, 0), min(b, snx - 1)
-        qa, qb = (_covered(qx, qy, R, ya, yb, sx0, W)) if skip_q else (1, 0)
+        a1, b1 = 1, 0  # a second range when the disc at q splits the row
+        if skip_q:
+            qa, qb = _covered(qx, qy, R, ya, yb, sx0, W)
+            if qa <= qb:
+                a, b, a1, b1 = a, min(b, qa - 1), max(a, qb + 1), b
         dy = max(abs(ya - py), abs(yb - py))
         row = j * snx
-        for i in range(a, b + 1):
-            if qa <= i <= qb:
-                continue
-            z = pz
-            if shape != FLAT:
-                dx = max(abs(sx0 + i * W - px), abs(sx0 + (i + 1) * W - px))
-                z += surface_height(min(math.sqrt(dx * dx + dy * dy), R), shape, R, rc, r_tip, tan_half)
-            if z < swept[row + i]:
-                swept[row + i] = z
+        for seg in range(2):
+            lo_i, hi_i = (a, b) if seg == 0 else (a1, b1)
+            for i in range(lo_i, hi_i + 1):
+                z = pz
+                if shape != FLAT:
+                    dx = max(abs(sx0 + i * W - px), abs(sx0 + (i + 1) * W - px))
+                    z += surface_height(min(math.sqrt(dx * dx + dy * dy), R), shape, R, rc, r_tip, tan_half)
+                if z < swept[row + i]:
+                    swept[row + i] = z
 
 
 @njit(cache=True, error_model="numpy")
@@ -865,8 +869,8 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         depth_o[k] = ap
         ap = min(ap, flute)
         ap_o[k] = ap
-        if clear >= 0.0 and not rapid[k]:
-            if ap <= 1e-6 and pz - clear < zmax:
+        if clear >= 0.0 and not rapid[k] and pz - clear < zmax:  # higher, no near step could use its record
+            if ap <= 1e-6:
                 near_o[k] = _near_original(px, py, pz, R, clear, omax, omin, B, nx, ny, x0, y0, h, zf)
                 if near_o[k]:  # before this step is recorded: what the tool swept until it got here
                     swept_o[k] = _in_swept(px, py, pz, qx, qy, qz, R, shape, rc, r_tip, tan_half, swept, snx, sny,
