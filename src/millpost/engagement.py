@@ -57,7 +57,7 @@ class Engagement:
     swept_air (N,) bool: a near_stock sample that is known air all the same: its step, and the next
     step unless that one is not near, lie wholly in space the program's earlier feed steps swept with
     the tool (at or below it, whatever the stock model says; None when no clearance was asked). Read
-    from a field of the lowest tool surface that covered each whole cell of ~R/6 (`simulate`): it errs
+    from a field of the lowest tool surface that covered each whole cell of ~R/12 (`simulate`): it errs
     towards unknown, by up to a cell's diagonal and half a step.
     """
 
@@ -308,13 +308,14 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
 
 
 def _swept_field(stock, radius_mm: float, clear: float) -> tuple[np.ndarray, tuple[int, int, float, float, float]]:
-    """The swept field `simulate` fills (+inf: not swept) and its grid (nx, ny, x0, y0, cell mm): cells of
-    R/6 for the largest tool radius R (no finer than the stock's), over the stock's grid and the band
+    """The swept field `simulate` fills (float32 heights, +inf: not swept) and its grid (nx, ny, x0, y0,
+    cell mm): cells of R/12 for the largest tool radius R, at least two stock cells (so it holds at most a
+    byte per stock column, a fifth of the stock's own memory), over the stock's grid and the band
     2R + c + a cell around it where a tool can be near the stock; one cell when no clearance was asked."""
     if clear < 0:
-        return np.full(1, np.inf), (1, 1, 0.0, 0.0, 1.0)
-    w = max(stock.cell_mm, radius_mm / 12.0)
+        return np.full(1, np.inf, np.float32), (1, 1, 0.0, 0.0, 1.0)
+    w = max(2.0 * stock.cell_mm, radius_mm / 12.0)
     margin = 2.0 * radius_mm + clear + w
     nx = math.ceil((stock.nx * stock.cell_mm + 2.0 * margin) / w)
     ny = math.ceil((stock.ny * stock.cell_mm + 2.0 * margin) / w)
-    return np.full(nx * ny, np.inf), (nx, ny, stock.x0 - margin, stock.y0 - margin, w)
+    return np.full(nx * ny, np.inf, np.float32), (nx, ny, stock.x0 - margin, stock.y0 - margin, w)

@@ -295,6 +295,16 @@ def _near_original(px, py, pz, R, c, omax, omin, B, nx, ny, x0, y0, h, zf):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _up32(z):
+    """z as the nearest float32 not below it (the swept field's storage: rounding up errs towards
+    unknown; a tool height rounded the same way compares equal to its own record)."""
+    v = np.float32(z)
+    if v < z:
+        v = np.nextafter(v, np.float32(np.inf))
+    return v
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _covered(px, py, R, ya, yb, sx0, W):
     """Span (first, last) of the cells of W mm on the row [ya, yb] that lie wholly inside the disc of
     radius R at (px, py): those whose farthest corner is within R (empty: first > last)."""
@@ -332,8 +342,9 @@ def _sweep_record(px, py, pz, qx, qy, skip_q, R, shape, rc, r_tip, tan_half, swe
                 if shape != FLAT:
                     dx = max(abs(sx0 + i * W - px), abs(sx0 + (i + 1) * W - px))
                     z += surface_height(min(math.sqrt(dx * dx + dy * dy), R), shape, R, rc, r_tip, tan_half)
-                if z < swept[row + i]:
-                    swept[row + i] = z
+                v = _up32(z)
+                if v < swept[row + i]:
+                    swept[row + i] = v
 
 
 @njit(cache=True, error_model="numpy")
@@ -341,8 +352,8 @@ def _in_swept(px, py, pz, qx, qy, qz, R, shape, rc, r_tip, tan_half, swept, snx,
     """Whether the tool's sweep from tip q to tip p lies in space the swept field knows as cleared: every
     cell meeting the disc of radius R + L/2 about the step's midpoint (L its horizontal length; the disc
     holds the tool's whole sweep) has a swept height no higher than the tool's lowest surface over it,
-    min(qz, pz) + height(d − L/2) with d the cell's nearest distance to the midpoint. Cells off the
-    field are not known."""
+    min(qz, pz) + height(d − L/2) with d the cell's nearest distance to the midpoint (both rounded up
+    to float32, `_up32`: within a float32 step, < 0.1 µm in 1 m). Cells off the field are not known."""
     mx, my = 0.5 * (px + qx), 0.5 * (py + qy)
     half = 0.5 * math.sqrt((px - qx) * (px - qx) + (py - qy) * (py - qy))
     rr = R + half
@@ -365,7 +376,7 @@ def _in_swept(px, py, pz, qx, qy, qz, R, shape, rc, r_tip, tan_half, swept, snx,
                 dx = max(sx0 + i * W - mx, 0.0, mx - sx0 - (i + 1) * W)
                 d = max(math.sqrt(dx * dx + dy * dy) - half, 0.0)
                 z += surface_height(min(d, R), shape, R, rc, r_tip, tan_half)
-            if not swept[row + i] <= z:
+            if not swept[row + i] <= _up32(z):
                 return False
     return True
 
