@@ -102,8 +102,71 @@ def drill_and_mill() -> str:
     return "\n".join(out) + "\n"
 
 
+def offset_pocket() -> str:
+    """A closed 40 × 30 mm pocket with R4 corners, 6 mm deep, cleared with the offset (contour-parallel)
+    pattern as Fusion's 2D Pocket and FreeCAD's Pocket Shape (Offset) post it, 6 mm 3-flute in Al 6061:
+    per 2 mm step-down a helical ramp (2°, 5 mm path diameter, G3 with Z in half turns) at the centre, a
+    centre pass, then rings offset by 2.4 mm (40 % stepover) from the centre out, climb (counter-clockwise
+    with M3), each joined to the next by a straight step; the last ring follows the wall, its R1
+    tool-centre corners as arcs. One feed for the ramp, one for the rings; a retract between levels.
+    Words are modal as a Fusion post writes them: G1 and unchanged coordinates are left out."""
+    out = header("2D pocket, offset pattern, 6 mm 3F flat, Al 6061", 1, 9000)
+    cx, cy, rh, ae = 30.0, 25.0, 2.5, 2.4
+    wall_x, wall_y, corner = 17.0, 12.0, 1.0  # tool-centre half-sizes and corner radius at the wall (R 3 mm)
+    rings = [(wall_x - k * ae, wall_y - k * ae) for k in range(5, -1, -1)]  # centre out; the first is a line
+    pitch = 2 * math.pi * rh * math.tan(math.radians(2.0))  # depth per helix turn (mm)
+    last: dict[str, str] = {}
+
+    def move(g: str, feed: int | None = None, **axes: float) -> None:
+        """One block with only the words that change (G1 is modal; arcs always carry I and J)."""
+        words = [g] if (last.get("G") != g or g != "G1") else []
+        for k, v in axes.items():
+            if k in "IJ" or last.get(k) != fmt(v):
+                words.append(f"{k}{fmt(v)}")
+                last[k] = fmt(v)
+        if feed is not None and last.get("F") != str(feed):
+            words.append(f"F{feed}")
+            last["F"] = str(feed)
+        last["G"] = g
+        out.append(" ".join(words))
+
+    def ring(ax: float, ay: float, r: float) -> None:
+        """A tool-centre ring of half-sizes ax, ay and corner radius r (0: sharp), counter-clockwise from
+        (ax, 0) back to it: per side its end, then the corner arc's end and centre (I, J)."""
+        for sx, sy, ex, ey, i, j in ((ax, ay - r, ax - r, ay, -r, 0), (-ax + r, ay, -ax, ay - r, 0, -r),
+                                     (-ax, -ay + r, -ax + r, -ay, r, 0), (ax - r, -ay, ax, -ay + r, 0, r)):
+            move("G1", X=cx + sx, Y=cy + sy)
+            if r:
+                move("G3", X=cx + ex, Y=cy + ey, I=i, J=j)
+        move("G1", X=cx + ax, Y=cy)
+
+    for z_top, z in ((0.0, -2.0), (-2.0, -4.0), (-4.0, -6.0)):
+        # to the helix start, down to the ramp clearance 0.5 mm above the last floor, then the helix
+        out += [f"G0 X{fmt(cx + rh)} Y{fmt(cy)}"] + (["Z5"] if z_top == 0 else [])
+        last.update(G="G0", X=fmt(cx + rh), Y=fmt(cy), Z="5")
+        move("G1", 500, Z=z_top + 0.5)
+        zh, side = z_top + 0.5, 1.0
+        while True:
+            zh = max(zh - pitch / 2, z)
+            move("G3", 500, X=cx - side * rh, Y=cy, Z=zh, I=-side * rh, J=0)
+            side = -side
+            if zh <= z:
+                break
+        move("G3", X=cx - side * rh, Y=cy, I=-side * rh, J=0)  # a flat half turn at the floor
+        lx = rings[0][0]
+        move("G1", 1000, X=cx + lx)  # the centre pass: out to the line's end, back, and out again
+        move("G1", X=cx - lx)
+        move("G1", X=cx + lx)
+        for ax, ay in rings[1:]:
+            move("G1", X=cx + ax)  # the step out onto the next ring
+            ring(ax, ay, corner if ax == wall_x else 0.0)
+        out.append("G0 Z5")
+    out += ["G0 Z10", "M30"]
+    return "\n".join(out) + "\n"
+
+
 PROGRAMS = {"adaptive_pocket": adaptive_pocket, "slotting": slotting, "ball_roughing": ball_roughing,
-            "drill_and_mill": drill_and_mill}
+            "drill_and_mill": drill_and_mill, "offset_pocket": offset_pocket}
 
 if __name__ == "__main__":
     for name, make in PROGRAMS.items():

@@ -156,6 +156,25 @@ def test_split_pieces_follow_the_source_line_style(line, pieces):
     assert out[3:6] == pieces
 
 
+@pytest.mark.parametrize("text,fragments,pieces", [
+    # a Fusion helix half turn writes no Y (it ends where it started): its split point's Y goes after X
+    ("G0 X32.5 Y25 Z0\nG1 F500\nG3 X27.5 Z-1 I-2.5 J0", [(0.5, 800.0), (1.0, 500.0)],
+     ["G3 X30 Y27.5 Z-0.5 I-2.5 J0 F800", "G3 X27.5 Y25 Z-1 I0 J-2.5 F500"]),
+    # the first piece runs at the F in force: no F word there, F only where the feed changes
+    ("G0 X0 Y0 Z-1\nG1 F500\nG1 X10", [(0.5, 500.0), (1.0, 900.0)], ["G1 X5", "G1 X10 F900"]),
+    ("G0 X0 Y0 Z-1\nG1 F500\nG1 X10", [(0.5, 900.0), (1.0, 500.0)], ["G1 X5 F900", "G1 X10 F500"]),
+    ("G0 X0 Y0 Z-1\nG1 F500\nG1 X10 F500", [(0.5, 500.0), (1.0, 900.0)], ["G1 X5 F500", "G1 X10 F900"]),
+])
+def test_split_pieces_place_new_words_in_order_and_write_f_only_on_change(text, fragments, pieces):
+    prog = read_text(f"G21 G90 G17\n{text}\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.fragments[int(np.flatnonzero(prog.toolpath.line == 4)[0])] = fragments
+    out = write_feeds(prog, plan).splitlines()
+    assert out[3:5] == pieces
+    emitted = read_text("\n".join(out)).toolpath
+    assert emitted.feed_mm_min[emitted.line >= 4][:2].tolist() == [f for _, f in fragments]
+
+
 def test_split_points_take_one_more_digit_and_stay_on_the_path():
     # 3 decimals in the program: split points get 4 (mm), within 1e-4 mm of the original line
     text = "G21 G90 G17\nG0 X0 Y0 Z0\nG1 X1.234 Y5.678 Z-0.333 F100\nM2\n"
@@ -223,3 +242,14 @@ def test_a_line_holding_only_f_takes_the_new_feed_instead_of_a_second_f():
     assert out.upper().count("F") == text.upper().count("F") + 2  # X5 (no F line before it) and X6 (M8 between)
     back = read_text(out, "w.gcode", ReaderOptions()).toolpath
     assert np.allclose(back.feed_mm_min[1:], feeds[1:])
+
+
+def test_f_in_force_is_the_one_written():
+    """A move whose wanted feed rounds down to the F in force keeps its line (F500 runs at 500 ≤ 500.04)
+    and the F in force stays F500: the split line after it writes no F500 again on its first piece."""
+    prog = read_text("G21 G90 G17\nG0 X0 Y0 Z-1\nG1 F500\nG1 X1\nG1 X10\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    line = prog.toolpath.line
+    plan.feed_mm_min[line == 4] = 500.04
+    plan.fragments[int(np.flatnonzero(line == 5)[0])] = [(0.5, 500.04), (1.0, 900.0)]
+    assert write_feeds(prog, plan).splitlines()[3:6] == ["G1 X1", "G1 X5.5", "G1 X10 F900"]

@@ -213,3 +213,32 @@ def test_undercut_column_cut_through_its_top_interval():
     assert e.ap_mm[200] == pytest.approx(11.0, abs=1e-4)
     i, j = int((15 - s2.x0) / 0.05), int((10.025 - s2.y0) / 0.05)
     assert s2.intervals(i, j) == [(0.0, pytest.approx(5.0, abs=1e-3))]
+
+
+def test_bridge_over_a_gap_cut_into_the_gap_and_rapid_through_it():
+    """A 20 × 10 block z 0..2 under a bridge z 5..8 over its middle 10 mm in x (a gap 2..5 below the
+    bridge, columns outside it single): the removed volume of each cut equals the stock's loss and the
+    closed form, a cut ending in the gap leaves the top at the gap's bottom, and a rapid through the
+    cleared bridge passes while one into the lower block crashes."""
+    tris = np.concatenate([rotated_block((10, 5), 0.0, (20, 10), 0, 2), rotated_block((10, 5), 0.0, (10, 10), 5, 8)])
+    s = stock.from_triangles(tris, 0.05)
+    assert s.n_multi == 200 * 200  # the bridge's columns
+    assert s.volume_mm3() == pytest.approx(20 * 10 * 2 + 10 * 10 * 3, rel=1e-6)
+    i, j = 200, 50  # x 10.025, y 2.525: under the bridge
+    assert s.intervals(i, j) == [(5.0, 8.0), (0.0, 2.0)]
+    # a Ø4 slot along x at y = 5 down to z = 6.5: 1.5 mm off the bridge only
+    v0 = s.volume_mm3()
+    e = simulate(s, Tool(4.0), polyline([(-5, 5, 6.5), (25, 5, 6.5)]).resample(0.1))
+    assert v0 - s.volume_mm3() == pytest.approx(e.volume_mm3.sum(), rel=1e-6)
+    assert e.volume_mm3.sum() == pytest.approx(10 * 4 * 1.5, rel=2e-3)
+    assert s.intervals(i, 101) == [(5.0, 6.5), (0.0, 2.0)] and s.intervals(i, j) == [(5.0, 8.0), (0.0, 2.0)]
+    # the same slot at z = 4 ends in the gap: the bridge goes (the rest of 5..6.5), the top drops to 2
+    v0 = s.volume_mm3()
+    e = simulate(s, Tool(4.0), polyline([(-5, 5, 4), (25, 5, 4)]).resample(0.1))
+    assert v0 - s.volume_mm3() == pytest.approx(e.volume_mm3.sum(), rel=1e-6)
+    assert e.volume_mm3.sum() == pytest.approx(10 * 4 * 1.5, rel=2e-3)
+    assert s.top[101, i] == np.float32(2.0) and s.intervals(i, 101) == [(0.0, 2.0)]
+    # now a rapid along the slot at z = 3 (tip above the lower block) touches nothing; one at z = 1 crashes
+    simulate(s, Tool(4.0), polyline([(-5, 5, 12), (-5, 5, 3), (25, 5, 3)], kinds=[FEED, RAPID]).resample(0.1))
+    with pytest.raises(MillpostError, match="rapid move runs into the stock"):
+        simulate(s, Tool(4.0), polyline([(-5, 5, 12), (-5, 5, 1), (25, 5, 1)], kinds=[FEED, RAPID]).resample(0.1))

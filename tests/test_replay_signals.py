@@ -15,7 +15,7 @@ from millpost.gcode import read_program
 from millpost.job import load_job
 from millpost.limits import build_limits
 from millpost.optimize import optimize
-from millpost.replay import replay
+from millpost.replay import baseline_feeds, replay
 from millpost.schedule import SpeedLoad
 from millpost.signals import predict
 from millpost.toolpath import RAPID
@@ -100,3 +100,24 @@ def test_replay_in_chunks_is_the_whole_programs(drill_and_mill, monkeypatch):
         assert chunked.ratios[key] == pytest.approx(ratio, rel=1e-12, abs=0), key
     for key, column in whole.trace_columns().items():
         np.testing.assert_allclose(chunked.trace_columns()[key], column, rtol=1e-12, atol=0, err_msg=key)
+
+
+def test_baseline_obeys_the_plunge_cap_on_plunges_only(tmp_path):
+    """The baseline's single F is the best constant feed of the cuts; a plunge runs at most
+    plunge_raise_max (2) × its own programmed F100 = F200 there, as a CAM user's separate plunge feed, and
+    no longer holds the whole tool at F200. The 1 mm deep slot's bound is the end's chip load of the
+    plunge (F520 for this tool and speed in drill_and_mill), well above F200."""
+    (tmp_path / "p.nc").write_text("G21 G90 G17\nT1 M6\nS9000 M3\nG0 X5 Y5 Z2\nG1 Z-1 F100\nG1 X55 F600\nG0 Z5\nM30\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0, 0, -5], [60, 10, 0]]\n'
+        'cell_mm = 0.1\n[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = "flat"\nhelix_deg = 35\n'
+        'flute_length_mm = 16\nstickout_mm = 24\n')
+    job = load_job(tmp_path / "job.toml")
+    program = read_program(job.program, job.reader_options())
+    samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                                    progress=False)
+    feeds, per_tool = baseline_feeds(program, samples, build_limits(job, samples, eng, program.toolpath))
+    line = program.toolpath.line
+    assert per_tool[1] > 400.0
+    assert feeds[line == 6].min() == per_tool[1]  # the slot
+    assert 100.0 < feeds[line == 5].max() <= 200.0  # the plunge: the programmed feed raised at most 2×

@@ -8,8 +8,8 @@ import pytest
 from test_schedule import AMAX, VMAX, make_toolpath, pocket_toolpath
 
 from millpost.controller import ControllerModel, execute
+from millpost.emit import SNAP_TO_PROGRAMMED, FeedPlan
 from millpost.gcode import read_text
-from millpost.optimize import SNAP_TO_PROGRAMMED, _plan_from_fragments
 from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, schedule_samples
 from millpost.schedule.feeds import Fragment, emission_limit, piecewise_feeds
 from millpost.schedule.rows import PathGrid
@@ -184,8 +184,8 @@ def test_feeds_within_solver_tolerance_under_the_programmed_are_the_programmed()
     near = 400 * (1 - SNAP_TO_PROGRAMMED / 2)
     frags = [Fragment(1, 0.0, 1.0, near), Fragment(2, 0.0, 0.5, near), Fragment(2, 0.5, 1.0, 700.0),
              Fragment(3, 0.0, 1.0, 396.0)]
-    plan = _plan_from_fragments(prog, frags, 0.05, np.full(4, np.inf))
+    plan = FeedPlan.from_fragments(prog, frags, 0.05, np.full(4, np.inf))
     assert plan.feed_mm_min[1] == 400 and plan.fragments[2] == [(0.5, 400.0), (1.0, 700.0)]
     assert plan.feed_mm_min[3] == 396.0
-    capped = _plan_from_fragments(prog, frags, 0.05, np.full(4, 399.9))
+    capped = FeedPlan.from_fragments(prog, frags, 0.05, np.full(4, 399.9))
     assert capped.feed_mm_min[1] == near

@@ -26,12 +26,27 @@ import numpy as np
 from .errors import MillpostError
 from .gcode import dialects
 from .gcode.flow import control_of
-from .gcode.interpret import INCH, Program
+from .gcode.interpret import BORING_CYCLES, INCH, TAPPING_CYCLES, Program
 from .gcode.lexer import Block, lex_line
+from .schedule.feeds import cluster
 from .toolpath import ARC_CW, PLANE_AXES, RAPID, Toolpath
 
+SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
 _AXIS_LETTERS = "XYZ"
 _ARC_LETTERS = "IJK"
+_WORD_ORDER = "XYZIJKRF"  # where a word a line lacks goes among its words
+
+
+def _slot(letter: str, line_letters: list[str]) -> tuple[int, int] | None:
+    """Where a word the line lacks goes among the line's words (indices into line_letters): after the
+    last one that comes before it in X Y Z I J K R F (+1), else before the first that comes after it
+    (-1); None when the line has neither (a split arc's Y goes after X, not after I J)."""
+    k = _WORD_ORDER.index(letter)
+    before = [n for n, L in enumerate(line_letters) if L in _WORD_ORDER[:k]]
+    if before:
+        return max(before), 1
+    after = [n for n, L in enumerate(line_letters) if L in _WORD_ORDER[k + 1:]]
+    return (min(after), -1) if after else None
 
 
 @dataclass
@@ -45,6 +60,59 @@ class FeedPlan:
     @classmethod
     def programmed(cls, program: Program) -> "FeedPlan":
         return cls(program.toolpath.feed_mm_min.copy(), {})
+
+    @classmethod
+    def from_fragments(cls, program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray) -> "FeedPlan":
+        """The plan from the schedule's fragments (`schedule.feeds.Fragment`). With control flow a line that runs several times gets
+        one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
+        ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
+        (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
+        (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
+        keeps the program's F (each run at its programmed feed). hard_cap_mm_min: per move, the lowest speed
+        cap of the hard limits over its samples (a run is forced slower where it is under the programmed feed)."""
+        plan = cls.programmed(program)
+        by_move: dict[int, list] = {}
+        for f in fragments:
+            by_move.setdefault(f.move, []).append(f)
+        programmed_mm_min = program.toolpath.feed_mm_min
+
+        def snapped(mv: int, f: float) -> float:
+            """A bound held at the programmed feed is met to the solver's tolerance: a feed within
+            SNAP_TO_PROGRAMMED under the programmed one, where no hard cap is under the programmed feed,
+            is the programmed feed (no F400 → F399.9 churn)."""
+            p = programmed_mm_min[mv]
+            return float(p) if p * (1 - SNAP_TO_PROGRAMMED) <= f < p <= hard_cap_mm_min[mv] else f
+
+        for mv, frs in by_move.items():
+            frs.sort(key=lambda f: f.u_start)
+            if len(frs) == 1:
+                plan.feed_mm_min[mv] = snapped(mv, frs[0].feed_mm_min)
+            else:
+                plan.fragments[mv] = [(f.u_end, snapped(mv, f.feed_mm_min)) for f in frs]
+                plan.feed_mm_min[mv] = min(f for _, f in plan.fragments[mv])
+        # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never
+        # changed; a boring cycle's feed sets the finish of the bore: it is never raised (a hard limit may lower it)
+        held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
+        programmed = program.toolpath.feed_mm_min[held]
+        plan.feed_mm_min[held] = np.where(np.isin(program.cycle[held], TAPPING_CYCLES), programmed,
+                                          np.fmin(plan.feed_mm_min[held], programmed))
+        for mv in held:
+            plan.fragments.pop(int(mv), None)
+        if program.control_flow:
+            tp = program.toolpath
+            fed = np.flatnonzero(np.isfinite(plan.feed_mm_min) & (tp.kind != RAPID))
+            lines, inverse = np.unique(tp.line[fed], return_inverse=True)
+            per_line, prog_max, forced = np.full(len(lines), np.inf), np.zeros(len(lines)), np.zeros(len(lines), bool)
+            np.minimum.at(per_line, inverse, plan.feed_mm_min[fed])
+            np.maximum.at(prog_max, inverse, tp.feed_mm_min[fed])
+            np.logical_or.at(forced, inverse, hard_cap_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
+            text = program.text.splitlines()
+            own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
+                              for n in lines], bool)
+            keep = own_f & ~forced & (cluster(per_line, step) < prog_max * (1 - 1e-9))
+            plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], cluster(per_line, step)[inverse])
+            plan.fragments = {}
+        return plan
 
 
 class _Unknown(dict):
@@ -93,7 +161,8 @@ class _LineWriter:
         self.sep = " " if (spaced if one_word else re.search(_SPACED, raw)) else ""
 
     def replace(self, new: dict[str, str], drop: set[str] = frozenset()) -> str:
-        """Words by letter set to new text (added after the last word when absent); `drop` removed."""
+        """Words by letter set to new text (added where `_slot` puts them when absent, else after the
+        last word); `drop` removed."""
         text = self.raw
         edits = []  # (start, end, replacement)
         placed = set()
@@ -107,13 +176,22 @@ class _LineWriter:
                 while s > 0 and text[s - 1] in " \t" and self.sep:
                     s -= 1
                 edits.append((s, w.end, ""))
-        missing = [L for L in new if L not in placed]
-        if missing:
-            anchor = [w.end for w in self.block.words if w.letter in "GXYZIJKR" and w.letter not in drop]
-            at = max(anchor) if anchor else self.block.code_end
-            case = str.lower if self.lower else str.upper
-            edits.append((at, at, "".join(self.sep + case(L) + new[L] if (at > 0 or i) else case(L) + new[L]
-                                          for i, L in enumerate(missing))))
+        missing = sorted((L for L in new if L not in placed), key=_WORD_ORDER.index)
+        case = str.lower if self.lower else str.upper
+        kept = [w for w in self.block.words if w.letter in _WORD_ORDER and w.letter not in drop]
+        inserts: dict[tuple[int, int], str] = {}  # (position, side) -> text, in X Y Z I J K R F order
+        for L in missing:
+            slot = _slot(L, [w.letter for w in kept])
+            if slot is None:
+                anchor = [w.end for w in self.block.words if w.letter in "GXYZIJKR" and w.letter not in drop]
+                slot_at, side = (max(anchor) if anchor else self.block.code_end), 1
+            else:
+                slot_at, side = (kept[slot[0]].end, 1) if slot[1] > 0 else (kept[slot[0]].start, -1)
+            word = case(L) + new[L]
+            before = inserts.get((slot_at, side), "")
+            inserts[(slot_at, side)] = before + (self.sep + word if (side > 0 and (slot_at > 0 or before))
+                                                 else word + self.sep)
+        edits += [(at, at, text) for (at, _), text in inserts.items()]
         for s, e, rep in sorted(edits, key=lambda t: (t[0], t[1]), reverse=True):
             text = text[:s] + rep + text[e:]
         return text
@@ -202,7 +280,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         if split and len(moves) == 1:
             i = moves[0]
             new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, trailing_point,
-                                             lambda j, f, L: f_text(f_value(j, f, L)), lengths[i])
+                                             lambda j, f, L: f_text(f_value(j, f, L)), lengths[i], modal_f)
             out.extend(new_lines)
             continue
         wanted = [plan.feed_mm_min[i] for i in moves if not math.isnan(plan.feed_mm_min[i])]
@@ -226,6 +304,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
               and (_same(modal_f, value) or _same(modal_f, float(f_text(value))))):
             out.append(raw)
+            value = modal_f  # the F in force stays the one written
         elif standalone_f is not None and f_word is None and program.feed_mode[k] != 930:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
             out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": f_text(value)}) + f_ending
@@ -246,11 +325,13 @@ def split_decimals(block: Block, inch: bool) -> int:
 
 
 def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
-                trailing_point: bool, f_text, length_mm: float) -> tuple[list[str], float]:
+                trailing_point: bool, f_text, length_mm: float, modal_f: float | None) -> tuple[list[str], float]:
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
     words changed; later pieces are new lines in the style of the original (its motion word as written
-    or none when it had none, its word order, letter case and spacing) with the end point, arc centre
-    and F. Split points take `split_decimals`."""
+    or none when it had none, its word order, letter case and spacing; a word it lacks where `_slot`
+    puts it) with the end point, arc centre and F. A piece writes no F where the F in force (modal_f,
+    program units, before the line) already holds, except in inverse time (G93: F on every block).
+    Split points take `split_decimals`. Returns the lines and the F in force after them."""
     tp = program.toolpath
     inch = bool(program.move_inch[i])
     scale = INCH if inch else 1.0
@@ -259,13 +340,14 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     arc = tp.kind[i] >= ARC_CW
     uses_r = any(w.letter == "R" for w in block.words)
     g_word = next((w for w in block.words if w.letter == "G" and int(round(w.value)) in (1, 2, 3)), None)
-    order = [w.letter for w in block.words if w.letter in _AXIS_LETTERS + _ARC_LETTERS + "RF" or w is g_word]
+    order = [w.letter for w in block.words if w.letter in _WORD_ORDER or w is g_word]
+    has_f = any(w.letter == "F" for w in block.words)
     us = np.array([0.0] + [u for u, _ in fragments])
     points = tp.points(np.full(len(us), i), us)
     a1, a2, an = PLANE_AXES[int(tp.plane[i])]
     written_axes = {w.letter for w in block.words if w.letter in _AXIS_LETTERS}
     out = []
-    modal = None
+    modal = modal_f
     for k, (u_end, feed) in enumerate(fragments):
         start, end = points[k], points[k + 1]
         seg_len = length_mm * (u_end - us[k])
@@ -287,12 +369,20 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
                     c = tp.center[i, ax] if program.arc_absolute[i] else tp.center[i, ax] - written
                     words[_ARC_LETTERS[ax]] = _fmt(c / scale, decimals, trailing_point)
         f = f_text(i, feed, seg_len)
-        words["F"] = f
+        if (modal is None or not _same(modal, float(f)) or program.feed_mode[i] == 930
+                or (k == 0 and has_f)):
+            words["F"] = f
         if k == 0:
             drop = set(_AXIS_LETTERS + _ARC_LETTERS + "R") - set(words)
             out.append(writer.replace(words, drop=drop) + ending)
         else:
-            ranked = sorted(words, key=lambda L: order.index(L) if L in order else len(order) + "XYZIJKRF".index(L))
+            def rank(L: str) -> tuple[int, int, int]:
+                if L in order:
+                    return order.index(L), 0, 0
+                slot = _slot(L, order)
+                return (len(order), 1, _WORD_ORDER.index(L)) if slot is None else (*slot, _WORD_ORDER.index(L))
+
+            ranked = sorted(words, key=rank)
             texts = [(L.lower() if writer.lower else L) + words[L] for L in ranked]
             if g_word is not None:
                 at = order.index("G") if "G" in order else 0

@@ -42,7 +42,7 @@ class Engagement:
     descending (N,) the step moves down (its area comes from the removed cells, not the ring);
     move, line (N,) the toolpath move and source line of each sample; depth_mm (N,) the depth of
     material the step meets below its old top, not clipped to the flute length (ap_mm is).
-    end_engaged (N, J): the tool's end on a descending step, per radial bin j of J equal bins over
+    end_engaged (N, J) float32: the tool's end on a descending step, per radial bin j of J equal bins over
     [0, R]: the share of the circle at that radius where the end edges cut a full axial feed (0 where
     the step does not descend). descent (N,): −dz/ds of the step (0 level or rising, 1 a plunge), so the
     end's axial feed per tooth is f_z·descent. look_ahead_mm (N,): how far ahead along the path each
@@ -240,8 +240,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
     out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
                rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
-               area=np.zeros(n), feed=np.zeros((n, 2)), desc=np.zeros(n, bool), depth=np.zeros(n),
-               end=np.zeros((n, END_BINS)), near=np.zeros(n, bool), swept=np.zeros(n, bool))
+               area=np.zeros(n), feed=np.zeros((n, 3)), desc=np.zeros(n, bool), depth=np.zeros(n),
+               end=np.zeros((n, END_BINS), np.float32), near=np.zeros(n, bool), swept=np.zeros(n, bool))
     top = stock.top.reshape(-1)
     # the clearance's snapshot of the stock as loaded: its tops' range per block of ~0.5 mm (at least
     # 4 × 4 columns: an eighth of the grid's size at most)
@@ -276,7 +276,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
             with reporting(report), compiling(_k.run):
                 bad = _k.run(xyz[a:b], fresh[a:b], rapid[a:b], c0 - a, c1 - a, prev_f, top, stock.nx, stock.ny,
                              stock.x0, stock.y0, stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits,
-                             stock.multi_ids, stock.multi_ptr, stock.lo, stock.hi, shape, R, rc, r_tip, tan_half,
+                             stock.multi_rank, stock.gap_ptr, stock.gap_lo, stock.gap_hi, shape, R, rc, r_tip, tan_half,
                              t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, clear, zmax, omax, omin, B,
                              swept, *sweep_grid, *(v[a:b] for v in out.values()))
             if bad != _k.OK:
@@ -287,7 +287,6 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     for a, b, t in runs:
         for c0 in range(a, b, KAPPA_ROWS):  # in chunks: the profile's temporaries stay small
             kappa[c0:min(b, c0 + KAPPA_ROWS)] = _kappa(t, out["zmid"][c0:min(b, c0 + KAPPA_ROWS)])
-    feed3 = np.column_stack([out["feed"], np.zeros(n)])
     dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
     with np.errstate(divide="ignore", invalid="ignore"):
         descent = np.where(out["desc"] & (steps > 0), -dz_step / np.where(steps > 0, steps, 1.0), 0.0)
@@ -299,7 +298,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     unknown_next = np.append(out["near"][1:] & ~out["swept"][1:], False)
     return Engagement(
         phi_st=out["phi_st"], phi_ex=out["phi_ex"], dz_mm=out["dz"], z_mm=out["zmid"], r_mm=out["rad"],
-        kappa=kappa, feed_dir=feed3, ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
+        kappa=kappa, feed_dir=out["feed"], ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
         volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
         step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
         depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead,

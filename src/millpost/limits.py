@@ -9,8 +9,9 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
   accelerations, corners, jerk), so the baseline program's single F need not;
-- `baseline`: the baseline's single F obeys it (false for the air clearance, whose cap is the
-  program's own feed: the baseline keeps the programmed feed of its approach moves instead);
+- `baseline`: the baseline's single F obeys it (false for the caps set from the program's own
+  feeds, the plunge feed cap and the air clearance: the baseline's moves obey those as a CAM user's
+  separate plunge and lead-in feeds would, `millpost.replay.baseline_feeds`);
 - `f_word`: the emitted F words obey its speed cap (false for accelerations, jerk and corner caps,
   which the controller ramps to on its own);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
@@ -55,8 +56,7 @@ hole), its programmed feed or the lowest cap of its cut if higher (hard, "air_cl
 the plunge feed cap, lowered further only by the other hard limits). The stock model is a guess (the
 blank may be larger, the sheet thicker or bowed) and CAM posts approaches at the entry feed because
 the tool is about to cut: within c of the modelled stock the tool would otherwise meet unmodelled
-material at up to the machine's maximum feed. The baseline keeps the programmed feed of the approach
-moves (`JobLimits.approach`).
+material at up to the machine's maximum feed.
 
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
@@ -126,8 +126,7 @@ class JobLimits:
     power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3). held: {limit name: samples where the
     policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
     hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
-    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut);
-    approach: per toolpath move, its block cuts nothing but passes within the air clearance of the stock."""
+    sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut)."""
 
     limits: list[Limit]
     loads: dict
@@ -137,7 +136,6 @@ class JobLimits:
     deflection_mm: np.ndarray
     lower: str = HARD
     defaults: dict[str, str] = field(default_factory=dict)
-    approach: np.ndarray | None = None
 
     def __iter__(self):
         return iter(self.limits)
@@ -332,7 +330,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
     raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
     plunge_cap = np.minimum(plunge_cap, np.where(v_prog > 0, raise_max * v_prog, np.inf))
-    limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed"))
+    limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed",
+                        baseline=False))
     limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
     rho = np.array([a.rho_m_per_rad for a in ax])
     mass = tuple(a.moving_mass_kg + a.motor.rotor_inertia_kgm2 / r**2 for a, r in zip(ax, rho))
@@ -364,35 +363,29 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                                     tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
-    approach = None
     if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
         near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
-        cap, approach = _air_clearance(near, near & eng.swept_air, engaged, samples, toolpath.line, v_prog, v_cap)
+        cap = _air_clearance(near, near & eng.swept_air, engaged, samples, v_prog, v_cap)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
-    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults, approach)
+    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
 
 
-def _air_clearance(near: np.ndarray, known: np.ndarray, engaged: np.ndarray, samples: Samples,
-                   move_line: np.ndarray, v_prog: np.ndarray, v_cap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The air clearance's speed cap per sample (mm/s) and the approach moves (per toolpath move: its
-    block cuts nothing but passes near the stock). near: feed samples that cut nothing within the
+def _air_clearance(near: np.ndarray, known: np.ndarray, engaged: np.ndarray, samples: Samples, v_prog: np.ndarray,
+                   v_cap: np.ndarray) -> np.ndarray:
+    """The air clearance's speed cap per sample (mm/s). near: feed samples that cut nothing within the
     clearance; known: those of them in space the tool swept before (`Engagement.swept_air`: not capped);
     engaged: samples that cut; blocks are source lines (one move, or a canned cycle's moves at one
-    hole); move_line: each move's line; v_prog: the programmed speed; v_cap: the other limits' speed
-    caps. In a block that cuts nothing (an approach, a plunge or lead-in beside the stock, a link over
-    it) the cap is the programmed feed; in the air part of a block that cuts, the programmed feed or, if
-    higher, the lowest cap of its cut: the tool reaches material no faster than the cut it enters is
-    allowed. The point where one move hands over to the next takes the higher of their caps (the
-    programmed program passes it at the faster of the two feeds: a blending planner's blend); a known
-    sample hands over its capped value (it is released after), so that nothing beside it that the tool
-    has not swept is released with it."""
+    hole); v_prog: the programmed speed; v_cap: the other limits' speed caps. In a block that cuts
+    nothing (an approach, a plunge or lead-in beside the stock, a link over it) the cap is the
+    programmed feed; in the air part of a block that cuts, the programmed feed or, if higher, the lowest
+    cap of its cut: the tool reaches material no faster than the cut it enters is allowed. The point
+    where one move hands over to the next takes the higher of their caps (the programmed program passes
+    it at the faster of the two feeds: a blending planner's blend); a known sample hands over its capped
+    value (it is released after), so that nothing beside it that the tool has not swept is released
+    with it."""
     line = samples.line
-    size = int(max(line.max(initial=0), move_line.max(initial=0))) + 1
-    v_cut = np.full(size, np.inf)
+    v_cut = np.full(int(line.max(initial=0)) + 1, np.inf)
     np.minimum.at(v_cut, line[engaged], v_cap[engaged])
-    approach = np.zeros(size, bool)
-    np.logical_or.at(approach, line, near & ~known)
-    approach &= np.isinf(v_cut)
     entry = np.where(np.isinf(v_cut), 0.0, v_cut)[line]
     cap = np.where(near, np.maximum(v_prog, entry), np.inf)
     handover = np.flatnonzero((samples.move[1:] != samples.move[:-1]) & ~np.asarray(samples.segment_start[1:], bool))
@@ -400,7 +393,7 @@ def _air_clearance(near: np.ndarray, known: np.ndarray, engaged: np.ndarray, sam
     for k in (handover - 1, handover, handover + 1):  # within a step of it
         cap[k[k >= 0]] = np.maximum(cap[k[k >= 0]], both[k >= 0])
     cap[known] = np.inf
-    return cap, approach[move_line]
+    return cap
 
 
 def static_caps(samples: Samples, limits, kind: str | None = None, baseline: bool = False) -> np.ndarray:

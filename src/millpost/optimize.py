@@ -21,13 +21,13 @@ from . import controller, safety
 from ._kernels import set_threads
 from .emit import FeedPlan, emitted_positions, whole_moves, write_feeds
 from .gcode import read_program, read_text
-from .gcode.interpret import BORING_CYCLES, TAPPING_CYCLES, Program
+from .gcode.interpret import Program
 from .job import Job
 from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
 from .replay import baseline_feeds, binding_shares, feed_at_samples, replay
 from .schedule import PathGrid, ScheduleOptions, schedule_samples
-from .schedule.feeds import blend_limit, cluster, emission_limit, piecewise_feeds
+from .schedule.feeds import blend_limit, emission_limit, piecewise_feeds
 from .signals import controller_model, running_rpm
 from .spindle_speed import choose_speeds
 from .toolpath import RAPID, Samples
@@ -41,62 +41,6 @@ class Result:
     summary: dict
     samples: Samples
     trace: dict = field(default_factory=dict)
-
-
-SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
-
-
-def _plan_from_fragments(program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray) -> FeedPlan:
-    """The emitter's plan from the fragments. With control flow a line that runs several times gets
-    one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
-    ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
-    (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
-    (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
-    keeps the program's F (each run at its programmed feed). hard_cap_mm_min: per move, the lowest speed
-    cap of the hard limits over its samples (a run is forced slower where it is under the programmed feed)."""
-    plan = FeedPlan.programmed(program)
-    by_move: dict[int, list] = {}
-    for f in fragments:
-        by_move.setdefault(f.move, []).append(f)
-    programmed_mm_min = program.toolpath.feed_mm_min
-
-    def snapped(mv: int, f: float) -> float:
-        """A bound held at the programmed feed is met to the solver's tolerance: a feed within
-        SNAP_TO_PROGRAMMED under the programmed one, where no hard cap is under the programmed feed,
-        is the programmed feed (no F400 → F399.9 churn)."""
-        p = programmed_mm_min[mv]
-        return float(p) if p * (1 - SNAP_TO_PROGRAMMED) <= f < p <= hard_cap_mm_min[mv] else f
-
-    for mv, frs in by_move.items():
-        frs.sort(key=lambda f: f.u_start)
-        if len(frs) == 1:
-            plan.feed_mm_min[mv] = snapped(mv, frs[0].feed_mm_min)
-        else:
-            plan.fragments[mv] = [(f.u_end, snapped(mv, f.feed_mm_min)) for f in frs]
-            plan.feed_mm_min[mv] = min(f for _, f in plan.fragments[mv])
-    # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never
-    # changed; a boring cycle's feed sets the finish of the bore: it is never raised (a hard limit may lower it)
-    held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
-    programmed = program.toolpath.feed_mm_min[held]
-    plan.feed_mm_min[held] = np.where(np.isin(program.cycle[held], TAPPING_CYCLES), programmed,
-                                      np.fmin(plan.feed_mm_min[held], programmed))
-    for mv in held:
-        plan.fragments.pop(int(mv), None)
-    if program.control_flow:
-        tp = program.toolpath
-        fed = np.flatnonzero(np.isfinite(plan.feed_mm_min) & (tp.kind != RAPID))
-        lines, inverse = np.unique(tp.line[fed], return_inverse=True)
-        per_line, prog_max, forced = np.full(len(lines), np.inf), np.zeros(len(lines)), np.zeros(len(lines), bool)
-        np.minimum.at(per_line, inverse, plan.feed_mm_min[fed])
-        np.maximum.at(prog_max, inverse, tp.feed_mm_min[fed])
-        np.logical_or.at(forced, inverse, hard_cap_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
-        text = program.text.splitlines()
-        own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
-                          for n in lines], bool)
-        keep = own_f & ~forced & (cluster(per_line, step) < prog_max * (1 - 1e-9))
-        plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], cluster(per_line, step)[inverse])
-        plan.fragments = {}
-    return plan
 
 
 def optimize(job: Job, *, progress: Progress | bool | None = None, options: ScheduleOptions | None = None) -> Result:
@@ -182,7 +126,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
         hard_cap = np.full(len(tp), np.inf)
         np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD) * 60.0)
-        plan = _plan_from_fragments(program, fragments, float(job.limits["feed_step"]), hard_cap)
+        plan = FeedPlan.from_fragments(program, fragments, float(job.limits["feed_step"]), hard_cap)
         status, message = "solved", ""
     progress("emission", 2, 4)
     text = write_feeds(program, plan)

@@ -29,8 +29,10 @@ from .toolpath import RAPID, Samples, Toolpath
 
 def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tuple[np.ndarray, dict]:
     """The honest baseline: per tool one constant feed (mm/min), the highest that exceeds no
-    speed-only limit anywhere that tool cuts (what a careful CAM user would program); its approach
-    moves (`JobLimits.approach`) keep their programmed feed where that is lower."""
+    speed-only limit anywhere that tool cuts (what a careful CAM user would program), and, on the
+    moves a cap from the program's own feeds applies to (the limits the single F does not obey: the
+    plunge feed cap on ramps and plunges, the air clearance on approaches), at most that cap, as a CAM
+    user programs separate plunge, ramp and lead-in feeds."""
     tp = program.toolpath
     cap = static_caps(samples, limits, baseline=True) * 60.0
     feeds = tp.feed_mm_min.copy()
@@ -43,8 +45,11 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
         f = float(np.floor(cap[sel].min()))
         per_tool[int(number)] = f
         feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
-    if limits.approach is not None:
-        feeds[limits.approach] = np.minimum(feeds[limits.approach], tp.feed_mm_min[limits.approach])
+    own = [lim for lim in limits if not lim.baseline]
+    if own:
+        move_cap = np.full(len(tp), np.inf)
+        np.minimum.at(move_cap, samples.move, static_caps(samples, own) * 60.0)
+        feeds = np.where(tp.kind != RAPID, np.minimum(feeds, move_cap), feeds)
     return feeds, per_tool
 
 

@@ -33,6 +33,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .columns import gap_overlap, is_multi, multi_index
+
 FLAT, CORNER, CHAMFER = 0, 1, 2
 OK = -1
 BAND, WEDGE, CAP = 0, 1, 2  # parts of a level sweep (see _region); CAP is also any disk
@@ -78,47 +80,40 @@ def _profile_integral(za, zb, shape, R, rc, r_tip, tan_half):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _is_multi(c, has_multi, bits):
-    return has_multi and (bits[c >> 3] >> (c & 7)) & 1
+    return has_multi and is_multi(c, bits)
 
 
 @njit(cache=True, error_model="numpy")
-def _cut_multi(c, zc, top, zf, ids, ptr, lo, hi):
-    """Cut multi column c down to zc (shortening or emptying intervals); returns the removed length."""
-    m = np.searchsorted(ids, c)
-    rem = 0.0
-    newtop = zf
-    found = False
+def _cut_multi(c, zc, top, zf, bits, rank, ptr, lo, hi):
+    """Cut multi column c (top above zc) down to zc: its top drops to zc, or to the bottom of the gap
+    zc falls in (the gaps themselves do not change); returns the removed length."""
+    t = top[c]
+    nt = np.float32(max(zc, zf))
+    m = multi_index(c, bits, rank)
+    rem = (t - nt) - gap_overlap(m, nt, t, ptr, lo, hi)
     for k in range(ptr[m], ptr[m + 1]):
-        if zc < hi[k]:
-            nh = max(zc, lo[k])
-            rem += hi[k] - nh
-            hi[k] = nh
-        if not found and hi[k] > lo[k]:
-            newtop = hi[k]
-            found = True
-    top[c] = newtop
+        if lo[k] < nt <= hi[k]:
+            nt = lo[k]
+            break
+    top[c] = nt
     return rem
 
 
 @njit(cache=True, error_model="numpy")
-def _above(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi):
+def _above(c, zc, top, zf, has_multi, bits, rank, ptr, lo, hi):
     """Length of material above zc in column c (mm), without cutting (a column cut down to the
     floor zf holds none)."""
     t = top[c]
     if zc >= t or t <= zf:
         return 0.0
+    za = max(zc, zf)
     if _is_multi(c, has_multi, bits):
-        m = np.searchsorted(ids, c)
-        s = 0.0
-        for k in range(ptr[m], ptr[m + 1]):
-            if zc < hi[k]:
-                s += hi[k] - max(zc, lo[k])
-        return s
-    return t - max(zc, zf)
+        return t - za - gap_overlap(multi_index(c, bits, rank), za, t, ptr, lo, hi)
+    return t - za
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _column(c, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol):
+def _column(c, zc, pz, cut, top, zf, has_multi, bits, rank, ptr, lo, hi, tol):
     """One column under the tool surface at zc (tool tip at pz): cut it down (cut) and return
     (height removed, axial depth reached, False), or only test it and return (0, 0, whether
     material stands above zc by more than tol: a crash for a rapid)."""
@@ -126,9 +121,9 @@ def _column(c, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol):
     if zc >= t:
         return 0.0, 0.0, False
     if not cut:
-        return 0.0, 0.0, _above(c, zc, top, zf, has_multi, bits, ids, ptr, lo, hi) > tol
+        return 0.0, 0.0, _above(c, zc, top, zf, has_multi, bits, rank, ptr, lo, hi) > tol
     if _is_multi(c, has_multi, bits):
-        r = _cut_multi(c, zc, top, zf, ids, ptr, lo, hi)
+        r = _cut_multi(c, zc, top, zf, bits, rank, ptr, lo, hi)
     else:
         top[c] = max(zc, zf)
         r = t - top[c]
@@ -183,17 +178,17 @@ def _cut_level(row, i0, i1, pz, top, zf):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _visit_row(row, i0, i1, kind, cx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, r_tip, tan_half, top, zf,
-               has_multi, bits, ids, ptr, lo, hi, tol, rem, ap):
+               has_multi, bits, rank, ptr, lo, hi, tol, rem, ap):
     """One row of columns under the tool: cut (or, for a rapid, check) them. Adds to the removed
     length sum `rem` and the deepest cut below the old top `ap`; returns (rem, ap, crash). The common
-    case — cutting a stock without undercuts — runs in its own loop: interval code in the same loop,
+    case — cutting a stock without undercuts — runs in its own loop: gap code in the same loop,
     even never run, makes it ~20× slower."""
     if cut and not has_multi:
         r, a = _cut_row(row, i0, i1, kind, cx, dy, fx, fy, pz, x0, h, shape, R, rc, r_tip, tan_half, top, zf)
         return rem + r, max(ap, a), False
     for i in range(i0, i1 + 1):
         zc = _tool_z(kind, x0 + (i + 0.5) * h - cx, dy, fx, fy, pz, shape, R, rc, r_tip, tan_half)
-        r, depth, crash = _column(row + i, zc, pz, cut, top, zf, has_multi, bits, ids, ptr, lo, hi, tol)
+        r, depth, crash = _column(row + i, zc, pz, cut, top, zf, has_multi, bits, rank, ptr, lo, hi, tol)
         if crash:
             return rem, ap, True
         rem += r
@@ -202,21 +197,20 @@ def _visit_row(row, i0, i1, kind, cx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, 
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _material(c, za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi):
+def _material(c, za, zb, top, zf, has_multi, bits, rank, ptr, lo, hi):
     """Material length of column c inside [za, zb] (mm); c < 0 is outside the grid (air)."""
     if c < 0:
         return 0.0
     if _is_multi(c, has_multi, bits):
-        m = np.searchsorted(ids, c)
-        s = 0.0
-        for k in range(ptr[m], ptr[m + 1]):
-            s += max(min(hi[k], zb) - max(lo[k], za), 0.0)
-        return s
+        za, zb = max(zf, za), min(np.float64(top[c]), zb)
+        if zb <= za:
+            return 0.0
+        return zb - za - gap_overlap(multi_index(c, bits, rank), za, zb, ptr, lo, hi)
     return max(min(top[c], zb) - max(zf, za), 0.0)
 
 
 @njit(cache=True, error_model="numpy")
-def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids,
+def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, rank,
               ptr, lo, hi, out):
     """The tool's end on a descending step (tip now at pz, `drop` mm lower than before): per radial bin
     j of [0, R] (J = len(out) equal bins), the mean over the bin's columns of the material fraction in
@@ -225,6 +219,7 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
     the own bottom, 0 over a hole, partial while the tip enters a surface). Read only (before cutting)."""
     J = out.shape[0]
     cnt = np.zeros(J)
+    acc = np.zeros(J)  # in float64 whatever out's precision
     j0 = int(math.ceil((py - R - y0) / h - 0.5))
     j1 = int(math.floor((py + R - y0) / h - 0.5))
     for j in range(j0, j1 + 1):
@@ -242,10 +237,10 @@ def _end_band(px, py, pz, drop, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, 
             cnt[b] += 1.0
             if 0 <= i < nx and 0 <= j < ny:  # columns off the grid are air
                 zs = pz + surface_height(d, shape, R, rc, r_tip, tan_half)
-                m = _material(j * nx + i, zs, zs + drop, top, zf, has_multi, bits, ids, ptr, lo, hi)
-                out[b] += min(m / drop, 1.0)
+                m = _material(j * nx + i, zs, zs + drop, top, zf, has_multi, bits, rank, ptr, lo, hi)
+                acc[b] += min(m / drop, 1.0)
     for b in range(J):
-        out[b] = out[b] / cnt[b] if cnt[b] > 0 else 0.0
+        out[b] = acc[b] / cnt[b] if cnt[b] > 0 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -383,7 +378,7 @@ def _in_swept(px, py, pz, qx, qy, qz, R, shape, rc, r_tip, tan_half, swept, snx,
 
 @njit(cache=True, error_model="numpy")
 def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
-               has_multi, bits, ids, ptr, lo, hi, tol, spans, rows, spans_at_q):
+               has_multi, bits, rank, ptr, lo, hi, tol, spans, rows, spans_at_q):
     """Update (cut=True) or check (cut=False) the columns under the tool at tip (px, py, pz).
 
     mode 0: full disk; 1: crescent outside the disk at (qx, qy); 2: half-plane nearer to p than q.
@@ -447,7 +442,7 @@ def _footprint(px, py, pz, qx, qy, mode, cut, R, shape, rc, r_tip, tan_half, top
         for seg in range(2):
             lo_i, hi_i = (a0, b0) if seg == 0 else (a1, b1)
             rem, ap, crash = _visit_row(j * nx, lo_i, hi_i, CAP, px, dy, 0.0, 0.0, pz, cut, x0, h, shape, R, rc,
-                                        r_tip, tan_half, top, zf, has_multi, bits, ids, ptr, lo, hi, tol, rem, ap)
+                                        r_tip, tan_half, top, zf, has_multi, bits, rank, ptr, lo, hi, tol, rem, ap)
             if crash:
                 return rem, ap, True
     return rem, ap, False
@@ -511,40 +506,40 @@ def _plain_material(cells, wts, i, za, zb, bilinear, top, zf):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi):
+def _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, rank, ptr, lo, hi):
     if not has_multi:
         return _plain_material(cells, wts, i, za, zb, bilinear, top, zf)
     if not bilinear:
-        return _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
+        return _material(cells[i, 0], za, zb, top, zf, has_multi, bits, rank, ptr, lo, hi)
     wx, wy = wts[i, 0], wts[i, 1]
-    m00 = _material(cells[i, 0], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
-    m10 = _material(cells[i, 1], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
-    m01 = _material(cells[i, 2], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
-    m11 = _material(cells[i, 3], za, zb, top, zf, has_multi, bits, ids, ptr, lo, hi)
+    m00 = _material(cells[i, 0], za, zb, top, zf, has_multi, bits, rank, ptr, lo, hi)
+    m10 = _material(cells[i, 1], za, zb, top, zf, has_multi, bits, rank, ptr, lo, hi)
+    m01 = _material(cells[i, 2], za, zb, top, zf, has_multi, bits, rank, ptr, lo, hi)
+    m11 = _material(cells[i, 3], za, zb, top, zf, has_multi, bits, rank, ptr, lo, hi)
     return (1 - wy) * ((1 - wx) * m00 + wx * m10) + wy * ((1 - wx) * m01 + wx * m11)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _ring_values(cells, wts, M, za, zb, bilinear, grid, mat):
     """mat[i] = material length in [za, zb] under ring point i, i = 0..M. Stock without undercuts
-    has a loop of its own: interval code in the loop, even never run, makes it several times slower."""
-    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
+    has a loop of its own: gap code in the loop, even never run, makes it several times slower."""
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
     if not has_multi:
         for i in range(M + 1):
             mat[i] = _plain_material(cells, wts, i, za, zb, bilinear, top, zf)
     else:
         for i in range(M + 1):
-            mat[i] = _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi)
+            mat[i] = _ring_material(cells, wts, i, za, zb, bilinear, top, zf, has_multi, bits, rank, ptr, lo, hi)
 
 
 @njit(cache=True, error_model="numpy")
 def _bisect(a, b, a_on, cx, cy, fx, fy, r, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw,
-            top, zf, has_multi, bits, ids, ptr, lo, hi):
+            top, zf, has_multi, bits, rank, ptr, lo, hi):
     """Transition angle between a (engaged == a_on) and b (the opposite state)."""
     for _ in range(BISECT):
         mid = 0.5 * (a + b)
         _point_cells(cx, cy, fx, fy, r, mid, x0, y0, h, nx, ny, bilinear, pc, pw, 0)
-        on = _ring_material(pc, pw, 0, za, zb, bilinear, top, zf, has_multi, bits, ids, ptr, lo, hi) > half
+        on = _ring_material(pc, pw, 0, za, zb, bilinear, top, zf, has_multi, bits, rank, ptr, lo, hi) > half
         if on == a_on:
             a = mid
         else:
@@ -591,7 +586,7 @@ def _clip(lo, hi, a, b):
 
 @njit(cache=True, error_model="numpy")
 def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf,
-            has_multi, bits, ids, ptr, lo, hi, tol):
+            has_multi, bits, rank, ptr, lo, hi, tol):
     """Cut (or check) the part of a level tool sweep at height pz (tip) that one step adds.
 
     BAND: the straight sweep from q along unit f for Ls mm, columns whose foot on the segment lies
@@ -636,7 +631,7 @@ def _region(kind, qx, qy, pz, ex, ey, fx, fy, Ls, cut, R, shape, rc, r_tip, tan_
         i0 = max(0, int(math.ceil((xl - x0) / h - 0.5)))
         i1 = min(nx - 1, int(math.floor((xh - x0) / h - 0.5)))
         rem, ap, crash = _visit_row(j * nx, i0, i1, kind, qx, dy, fx, fy, pz, cut, x0, h, shape, R, rc, r_tip,
-                                    tan_half, top, zf, has_multi, bits, ids, ptr, lo, hi, tol, rem, ap)
+                                    tan_half, top, zf, has_multi, bits, rank, ptr, lo, hi, tol, rem, ap)
         if crash:
             return rem, ap, True
     return rem, ap, False
@@ -658,7 +653,7 @@ def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, 
     bisection, engaged measure, and its swept cross-section ∫ sin φ g(φ) dφ, g = r·(material in the
     slice) on a vertical flank, else the slice's ∫ r dz where engaged (the column at the mid radius
     does not measure material at the other heights of a sloped edge). Returns (area, ae)."""
-    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
     zb = za + dzs
     half = 0.5 * dzs
     dphi = math.pi / M
@@ -697,7 +692,7 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
     column tops H(φ): slice s is engaged where H > its mid-height, so the engaged sets are nested
     and one pass finds every slice's coarse ends. Returns (area, ae).
     Work arrays: tree, known (2, 2**BISECT) float and bool (see below)."""
-    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
     dphi = math.pi / M
     zbase = pz + s0 * dzs
     nk = K - s0
@@ -766,12 +761,12 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
 @njit(cache=True, error_model="numpy")
 def _ends(i_s, i_e, M, cx, cy, fx, fy, r, za, zb, half, pc, pw, bilinear, grid):
     """Outer ends of the engaged arc from the first/last engaged coarse samples, by bisection."""
-    top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi = grid
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
     dphi = math.pi / M
     st = 0.0 if i_s == 0 else _bisect((i_s - 1) * dphi, i_s * dphi, False, cx, cy, fx, fy, r, za, zb, half, x0,
-                                      y0, h, nx, ny, bilinear, pc, pw, top, zf, has_multi, bits, ids, ptr, lo, hi)
+                                      y0, h, nx, ny, bilinear, pc, pw, top, zf, has_multi, bits, rank, ptr, lo, hi)
     ex = math.pi if i_e == M else _bisect(i_e * dphi, (i_e + 1) * dphi, True, cx, cy, fx, fy, r, za, zb, half,
-                                          x0, y0, h, nx, ny, bilinear, pc, pw, top, zf, has_multi, bits, ids,
+                                          x0, y0, h, nx, ny, bilinear, pc, pw, top, zf, has_multi, bits, rank,
                                           ptr, lo, hi)
     return st, ex
 
@@ -795,7 +790,7 @@ def _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t):
 
 
 @njit(cache=True, error_model="numpy")
-def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
+def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol, clear, zmax, omax, omin, B,
         swept, snx, sny, sx0, sy0, W,
         phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o, near_o,
@@ -805,6 +800,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
     of a rapid that hits material. prev_f: (2,) feed direction carried across calls (in place).
     depth_o[k]: the depth of material the step meets, before ap is clipped to the flute length.
+    feed_o[k, :2]: the ring's feed direction (the rest of the row is left as it is).
     end_o[k]: the end's radial engagement of a descending feed step (`_end_band`). near_o[k]: a feed
     step that cuts nothing lies within `clear` mm of the original stock (`_near_original` with its
     tops' block maxima omax and minima omin of B × B columns; zmax: the highest original top); not
@@ -850,12 +846,12 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         desc_o[k] = descending
         if descending and not rapid[k]:
             _end_band(px, py, pz, -ddz, R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits,
-                      ids, ptr, lo, hi, end_o[k])
+                      rank, ptr, lo, hi, end_o[k])
         n = xyz.shape[0]
         if _level_step(k, n, xyz, fresh, shape):
             # the level sweep of this step: its band, the wedge at its start (when the previous
             # step was a band of the same kind), and its front cap when no such band follows
-            args = (R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi,
+            args = (R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi,
                     crash_tol)
             rem, ap, crash = _region(BAND, qx, qy, pz, 0.0, 0.0, fx, fy, dxy, not rapid[k], *args)
             if not crash and _level_step(k - 1, n, xyz, fresh, shape) and rapid[k - 1] == rapid[k]:
@@ -870,7 +866,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
                 ap = max(ap, a2)
         else:
             rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
-                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi, crash_tol,
+                                        top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi, crash_tol,
                                         spans, rows, spans_k == k - 1)
             spans_k = k
         if crash:
@@ -902,7 +898,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         for s in range(K):
             zmid[k, s] = (s + 0.5) * dzs
             rad[k, s] = profile_radius((s + 0.5) * dzs, shape, R, rc, r_tip, tan_half)
-        grid = (top, nx, ny, x0, y0, h, zf, has_multi, bits, ids, ptr, lo, hi)
+        grid = (top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi)
         for s in range(s0 if not has_multi else K):
             r = rad[k, s]
             _ring_cells(cx, cy, gx, gy, r, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)

@@ -15,9 +15,11 @@ import math
 import numpy as np
 from numba import njit
 
+from .columns import is_multi, multi_index, ranks
+
 SUB = 4096  # fixed-point subdivisions per cell
 MULTI = np.uint8(128)  # flag bit in the per-column crossing count
-BUFFER_ROWS = 64  # rows of a triangle's cells buffered at a time (memory: 16 B per cell)
+BUFFER_ROWS = 16  # grid rows buffered at a time (16 B a cell, 12 B a multi column, 5 B a crossing)
 
 
 @njit(cache=True, inline="always")
@@ -138,16 +140,16 @@ def first_pass(tris, x0, y0, h, nx, ny, z_floor, tol, top, count):
 
 
 @njit(cache=True)
-def multi_intervals(tris, x0, y0, h, nx, ny, multi_ids, ptr, lo, hi):
-    """Material intervals of the multi columns, BUFFER_ROWS rows of the grid at a time (only one band's
-    crossings are held: 5 B each). On entry ptr[m + 1] is column m's crossing count (capped as in
-    `first_pass`); on return ptr holds the CSR pointers of its intervals in lo/hi (top-down per
-    column), and the number of intervals is returned."""
+def multi_gaps(tris, x0, y0, h, nx, ny, z_floor, bits, rank, ptr, lo, hi, top):
+    """Gaps and tops of the multi columns, BUFFER_ROWS rows of the grid at a time (only one band's
+    crossings are held: 5 B each). On entry ptr[m + 1] is multi column m's crossing count (capped as
+    in `first_pass`); on return ptr holds the CSR pointers of its gaps in lo/hi (top-down per column),
+    top (flat) its top, and the number of gaps is returned."""
     nt = tris.shape[0]
+    nm = ptr.shape[0] - 1
     band = min(BUFFER_ROWS, ny)
     cells = np.empty(band * nx, np.int64)
     zs = np.empty(band * nx, np.float64)
-    slot = np.full(band * nx, -1, np.int64)  # band cell -> its multi column's place in the band
     # rows each triangle can touch (a cell centre row beyond its y extent cannot be inside it)
     t_lo = np.empty(nt, np.int64)
     t_hi = np.empty(nt, np.int64)
@@ -158,19 +160,15 @@ def multi_intervals(tris, x0, y0, h, nx, ny, multi_ids, ptr, lo, hi):
         t_hi[t] = int(math.ceil((yb - y0) / h - 0.5))
     w = 0
     m0 = 0
-    nm = multi_ids.shape[0]
     for ja in range(0, ny, band):
         jb = min(ny, ja + band)
-        m1 = m0
-        while m1 < nm and multi_ids[m1] < jb * nx:
-            m1 += 1
+        m1 = nm if jb == ny else multi_index(jb * nx, bits, rank)
         if m1 == m0:
             continue
         lptr = np.empty(m1 - m0 + 1, np.int64)
         lptr[0] = 0
         for m in range(m0, m1):
             lptr[m - m0 + 1] = lptr[m - m0] + ptr[m + 1]
-            slot[multi_ids[m] - ja * nx] = m - m0
         fill = lptr[:-1].copy()
         zc = np.empty(lptr[-1], np.float32)  # the stock's own precision
         up_c = np.empty(lptr[-1], np.int8)
@@ -179,26 +177,30 @@ def multi_intervals(tris, x0, y0, h, nx, ny, multi_ids, ptr, lo, hi):
                 continue
             n, up, _ = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, ja, jb)
             for k in range(n):
-                q = slot[cells[k] - ja * nx]
-                if q >= 0 and fill[q] < lptr[q + 1]:
-                    zc[fill[q]] = zs[k]
-                    up_c[fill[q]] = up
-                    fill[q] += 1
-        for m in range(m0, m1):
-            slot[multi_ids[m] - ja * nx] = -1
-            ptr[m] = w
-            w = _column_intervals(zc, up_c, lptr[m - m0], lptr[m - m0 + 1], lo, hi, w)
+                c = cells[k]
+                if is_multi(c, bits):
+                    q = multi_index(c, bits, rank) - m0
+                    if fill[q] < lptr[q + 1]:
+                        zc[fill[q]] = zs[k]
+                        up_c[fill[q]] = up
+                        fill[q] += 1
+        m = m0
+        for c in range(ja * nx, jb * nx):
+            if is_multi(c, bits):
+                ptr[m] = w
+                w, top[c] = _column_gaps(zc, up_c, lptr[m - m0], lptr[m - m0 + 1], lo, hi, w, z_floor)
+                m += 1
         m0 = m1
     ptr[nm] = w
     return w
 
 
 @njit(cache=True)
-def _column_intervals(zc, up_c, a, b, lo, hi, w):
-    """One column's crossings zc[a:b] (facing up_c) to intervals lo/hi[w:], top-down: sort by z (at
-    equal z entries, down-facing −1, first), walk up counting the inside depth, emit the non-empty
-    intervals. Sorts zc/up_c[a:b] in place (insertion sort: a column holds at most 127). Returns the
-    new w."""
+def _column_gaps(zc, up_c, a, b, lo, hi, w, z_floor):
+    """One column's crossings zc[a:b] (facing up_c) to its gaps lo/hi[w:] (top-down) and top: sort by
+    z (at equal z entries, down-facing −1, first), walk up counting the inside depth; the material
+    intervals it meets leave the gaps between them (and below the lowest, down to z_floor). Sorts
+    zc/up_c[a:b] in place (insertion sort: a column holds at most 127). Returns (new w, top)."""
     for p in range(a + 1, b):
         z, u = zc[p], up_c[p]
         q = p
@@ -210,6 +212,7 @@ def _column_intervals(zc, up_c, a, b, lo, hi, w):
         up_c[q] = u
     start = w
     depth = 0
+    below = np.float32(z_floor)  # top of the material below (the floor at first)
     z_in = np.float32(0.0)
     for k in range(a, b):
         if up_c[k] < 0:
@@ -219,40 +222,36 @@ def _column_intervals(zc, up_c, a, b, lo, hi, w):
         elif depth > 0:
             depth -= 1
             if depth == 0 and zc[k] > z_in:
-                lo[w] = z_in
-                hi[w] = zc[k]
-                w += 1
+                if z_in > below:
+                    lo[w] = below
+                    hi[w] = z_in
+                    w += 1
+                below = zc[k]
     i, j = start, w - 1
     while i < j:
         lo[i], lo[j] = lo[j], lo[i]
         hi[i], hi[j] = hi[j], hi[i]
         i += 1
         j -= 1
-    return w
+    return w, below
 
 
 @njit(cache=True)
-def multi_columns(count, bits):
-    """Flat ids of the columns that need intervals: crossing count other than 0 or 2, or MULTI set.
-    Sets their bits in `bits` (little-endian bitset, zeroed)."""
-    n = 0
+def multi_columns(count, bits, rank):
+    """Mark in `bits` (zeroed; see `millpost._kernels.columns`) the columns that need gaps: crossing
+    count other than 0 or 2, or MULTI set; fill `rank`. Returns ptr (int32, multi columns + 1) with
+    each multi column's crossing count at ptr[m + 1], and the sum of those counts."""
     for c in range(count.shape[0]):
         k = count[c]
         if (k & MULTI) != 0 or ((k & 127) != 2 and k != 0):
-            n += 1
-    ids = np.empty(n, np.int64)
-    n = 0
+            bits[c >> 6] |= np.int64(1) << (c & 63)
+    n = ranks(bits, rank)
+    ptr = np.zeros(n + 1, np.int32)
+    total = 0
+    m = 0
     for c in range(count.shape[0]):
-        k = count[c]
-        if (k & MULTI) != 0 or ((k & 127) != 2 and k != 0):
-            ids[n] = c
-            bits[c >> 3] |= np.uint8(1 << (c & 7))
-            n += 1
-    return ids
-
-
-@njit(cache=True)
-def tops_from_intervals(flat, multi_ids, out_ptr, hi, z_floor):
-    """Z-map of the multi columns: the top of their first (highest) interval, z_floor when empty."""
-    for m in range(multi_ids.shape[0]):
-        flat[multi_ids[m]] = hi[out_ptr[m]] if out_ptr[m + 1] > out_ptr[m] else z_floor
+        if is_multi(c, bits):
+            ptr[m + 1] = count[c] & 127
+            total += ptr[m + 1]
+            m += 1
+    return ptr, total

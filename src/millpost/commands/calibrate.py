@@ -188,6 +188,7 @@ def run_fit(args: argparse.Namespace) -> int:
         if not machine_updates:
             raise MillpostError("no machine constants were fitted: nothing to write to " + args.machine_out)
         write_machine(args.machine_out, args.machine or job_ref(args.plan, "machine"), machine_updates, provenance)
+        print(f"millpost: wrote {args.machine_out}", file=sys.stderr)
     return 0
 
 
@@ -200,6 +201,9 @@ def job_ref(target: str, key: str) -> str:
 
 
 def write_machine(path: str, base: str, updates: dict, provenance: str) -> None:
+    """The machine `base` with `updates` (section → fields; axes → axis → fields) written to `path` (atomically,
+    refused when optimize would not read it), its source naming `provenance`. Says nothing: the command that
+    writes the files says which."""
     data, _ = load_description("machines", base)
     for section, values in updates.items():
         if section == "axes":
@@ -212,7 +216,6 @@ def write_machine(path: str, base: str, updates: dict, provenance: str) -> None:
                                                          [f"{a}.{f}" for a, fs in v.items() for f in fs]))
     Machine.from_dict(data)
     write_atomic(path, dump_toml(data))
-    print(f"millpost: wrote {path}", file=sys.stderr)
 
 
 def _fit_stiffness(args, stamp: str) -> int:
@@ -234,6 +237,7 @@ def _fit_stiffness(args, stamp: str) -> int:
             raise MillpostError("--machine-out needs --machine (the base machine)")
         write_machine(args.machine_out, args.machine, {"axes": {args.axis: {"stiffness_N_per_mm": st.k_N_per_mm}}},
                        f"fitted by millpost calibrate fit from {args.stiffness} on {stamp}")
+        print(f"millpost: wrote {args.machine_out}", file=sys.stderr)
     return 0
 
 

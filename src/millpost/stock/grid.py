@@ -1,10 +1,12 @@
-"""The stock as a height field with sparse extra intervals (a Z-map with a dexel overflow).
+"""The stock as a height field with sparse gaps (a Z-map with a dexel overflow).
 
 Cells are square, `cell_mm` wide, cell (i, j) has its centre at (x0 + (i + ½)h, y0 + (j + ½)h).
 Most columns hold one interval of material [z_floor, top]; columns with undercuts (a horizontal
-hole, an overhang, a bottom above z_floor) are "multi" columns whose intervals live in a CSR list
-(sorted top-down) and whose `top` mirrors the top of the highest non-empty interval. A vertical
-3-axis cutter only shortens or empties intervals, so nothing is allocated while cutting.
+hole, an overhang, a bottom above z_floor) are "multi" columns whose material is [z_floor, top] less
+the gaps listed for them in a CSR list (sorted top-down). A vertical 3-axis cutter only lowers tops
+(into the bottom of a gap when the cut ends inside one): the gaps never change and nothing is
+allocated while cutting. Memory: 4 B a column for the top, 3/16 B for the index of the multi
+columns, 12 B per gap (one per hole a column crosses).
 """
 
 from __future__ import annotations
@@ -15,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._kernels.columns import gaps_length
 from ..errors import MillpostError
 from ..files import atomic_path
 
 DEFAULT_CELL_MM = 0.025
-BYTES_PER_CELL = 4 + 1  # float32 top + the builder's uint8 crossing count (the bitset is 1/8 more)
+BYTES_PER_CELL = 4 + 1 + 3 / 16  # float32 top + the builder's uint8 crossing count + the multi index
 
 
 @dataclass
@@ -27,9 +30,12 @@ class Stock:
     """Material as columns over a regular XY grid (mm).
 
     top: (ny, nx) float32 top of material per column (z_floor for an empty column).
-    multi_ids: sorted flat ids (j·nx + i) of columns with other than one [z_floor, top] interval;
-    multi_ptr: CSR pointers into lo/hi (float32 interval bottoms/tops, top-down per column).
-    multi_bits: little-endian bitset of multi columns (one byte when there are none).
+    multi_bits: int64 words, bit c & 63 of word c >> 6 set for the multi columns (flat id c = j·nx + i),
+    the columns with other than one [z_floor, top] interval (one word when there are none).
+    multi_rank: int32 per word, the multi columns in the words before it; column c is multi column
+    m = multi_rank[c >> 6] + (set bits of its word below c).
+    gap_ptr: int32 CSR pointers (multi columns + 1) into gap_lo/gap_hi (float32 bottoms/tops of the
+    empty z ranges of each multi column, top-down; those above its top no longer matter).
     """
 
     x0: float
@@ -37,11 +43,11 @@ class Stock:
     cell_mm: float
     z_floor: float
     top: np.ndarray
-    multi_ids: np.ndarray
-    multi_ptr: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
     multi_bits: np.ndarray
+    multi_rank: np.ndarray
+    gap_ptr: np.ndarray
+    gap_lo: np.ndarray
+    gap_hi: np.ndarray
 
     @property
     def ny(self) -> int:
@@ -53,7 +59,7 @@ class Stock:
 
     @property
     def n_multi(self) -> int:
-        return len(self.multi_ids)
+        return len(self.gap_ptr) - 1
 
     @property
     def z_max(self) -> float:
@@ -68,22 +74,26 @@ class Stock:
     def volume_mm3(self) -> float:
         """Material volume: column lengths times the cell area (mm³)."""
         h2 = self.cell_mm ** 2
-        single = float(np.sum(self.top, dtype=np.float64)) - self.top.size * self.z_floor
+        length = float(np.sum(self.top, dtype=np.float64)) - self.top.size * self.z_floor
         if self.n_multi:
-            flat = self.top.reshape(-1)
-            single -= float(np.sum(flat[self.multi_ids], dtype=np.float64)) - self.n_multi * self.z_floor
-            single += float(np.sum(self.hi, dtype=np.float64) - np.sum(self.lo, dtype=np.float64))  # no temporaries
-        return single * h2
+            length -= gaps_length(self.top.reshape(-1), self.z_floor, self.multi_bits, self.multi_rank, self.gap_ptr,
+                                  self.gap_lo, self.gap_hi)
+        return length * h2
 
     def intervals(self, i: int, j: int) -> list[tuple[float, float]]:
         """Material intervals (bottom, top) of column (i, j), top-down; empty ones left out."""
         c = j * self.nx + i
-        k = int(np.searchsorted(self.multi_ids, c))
-        if k < self.n_multi and self.multi_ids[k] == c:
-            a, b = self.multi_ptr[k], self.multi_ptr[k + 1]
-            return [(float(lo), float(hi)) for lo, hi in zip(self.lo[a:b], self.hi[a:b]) if hi > lo]
-        t = float(self.top[j, i])
-        return [(self.z_floor, t)] if t > self.z_floor else []
+        out, t = [], float(self.top[j, i])
+        if self.n_multi and (int(self.multi_bits[c >> 6]) >> (c & 63)) & 1:
+            word = int(self.multi_bits[c >> 6]) & ((1 << (c & 63)) - 1)
+            m = int(self.multi_rank[c >> 6]) + bin(word).count("1")
+            for lo, hi in zip(self.gap_lo[self.gap_ptr[m]:self.gap_ptr[m + 1]],
+                              self.gap_hi[self.gap_ptr[m]:self.gap_ptr[m + 1]]):
+                if lo < t:
+                    out.append((float(hi), t))
+                    t = float(lo)
+        out.append((self.z_floor, t))
+        return [(lo, hi) for lo, hi in out if hi > lo]
 
     def cell_centres(self) -> tuple[np.ndarray, np.ndarray]:
         """x of the column centres (nx,) and y of the row centres (ny,), mm."""
@@ -91,8 +101,8 @@ class Stock:
         return self.x0 + (np.arange(self.nx) + 0.5) * h, self.y0 + (np.arange(self.ny) + 0.5) * h
 
     def copy(self) -> "Stock":
-        return Stock(self.x0, self.y0, self.cell_mm, self.z_floor, self.top.copy(), self.multi_ids.copy(),
-                     self.multi_ptr.copy(), self.lo.copy(), self.hi.copy(), self.multi_bits.copy())
+        return Stock(self.x0, self.y0, self.cell_mm, self.z_floor, self.top.copy(), self.multi_bits.copy(),
+                     self.multi_rank.copy(), self.gap_ptr.copy(), self.gap_lo.copy(), self.gap_hi.copy())
 
     def export_stl(self, path: str | os.PathLike, max_cells: int = 1_000_000) -> None:
         """Write the height field as a closed binary STL (mm): top surface through the column tops,
@@ -160,8 +170,8 @@ def choose_cell(xy_min, xy_max, cell_mm: float | None = None, max_memory_mb: flo
 
         max_memory_mb = 0.8 * psutil.virtual_memory().available / 2**20
     area = float(np.prod(np.asarray(xy_max, float) - np.asarray(xy_min, float)))
-    need = lambda h: area / h**2 * (BYTES_PER_CELL + 0.125) / 2**20  # noqa: E731
-    fit = math.sqrt(area * (BYTES_PER_CELL + 0.125) / 2**20 / max_memory_mb)
+    need = lambda h: area / h**2 * BYTES_PER_CELL / 2**20  # noqa: E731
+    fit = math.sqrt(area * BYTES_PER_CELL / 2**20 / max_memory_mb)
     if cell_mm is None:
         return max(DEFAULT_CELL_MM, math.ceil(fit * 1e4) / 1e4)
     if not (math.isfinite(cell_mm) and cell_mm > 0):
@@ -173,10 +183,17 @@ def choose_cell(xy_min, xy_max, cell_mm: float | None = None, max_memory_mb: flo
     return cell_mm
 
 
+def multi_index_arrays(n_columns: int) -> tuple[np.ndarray, np.ndarray]:
+    """Zeroed multi_bits and multi_rank for a grid of n_columns (at least one word)."""
+    words = max(1, -(-n_columns // 64))
+    return np.zeros(words, np.int64), np.zeros(words, np.int32)
+
+
 def empty_multi() -> dict:
-    """The sparse-interval fields of a stock without undercuts."""
-    return dict(multi_ids=np.zeros(0, np.int64), multi_ptr=np.zeros(1, np.int64), lo=np.zeros(0, np.float32),
-                hi=np.zeros(0, np.float32), multi_bits=np.zeros(1, np.uint8))
+    """The gap fields of a stock without undercuts."""
+    bits, rank = multi_index_arrays(0)
+    return dict(multi_bits=bits, multi_rank=rank, gap_ptr=np.zeros(1, np.int32), gap_lo=np.zeros(0, np.float32),
+                gap_hi=np.zeros(0, np.float32))
 
 
 def box(lo, hi, cell_mm: float | None = None, *, max_memory_mb: float | None = None) -> Stock:

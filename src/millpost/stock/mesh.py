@@ -15,7 +15,7 @@ import numpy as np
 
 from .._kernels import compiling, raster
 from ..errors import MillpostError
-from .grid import Stock, choose_cell, grid_shape
+from .grid import Stock, choose_cell, grid_shape, multi_index_arrays
 
 ANGULAR_TOL_RAD = 0.1
 
@@ -26,7 +26,7 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
 
     bounds: optional [[x0, y0], [x1, y1]] of the grid (default: the mesh's XY extent). The floor is the
     mesh's lowest z; columns whose material does not start there, or that hold several intervals,
-    are stored as multi columns.
+    are stored as multi columns (with the gaps in their material).
     """
     tris = np.ascontiguousarray(tris, dtype=np.float64)
     if tris.ndim != 3 or tris.shape[1:] != (3, 3) or len(tris) == 0:
@@ -41,19 +41,19 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     count = np.zeros(nx * ny, np.uint8)
     with compiling(raster.first_pass):
         raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
-    bits = np.zeros((nx * ny + 7) // 8, np.uint8)
-    multi_ids = raster.multi_columns(count, bits)
-    ptr = np.zeros(len(multi_ids) + 1, np.int64)
-    ptr[1:] = count[multi_ids] & 127  # crossings per multi column, then (in place) its interval pointers
+    bits, rank = multi_index_arrays(nx * ny)
+    with compiling(raster.multi_columns):
+        ptr, crossings = raster.multi_columns(count, bits, rank)
     del count
-    # at most one interval per two crossings
-    lo = np.empty(int(ptr.sum()) // 2 + 1, np.float32)
+    if crossings // 2 >= 2**31:
+        raise MillpostError(f"stock mesh: {crossings // 2} gaps in the columns exceed the 2**31 the stock can index")
+    # at most one gap per two crossings; the pages past the gaps written are never touched (no memory)
+    lo = np.empty(crossings // 2 + 1, np.float32)
     hi = np.empty_like(lo)
-    with compiling(raster.multi_intervals):
-        w = raster.multi_intervals(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, multi_ids, ptr, lo, hi)
-    lo, hi = lo[:w], hi[:w]
-    raster.tops_from_intervals(top.reshape(-1), multi_ids, ptr, hi, np.float32(zf))
-    return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, multi_ids, ptr, lo, hi, bits)
+    with compiling(raster.multi_gaps):
+        w = raster.multi_gaps(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, np.float32(zf), bits, rank, ptr, lo, hi,
+                              top.reshape(-1))
+    return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, bits, rank, ptr, lo[:w], hi[:w])
 
 
 def from_stl(path: str | os.PathLike, cell_mm: float | None = None, **kw) -> Stock:
