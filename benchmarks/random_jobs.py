@@ -4,8 +4,8 @@ Each job (tests/random_jobs.py: random program, tool, built-in material and mach
 cuts) goes through limits, schedule, emission, the controller model and the replay check. Prints one
 JSON object: jobs, seconds, jobs_per_s, status counts, the worst replayed ratio per limit (value /
 bound on the emitted program; must stay ≤ 1.005), the jobs over it, and the emitted cycle time as a
-ratio of the honest constant-feed baseline measured in the same run (median and quartiles), plus
-peak memory of the worker processes.
+ratio of the honest baseline (per tool and programmed F one constant feed) measured in the same run
+(median and quartiles), plus peak memory of the worker processes.
 
 Run: python benchmarks/random_jobs.py [--jobs 10000] [--processes N]
 """

@@ -2,7 +2,9 @@
 `air_clearance_mm` around the stock as loaded (the tool grown by c, radius R + c and tip c lower, meets
 it and its tip disc is not inside it); farther away, and inside what the program cut, it is raised.
 The per-sample flag (`Engagement.near_stock`) is checked against the closed-form distance of a
-cylinder to a box, and end to end on a job whose approaches, far moves and pocket moves are known."""
+cylinder to a box, and end to end on a job whose approaches, far moves and pocket moves are known.
+Air in space the tool swept before is known (`Engagement.swept_air`): checked on a disc of loops beside
+the box (closed form) and against a brute-force union of the tool's earlier bodies."""
 
 from __future__ import annotations
 
@@ -119,6 +121,88 @@ def test_over_a_faced_top_only_the_original_sides_are_near():
     assert not eng.near_stock[off & (x > 60 + R + CLEAR + block)].any()
 
 
+# a disc of radius 7 about C = (-7.5, 20) swept at Z-2 beside the box's -X face (air): a plunge, then
+# circles of radius 1.5 and 4 about C (a tool of radius 3 sweeps the annuli 0..4.5 and 1..7)
+LOOPS = ["G0 X-6 Y20 Z2", "G1 Z-2 F300", "G3 X-6 Y20 I-1.5 J0", "G1 X-3.5", "G3 X-3.5 Y20 I-4 J0"]
+
+
+def test_air_the_tool_swept_beside_the_stock_is_known():
+    """Returns whose tool lies inside the disc the loops swept are known air although they pass within c
+    of the stock: the tool at |p - C| <= 3.35 (0.55 mm inside the disc, more than a cell's diagonal and
+    half a step) and a re-plunge into it down to the swept level; one whose tool pokes 0.1 mm out of the
+    disc (|p - C| >= 4.1), or that runs 0.1 mm under the swept level, is not known and stays near."""
+    C = np.array([-7.5, 20.0])
+    samples, eng = _flags(LOOPS + ["G1 X-4.5",                                  # 9: in to |p - C| = 3
+                                   "G1 Y21.5", "G1 Y18.5",                      # 10, 11: returns inside
+                                   "G1 X-3.4", "G1 Y21.5",                      # 12, 13: 0.1 mm out
+                                   "G1 X-3.9493 Y22.05",                        # 14: to |p - C| = 4.1
+                                   "G3 X-11.0507 Y22.05 I-3.5507 J-2.05",       # 15: 30° to 150° at 4.1
+                                   "G0 Z5", "G0 X-4.5 Y20", "G1 Z-2.1",         # 18: re-plunge, 0.1 mm too low
+                                   "G1 Y21"])                                   # 19: 0.1 mm under the level
+    d = np.linalg.norm(samples.xyz_mm[:, :2] - C, axis=1)
+    z = samples.xyz_mm[:, 2]
+    line = samples.line
+    assert not eng.ap_mm.any()  # all air beside the box, within c of its -X face
+    inside = np.isin(line, (10, 11))
+    outside = np.isin(line, (13, 15)) | ((line == 12) & (d >= 4.1))
+    assert inside.sum() > 40 and outside.sum() > 60 and (d[outside] >= 4.1 - 1e-4).all()
+    outside &= eng.near_stock  # the arc leaves the shell (|x - 0| > R + c) beyond 68°
+    assert eng.near_stock[inside].all() and eng.near_stock[line == 13].all() and outside.sum() > 50
+    assert eng.swept_air[inside].all() and not eng.swept_air[outside].any()
+    plunge = line == 18
+    shell = plunge & (z < 3.0 - 1e-6)  # near: the grown tool's tip below the box's top
+    assert eng.near_stock[shell].all()
+    assert eng.swept_air[shell & (z >= -1.9)].all() and not eng.swept_air[plunge & (z < -2.0 + 1e-9)].any()
+    assert eng.near_stock[line == 19].all() and not eng.swept_air[line == 19].any()
+    assert not eng.swept_air[~eng.near_stock].any()
+
+
+def _covered(tool: Tool, p: np.ndarray, earlier: np.ndarray, spacing: float = 0.2) -> bool:
+    """Brute force: whether the body of `tool` with its tip at p (everything over its cutting surface
+    within its radius) lies in the union of its bodies at the tips `earlier`, on a grid of points of
+    its disc: each point has an earlier tip within R whose surface there is no higher."""
+    R = tool.radius_mm
+    g = np.arange(-R, R + 1e-9, spacing)
+    dx, dy = (a.ravel() for a in np.meshgrid(g, g))
+    keep = np.hypot(dx, dy) <= R
+    pts = np.column_stack([dx[keep], dy[keep]]) + p[:2]
+    bottom = p[2] + tool.height_at(np.hypot(dx[keep], dy[keep]))
+    near = earlier[np.linalg.norm(earlier[:, :2] - p[:2], axis=1) <= 2 * R]
+    if not len(near):
+        return False
+    r = np.linalg.norm(pts[:, None, :] - near[None, :, :2], axis=2)
+    surface = near[None, :, 2] + tool.height_at(r)  # inf beyond R
+    return bool((surface.min(axis=1) <= bottom + 1e-9).all())
+
+
+@pytest.mark.parametrize("tool", [TOOL, Tool(diameter_mm=6.0, flutes=2, shape="ball", flute_length_mm=16.0,
+                                             stickout_mm=24.0, number=1),
+                                  Tool(diameter_mm=6.0, flutes=2, shape="chamfer", tip_angle_deg=90.0,
+                                       tip_diameter_mm=1.0, flute_length_mm=16.0, stickout_mm=24.0, number=1)],
+                         ids=["flat", "ball", "chamfer"])
+def test_known_air_lies_in_what_the_tool_swept(tool):
+    """Sound against brute force: after the loops, a random walk of air moves at random heights beside
+    the box; samples flagged `swept_air` next to one that is not (where an error would show) have their
+    tool body (and, when the next sample is near, the next one's) inside the union of the bodies at the
+    earlier feed samples. And the flag is not rare."""
+    rng = np.random.default_rng(3)
+    walk = [f"G1 X{x:.3f} Y{y:.3f} Z{z:.3f}" for x, y, z in zip(rng.uniform(-11, -3, 60), rng.uniform(15, 25, 60),
+                                                                rng.uniform(-2.6, -1.0, 60))]
+    program = read_text("\n".join(["G21 G90 G94", "T1 M6", "S9000 M3", *LOOPS, *walk, "M30"]) + "\n", "air.nc")
+    samples = program.toolpath.resample(0.1)
+    eng = simulate(box(*STOCK, cell_mm=0.05), {1: tool}, samples, clearance_mm=CLEAR, progress=False)
+    assert not eng.ap_mm.any()
+    fed = np.flatnonzero(samples.kind != RAPID)
+    known = np.flatnonzero(eng.swept_air)
+    assert len(known) > 0.1 * eng.near_stock.sum() > 30
+    edge = known[~eng.swept_air[known - 1] | ~eng.swept_air[np.minimum(known + 1, len(samples) - 1)]]
+    for k in rng.choice(edge, 15, replace=False):
+        before = samples.xyz_mm[fed[fed < k]]
+        assert _covered(tool, samples.xyz_mm[k], before), k
+        if k + 1 < len(samples) and eng.near_stock[k + 1]:
+            assert _covered(tool, samples.xyz_mm[k + 1], samples.xyz_mm[fed[fed <= k]]), k
+
+
 JOB = """program = "program.nc"
 material = "al6061"
 machine = "vmc-small"
@@ -153,6 +237,9 @@ PROGRAM = [
     "G1 Z-4",                 # 32: down to 1 mm over the floor
     "G1 X29 Y21",             # 33: air 1 mm over the floor: raised (the floor was cut, not guessed)
     "G1 Z1 F300",             # 34: a retract straight up through the top's shell: raised (meets nothing new)
+    *LOOPS,                   # 35-39: a disc swept about (-7.5, 20) beside the stock (see above)
+    "G1 X-4.5", "G1 Y21.5",   # 40, 41: a return inside it: raised
+    "G1 X-3.4", "G1 Y18.5",   # 42, 43: a return 0.1 mm out of it: kept
     "G0 Z10", "M30",
 ]
 
@@ -188,6 +275,8 @@ def test_approaches_beside_and_above_keep_their_feed_far_moves_are_raised(air_jo
     # in the pocket the program cut: over its floor by more and by less than the clearance
     assert f[31][1] > 2 * 600.0 and f[33][1] > 2 * 600.0
     assert f[34][0] > 1.5 * 300.0
+    # beside the stock: in the disc the tool swept, and 0.1 mm out of it
+    assert f[41][1] > 2 * 300.0 and f[43][1] <= 300.0
     assert result.summary["limits"]["air_clearance"] <= 1.0 + 1e-3
     assert "air_clearance" in result.summary["hard_limits"]
 

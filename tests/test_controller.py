@@ -106,7 +106,18 @@ def test_bad_model_is_a_config_error():
 VMC = dict(max_rate_mm_s=(400.0, 400.0, 1000.0 / 3.0), accel_mm_s2=(3000.0, 2500.0, 2500.0), planner="linuxcnc",
            lookahead_blocks=50)
 MEASURED = {"G0 X100": 0.517, "G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000": 2.150, "square 20 mm F6000 twice": 1.505,
-            "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655, "sine relief F6000": 1.365}
+            "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655, "sine relief F6000": 1.365,
+            # `steps` programs (at speed-up 5): 2000 feeds of 0.5 µm along X at F60; 2000 zigzag feeds
+            # of 5 µm in X and ±5 µm in Y at F300, merged (Q 10 µm) or not (Q 2 µm)
+            "collinear Q0.01": 1.001, "zigzag Q0.01": 2.004, "zigzag Q0.002": 4.020}
+
+
+def steps(mode: str, n: int, step_mm: float, feed_mm_min: float, zig_mm: float = 0.0) -> str:
+    """A program of n straight feeds of step_mm along X, Y going to zig_mm on the odd ones and back to 0
+    on the even ones (a zigzag), after a rapid to the origin, in the path mode `mode`."""
+    lines = [f"G21 G90 G17 {mode}", "G0 X0 Y0 Z0"]
+    lines += [f"G1 X{i * step_mm:.4f} Y{zig_mm if i % 2 else 0.0:.4f} F{feed_mm_min:g}" for i in range(1, n + 1)]
+    return "\n".join(lines + ["M2"]) + "\n"
 
 
 def lcnc(**kw):
@@ -213,7 +224,8 @@ def test_canned_cycle_moves_run_in_exact_path():
     prog = read_text("G21 G90 G64 P0.1\nG0 X0 Y0 Z10\nG98 G81 X10 Y0 Z-2 R2 F600\nX20\nG80\nG1 X30 F600\nY10\nM2\n")
     modes = path_modes(prog, lcnc())
     cycle = (prog.toolpath.line == 3) | (prog.toolpath.line == 4)
-    assert (modes[cycle] == EXACT_PATH).all() and (modes[~cycle] == 0.1).all()
+    assert (modes.blend_mm[cycle] == EXACT_PATH).all() and (modes.blend_mm[~cycle] == 0.1).all()
+    assert (modes.merge_mm[cycle] == 0.0).all() and (modes.merge_mm[~cycle] == 0.1).all()  # G64 P sets Q
     # the same as the cycle written between G61 and G64 P0.1: every move of a hole from rest to rest
     explicit = read_text("G21 G90 G64 P0.1\nG0 X0 Y0 Z10\nG61\nG98 G81 X10 Y0 Z-2 R2 F600\nX20\nG80\nG64 P0.1\n"
                          "G1 X30 F600\nY10\nM2\n")
@@ -273,9 +285,75 @@ def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
     u0, u1 = np.array([0.0, 1.0, 0.0]), np.array([-0.1, 50.0, 0.0]) / math.hypot(0.1, 50.0)
     kink = 0.1 * 0.001 / np.max(np.abs(u1 - u0) / [3000.0, 2500.0, 2500.0])
     assert cap[3] == pytest.approx(max(kink, blend_zones(tp, ctl)[1][4]), rel=1e-12) and cap[3] > kink
+    # with a naive-CAM tolerance the canon layer merges straight feeds into lines that depend on the feeds
+    # written (here the bend, its corner 0.04999 mm off the chord, into one line at 0.05 mm): no corner
+    # between two feeds is sure to slow the tool; the stop before the rapid still is
+    merged = corner_speeds(tp, lcnc(blend_tolerance_mm=0.05, naive_cam_mm=0.05))
+    assert (merged[1:4] == np.inf).all() and merged[4] == 0.0
     for feed in (600, 6000, 60000):
         tp.feed_mm_min[:4] = feed
         ex = execute(tp, ctl)
         for j in (2, 3):  # the speed where the corner's blocks meet never exceeds the cap
             k = np.flatnonzero(ex.move == j - 1)[-1]
             assert ex.v_entry[k] <= cap[j] * (1 + 1e-9) and ex.v_entry[k + 1] <= cap[j] * (1 + 1e-9)
+
+
+def chain_sizes(text: str) -> list[int]:
+    """The number of feeds in each chain LinuxCNC's canon merges in this program (rapids left out)."""
+    from millpost.controller import naive_cam_chains, path_modes
+    from millpost.gcode import read_text
+    from millpost.toolpath import FEED
+
+    prog = read_text(text)
+    first = naive_cam_chains(prog.toolpath, path_modes(prog, lcnc()))[prog.toolpath.kind == FEED]
+    return np.unique(first, return_counts=True)[1].tolist()
+
+
+def test_naive_cam_merges_straight_feeds_within_q():
+    # emccanon's linkable: every point of a chain within Q of the line from its start to its newest
+    # point, at most 101 points; Q defaults to P, a plain G64 and G61 merge nothing
+    assert chain_sizes(steps("G64 P0.01 Q0.01", 250, 0.0005, 60)) == [101, 101, 48]
+    assert chain_sizes(steps("G64 P0.01", 250, 0.0005, 60)) == [101, 101, 48]
+    for mode in ("G64 P0.01 Q0", "G64", "G61", "G61.1"):
+        assert chain_sizes(steps(mode, 250, 0.0005, 60)) == [1] * 250
+    # a zigzag of ±5 µm: within Q = 10 µm of the chord, not within 4 µm
+    assert chain_sizes(steps("G64 P0.01 Q0.01", 250, 0.005, 300, zig_mm=0.005)) == [101, 101, 48]
+    assert chain_sizes(steps("G64 P0.01 Q0.004", 250, 0.005, 300, zig_mm=0.005)) == [1] * 250
+    # in a G20 program everything is inches: Q 0.0004 in holds a zigzag of 0.0003 in, not one of 0.0005 in
+    assert chain_sizes(steps("G64 P0.0004", 6, 0.0002, 10, zig_mm=0.0003).replace("G21", "G20")) == [6]
+    assert chain_sizes(steps("G64 P0.0004", 6, 0.0002, 10, zig_mm=0.0005).replace("G21", "G20")) == [1] * 6
+
+
+def test_naive_cam_chain_ends_where_canon_flushes():
+    head = "G21 G90 G64 P0.01\nG0 X0 Y0 Z0\nG1 X1 F600\n"
+    assert chain_sizes(head + "X2\nX3\nM2\n") == [3]
+    assert chain_sizes(head + "X2 F500\nX3\nM2\n") == [1, 2]  # a new feed rate
+    assert chain_sizes(head + "X2 F600\nX3\nM2\n") == [3]  # the same feed rate again
+    assert chain_sizes(head + "(a note)\nX2\nX3\nM2\n") == [3]
+    for command in ("(MSG, hello)", "M8", "G4 P0", "S1000", "G64 P0.01", "G54"):
+        assert chain_sizes(head + f"{command}\nX2\nX3\nM2\n") == [1, 2], command
+    assert chain_sizes(head + "G2 X3 R1\nG1 X4\nX5\nM2\n") == [1, 2]  # an arc
+    assert chain_sizes(head + "X0\nM2\n") == [1, 1]  # back to the chain's start
+    assert chain_sizes(head + "X0.5\nM2\n") == [1, 1]  # a reversal: X1 lies beyond the new end
+
+
+def test_naive_cam_chain_runs_as_one_line():
+    from millpost.controller import execute_program, program_time
+    from millpost.gcode import read_text
+
+    # 2000 feeds of 0.5 µm merged into 20 collinear lines: 1 mm at 1 mm/s from rest to rest (the first
+    # line at full X acceleration, the last one's half), each alone would last at least 1.02 servo periods
+    merged = read_text(steps("G64 P0.01 Q0.01", 2000, 0.0005, 60))
+    t = 1.0 / 1.0 + 0.5 / 3000 + 0.5 / 1500 + 0.0005
+    assert program_time(merged, lcnc()) == pytest.approx(t, rel=1e-6)
+    assert t == pytest.approx(MEASURED["collinear Q0.01"], abs=0.002)
+    assert program_time(read_text(steps("G64 P0.01 Q0", 2000, 0.0005, 60)), lcnc()) > 2000 * 1.02e-3
+    # the merged lines are cut where each move ends: the tool passes the end of move 127 (63.5 µm) at
+    # 63.5 ms after the acceleration's 1/6000 s lag
+    ex = execute_program(merged, lcnc())
+    assert ex.time_at(np.array([127]), np.array([1.0]))[0] == pytest.approx(0.0635 + 1 / 6000, rel=1e-9)
+    assert ex.speed_at(np.array([127]), np.array([0.5]))[0] == pytest.approx(1.0, rel=1e-12)
+    assert ex.time_s == pytest.approx(ex.block_time_s.sum(), rel=1e-12) and (np.diff(ex.move) >= 0).all()
+    for text, key in ((steps("G64 P0.01 Q0.01", 2000, 0.005, 300, zig_mm=0.005), "zigzag Q0.01"),
+                      (steps("G64 P0.01 Q0.002", 2000, 0.005, 300, zig_mm=0.005), "zigzag Q0.002")):
+        assert program_time(read_text(text), lcnc()) == pytest.approx(MEASURED[key], rel=0.005), key

@@ -17,6 +17,7 @@ import pytest
 
 import lcnc_harness
 from conftest import shared_data
+from test_controller import steps
 from millpost.errors import MillpostError
 from millpost.job import load_job
 from millpost.machine import Machine
@@ -39,9 +40,13 @@ REAL = [
     "camotics/examples/scorpion/scorpion.nc", "camotics/examples/wave/wave.gcode",
 ]
 # real-program jobs where the model is known to miss LinuxCNC by more than the tolerance, with the measure
-MODEL_MISSES = {"camotics_vcarve": "optimized vcarve: model 28.01 s, LinuxCNC 24.78 s (+13 %); half its moves are "
-                                   "shorter than 1 µm and the model gives each at least 1.02 servo periods, while "
-                                   "LinuxCNC runs them faster (mechanism not yet found)"}
+MODEL_MISSES: dict[str, str] = {}
+# programs of many tiny straight feeds (test_controller.steps): LinuxCNC's canon merges those within G64 Q
+# of one line into that line (naive CAM); name -> (path mode, feeds, step mm, F mm/min, zigzag mm, the
+# closed-form time of the merged line from rest to rest (s) or None where nothing merges)
+STEPS = {"collinear Q0.01": ("G64 P0.01 Q0.01", 2000, 0.0005, 60, 0.0, 1.0 + 0.5 / 3000 + 0.5 / 1500 + 0.0005),
+         "zigzag Q0.01": ("G64 P0.01 Q0.01", 2000, 0.005, 300, 0.005, None),
+         "zigzag Q0.002": ("G64 P0.01 Q0.002", 2000, 0.005, 300, 0.005, None)}
 MACHINE_FOR_REAL = "vmc-small"
 LONG_S = 500.0
 TOLERANCE = 0.02
@@ -62,7 +67,7 @@ def models():
     return get
 
 
-def check(program: Path, machine_name: str, models) -> None:
+def check(program: Path, machine_name: str, models) -> float:
     machine, ctl = models(machine_name)
     try:
         t_model = lcnc_harness.model_seconds(program, ctl)
@@ -77,6 +82,7 @@ def check(program: Path, machine_name: str, models) -> None:
     t_lcnc = float(res["seconds"])
     print(f"\n{program.name}: model {t_model:.3f} s, LinuxCNC {t_lcnc:.3f} s ({t_model / t_lcnc - 1.0:+.2%})")
     assert abs(t_model / t_lcnc - 1.0) <= TOLERANCE, f"{program.name}: model {t_model:.3f} s, LinuxCNC {t_lcnc:.3f} s"
+    return t_lcnc
 
 
 @pytest.mark.parametrize("name", SAMPLES)
@@ -112,3 +118,16 @@ def test_optimized_real_job(folder, models, tmp_path, request):
     out = tmp_path / f"{folder.name}.nc"
     out.write_text(text)
     check(out, job.machine.name, models)
+
+
+@pytest.mark.parametrize("name", STEPS)
+def test_naive_cam_merge(name, models, tmp_path):
+    """Feeds far shorter than a servo period's travel: merged within Q, LinuxCNC runs 2000 of them as 20
+    lines (the closed form of one 1 mm line at F60: 1 mm / (1 mm/s) plus the acceleration lag); the same
+    zigzag with a Q below its amplitude is not merged (LinuxCNC: 4.02 s against 2.00 s merged)."""
+    mode, n, step, feed, zig, closed_form = STEPS[name]
+    program = tmp_path / f"{name.replace(' ', '_')}.ngc"
+    program.write_text(steps(mode, n, step, feed, zig))
+    t_lcnc = check(program, "vmc-small", models)
+    if closed_form is not None:
+        assert t_lcnc == pytest.approx(closed_form, rel=0.005)

@@ -62,3 +62,11 @@ def test_inch_program_stays_in_inches(tmp_path):
     text = out.read_text()
     assert "G20" in text and "G21" in text and text.startswith("%")
     assert same_path(read_program(src), read_program(out)) == []
+
+
+def test_path_modes_keep_their_tolerances():
+    # G64 P (blending) and Q (LinuxCNC's naive-CAM merge of straight feeds) both reach the output
+    src = read_text("G21 G90 G17\nG64 P0.02 Q0.005\nG1 X1 F100\nG64 P0.01\nX2\nG64\nX3\nG61\nX4\nM2\n")
+    text = convert(src, dialects.get("linuxcnc"))
+    assert [ln for ln in text.splitlines() if ln.startswith(("G64", "G61"))] == \
+        ["G64 P0.02 Q0.005", "G64 P0.01", "G64", "G61"]

@@ -5,6 +5,7 @@ profile stay within the machine's accelerations, as the controller model plans t
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -102,12 +103,18 @@ def test_replay_in_chunks_is_the_whole_programs(drill_and_mill, monkeypatch):
         np.testing.assert_allclose(chunked.trace_columns()[key], column, rtol=1e-12, atol=0, err_msg=key)
 
 
-def test_baseline_obeys_the_plunge_cap_on_plunges_only(tmp_path):
-    """The baseline's single F is the best constant feed of the cuts; a plunge runs at most
-    plunge_raise_max (2) × its own programmed F100 = F200 there, as a CAM user's separate plunge feed, and
-    no longer holds the whole tool at F200. The 1 mm deep slot's bound is the end's chip load of the
-    plunge (F520 for this tool and speed in drill_and_mill), well above F200."""
-    (tmp_path / "p.nc").write_text("G21 G90 G17\nT1 M6\nS9000 M3\nG0 X5 Y5 Z2\nG1 Z-1 F100\nG1 X55 F600\nG0 Z5\nM30\n")
+@pytest.mark.parametrize("plunge_f", [300.0, 100.0])
+def test_baseline_per_programmed_feed_closed_form(tmp_path, plunge_f):
+    """The baseline has one constant feed per tool and programmed F, each the highest its own moves
+    allow. A 6 mm 3-flute flat end mill at 9000 rpm in al6061 plunges 1 mm (end enclosed: the chip-load
+    limit takes plunge_fz_ratio of the chip load h_max on the axial feed per tooth, so
+    F = z·n·h_max·ratio = F520) and slots 1 mm deep at F500 (the full slot passes φ = 90°, no chip
+    thinning: F = z·n·h_max = F2082); at this depth both are held by the chip load, the slot's force and
+    deflection allow more. Each group gets exactly its floored cap; the plunge then runs at most
+    plunge_raise_max (2) × its programmed F, as a CAM user's separate plunge feed: F520 from F300, F200
+    from F100."""
+    (tmp_path / "p.nc").write_text(
+        f"G21 G90 G17\nT1 M6\nS9000 M3\nG0 X5 Y5 Z2\nG1 Z-1 F{plunge_f:g}\nG1 X55 F500\nG0 Z5\nM30\n")
     (tmp_path / "job.toml").write_text(
         'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0, 0, -5], [60, 10, 0]]\n'
         'cell_mm = 0.1\n[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = "flat"\nhelix_deg = 35\n'
@@ -117,7 +124,11 @@ def test_baseline_obeys_the_plunge_cap_on_plunges_only(tmp_path):
     samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                     progress=False)
     feeds, per_tool = baseline_feeds(program, samples, build_limits(job, samples, eng, program.toolpath))
+    h_max = job.material.chip_load_mm(6.0)[1]
+    ratio = job.material.strategies.plunge_fz_ratio
+    z_n = 3 * 9000.0  # teeth per minute
+    plunge, slot = min(math.floor(z_n * h_max * ratio), 2 * plunge_f), math.floor(z_n * h_max)
+    assert per_tool == {1: {plunge_f: plunge, 500.0: slot}}
     line = program.toolpath.line
-    assert per_tool[1] > 400.0
-    assert feeds[line == 6].min() == per_tool[1]  # the slot
-    assert 100.0 < feeds[line == 5].max() <= 200.0  # the plunge: the programmed feed raised at most 2×
+    assert feeds[line == 6].min() == feeds[line == 6].max() == slot
+    assert feeds[line == 5].max() == plunge

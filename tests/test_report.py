@@ -57,8 +57,11 @@ def test_report_numbers_and_self_contained(slotting_result):
     assert row["programmed_s"] == pytest.approx(float(np.sum(tp.lengths()[feed] / tp.feed_mm_min[feed] * 60)),
                                                 rel=0.01)
     assert row["length_mm"] == pytest.approx(float(tp.lengths()[feed].sum()), rel=1e-3)
-    assert row["baseline_s"] == pytest.approx(row["length_mm"] / result.summary["baseline_feed_mm_min"][1] * 60,
-                                              rel=0.01)
+    # at the baseline F: per programmed F (plunges, slots, contour) the summary's constant feed
+    base = result.summary["baseline_feed_mm_min"][1]
+    assert len(base) == 3
+    base_f = np.array([base[f] for f in tp.feed_mm_min[feed]])
+    assert row["baseline_s"] == pytest.approx(float(np.sum(tp.lengths()[feed] / base_f * 60)), rel=0.01)
     assert 0 < row["optimized_s"] <= result.summary["cycle_time_after_s"]
     # the drive current bound (inertia + friction + the whole peak force on X and Y) is no lower than the
     # replay's current ratio (the cutting force along each axis): an upper bound, and a close one here

@@ -9,23 +9,25 @@ Two planners, chosen by the machine's controller kind (`planner`):
   acceleration the axes allow along the direction change. The planner sees `lookahead_blocks` blocks
   and must be able to stop at the end of the last one.
 - "linuxcnc": LinuxCNC 2.9's trajectory planner (tp.c, blendmath.c), the model for look-ahead
-  controllers that blend corners within a tolerance (LinuxCNC, Mach3, Fanuc-like). Lines and arcs
-  are segments of their own. A line's speed and acceleration are the largest the axes allow along
-  it; an arc's are those of its plane's weaker axis, its speed at most √(0.87·a·r) (87 % of the
-  acceleration normal to the path) and its acceleration along the path half of a (the other half is
-  kept for the turn). A corner between two segments is, in this order: a stop (rapid ↔ feed, a
-  reversal, a command between them); "tangent" when the velocity jump v·Δu in one servo period
-  (1 ms) needs less than 10 % of the axes' acceleration (both segments then lose that share of
-  their acceleration); otherwise a blend arc tangent to both segments, at most the blend tolerance
-  from the corner (`G64 P`; without P: a quarter of the shorter segment), using at most half of
-  each segment, run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic
-  blend at half acceleration. The rest of a line before a blend arc that would take less than 4 servo
-  periods at the arc's speed is no segment of its own: it runs as the arc's straight lead-in, at the
-  arc's speed and acceleration. Speeds are planned backwards over `lookahead_blocks` segments
-  (LinuxCNC: 50), a segment lasts at least 1.02 servo periods (its speed is at most its length over
-  that), and one that ends at rest ends half a servo period late on average (the period's rest is lost). A feed segment that takes less
-  than 10 ms (1/ARC_BLEND_RAMP_FREQ) and flows into the next changes speed linearly from end to end.
-  The last segment before the motion queue runs empty (a command, the end) keeps its parabolic end
+  controllers that blend corners within a tolerance (LinuxCNC, Mach3, Fanuc-like). Lines and arcs are
+  segments of their own, except consecutive straight feeds whose points all lie within the naive-CAM
+  tolerance (G64 Q) of one line: up to 101 of them run as that line (LinuxCNC's canon layer merges them
+  before its planner sees them; `naive_cam_chains`). A line's speed and acceleration are the largest
+  the axes allow along it; an arc's are those of its plane's weaker axis, its speed at most √(0.87·a·r)
+  (87 % of the acceleration normal to the path) and its acceleration along the path half of a (the
+  other half is kept for the turn). A corner between two segments is, in this order: a stop (rapid ↔
+  feed, a reversal, a command between them); "tangent" when the velocity jump v·Δu in one servo period
+  (1 ms) needs less than 10 % of the axes' acceleration (both segments then lose that share of their
+  acceleration); otherwise a blend arc tangent to both segments, at most the blend tolerance from the
+  corner (`G64 P`; without P: a quarter of the shorter segment), using at most half of each segment,
+  run at √(0.87·a·R) with a in the corner's plane; where no arc fits, a parabolic blend at half
+  acceleration. The rest of a line before a blend arc that would take less than 4 servo periods at the
+  arc's speed is no segment of its own: it runs as the arc's straight lead-in, at the arc's speed and
+  acceleration. Speeds are planned backwards over `lookahead_blocks` segments (LinuxCNC: 50), a segment
+  lasts at least 1.02 servo periods (its speed is at most its length over that), and one that ends at
+  rest ends half a servo period late on average (the period's rest is lost). A feed segment that takes
+  less than 10 ms (1/ARC_BLEND_RAMP_FREQ) and flows into the next changes speed linearly from end to
+  end. The last segment before the motion queue runs empty (a command, the end) keeps its parabolic end
   and half its acceleration.
 
 A controller that processes at most `block_rate_hz` blocks per second cannot finish a block of
@@ -45,7 +47,7 @@ import numpy as np
 
 from millpost._kernels import compiling
 from millpost.errors import ConfigError
-from millpost.toolpath import ARC_CW, RAPID, Samples, Toolpath
+from millpost.toolpath import ARC_CW, FEED, RAPID, Samples, Toolpath
 
 PLANNERS = ("grbl", "linuxcnc")
 # LinuxCNC 2.9 constants (tp.c, blendmath.h, tc_types.h and the [TRAJ] defaults)
@@ -66,7 +68,9 @@ PAUSE_KINDS = {"dwell": None, "tool_change": "tool_change_s", "coolant": "coolan
 class ControllerModel:
     """Planner settings. Rates mm/s, accelerations mm/s², lengths mm, times s (grbl: $110-$112 in
     mm/min, $120-$122, $11 junction deviation, $12 arc tolerance; a buffer of 16 blocks on an AVR.
-    LinuxCNC: [AXIS_*] MAX_VELOCITY/MAX_ACCELERATION, G64 P, ARC_BLEND_OPTIMIZATION_DEPTH 50)."""
+    LinuxCNC: [AXIS_*] MAX_VELOCITY/MAX_ACCELERATION, G64 P, ARC_BLEND_OPTIMIZATION_DEPTH 50).
+    naive_cam_mm: the naive-CAM tolerance before the program sets a path mode (LinuxCNC's startup
+    G64 Q, or P without Q); 0 for controllers that merge no straight feeds (all but LinuxCNC)."""
 
     max_rate_mm_s: tuple[float, float, float]
     accel_mm_s2: tuple[float, float, float]
@@ -77,6 +81,7 @@ class ControllerModel:
     exact_stop: bool = False
     planner: str = "grbl"
     blend_tolerance_mm: float = 0.0
+    naive_cam_mm: float = 0.0
     servo_period_s: float = 0.001
     tool_change_s: float = 0.0
     spindle_start_s: float = 0.0
@@ -88,8 +93,8 @@ class ControllerModel:
             v = np.asarray(getattr(self, name), float)
             if v.shape != (3,) or not (v > 0).all():
                 raise ConfigError(name, getattr(self, name), "three positive numbers (X, Y, Z)")
-        for name in ("junction_deviation_mm", "blend_tolerance_mm", "tool_change_s", "spindle_start_s", "coolant_s",
-                     "command_s"):
+        for name in ("junction_deviation_mm", "blend_tolerance_mm", "naive_cam_mm", "tool_change_s", "spindle_start_s",
+                     "coolant_s", "command_s"):
             if not getattr(self, name) >= 0:
                 raise ConfigError(name, getattr(self, name), "must be ≥ 0")
         if self.lookahead_blocks < 1:
@@ -105,13 +110,15 @@ class ControllerModel:
 
     @classmethod
     def from_machine(cls, machine) -> "ControllerModel":
-        """The model of a machine's controller: its axis rates and accelerations, its planner."""
+        """The model of a machine's controller: its axis rates and accelerations, its planner (a
+        LinuxCNC controller's blend tolerance is its startup G64 P, which sets the naive-CAM tolerance too)."""
         ax = [machine.axes[a] for a in "xyz"]
         c = machine.controller
         return cls(max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
                    junction_deviation_mm=c.junction_deviation_mm, block_rate_hz=c.block_rate_Hz,
                    planner=c.planner, lookahead_blocks=16 if c.planner == "grbl" else 50,
                    blend_tolerance_mm=c.blend_tolerance_mm, tool_change_s=c.tool_change_s,
+                   naive_cam_mm=c.blend_tolerance_mm if c.kind == "linuxcnc" else 0.0,
                    spindle_start_s=c.spindle_start_s, coolant_s=c.coolant_s, command_s=c.command_s)
 
 
@@ -199,16 +206,21 @@ class Execution:
     vnom: np.ndarray
     acc: np.ndarray
     v_entry: np.ndarray  # (n+1,)
+    move_start_mm: np.ndarray  # (len(program moves)+1,): the program's arc length where each move starts
     pause_s: float = 0.0  # of time_s, spent stopped between moves (dwells, tool changes, commands)
 
     def _locate(self, move: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Block index and distance into it (mm) of fraction u of move `move` (by fraction on blocks)."""
-        key = self.move.astype(float) + self.u_end
-        q = np.asarray(move, float) + np.clip(u, 0, 1)
-        k = np.clip(np.searchsorted(key, q - 1e-12), 0, len(key) - 1)
-        prev = np.maximum(k - 1, 0)
-        ustart = np.where((k > 0) & (self.move[prev] == self.move[k]), self.u_end[prev], 0.0)
-        frac = np.clip((np.clip(u, 0, 1) - ustart) / np.maximum(self.u_end[k] - ustart, 1e-300), 0, 1)
+        """Block index and distance into it (mm) of fraction u of move `move`: by the program's arc
+        length between the places where the blocks end, so that moves no block ends on (too short for
+        a block, inside a blend arc or a merged line) lie in proportion along the block over them."""
+        move = np.asarray(move, np.int64)
+        at = self.move_start_mm
+        length = np.diff(at)
+        end = at[self.move] + self.u_end * length[self.move]
+        q = at[move] + np.clip(u, 0, 1) * length[move]
+        k = np.clip(np.searchsorted(end, q - 1e-12), 0, len(end) - 1)
+        start = np.where(k > 0, end[np.maximum(k - 1, 0)], 0.0)
+        frac = np.clip((q - start) / np.maximum(end[k] - start, 1e-300), 0, 1)
         return k, frac * self.length[k]
 
     def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -279,37 +291,119 @@ def pauses_s(program, model: ControllerModel) -> np.ndarray:
 
 
 EXACT_PATH, EXACT_STOP = -1.0, -2.0  # path modes in a blend-tolerance array: G61, G61.1
+CHAIN_POINTS = 101  # LinuxCNC's canon chains at most this many points into one line (linkable: size > 100)
+AXIS_TINY_MM = 1e-7  # canon drops a line whose every axis moves less than this (getStraightAcceleration's tiny)
+# the comments LinuxCNC's canon passes on (to the operator or the log): they flush its chain of straight
+# feeds like every other command; other comments do not
+_FLUSHING_COMMENTS = ("MSG,", "DEBUG,", "LOG,")
 
 
-def path_modes(program, model: ControllerModel) -> np.ndarray:
-    """Per move: the blend tolerance in effect (mm; G64 P, 0 for a G64 without P) or EXACT_PATH (G61:
-    stop at corners) or EXACT_STOP (G61.1: stop after every move); before the program sets one, the
-    controller's own `blend_tolerance_mm`. The moves of a canned cycle (after its climb to R) run in
-    exact path whatever the mode (LinuxCNC's convert_cycle sets G61 for them and restores it after)."""
-    out = np.full(len(program.toolpath), model.blend_tolerance_mm)
+@dataclass(frozen=True)
+class PathModes:
+    """Per move, the path control LinuxCNC runs it in. blend_mm: the blend tolerance (G64 P, mm; 0 for a
+    G64 without P) or EXACT_PATH (G61: stop at corners) or EXACT_STOP (G61.1: stop after every move).
+    merge_mm: the naive-CAM tolerance (G64 Q, mm; P when Q is absent, 0 for a plain G64, in G61/G61.1
+    and in canned cycles): consecutive straight feeds whose points lie this close to one line are sent to
+    the planner as that one line (`naive_cam_chains`). flush: a command before the move ends the chain
+    being merged (a pause, a spindle speed, an offset, a path mode, an operator message)."""
+
+    blend_mm: np.ndarray
+    merge_mm: np.ndarray
+    flush: np.ndarray
+
+    @classmethod
+    def uniform(cls, n: int, model: "ControllerModel") -> "PathModes":
+        """The controller's own modes on every move."""
+        return cls(np.full(n, model.blend_tolerance_mm), np.full(n, model.naive_cam_mm), np.zeros(n, bool))
+
+
+def path_modes(program, model: ControllerModel) -> PathModes:
+    """The path modes the program sets (`PathModes`); before it sets one, the controller's own
+    (`blend_tolerance_mm`, `naive_cam_mm`).
+    The moves of a canned cycle (after its climb to R) run in exact path whatever the mode (LinuxCNC's
+    convert_cycle sets G61 for them and restores it after). Tolerances in a G20 program are inches."""
+    n = len(program.toolpath)
+    modes = PathModes.uniform(n, model)
+    out, merge, flush = modes.blend_mm, modes.merge_mm, modes.flush
     inch = np.asarray(program.move_inch, bool)
     cycles = []
     for e in program.events:
         if e.kind == "canned_cycle":
             cycles.append((e.value, e.move))
-        if e.kind != "path_mode" or e.move >= len(out):
+        if e.move < n and (e.kind != "comment" or str(e.value).lstrip().upper().startswith(_FLUSHING_COMMENTS)):
+            flush[e.move] = True
+        if e.kind != "path_mode" or e.move >= n:
             continue
-        name, p = e.value
+        name, p, q = e.value
+        unit = 25.4 if inch[e.move] else 1.0
         if name == "blend":
-            out[e.move:] = 0.0 if p is None else p * (25.4 if inch[e.move] else 1.0)
+            out[e.move:] = 0.0 if p is None else p * unit
+            merge[e.move:] = (p if q is None else q) * unit if (p, q) != (None, None) else 0.0
         else:
             out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP
+            merge[e.move:] = 0.0
     for first, end in cycles:  # a canned cycle's moves (after the climb to R) in exact path, as LinuxCNC runs them
         out[first:end] = np.where(out[first:end] == EXACT_STOP, EXACT_STOP, EXACT_PATH)
-    return out
+        merge[first:end] = 0.0
+    return modes
+
+
+@numba.njit(cache=True)
+def _chains(start, end, straight, merge_mm, flush, max_points):
+    """Per move, the first move of the chain it is merged into (see `naive_cam_chains`)."""
+    n = start.shape[0]
+    first = np.arange(n)
+    head = -1
+    for i in range(n):
+        if not straight[i]:
+            head = -1
+            continue
+        if head >= 0:
+            tol = merge_mm[i]
+            b = start[head]
+            m = end[i] - b
+            mm = m[0] * m[0] + m[1] * m[1] + m[2] * m[2]
+            ok = not flush[i] and tol > 0 and i - head < max_points and mm > 0.0
+            k = head
+            while ok and k < i:
+                d = end[k] - b
+                t = min(max((d[0] * m[0] + d[1] * m[1] + d[2] * m[2]) / mm, 0.0), 1.0)
+                r = d - t * m
+                ok = r[0] * r[0] + r[1] * r[1] + r[2] * r[2] <= tol * tol
+                k += 1
+            if not ok:
+                head = -1
+        if head < 0:
+            head = i
+        first[i] = head
+    return first
+
+
+def naive_cam_chains(tp: Toolpath, modes: PathModes, feed_mm_min: np.ndarray | None = None) -> np.ndarray:
+    """LinuxCNC's naive-CAM detector (its canon layer, emccanon.cc: see_segment, linkable and
+    flush_segments): consecutive straight feeds are chained while every point of the chain lies within
+    the naive-CAM tolerance of the line from the chain's start to the newest end point (its nearest point
+    on that segment), the chain holds at most 101 points, the new end point differs from the chain's start,
+    and nothing flushes the chain before the move: a rapid or an arc, a feed rate that changes, a path
+    mode (G61, G61.1, G64; a plain G64 or G61 sets no tolerance), a command (`PathModes.flush`). The chain
+    goes to the planner as one line from its start to its last point at the current feed. Returns per
+    move the index of the first move of its chain (its own index where nothing is merged)."""
+    feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
+    flush = np.asarray(modes.flush, bool).copy()
+    if len(tp) > 1:
+        flush[1:] |= feed[1:] != feed[:-1]
+        flush[1:] |= np.any(tp.start[1:] != tp.end[:-1], axis=1)
+    with compiling(_chains):
+        return _chains(np.ascontiguousarray(tp.start, float), np.ascontiguousarray(tp.end, float),
+                       tp.kind == FEED, np.asarray(modes.merge_mm, float), flush, CHAIN_POINTS)
 
 
 def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Execution:
     """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the
-    motion and take their time, its path modes (G61/G64 P) set the corners; feed_mm_min overrides
-    the programmed feed per move."""
+    motion and take their time, its path modes (G61/G64 P Q) set the corners and the merging of
+    straight feeds; feed_mm_min overrides the programmed feed per move."""
     return execute(program.toolpath, model, feed_mm_min, pauses=pauses_s(program, model),
-                   blend_mm=path_modes(program, model))
+                   modes=path_modes(program, model))
 
 
 def program_time(program, model: ControllerModel) -> float:
@@ -319,14 +413,14 @@ def program_time(program, model: ControllerModel) -> float:
 
 
 def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
-            pauses: np.ndarray | None = None, blend_mm: np.ndarray | None = None) -> Execution:
+            pauses: np.ndarray | None = None, modes: PathModes | None = None) -> Execution:
     """Plan and time the whole program (rapids at the axis rates). feed_mm_min overrides the
     programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
-    blend_mm (see `path_modes`, per move) sets the LinuxCNC planner's path mode."""
+    modes (see `path_modes`; default: the controller's own) set the LinuxCNC planner's path modes."""
     if model.planner == "linuxcnc":
-        L, vnom, acc, vj2, move, u_end, ramps, split = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, blend_mm)
+        L, vnom, acc, vj2, move, u_end, ramps, cuts = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, modes)
     else:
-        split = []
+        cuts = []
         L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
     vj2 = vj2.copy()
     vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
@@ -335,6 +429,7 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         v2 = _plan(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
     ve = np.sqrt(np.maximum(v2, 0))
     t = _trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
+    ramp = np.zeros(n, bool)
     if model.planner == "linuxcnc":
         # a feed segment run in less than RAMP_TIME_S that flows into the next changes speed linearly
         # from end to end (no cruise above both ends); one ending at rest ends half a period late
@@ -349,22 +444,43 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         first, last = move[0], move[-1]
         inside = np.arange(len(pauses))
         pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
-    if split:  # blend arcs in two pieces (lead-in and first half, second half), one on each move they join
-        k = np.array([b[0] for b in split])
-        f = np.array([b[1] for b in split])
-        mid = np.minimum.reduce([np.sqrt(ve[k] ** 2 + 2 * acc[k] * f * L[k]), vnom[k],
-                                 np.sqrt(ve[k + 1] ** 2 + 2 * acc[k] * (1 - f) * L[k])])
-        at = k + 1
-        t, L = t.copy(), L.copy()
-        rest_t, rest_L = t[k] * (1 - f), L[k] * (1 - f)
-        t[k] *= f
-        L[k] *= f
-        t, L = np.insert(t, at, rest_t), np.insert(L, at, rest_L)
-        vnom, acc = (np.insert(x, at, x[k]) for x in (vnom, acc))
-        ve = np.insert(ve, at, mid)
-        move = np.insert(move, at, [b[2] for b in split])
-        u_end = np.insert(u_end, at, [b[3] for b in split])
-    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, pause)
+    if cuts:
+        t, L, vnom, acc, ve, move, u_end = _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
+    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, np.r_[0.0, np.cumsum(tp.lengths())],
+                     pause)
+
+
+def _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
+    """Blocks cut where they pass from one program move onto the next (a blend arc's two halves, a
+    merged chain's moves), so that every piece lies on one move. cuts: (block, fraction of it at the
+    cut, the move and the fraction of it where the piece before the cut ends); the piece after the last
+    cut keeps the block's own place. A piece runs the block's speed profile between the cut points
+    (constant acceleration on a linear ramp, the trapezoid elsewhere); the pieces' times share the
+    block's time in proportion to those runs. Returns the pieces' t, L, vnom, acc, entry speeds (n+1),
+    move and u_end."""
+    n = len(L)
+    k = np.array([c[0] for c in cuts], np.int64)
+    blk = np.r_[k, np.arange(n)]
+    f_end = np.r_[np.clip([c[1] for c in cuts], 0.0, 1.0), np.ones(n)]
+    mv = np.r_[np.array([c[2] for c in cuts], np.int64), move]
+    uu = np.r_[np.array([c[3] for c in cuts], float), u_end]
+    order = np.lexsort((f_end, blk))
+    blk, f_end, mv, uu = blk[order], f_end[order], mv[order], uu[order]
+    f_start = np.r_[0.0, np.where(blk[1:] == blk[:-1], f_end[:-1], 0.0)]
+    v0, v1, Lb, a, vm = ve[blk], ve[blk + 1], L[blk], acc[blk], vnom[blk]
+
+    def speed(f):
+        linear = np.sqrt(np.maximum(v0**2 + (v1**2 - v0**2) * f, 0.0))
+        trapezoid = np.minimum.reduce([np.sqrt(v0**2 + 2 * a * f * Lb), vm, np.sqrt(v1**2 + 2 * a * (1 - f) * Lb)])
+        return np.where(f <= 0.0, v0, np.where(f >= 1.0, v1, np.where(ramp[blk], linear, trapezoid)))
+
+    vs, vf = speed(f_start), speed(f_end)
+    Lp = (f_end - f_start) * Lb
+    with np.errstate(divide="ignore", invalid="ignore"):
+        run = np.where(ramp[blk], np.where(vs + vf > 0, 2.0 * Lp / (vs + vf), 0.0), _trapezoid_time(Lp, vs, vf, vm, a))
+        total = np.bincount(blk, run, minlength=n)
+        share = np.where(total[blk] > 0, run / total[blk], f_end - f_start)
+    return t[blk] * share, Lp, vm, a, np.r_[vs, ve[-1]], mv, uu
 
 
 def _stops(tp: Toolpath, pauses: np.ndarray | None) -> np.ndarray:
@@ -432,31 +548,56 @@ def _inscribed(normal, limits) -> float:
 
 
 class _Segment:
-    """One LinuxCNC trajectory segment while the queue is built (lengths mm, speeds mm/s)."""
+    """One LinuxCNC trajectory segment while the queue is built (lengths mm, speeds mm/s): a program
+    move, or a chain of straight feeds merged into one line (moves first..move; `ends`: the distance
+    along the segment at the end of each of them)."""
 
-    __slots__ = ("move", "length", "nominal", "trim_end", "req", "maxvel", "acc", "arc",
-                 "rapid", "t0", "t1", "normal", "radius", "angle", "halved", "kink_share", "tolerance")
+    __slots__ = ("move", "first", "ends", "length", "nominal", "trim_start", "trim_end", "req", "maxvel", "acc",
+                 "arc", "rapid", "t0", "t1", "normal", "radius", "angle", "halved", "kink_share", "tolerance")
 
 
-def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, blend_mm) -> list[_Segment]:
-    """Segments of LinuxCNC's queue for the non-empty moves, with the limits emccanon gives them."""
+def _place(s: _Segment, x: float) -> tuple[int, float]:
+    """The move under the point x mm along a segment, and the fraction of that move there (a merged
+    chain's moves by their end points' positions along the line)."""
+    k = min(int(np.searchsorted(s.ends, x - 1e-12)), len(s.ends) - 1)
+    before = s.ends[k - 1] if k else 0.0
+    span = s.ends[k] - before
+    return s.first + k, float(np.clip((x - before) / span, 0.0, 1.0)) if span > 0 else 1.0
+
+
+def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, modes: PathModes | None,
+              merge: bool = False) -> list[_Segment]:
+    """Segments of LinuxCNC's queue with the limits emccanon gives them: one per move, or with merge
+    one per chain of straight feeds (`naive_cam_chains`); a line whose every axis moves less than
+    AXIS_TINY_MM never reaches the planner (canon drops it), nor does an arc shorter than 1e-9 mm."""
     feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
+    modes = PathModes.uniform(len(tp), model) if modes is None else modes
     vax, aax = np.asarray(model.max_rate_mm_s, float), np.asarray(model.accel_mm_s2, float)
-    L = tp.lengths()
-    idx = np.flatnonzero(L > 1e-9)
+    if not len(tp):
+        return []
+    first = naive_cam_chains(tp, modes, feed) if merge else np.arange(len(tp))
+    last = np.flatnonzero(np.r_[first[1:] != first[:-1], True])
+    head = first[last]
+    arc = tp.kind[last] >= ARC_CW
+    chord = tp.end[last] - tp.start[head]
+    L = np.where(arc, tp.lengths()[last], np.linalg.norm(chord, axis=1))
+    keep = np.where(arc, L > 1e-9, np.abs(chord).max(axis=1) >= AXIS_TINY_MM)
+    idx, head, arc, chord, L = last[keep], head[keep], arc[keep], chord[keep], L[keep]
     if not len(idx):
         return []
-    sub = tp.subset(idx)
-    _, t0, _ = sub.points(np.arange(len(idx)), np.zeros(len(idx)), derivatives=True)
-    _, t1, _ = sub.points(np.arange(len(idx)), np.ones(len(idx)), derivatives=True)
-    arc = sub.kind >= ARC_CW
+    t0 = chord / np.maximum(L, 1e-300)[:, None]
+    t1 = t0.copy()
     vmax = _axis_limited(t0, vax)
     acc = _axis_limited(t0, aax)
     radius = np.full(len(idx), np.inf)
     angle = np.zeros(len(idx))
     normal = np.zeros((len(idx), 3))
     if arc.any():
-        r0, r1, _, sweep, dn, ax = sub.subset(arc)._arc_params()
+        sub = tp.subset(idx[arc])
+        m = np.arange(len(sub))
+        _, t0[arc], _ = sub.points(m, np.zeros(len(m)), derivatives=True)
+        _, t1[arc], _ = sub.points(m, np.ones(len(m)), derivatives=True)
+        r0, r1, _, sweep, dn, ax = sub._arc_params()
         planar = np.abs(sweep) * 0.5 * (r0 + r1)
         length = np.hypot(planar, dn)
         c, s = planar / length, np.abs(dn) / length
@@ -474,20 +615,25 @@ def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, blend_mm) -> li
         nrm = np.zeros((arc.sum(), 3))
         nrm[np.arange(arc.sum()), an] = 1.0
         normal[arc] = nrm
-    rapid = sub.kind == RAPID
+    rapid = tp.kind[idx] == RAPID
     f = feed[idx] / 60.0
     req = np.where(rapid | ~np.isfinite(f), vmax, np.minimum(f, vmax))
     segs = []
     for k in range(len(idx)):
         s = _Segment()
-        s.move, s.length, s.nominal = int(idx[k]), float(L[idx[k]]), float(L[idx[k]])
-        s.trim_end = 0.0
+        s.move, s.first, s.length, s.nominal = int(idx[k]), int(head[k]), float(L[k]), float(L[k])
+        s.ends = np.array([s.nominal])
+        if s.first < s.move:  # a merged chain: its moves' end points projected on the line
+            p = (tp.end[s.first:s.move + 1] - tp.start[s.first]) @ t0[k]
+            s.ends = np.minimum(np.maximum.accumulate(np.clip(p, 0.0, s.nominal)), s.nominal)
+            s.ends[-1] = s.nominal
+        s.trim_start = s.trim_end = 0.0
         s.req, s.maxvel, s.acc = float(req[k]), float(vmax[k]), float(acc[k])
         s.arc, s.rapid = bool(arc[k]), bool(rapid[k])
         s.t0, s.t1, s.normal = tuple(t0[k].tolist()), tuple(t1[k].tolist()), tuple(normal[k].tolist())
         s.radius, s.angle = float(radius[k]), float(angle[k])
         s.halved, s.kink_share = False, 0.0
-        s.tolerance = model.blend_tolerance_mm if blend_mm is None else float(blend_mm[idx[k]])
+        s.tolerance = float(modes.blend_mm[idx[k]])
         segs.append(s)
     return segs
 
@@ -566,14 +712,17 @@ def _blend(prev: _Segment, cur: _Segment, model: ControllerModel):
     return d_plan, s_arc, min(v_plan, v_req), a_max * TANGENTIAL_SHARE
 
 
-def corner_speeds(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | None = None) -> np.ndarray:
+def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None = None) -> np.ndarray:
     """LinuxCNC's planner: per junction (len(tp) + 1; index j: before move j) the highest speed (mm/s)
     at which it passes the corner whatever the feeds: 0 where it stops (rapid ↔ feed, a reversal, a
     jump, G61/G61.1), else the larger of the tangent-kink speed (the velocity jump v·Δu in one servo
     period within 10 % of the axes' acceleration) and the blend arc's top speed √(0.87·a·r_geom) (or,
-    where no arc fits, the parabolic blend's); inf at the ends and between collinear moves."""
+    where no arc fits, the parabolic blend's); inf at the ends and between collinear moves, and between
+    two straight feeds wherever a naive-CAM tolerance is set (`naive_cam_chains`): which corners the
+    canon layer merges away, and the directions of the lines it makes, follow the feeds written."""
     out = np.full(len(tp) + 1, np.inf)
-    segs = _segments(tp, model, np.full(len(tp), np.inf), blend_mm)
+    modes = PathModes.uniform(len(tp), model) if modes is None else modes
+    segs = _segments(tp, model, np.full(len(tp), np.inf), modes)
     amax, dt = model.accel_mm_s2, model.servo_period_s
     for prev, cur in zip(segs[:-1], segs[1:]):
         if (prev.rapid != cur.rapid or model.exact_stop or prev.tolerance in (EXACT_PATH, EXACT_STOP)
@@ -592,21 +741,26 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | N
         else:
             v = max(v, _parabolic_speed(prev, cur))
         out[cur.move] = v
+    straight = tp.kind == FEED
+    merging = np.r_[False, straight[:-1] & straight[1:] & (modes.merge_mm[1:] > 0) & ~modes.flush[1:], False]
+    out[merging] = np.inf
     return out
 
 
-def blend_zones(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | None = None) -> list[tuple]:
+def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes | None = None) -> list[tuple]:
     """Corners where the controller may run a blend arc at the faster of its two moves' feeds (LinuxCNC
     blends at max(F_in, F_out)): per corner (move before, move after, length into the move before and
     into the move after (mm), the arc's top speed (mm/s)). The lengths and the speed bound the arc at
     any feeds (r ≤ r_geom, v ≤ √(0.87·a·r_geom)), so a feed-independent zone: on it, the slower move's
     loads see the faster move's feed unless both F words fit the zone. grbl never runs a junction above
-    the slower block's feed: no zones. blend_mm: the path modes per move (`path_modes`). Stops
+    the slower block's feed: no zones. modes: the path modes (`path_modes`); per programmed move, not
+    merged (the merge depends on the feeds written; feeds change only between chains, so the zones
+    at chain ends are among these). Stops
     (rapid ↔ feed, reversals, jumps, G61/G61.1) have no zone; pauses are not looked at (a zone
     there only costs time)."""
     if model.planner != "linuxcnc":
         return []
-    segs = _segments(tp, model, None, blend_mm)
+    segs = _segments(tp, model, None, modes)
     out = []
     for prev, cur in zip(segs[:-1], segs[1:]):
         if (prev.rapid or cur.rapid or model.exact_stop
@@ -622,9 +776,9 @@ def blend_zones(tp: Toolpath, model: ControllerModel, blend_mm: np.ndarray | Non
     return out
 
 
-def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, blend_mm):
+def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, modes):
     """LinuxCNC 2.9's queue: segments, blend arcs and the speed caps at their junctions."""
-    segs = _segments(tp, model, feed_mm_min, blend_mm)
+    segs = _segments(tp, model, feed_mm_min, modes, merge=True)
     stop = _stops(tp, pauses).tolist()
     dt = model.servo_period_s
     amax = model.accel_mm_s2
@@ -633,7 +787,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     joints: list = [None] * len(segs)
     for j in range(1, len(segs)):
         prev, cur = segs[j - 1], segs[j]
-        if any(stop[prev.move + 1:cur.move + 1]):
+        if any(stop[prev.move + 1:cur.first + 1]):
             joints[j] = ("pause", 0.0, None)
             continue
         if exact or prev.rapid != cur.rapid or prev.tolerance == EXACT_STOP:
@@ -664,6 +818,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             prev.trim_end = blend[0]
             prev.length -= blend[0]
             cur.length -= blend[0]
+            cur.trim_start = blend[0]
         else:
             joints[j] = ("parabolic", 0.0, None)
             prev.halved = cur.halved = True
@@ -674,7 +829,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     # the arc's speed is dropped from the queue and its rest becomes the straight lead-in of that arc
     consumed = [j + 1 < len(segs) and joints[j + 1][0] == "blend" and not s.arc
                 and s.length < GAP_CYCLES * dt * joints[j + 1][2][2] for j, s in enumerate(segs)]
-    L, vnom, acc, vj2, move, u_end, ramps, split = [], [], [], [], [], [], [], []
+    L, vnom, acc, vj2, move, u_end, ramps, cuts = [], [], [], [], [], [], [], []
     lead, lead_vj2 = 0.0, np.inf  # a consumed rest waiting for its arc, and the speed cap at its start
     for j, s in enumerate(segs):
         joint = joints[j]
@@ -685,10 +840,11 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             L.append(length)
             vnom.append(min(v, length / (MIN_SEGMENT_CYCLES * dt)))
             acc.append(a)
-            move.append(segs[j - 1].move)
-            u_end.append(1.0)
+            m, u = _place(s, d)
+            move.append(m)
+            u_end.append(u)
             ramps.append(not s.rapid)
-            split.append((len(L) - 1, (lead + 0.5 * s_arc) / length, s.move, d / s.nominal))
+            cuts.append((len(L) - 1, (lead + 0.5 * s_arc) / length, segs[j - 1].move, 1.0))
             lead, lead_vj2 = 0.0, np.inf
         if joint is None or joint[0] in ("stop", "pause"):
             start_vj2 = 0.0
@@ -711,12 +867,17 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
         L.append(max(s.length, 0.0))
         vnom.append(vmax)
         acc.append(a)
-        move.append(s.move)
-        u_end.append((s.nominal - s.trim_end) / s.nominal)
+        m, u = _place(s, s.nominal - s.trim_end)
+        move.append(m)
+        u_end.append(u)
         ramps.append(not s.rapid)
+        span = s.nominal - s.trim_end - s.trim_start
+        for k, x in enumerate(s.ends[:-1]):  # a merged chain: a cut where each of its moves ends
+            if s.trim_start < x < s.nominal - s.trim_end and span > 0:
+                cuts.append((len(L) - 1, (x - s.trim_start) / span, s.first + k, 1.0))
     vj2.append(0.0)
     return (np.asarray(L, float), np.asarray(vnom, float), np.asarray(acc, float), np.asarray(vj2, float),
-            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool), split)
+            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool), cuts)
 
 
 def _parabolic_speed(prev: _Segment, cur: _Segment) -> float:

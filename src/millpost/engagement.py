@@ -54,6 +54,11 @@ class Engagement:
     meets the original stock and its tip disc (radius R) is not inside it, so air over a pocket's
     floor or a faced top is not near (None when no clearance was asked for). Read from the original
     tops' range per block of ~0.5 mm: it errs towards near, by up to a block's diagonal.
+    swept_air (N,) bool: a near_stock sample that is known air all the same: its step, and the next
+    step unless that one is not near, lie wholly in space the program's earlier feed steps swept with
+    the tool (at or below it, whatever the stock model says; None when no clearance was asked). Read
+    from a field of the lowest tool surface that covered each whole cell of ~R/12 (`simulate`): it errs
+    towards unknown, by up to a cell's diagonal and half a step.
     """
 
     phi_st: np.ndarray
@@ -77,6 +82,7 @@ class Engagement:
     descent: np.ndarray | None = None
     look_ahead_mm: np.ndarray | None = None
     near_stock: np.ndarray | None = None
+    swept_air: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ap_mm)
@@ -235,7 +241,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
                rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
                area=np.zeros(n), feed=np.zeros((n, 3)), desc=np.zeros(n, bool), depth=np.zeros(n),
-               end=np.zeros((n, END_BINS), np.float32), near=np.zeros(n, bool))
+               end=np.zeros((n, END_BINS), np.float32), near=np.zeros(n, bool), swept=np.zeros(n, bool))
     top = stock.top.reshape(-1)
     # the clearance's snapshot of the stock as loaded: its tops' range per block of ~0.5 mm (at least
     # 4 × 4 columns: an eighth of the grid's size at most)
@@ -247,18 +253,20 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     prev_f = np.array([1.0, 0.0])
     moving = steps[steps > 0]
     ds = float(np.median(moving)) if len(moving) else 0.0
-    report = resolve(progress)
-    report("engagement", 0, n)  # started: its bar's clock runs from here
-    chunk = 50_000
     # runs of one tool, cut into chunks for the progress display
     bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
     runs = []
-    ahead = np.zeros(n)
     for a, b in zip(bounds[:-1], bounds[1:]):
         t = tools.get(int(tool_no[a])) if tools is not None else tool
-        runs.append((a, b, t))
         if t is None:
             raise MillpostError(f"line {int(samples.line[a])}: tool T{int(tool_no[a])} is not described")
+        runs.append((a, b, t))
+    swept, sweep_grid = _swept_field(stock, max((t.radius_mm for _, _, t in runs), default=1.0), clear)
+    report = resolve(progress)
+    report("engagement", 0, n)  # started: its bar's clock runs from here
+    chunk = 50_000
+    ahead = np.zeros(n)
+    for a, b, t in runs:
         shape, R, rc, r_tip, tan_half = _tool_params(t)
         la = look_ahead_mm if look_ahead_mm is not None else max(2 * ds, math.sqrt(R * stock.cell_mm))
         ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
@@ -270,7 +278,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                              stock.x0, stock.y0, stock.cell_mm, stock.z_floor, stock.n_multi > 0, stock.multi_bits,
                              stock.multi_rank, stock.gap_ptr, stock.gap_lo, stock.gap_hi, shape, R, rc, r_tip, tan_half,
                              t.flute_len, K, M, ring_at, shape != _k.FLAT, 1e-3, clear, zmax, omax, omin, B,
-                             *(v[a:b] for v in out.values()))
+                             swept, *sweep_grid, *(v[a:b] for v in out.values()))
             if bad != _k.OK:
                 bad += a
                 raise CrashError(int(samples.line[bad]), xyz[bad])
@@ -285,10 +293,28 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     plunge = out["desc"] & (descent > 1.0 - 1e-9)
     out["phi_st"][plunge], out["phi_ex"][plunge], out["dz"][plunge], out["arc"][plunge] = np.nan, np.nan, 0.0, 0.0
     out["ae"][plunge] = 0.0
+    # a near step in swept space is known air when the step after it is too, or is not near: the tool
+    # then reaches no space near the stock that it has not cleared itself at the speed raised there
+    unknown_next = np.append(out["near"][1:] & ~out["swept"][1:], False)
     return Engagement(
         phi_st=out["phi_st"], phi_ex=out["phi_ex"], dz_mm=out["dz"], z_mm=out["zmid"], r_mm=out["rad"],
         kappa=kappa, feed_dir=out["feed"], ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
         volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
         step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
         depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead,
-        near_stock=out["near"] if clearance_mm is not None else None)
+        near_stock=out["near"] if clearance_mm is not None else None,
+        swept_air=out["near"] & out["swept"] & ~unknown_next if clearance_mm is not None else None)
+
+
+def _swept_field(stock, radius_mm: float, clear: float) -> tuple[np.ndarray, tuple[int, int, float, float, float]]:
+    """The swept field `simulate` fills (float32 heights, +inf: not swept) and its grid (nx, ny, x0, y0,
+    cell mm): cells of R/12 for the largest tool radius R, at least two stock cells (so it holds at most a
+    byte per stock column, a fifth of the stock's own memory), over the stock's grid and the band
+    2R + c + a cell around it where a tool can be near the stock; one cell when no clearance was asked."""
+    if clear < 0:
+        return np.full(1, np.inf, np.float32), (1, 1, 0.0, 0.0, 1.0)
+    w = max(2.0 * stock.cell_mm, radius_mm / 12.0)
+    margin = 2.0 * radius_mm + clear + w
+    nx = math.ceil((stock.nx * stock.cell_mm + 2.0 * margin) / w)
+    ny = math.ceil((stock.ny * stock.cell_mm + 2.0 * margin) / w)
+    return np.full(nx * ny, np.inf, np.float32), (nx, ny, stock.x0 - margin, stock.y0 - margin, w)

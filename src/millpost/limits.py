@@ -48,7 +48,8 @@ Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised 
 maximum feed, except in the shell of width c around the stock as loaded (`Engagement.near_stock`: the
 tool grown by c meets the original stock, its tip disc is not inside it; the surfaces the program cut
 are known, air over them is raised; a retract straight up is raised too: it meets no material the tool
-is not already in). There a block that
+is not already in; so is air in space the tool itself swept before, at or below it, beside the stock
+too: `Engagement.swept_air`, e.g. a trochoid's return beside the block it enters). There a block that
 cuts nothing (an approach, a plunge or lead-in beside the stock, a link just over it) keeps its
 programmed feed at most; the air part of a block that cuts (a move, or a canned cycle's moves at one
 hole), its programmed feed or the lowest cap of its cut if higher (hard, "air_clearance": a cap like
@@ -77,7 +78,7 @@ import numpy as np
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
-from .controller import ControllerModel, corner_speeds
+from .controller import ControllerModel, PathModes, corner_speeds
 from .progress import Progress, silent
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
@@ -167,14 +168,14 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
-def _corners(job: Job, samples: Samples, toolpath: Toolpath):
+def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes | None):
     """The corner rule of the machine's own planner (`ControllerModel.from_machine`): grbl's junction
-    deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds`), on the
-    last sample before each corner."""
+    deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds` in the
+    path modes `modes`), on the last sample before each corner."""
     model = ControllerModel.from_machine(job.machine)
     if model.planner == "grbl":
         return Junction(model.accel_mm_s2, model.junction_deviation_mm)
-    corner = corner_speeds(toolpath, model)
+    corner = corner_speeds(toolpath, model, modes)
     cap = np.full(len(samples), np.inf)
     last = np.flatnonzero(samples.move[:-1] != samples.move[1:])
     cap[last] = corner[samples.move[last + 1]]
@@ -182,11 +183,13 @@ def _corners(job: Job, samples: Samples, toolpath: Toolpath):
 
 
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
-                 release_slices: bool = False) -> JobLimits:
+                 release_slices: bool = False, modes: PathModes | None = None) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
     `millpost.progress` callback (stage "forces", in samples). release_slices: once the loads are
     computed, `eng` (changed in place) keeps only what `Engagement.per_sample` keeps (memory: its
-    per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built)."""
+    per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built). modes: the
+    program's path modes (`controller.path_modes`: where its corners blend and its straight feeds
+    merge); default: the machine controller's own on every move."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])
@@ -204,7 +207,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
-              Limit(_corners(job, samples, toolpath), HARD, "inertia", controller=True, f_word=False)]
+              Limit(_corners(job, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
                             f_word=False))
@@ -364,20 +367,24 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                         HARD, "current"))
     if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
         near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
-        cap = _air_clearance(near, engaged, samples, v_prog, v_cap)
+        cap = _air_clearance(near, near & eng.swept_air, engaged, samples, v_prog, v_cap)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
 
 
-def _air_clearance(near: np.ndarray, engaged: np.ndarray, samples: Samples, v_prog: np.ndarray,
+def _air_clearance(near: np.ndarray, known: np.ndarray, engaged: np.ndarray, samples: Samples, v_prog: np.ndarray,
                    v_cap: np.ndarray) -> np.ndarray:
     """The air clearance's speed cap per sample (mm/s). near: feed samples that cut nothing within the
-    clearance; engaged: samples that cut; blocks are source lines (one move, or a canned cycle's moves
-    at one hole); v_prog: the programmed speed; v_cap: the other limits' speed caps. In a block that cuts nothing (an approach, a plunge or lead-in beside the stock, a link
-    over it) the cap is the programmed feed; in the air part of a block that cuts, the programmed feed
-    or, if higher, the lowest cap of its cut: the tool reaches material no faster than the cut it enters
-    is allowed. The point where one move hands over to the next takes the higher of their caps (the
-    programmed program passes it at the faster of the two feeds: a blending planner's blend)."""
+    clearance; known: those of them in space the tool swept before (`Engagement.swept_air`: not capped);
+    engaged: samples that cut; blocks are source lines (one move, or a canned cycle's moves at one
+    hole); v_prog: the programmed speed; v_cap: the other limits' speed caps. In a block that cuts
+    nothing (an approach, a plunge or lead-in beside the stock, a link over it) the cap is the
+    programmed feed; in the air part of a block that cuts, the programmed feed or, if higher, the lowest
+    cap of its cut: the tool reaches material no faster than the cut it enters is allowed. The point
+    where one move hands over to the next takes the higher of their caps (the programmed program passes
+    it at the faster of the two feeds: a blending planner's blend); a known sample hands over its capped
+    value (it is released after), so that nothing beside it that the tool has not swept is released
+    with it."""
     line = samples.line
     v_cut = np.full(int(line.max(initial=0)) + 1, np.inf)
     np.minimum.at(v_cut, line[engaged], v_cap[engaged])
@@ -387,6 +394,7 @@ def _air_clearance(near: np.ndarray, engaged: np.ndarray, samples: Samples, v_pr
     both = np.maximum(cap[handover], cap[handover + 1])
     for k in (handover - 1, handover, handover + 1):  # within a step of it
         cap[k[k >= 0]] = np.maximum(cap[k[k >= 0]], both[k >= 0])
+    cap[known] = np.inf
     return cap
 
 

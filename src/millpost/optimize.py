@@ -4,7 +4,8 @@ feeds → replay. Only wiring: the limits and the feed policy are `millpost.limi
 forward model `millpost.signals`), the spindle speeds (opt-in) `millpost.spindle_speed`.
 
 Cycle times are always the controller model's (`millpost.controller`), before and after, and against
-the honest baseline: per tool, the highest single constant feed that exceeds no limit anywhere.
+the honest baseline: per tool and per programmed feed (a CAM user's separate cutting, plunge, ramp and
+lead-in feeds), the highest single constant feed that exceeds no limit anywhere those moves cut.
 When the solver fails, the programmed feeds are kept and the summary says why; when the optimized
 program is slower than the programmed one (a hard limit the program exceeds), the status says so.
 """
@@ -68,7 +69,8 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         t_engage = time.perf_counter()
         limits = None
         if job.limits["rpm"] != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True)
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True,
+                                  modes=controller.path_modes(program, controller_model(job)))
         t_limits = time.perf_counter()
         result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
     result.summary["notes"] += notes
@@ -93,12 +95,13 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
         limits = None  # the loads at the chosen speeds
     tp = program.toolpath
+    model = controller_model(job)
+    modes = controller.path_modes(program, model)
     t_limits = time.perf_counter()
-    limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress)
+    limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress, modes=modes)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options)
     solver_s = time.perf_counter() - t0
-    model = controller_model(job)
     progress("emission", 0, 4)
     before = controller.execute_program(program, model)
     base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
@@ -120,7 +123,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
         # corners the controller blends at the faster feed carry it into the slower move
         limit_mm_s = blend_limit(samples, limit_mm_s, np.cumsum(tp.lengths()),
-                                 controller.blend_zones(tp, model, controller.path_modes(program, model)))
+                                 controller.blend_zones(tp, model, modes))
         fragments = whole_moves(program, piecewise_feeds(
             samples, limit_mm_s, step=float(job.limits["feed_step"]),
             accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
@@ -189,6 +192,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
              "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
+             "feed_baseline_mm_min": np.where(cut, base_feeds[samples.move], np.nan),
              "feed_schedule_mm_min": sched.feed_mm_s * 60.0, "feed_executed_mm_min": executed * 60.0,
              "feed_min_chip_mm_min": limits.floor_mm_s * 60.0,
              "feed_hard_cap_mm_min": static_caps(samples, limits, HARD) * 60.0,

@@ -28,28 +28,41 @@ from .toolpath import RAPID, Samples, Toolpath
 
 
 def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tuple[np.ndarray, dict]:
-    """The honest baseline: per tool one constant feed (mm/min), the highest that exceeds no
-    speed-only limit anywhere that tool cuts (what a careful CAM user would program), and, on the
-    moves a cap from the program's own feeds applies to (the limits the single F does not obey: the
-    plunge feed cap on ramps and plunges, the air clearance on approaches), at most that cap, as a CAM
-    user programs separate plunge, ramp and lead-in feeds."""
+    """The honest baseline: per tool and per programmed feed (the moves of one tool programmed at the
+    same F form a group: a CAM user's separate cutting, plunge, ramp and lead-in feeds, which a careful
+    machinist tunes each) one constant feed (mm/min, floored to a whole mm/min), the highest that
+    exceeds no speed-only limit anywhere the group cuts; a group with no sampled move keeps its
+    programmed feed. On the moves a cap from the program's own feeds applies to (the limits the group's
+    F does not obey: the plunge feed cap on ramps and plunges, the air clearance on approaches) the feed
+    is at most that cap. Rapids are untouched. Returns the feed per move and, per tool, {programmed F:
+    the highest feed that group's moves run at}."""
     tp = program.toolpath
     cap = static_caps(samples, limits, baseline=True) * 60.0
     feeds = tp.feed_mm_min.copy()
-    per_tool = {}
-    for number in np.unique(tp.tool[tp.kind != RAPID]):
-        sel = (samples.tool == number) & (samples.kind != RAPID)
-        if not sel.any():  # no move of this tool is long enough to be sampled: its feeds stay
-            per_tool[int(number)] = None
-            continue
-        f = float(np.floor(cap[sel].min()))
-        per_tool[int(number)] = f
-        feeds[(tp.tool == number) & (tp.kind != RAPID)] = f
+    moving = np.flatnonzero(tp.kind != RAPID)
+    groups, group = np.unique(np.column_stack([tp.tool[moving], tp.feed_mm_min[moving]]), axis=0,
+                              return_inverse=True)
+    group = group.reshape(-1)
+    of_move = np.full(len(tp), -1)
+    of_move[moving] = group
+    at = of_move[samples.move]
+    on = at >= 0
+    lowest = np.full(len(groups), np.inf)
+    np.minimum.at(lowest, at[on], cap[on])
+    # floored to a whole mm/min, with a relative 1e-9 so a cap that is the programmed feed (a bound the
+    # feed policy held at its load) is not lost to rounding; nothing sampled: as programmed
+    base = np.where(np.isfinite(lowest), np.floor(lowest * (1 + 1e-9)), groups[:, 1])
+    feeds[moving] = base[group]
     own = [lim for lim in limits if not lim.baseline]
     if own:
         move_cap = np.full(len(tp), np.inf)
         np.minimum.at(move_cap, samples.move, static_caps(samples, own) * 60.0)
         feeds = np.where(tp.kind != RAPID, np.minimum(feeds, move_cap), feeds)
+    runs = np.zeros(len(groups))
+    np.maximum.at(runs, group, feeds[moving])
+    per_tool: dict[int, dict[float, float]] = {}
+    for (number, programmed), f in zip(groups, runs):
+        per_tool.setdefault(int(number), {})[float(programmed)] = float(f)
     return feeds, per_tool
 
 

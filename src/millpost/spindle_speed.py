@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .controller import path_modes
 from .emit import replace_numbers
 from .errors import MillpostError
 from .gcode.interpret import Program
@@ -36,7 +37,7 @@ from .job import Job
 from .limits import build_limits
 from .progress import Progress, reporting, silent
 from .schedule import ScheduleOptions, schedule_samples
-from .signals import step_times_s
+from .signals import controller_model, step_times_s
 from .toolpath import RAPID, Samples
 
 CANDIDATES = 6     # speeds tried per block across its window
@@ -195,7 +196,7 @@ def _block_times(job: Job, program: Program, samples: Samples, eng, options: Sch
                  blocks: list[SpeedBlock], sample_block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per block the scheduled time (s) of its samples under the job's limits at the samples' rpm (inf
     for every block when a segment's solve fails), and how many of its samples the feed policy holds."""
-    limits = build_limits(job, samples, eng, program.toolpath)
+    limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     with reporting(silent):  # the stage is "spindle speeds", not the schedule's own
         sched = schedule_samples(samples, limits, options)
     mine = sample_block >= 0

@@ -18,7 +18,9 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
 4. Clearance (feed steps that cut nothing): whether the tool is in the shell of width c around the
    stock as loaded (`_near_original`): the tool grown by c (radius R + c, tip c lower) meets the
    original stock and its tip disc is not inside it, read from a coarse snapshot of the original
-   column tops (per block of columns their maximum and minimum, `block_range`).
+   column tops (per block of columns their maximum and minimum, `block_range`). And whether such a
+   step lies in space the tool itself has swept (`_in_swept`), read from a coarse swept field that
+   every feed step lowers (`_sweep_record`): per cell the lowest tool surface that covered it whole.
 
 Tool shapes: 0 flat, 1 corner radius (ball when rc = R, bull otherwise), 2 chamfer or drill (a cone).
 These closed forms mirror `millpost.tools.Tool.height_at` / `radius_at` (tests check they agree).
@@ -285,6 +287,93 @@ def _near_original(px, py, pz, R, c, omax, omin, B, nx, ny, x0, y0, h, zf):
             if d2 < R * R and not omin[b] > zt:
                 inside = False
     return meets and not inside
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _up32(z):
+    """z as the nearest float32 not below it (the swept field's storage: rounding up errs towards
+    unknown; a tool height rounded the same way compares equal to its own record)."""
+    v = np.float32(z)
+    if v < z:
+        v = np.nextafter(v, np.float32(np.inf))
+    return v
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _covered(px, py, R, ya, yb, sx0, W):
+    """Span (first, last) of the cells of W mm on the row [ya, yb] that lie wholly inside the disc of
+    radius R at (px, py): those whose farthest corner is within R (empty: first > last)."""
+    dy = max(abs(ya - py), abs(yb - py))
+    if dy > R:
+        return 1, 0
+    w = math.sqrt(R * R - dy * dy)
+    return int(math.ceil((px - w - sx0) / W)), int(math.floor((px + w - sx0) / W)) - 1
+
+
+@njit(cache=True, error_model="numpy")
+def _sweep_record(px, py, pz, qx, qy, skip_q, R, shape, rc, r_tip, tan_half, swept, snx, sny, sx0, sy0, W):
+    """Lower the swept field under the tool at tip (px, py, pz): each cell of W × W mm wholly inside the
+    tool's disc takes the lower of its value and the tool surface's height at the cell's farthest point
+    from the axis (the tool occupied everything above that, over the whole cell). skip_q: a flat end
+    not descending from the disc at (qx, qy), whose wholly covered cells hold no more than pz already:
+    only the cells outside it are visited."""
+    j0 = max(0, int(math.floor((py - R - sy0) / W)))
+    j1 = min(sny - 1, int(math.floor((py + R - sy0) / W)))
+    for j in range(j0, j1 + 1):
+        ya, yb = sy0 + j * W, sy0 + (j + 1) * W
+        a, b = _covered(px, py, R, ya, yb, sx0, W)
+        a, b = max(a, 0), min(b, snx - 1)
+        a1, b1 = 1, 0  # a second range when the disc at q splits the row
+        if skip_q:
+            qa, qb = _covered(qx, qy, R, ya, yb, sx0, W)
+            if qa <= qb:
+                a, b, a1, b1 = a, min(b, qa - 1), max(a, qb + 1), b
+        dy = max(abs(ya - py), abs(yb - py))
+        row = j * snx
+        for seg in range(2):
+            lo_i, hi_i = (a, b) if seg == 0 else (a1, b1)
+            for i in range(lo_i, hi_i + 1):
+                z = pz
+                if shape != FLAT:
+                    dx = max(abs(sx0 + i * W - px), abs(sx0 + (i + 1) * W - px))
+                    z += surface_height(min(math.sqrt(dx * dx + dy * dy), R), shape, R, rc, r_tip, tan_half)
+                v = _up32(z)
+                if v < swept[row + i]:
+                    swept[row + i] = v
+
+
+@njit(cache=True, error_model="numpy")
+def _in_swept(px, py, pz, qx, qy, qz, R, shape, rc, r_tip, tan_half, swept, snx, sny, sx0, sy0, W):
+    """Whether the tool's sweep from tip q to tip p lies in space the swept field knows as cleared: every
+    cell meeting the disc of radius R + L/2 about the step's midpoint (L its horizontal length; the disc
+    holds the tool's whole sweep) has a swept height no higher than the tool's lowest surface over it,
+    min(qz, pz) + height(d − L/2) with d the cell's nearest distance to the midpoint (both rounded up
+    to float32, `_up32`: within a float32 step, < 0.1 µm in 1 m). Cells off the field are not known."""
+    mx, my = 0.5 * (px + qx), 0.5 * (py + qy)
+    half = 0.5 * math.sqrt((px - qx) * (px - qx) + (py - qy) * (py - qy))
+    rr = R + half
+    zlow = min(pz, qz)
+    if mx - rr < sx0 or my - rr < sy0 or mx + rr > sx0 + snx * W or my + rr > sy0 + sny * W:
+        return False
+    j0 = max(0, int(math.floor((my - rr - sy0) / W)))
+    j1 = min(sny - 1, int(math.floor((my + rr - sy0) / W)))
+    for j in range(j0, j1 + 1):
+        dy = max(sy0 + j * W - my, 0.0, my - sy0 - (j + 1) * W)
+        if dy > rr:
+            continue
+        w = math.sqrt(rr * rr - dy * dy)
+        i0 = max(0, int(math.floor((mx - w - sx0) / W)))
+        i1 = min(snx - 1, int(math.floor((mx + w - sx0) / W)))
+        row = j * snx
+        for i in range(i0, i1 + 1):
+            z = zlow
+            if shape != FLAT:
+                dx = max(sx0 + i * W - mx, 0.0, mx - sx0 - (i + 1) * W)
+                d = max(math.sqrt(dx * dx + dy * dy) - half, 0.0)
+                z += surface_height(min(d, R), shape, R, rc, r_tip, tan_half)
+            if not swept[row + i] <= _up32(z):
+                return False
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -703,7 +792,9 @@ def _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t):
 @njit(cache=True, error_model="numpy")
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol, clear, zmax, omax, omin, B,
-        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o, near_o):
+        swept, snx, sny, sx0, sy0, W,
+        phi_st, phi_ex, dz, zmid, rad, arc, ap_o, ae_o, vol_o, area_o, feed_o, desc_o, depth_o, end_o, near_o,
+        swept_o):
     """Step samples k0..k1-1. fresh[k]: sample k does not continue from k-1 (start, jump, tool change).
     ring_at[k] = (x, y, fx, fy): centre and feed direction of sample k's ring (the path point a
     look-ahead distance further on). Outputs are written in place (rows k); returns OK or the index
@@ -713,7 +804,9 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     end_o[k]: the end's radial engagement of a descending feed step (`_end_band`). near_o[k]: a feed
     step that cuts nothing lies within `clear` mm of the original stock (`_near_original` with its
     tops' block maxima omax and minima omin of B × B columns; zmax: the highest original top); not
-    computed when clear < 0."""
+    computed when clear < 0. swept (snx × sny cells of W mm from (sx0, sy0), in place): the swept field,
+    the lowest height the feed steps' tool surface has covered over each whole cell (`_sweep_record`,
+    kept when clear >= 0); swept_o[k]: a near step lies in space it knows as cleared (`_in_swept`)."""
     dphi = math.pi / M
     sin_t = np.sin(np.arange(M + 1) * dphi)
     cos_t = np.cos(np.arange(M + 1) * dphi)
@@ -747,7 +840,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
             if not descending and dxy < 2.0 * R:
                 mode = 1 if shape == FLAT else 2
         else:
-            qx, qy = px, py
+            qx, qy, qz = px, py, pz
         gx, gy = ring_at[k, 2], ring_at[k, 3]
         feed_o[k, 0], feed_o[k, 1] = gx, gy
         desc_o[k] = descending
@@ -783,10 +876,16 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         depth_o[k] = ap
         ap = min(ap, flute)
         ap_o[k] = ap
+        if clear >= 0.0 and not rapid[k] and pz - clear < zmax:  # higher, no near step could use its record
+            if ap <= 1e-6:
+                near_o[k] = _near_original(px, py, pz, R, clear, omax, omin, B, nx, ny, x0, y0, h, zf)
+                if near_o[k]:  # before this step is recorded: what the tool swept until it got here
+                    swept_o[k] = _in_swept(px, py, pz, qx, qy, qz, R, shape, rc, r_tip, tan_half, swept, snx, sny,
+                                           sx0, sy0, W)
+            skip_q = shape == FLAT and not fresh[k] and pz >= qz and not rapid[k - 1]
+            _sweep_record(px, py, pz, qx, qy, skip_q, R, shape, rc, r_tip, tan_half, swept, snx, sny, sx0, sy0, W)
         if ap <= 1e-6 or step == 0.0:
             area_o[k] = vol_o[k] / step if step > 0.0 else 0.0
-            if ap <= 1e-6 and clear >= 0.0 and not rapid[k] and pz - clear < zmax:
-                near_o[k] = _near_original(px, py, pz, R, clear, omax, omin, B, nx, ny, x0, y0, h, zf)
             continue
         dzs = ap / K
         cx, cy = ring_at[k, 0], ring_at[k, 1]

@@ -289,8 +289,9 @@ def _event(e, dialect: Dialect, emit, comment, g) -> None:
     elif e.kind == "m_code":
         emit(f"M{e.value}")
     elif e.kind == "path_mode" and dialect.path_modes:
-        name, p = e.value
-        emit({"exact path": g(61), "exact stop": "G61.1", "blend": g(64) + (f" P{p:g}" if p else "")}[name])
+        name, p, q = e.value
+        blend = g(64) + (f" P{p:g}" if p else "") + (f" Q{q:g}" if q is not None else "")
+        emit({"exact path": g(61), "exact stop": "G61.1", "blend": blend}[name])
 
 
 def same_path(a: Program, b: Program, tol_mm: float = 1e-4) -> list[str]:

@@ -641,8 +641,8 @@ class Interpreter:
                 self.retract_old_z = code == 980
         for code, name in ((610, "exact path"), (611, "exact stop"), (640, "blend")):
             if code in gset:
-                self.event(b.line, "path_mode", (name, val["P"].value if "P" in val and code == 640
-                                                               else None))
+                p, q = ((val[L].value if L in val and code == 640 else None) for L in "PQ")
+                self.event(b.line, "path_mode", (name, p, q))
         if "@" in val or "^" in val:
             block_motion = next((c for c in gset if c in _MOTION), self.motion)
             self.polar_words(b, val, block_motion in _CYCLES)

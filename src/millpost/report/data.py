@@ -86,12 +86,12 @@ def sample_times_s(s_mm: np.ndarray, feed_mm_min: np.ndarray) -> np.ndarray:
 
 def operation_times(data: ReportData) -> list[dict]:
     """Per operation: cutting length (mm) and the feed time (s) at the programmed F, at the baseline F
-    (per tool one constant feed, as in the summary) and as executed after optimizing (the controller
-    model's speed along the path). Rapids are left out of all three."""
+    (the trace's: per tool and programmed feed one constant feed, capped on plunges and approaches, as
+    the summary's baseline run) and as executed after optimizing (the controller model's speed along the
+    path). Rapids are left out of all three."""
     tr = data.trace
     cut = data.cutting
-    base = data.summary.get("baseline_feed_mm_min", {})
-    base_feed = np.array([base.get(str(int(t)), base.get(int(t), math.nan)) for t in tr["tool"]], float)
+    base_feed = tr.get("feed_baseline_mm_min", np.full(len(tr["s_mm"]), np.nan))  # older traces: none
     columns = {"programmed": np.where(cut, tr["feed_programmed_mm_min"], np.nan),
                "baseline": np.where(cut, base_feed, np.nan),
                "optimized": np.where(cut, tr["feed_executed_mm_min"], np.nan)}

@@ -31,7 +31,7 @@ def headline(summary: dict) -> str:
     if before > 0:
         text += f" ({100 * (after / before - 1):+.0f} %)"
     if base:
-        text += f"; one safe constant feed per tool: {base:.1f} s"
+        text += f"; one safe constant feed per tool and programmed F: {base:.1f} s"
     binding = summary.get("binding") or {}
     if binding:
         name, share = max(binding.items(), key=lambda kv: kv[1])
@@ -60,9 +60,10 @@ def render(data: ReportData) -> str:
         parts.append("<p>What limits the feed (share of cutting time): " + html.escape(", ".join(
             f"{k} {100 * v:.0f} %" for k, v in sorted(binding.items(), key=lambda kv: -kv[1]))) + "</p>")
     parts += ["<h2>Cycle time per operation</h2>",
-              "<p>Feed moves only, rapids left out: at the programmed F, at the baseline F (per tool the highest "
-              "constant feed that exceeds no limit anywhere) and as the controller model executes the optimized "
-              "program (with its ramps). The headline's totals are the controller model's for the whole program.</p>",
+              "<p>Feed moves only, rapids left out: at the programmed F, at the baseline F (per tool and programmed "
+              "F, as a machinist tunes a CAM program's cutting, plunge and lead-in feeds: the highest constant feed "
+              "that exceeds no limit anywhere those moves cut; plunges and approaches at most their caps) and as "
+              "the controller model executes the optimized program (with its ramps). The headline's totals are the controller model's for the whole program.</p>",
               _table(rows, [("operation", "operation", ""), ("tool", "tool", "d"), ("length_mm", "cut length (mm)", ".0f"),
                             ("programmed_s", "programmed (s)", ".1f"), ("baseline_s", "baseline (s)", ".1f"),
                             ("optimized_s", "optimized (s)", ".1f")]),
