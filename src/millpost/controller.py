@@ -559,10 +559,11 @@ class _Segment:
 def _place(s: _Segment, x: float) -> tuple[int, float]:
     """The move under the point x mm along a segment, and the fraction of that move there (a merged
     chain's moves by their end points' positions along the line)."""
-    k = min(int(np.searchsorted(s.ends, x - 1e-12)), len(s.ends) - 1)
-    before = s.ends[k - 1] if k else 0.0
-    span = s.ends[k] - before
-    return s.first + k, float(np.clip((x - before) / span, 0.0, 1.0)) if span > 0 else 1.0
+    ends = s.ends
+    k = 0 if len(ends) == 1 else min(int(np.searchsorted(ends, x - 1e-12)), len(ends) - 1)
+    before = float(ends[k - 1]) if k else 0.0
+    span = float(ends[k]) - before
+    return s.first + k, min(max((x - before) / span, 0.0), 1.0) if span > 0 else 1.0
 
 
 def _segments(tp: Toolpath, model: ControllerModel, feed_mm_min, modes: PathModes | None,
