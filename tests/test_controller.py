@@ -286,10 +286,11 @@ def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
     kink = 0.1 * 0.001 / np.max(np.abs(u1 - u0) / [3000.0, 2500.0, 2500.0])
     assert cap[3] == pytest.approx(max(kink, blend_zones(tp, ctl)[1][4]), rel=1e-12) and cap[3] > kink
     # with a naive-CAM tolerance the canon layer merges straight feeds into lines that depend on the feeds
-    # written (here the bend, its corner 0.04999 mm off the chord, into one line at 0.05 mm): no corner
-    # between two feeds is sure to slow the tool; the stop before the rapid still is
+    # written (here the bend, its corner 0.04999 mm off the chord, into one line at 0.05 mm): such a
+    # corner is not sure to slow the tool; the right angle (35 mm off any line through its three points)
+    # is never merged and keeps its blend arc; the stop before the rapid still is
     merged = corner_speeds(tp, lcnc(blend_tolerance_mm=0.05, naive_cam_mm=0.05))
-    assert (merged[1:4] == np.inf).all() and merged[4] == 0.0
+    assert merged[1] == merged[3] == np.inf and merged[2] == cap[2] and merged[4] == 0.0
     for feed in (600, 6000, 60000):
         tp.feed_mm_min[:4] = feed
         ex = execute(tp, ctl)

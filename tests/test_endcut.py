@@ -156,7 +156,7 @@ def test_end_engagement_annulus_over_a_hole():
     # not enclosed: chips fall into the hole; the end's chip is its axial chip f_z·descent·sin κ (flat: 1)
     chip = end_chip_factor(eng, tools[2])
     assert np.all(entry_chip_factor(eng, tools[2], 0.5, chip)[sel] == chip[sel])
-    assert np.all(end_chip_factor(eng, tools[2])[sel] == 1.0)
+    assert np.all(chip[sel] == 1.0)
 
 
 def test_ramp_and_helix_descent_and_whole_end_engaged():

@@ -742,8 +742,16 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None 
         else:
             v = max(v, _parabolic_speed(prev, cur))
         out[cur.move] = v
+    # a junction of two straight feeds that a naive-CAM chain may absorb (at some feeds) has no corner
+    # of its own: its three points lie within the tolerance of one line, so the triangle's width, its
+    # smallest altitude |AB × AC| / longest side, is at most twice the tolerance
     straight = tp.kind == FEED
-    merging = np.r_[False, straight[:-1] & straight[1:] & (modes.merge_mm[1:] > 0) & ~modes.flush[1:], False]
+    a, b, c = tp.start[:-1], tp.end[:-1], tp.end[1:]
+    sides = np.maximum.reduce([np.linalg.norm(b - a, axis=1), np.linalg.norm(c - b, axis=1),
+                               np.linalg.norm(c - a, axis=1)])
+    width = np.linalg.norm(np.cross(b - a, c - a), axis=1) / np.maximum(sides, 1e-300)
+    merging = np.r_[False, straight[:-1] & straight[1:] & (modes.merge_mm[1:] > 0) & ~modes.flush[1:]
+                    & (width <= 2.0 * modes.merge_mm[1:]), False]
     out[merging] = np.inf
     return out
 

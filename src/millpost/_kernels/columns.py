@@ -67,12 +67,13 @@ def ranks(bits, rank):
 def gaps_length(top, zf, bits, rank, ptr, lo, hi):
     """Sum over the multi columns of their gaps' length below their top (mm)."""
     s = 0.0
+    m = 0  # the multi columns in order: their index counts up
     for w in range(bits.shape[0]):
         word = bits[w]
         if word == 0:
             continue
         for b in range(64):
             if (word >> b) & 1:
-                c = w * 64 + b
-                s += gap_overlap(multi_index(c, bits, rank), zf, np.float64(top[c]), ptr, lo, hi)
+                s += gap_overlap(m, zf, np.float64(top[w * 64 + b]), ptr, lo, hi)
+                m += 1
     return s

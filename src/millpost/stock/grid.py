@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._kernels.columns import gaps_length
+from .._kernels.columns import gaps_length, is_multi, multi_index
 from ..errors import MillpostError
 from ..files import atomic_path
 
@@ -84,9 +84,8 @@ class Stock:
         """Material intervals (bottom, top) of column (i, j), top-down; empty ones left out."""
         c = j * self.nx + i
         out, t = [], float(self.top[j, i])
-        if self.n_multi and (int(self.multi_bits[c >> 6]) >> (c & 63)) & 1:
-            word = int(self.multi_bits[c >> 6]) & ((1 << (c & 63)) - 1)
-            m = int(self.multi_rank[c >> 6]) + bin(word).count("1")
+        if self.n_multi and is_multi(c, self.multi_bits):
+            m = int(multi_index(c, self.multi_bits, self.multi_rank))
             for lo, hi in zip(self.gap_lo[self.gap_ptr[m]:self.gap_ptr[m + 1]],
                               self.gap_hi[self.gap_ptr[m]:self.gap_ptr[m + 1]]):
                 if lo < t:
