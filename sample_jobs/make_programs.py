@@ -165,8 +165,54 @@ def offset_pocket() -> str:
     return "\n".join(out) + "\n"
 
 
+def sawcut_facing() -> str:
+    """Facing the saw-cut top of an AISI 1045 block (200 × 120 mm; its top 1.0–4.5 mm above Z0, see the
+    job's stock.py) to Z0 in one pass per row, as Fusion's Face and FreeCAD's MillFace (zig-zag) post it:
+    a 63 mm square-shoulder face mill with 5 inserts, rows along X at a Y stepover spread evenly so the
+    cutter overhangs each long side by 10 % of its diameter (3 rows, 34.8 mm apart), each row run 5 mm
+    past the block (pass extension), the cutter taken down to Z0 in the air beside the block at the plunge
+    feed and stepped over outside it at the cutting feed; one cutting feed for the whole operation."""
+    out = header("face saw-cut top, 63 mm 5-insert face mill, steel 1045", 1, 1000)
+    length, width, radius, overhang, extension = 200.0, 120.0, 31.5, 6.3, 5.0
+    y_first, y_last = width + overhang - radius, radius - overhang
+    rows = 1 + math.ceil((y_first - y_last) / (0.75 * 2 * radius))  # stepover at most 0.75 D
+    ys = [y_first - k * (y_first - y_last) / (rows - 1) for k in range(rows)]
+    x_in, x_out = -radius - extension, length + radius + extension
+    out += [f"G0 X{fmt(x_in)} Y{fmt(ys[0])}", "G0 Z5", "G1 Z0 F250"]
+    for k, y in enumerate(ys):
+        if k:
+            out.append(f"G1 Y{fmt(y)}")
+        out.append(f"G1 X{fmt(x_out if k % 2 == 0 else x_in)}" + (" F500" if k == 0 else ""))
+    out += ["G0 Z10", "M5", "M30"]
+    return "\n".join(out) + "\n"
+
+
+def forging_contour() -> str:
+    """Roughing the drafted walls of a closed-die Al 6061 forging (its geometry in the job's stock.py) as
+    Fusion's 2D Contour posts it with multiple depths: a 12 mm 3-flute end mill climbs clockwise round the
+    finished 80 × 50 mm boss (corner R8) leaving 0.5 mm for the finishing pass, tool centre 6.5 mm off the
+    part, at two depths of 10 mm (Z-10, Z-20); per depth a plunge in the air beside the part at the plunge
+    feed, a 3 mm straight lead-in and a quarter-arc lead-in of radius 6 mm (0.5 D) onto the middle of the
+    -Y wall, the loop, a quarter-arc lead-out, and a retract. One cutting feed for both depths."""
+    out = header("OP20 rough boss walls, 12 mm 3F flat, Al 6061 forging", 1, 10000)
+    cx, cy, hx, hy, r = 55.0, 40.0, 40.0 + 6.5, 25.0 + 6.5, 8.0 + 6.5  # tool-centre loop (mm)
+    y0, lead = cy - hy, 6.0
+    for z in (-10.0, -20.0):
+        out += [f"G0 X{fmt(cx + lead)} Y{fmt(y0 - lead - 3)}"] + (["G0 Z5"] if z == -10.0 else [])
+        out += [f"G1 Z{fmt(z)} F1000",
+                f"G1 Y{fmt(y0 - lead)} F3000", f"G3 X{fmt(cx)} Y{fmt(y0)} I{fmt(-lead)} J0",
+                f"G1 X{fmt(cx - hx + r)}", f"G2 X{fmt(cx - hx)} Y{fmt(cy - hy + r)} I0 J{fmt(r)}",
+                f"G1 Y{fmt(cy + hy - r)}", f"G2 X{fmt(cx - hx + r)} Y{fmt(cy + hy)} I{fmt(r)} J0",
+                f"G1 X{fmt(cx + hx - r)}", f"G2 X{fmt(cx + hx)} Y{fmt(cy + hy - r)} I0 J{fmt(-r)}",
+                f"G1 Y{fmt(cy - hy + r)}", f"G2 X{fmt(cx + hx - r)} Y{fmt(y0)} I{fmt(-r)} J0",
+                f"G1 X{fmt(cx)}", f"G3 X{fmt(cx - lead)} Y{fmt(y0 - lead)} I0 J{fmt(-lead)}", "G0 Z5"]
+    out += ["G0 Z10", "M5", "M30"]
+    return "\n".join(out) + "\n"
+
+
 PROGRAMS = {"adaptive_pocket": adaptive_pocket, "slotting": slotting, "ball_roughing": ball_roughing,
-            "drill_and_mill": drill_and_mill, "offset_pocket": offset_pocket}
+            "drill_and_mill": drill_and_mill, "offset_pocket": offset_pocket,
+            "sawcut_facing": sawcut_facing, "forging_contour": forging_contour}
 
 if __name__ == "__main__":
     for name, make in PROGRAMS.items():

@@ -1,0 +1,16 @@
+(face saw-cut top, 63 mm 5-insert face mill, steel 1045)
+G21 G90 G17 G94
+T1 M6
+S1000 M3
+G0 Z10
+G0 X-36.5 Y94.8
+G0 Z5
+G1 Z0 F250
+G1 X236.5 F500
+G1 Y60
+G1 X-36.5
+G1 Y25.2
+G1 X236.5
+G0 Z10
+M5
+M30
