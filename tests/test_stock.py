@@ -41,6 +41,19 @@ def test_heights_are_stored_above_the_stock_origin():
     assert s.volume_mm3() == pytest.approx(10 * 6 * 5, rel=1e-9)
 
 
+def test_a_column_crossing_too_many_surfaces_is_refused():
+    """32 stacked plates: the vertical lines through them cross 64 surfaces, more than a column holds;
+    the error says where instead of keeping a garbled column (31 plates, 62 surfaces, still fit)."""
+    def plates(n):
+        return np.concatenate([trimesh.creation.box(extents=(4, 4, 0.5), transform=trimesh.transformations
+                                                    .translation_matrix((2, 2, 0.25 + k))).triangles
+                               for k in range(n)])
+    s = stock.from_triangles(plates(31), 0.5)
+    assert s.volume_mm3() == pytest.approx(31 * 4 * 4 * 0.5, rel=1e-9) and len(s.intervals(3, 3)) == 31
+    with pytest.raises(MillpostError, match=r"x = \d+\.\d+, y = \d+\.\d+ mm crosses more than 62 surfaces"):
+        stock.from_triangles(plates(32), 0.5)
+
+
 def test_memory_check_names_the_cell_that_would_fit():
     with pytest.raises(MillpostError, match=r"needs \d+ MiB.*at least 9\d\.\d µm"):
         stock.box((0, 0, 0), (1000, 1000, 50), 0.025, max_memory_mb=500)
