@@ -5,7 +5,8 @@ Each triangle is tested row by row against the cell centres of its XY projection
 edge functions (vertices snapped to 1/4096 of a cell) and a tie rule that gives a point on a shared edge
 to exactly one of the two triangles. The triangle's plane gives z at the centre, clamped to the
 triangle's z range (near-vertical triangles extrapolate badly). Up-facing triangles are where a ray
-leaves material, down-facing ones where it enters.
+leaves material, down-facing ones where it enters. Heights are stored above the stock's z0 (see
+`millpost.stock.grid`): a top left at 0 is never written, so its memory page is not committed.
 """
 
 from __future__ import annotations
@@ -44,8 +45,8 @@ def _in_triangle(ax, ay, bx, by, cx, cy, px, py) -> bool:
 @njit(cache=True)
 def _triangle_cells(tri, x0, y0, h, nx, ny, z0, out_c, out_z, j_from, j_to):
     """Cells whose centre lies in the triangle's XY projection, on rows j_from..j_to-1 (j_from = -1:
-    from the first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z and
-    returns (count, up, next row or -1 when done), up +1 for an up-facing triangle, -1 down-facing. On each
+    from the first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z (rounded
+    to float32, then less the stock's z0: the height it stores) and returns (count, up, next row or -1 when done), up +1 for an up-facing triangle, -1 down-facing. On each
     row the inside cells are an interval: its ends are estimated from the edges, widened by a cell
     and trimmed with the exact test."""
     X = np.empty(3, np.int64)
