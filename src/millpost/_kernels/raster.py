@@ -19,8 +19,8 @@ from numba import njit
 from .columns import is_multi, multi_index, ranks
 
 SUB = 4096  # fixed-point subdivisions per cell
-MULTI = np.uint8(128)  # flag bits in the per-column crossing count: entered above the floor,
-UP = np.uint8(64)  # an up-facing crossing seen (the top holds one)
+MULTI = np.uint8(128)  # flag in the per-column crossing count: the column enters material above the floor
+UP = np.uint8(64)  # flag: an up-facing crossing was seen (the top holds one)
 COUNT = np.uint8(63)  # the count's bits: it saturates there (a column crossing more is refused)
 BUFFER_ROWS = 16  # grid rows buffered at a time (16 B a cell, 12 B a multi column, 5 B a crossing)
 
@@ -46,9 +46,9 @@ def _in_triangle(ax, ay, bx, by, cx, cy, px, py) -> bool:
 def _triangle_cells(tri, x0, y0, h, nx, ny, z0, out_c, out_z, j_from, j_to):
     """Cells whose centre lies in the triangle's XY projection, on rows j_from..j_to-1 (j_from = -1:
     from the first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z (rounded
-    to float32, then less the stock's z0: the height it stores) and returns (count, up, next row or -1 when done), up +1 for an up-facing triangle, -1 down-facing. On each
-    row the inside cells are an interval: its ends are estimated from the edges, widened by a cell
-    and trimmed with the exact test."""
+    to float32, then less the stock's z0: the height it stores) and returns (count, up, next row or -1
+    when done), up +1 for an up-facing triangle, -1 down-facing. On each row the inside cells are an
+    interval: its ends are estimated from the edges, widened by a cell and trimmed with the exact test."""
     X = np.empty(3, np.int64)
     Y = np.empty(3, np.int64)
     for v in range(3):

@@ -112,7 +112,7 @@ class Stock:
     def copy(self) -> "Stock":
         """An independent copy (its top commits memory only for the rows that are not all z0)."""
         top = zeroed(self.top.shape)
-        for j0 in range(0, self.ny, 256):  # 256 rows at a time: the test's temporary stays small
+        for j0 in range(0, self.ny, 256):  # 256 rows at a time: the any() temporary stays small
             rows = j0 + np.flatnonzero(self.top[j0:j0 + 256].any(axis=1))
             top[rows] = self.top[rows]
         return Stock(self.x0, self.y0, self.cell_mm, self.z_floor, top, self.multi_bits.copy(),
