@@ -78,6 +78,7 @@ def trochoid_path() -> Toolpath:
 def numpy_steps(stock: stk.Stock, tool: Tool, xyz: np.ndarray, K: int = 8, M: int = 180, L: float = 0.27) -> None:
     """Straightforward numpy engine: per step, cut the full disk window, then sample the ring."""
     top, h, x0, y0, zf, R = stock.top, stock.cell_mm, stock.x0, stock.y0, stock.z_floor, tool.radius_mm
+    xyz = xyz - np.array([0.0, 0.0, stock.z0])  # in the stock's heights (above its z0), as top and zf are
     phi = np.linspace(0, math.pi, M + 1)
     bilinear = tool.shape != "flat"
     for k in range(1, len(xyz)):
