@@ -236,55 +236,73 @@ def test_canned_cycle_moves_run_in_exact_path():
 
 
 def test_blend_zones_bound_the_blend_arc_at_any_feed():
-    from millpost.controller import blend_zones, execute
+    from millpost.controller import PathModes, blend_zones, execute
 
     tol = 0.05
     tp = feed_tp([("line", (100, 0, 0)), ("line", (100, 100, 0)), ("rapid", (0, 100, 0))], 3000 * 60)
-    (m0, m1, d0, d1, v_top), = blend_zones(tp, lcnc(blend_tolerance_mm=tol), None)  # none at the rapid
+    ctl = lcnc(blend_tolerance_mm=tol)
+    (a, b, v_top), = blend_zones(tp, ctl, PathModes.uniform(len(tp), ctl))  # none at the rapid
     theta = math.pi / 4
     d = math.cos(theta) * tol / (1 - math.sin(theta))  # blendComputeParameters: within P of the corner
-    assert (m0, m1) == (0, 1) and d0 == d1 == pytest.approx(d, rel=1e-12)
+    assert a == pytest.approx(100 - d, rel=1e-12) and b == pytest.approx(100 + d, rel=1e-12)
     assert v_top == pytest.approx(math.sqrt(math.sqrt(0.75) * 2500 * math.tan(theta) * d), rel=1e-12)
     for f_in, f_out in [(180000, 60), (60, 180000), (6000, 600)]:  # the arc runs at the faster feed
         tp.feed_mm_min[:2] = f_in, f_out
-        ex = execute(tp, lcnc(blend_tolerance_mm=tol))
+        ex = execute(tp, ctl)
         arc = ex.move[1:3] == [0, 1]
         assert arc.all() and ex.length[1] <= d + 1e-12 and ex.length[2] <= d + 1e-12
         assert ex.vnom[1] == pytest.approx(min(v_top, max(f_in, f_out) / 60), rel=1e-9)
-    assert blend_zones(tp, model(), None) == []  # grbl: a junction never runs above the slower feed
+        # the execution's own arc: within the zone, its top the highest speed the blocks reach there
+        (a1, b1, v1), = ex.blends
+        assert a - 1e-9 <= a1 < 100 < b1 <= b + 1e-9 and 100 - a1 == pytest.approx(b1 - 100, rel=1e-9)
+        assert v1 <= ex.vnom[1] * (1 + 1e-12)
+        x = np.linspace(0, 1, 201)
+        inside = np.r_[ex.speed_at(np.zeros(201, int), 1 - x * ex.length[1] / 100),
+                       ex.speed_at(np.ones(201, int), x * ex.length[2] / 100)]
+        assert inside.max() <= v1 * (1 + 1e-9) and inside.max() >= v1 * 0.98
+    assert blend_zones(tp, model(), PathModes.uniform(len(tp), model())).shape == (0, 3)  # grbl: never above
+    # the slower block's feed
+    assert execute(tp, model()).blends.shape == (0, 3)
 
 
 def test_blend_limit_lowers_both_sides_of_a_fast_corner():
-    from millpost.controller import blend_zones
-    from millpost.schedule.feeds import blend_limit
+    from millpost.controller import PathModes, blend_zones
+    from millpost.schedule.feeds import blend_excess, blend_limit
 
     tp = feed_tp([("line", (10, 0, 0)), ("line", (10, 10, 0))], 600)
     smp = tp.resample(0.1)
     ctl = lcnc(blend_tolerance_mm=0.05)
-    zones = blend_zones(tp, ctl, None)
+    zones = blend_zones(tp, ctl, PathModes.uniform(len(tp), ctl))
     limit = np.where(smp.move == 0, 100.0, 5.0)  # a heavy cut after the corner, a light one before
-    out = blend_limit(smp, limit, np.cumsum(tp.lengths()), zones)
-    d = zones[0][2]
+    out = blend_limit(smp, limit, zones)
+    d = (zones[0][1] - zones[0][0]) / 2
     near = np.abs(smp.s_mm - 10.0) <= d + 0.1 + 1e-9  # the zone and the next sample on each side
     assert (out[near] == 5.0).all() and (out[~near] == limit[~near]).all()
-    slow = zones[0][:4] + (4.0,)  # an arc no faster than the slow side needs nothing
-    assert (blend_limit(smp, limit, np.cumsum(tp.lengths()), [slow]) == limit).all()
+    assert len(blend_excess(smp, limit, zones)) == 1 and len(blend_excess(smp, out, zones)) == 1
+    slow = np.r_[zones[0][:2], 4.0]  # an arc no faster than the slow side needs nothing
+    assert (blend_limit(smp, limit, [slow]) == limit).all() and len(blend_excess(smp, limit, [slow])) == 0
+    # widened by its length on either side: three times as long; checked against another limit
+    wide = blend_limit(smp, limit, zones, widen=1.0)
+    assert ((np.abs(smp.s_mm - 10.0) <= 3 * d) <= (wide == 5.0)).all()
+    assert (blend_limit(smp, limit, zones, within=np.full(len(smp), 7.0)) == np.minimum(limit, np.where(near, 7.0,
+                                                                                                       np.inf))).all()
 
 
 def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
-    from millpost.controller import blend_zones, corner_speeds, execute
+    from millpost.controller import PathModes, blend_zones, corner_speeds, execute
 
     tp = feed_tp([("line", (50, 0, 0)), ("line", (100, 0, 0)), ("line", (100, 50, 0)), ("line", (99.9, 100, 0)),
                   ("rapid", (0, 100, 0))], 6000)
     ctl = lcnc(blend_tolerance_mm=0.05)
     cap = corner_speeds(tp, ctl)
+    zones = blend_zones(tp, ctl, PathModes.uniform(len(tp), ctl))
     assert cap[1] == np.inf and cap[4] == 0.0 and cap[0] == cap[5] == np.inf  # collinear; feed -> rapid stops
-    assert cap[2] == pytest.approx(blend_zones(tp, ctl)[0][4], rel=1e-12)  # the right angle: its blend arc
+    assert cap[2] == pytest.approx(zones[0][2], rel=1e-12)  # the right angle: its blend arc
     # the slight bend (0.11°): the faster of the tangent kink (the velocity jump in one servo period within
     # 10 % of the acceleration) and the blend arc, here the arc
     u0, u1 = np.array([0.0, 1.0, 0.0]), np.array([-0.1, 50.0, 0.0]) / math.hypot(0.1, 50.0)
     kink = 0.1 * 0.001 / np.max(np.abs(u1 - u0) / [3000.0, 2500.0, 2500.0])
-    assert cap[3] == pytest.approx(max(kink, blend_zones(tp, ctl)[1][4]), rel=1e-12) and cap[3] > kink
+    assert cap[3] == pytest.approx(max(kink, zones[1][2]), rel=1e-12) and cap[3] > kink
     # with a naive-CAM tolerance the canon layer merges straight feeds into lines that depend on the feeds
     # written (here the bend, its corner 0.04999 mm off the chord, into one line at 0.05 mm): such a
     # corner is not sure to slow the tool; the right angle (35 mm off any line through its three points)

@@ -4,6 +4,7 @@
 - solved (no fallback to the programmed feeds);
 - no slower than programmed on the controller model, unless the programmed feeds exceed a hard limit
   (then the status says `slower` and the replay of the programmed feeds shows the limit over 1);
+- the executed speed within every speed cap the F words hold (max feed, plunge feed...), 0.5 % slack;
 - no feed below the minimum-chip feed (or the programmed one, if lower) except on samples where the
   summary lists a hard limit as held;
 - the emitted path within 1e-4 mm of the original (each emitted move's ends on the original move,
@@ -77,6 +78,17 @@ def test_solved_and_not_slower_without_cause(run):
         assert s["cycle_time_after_s"] <= s["cycle_time_before_s"] * (1 + 1e-3)
 
 
+def test_executed_speed_within_every_f_word_cap(run):
+    """The speed caps the F words hold (`JobLimits.f_word_caps`: the maximum feed, the plunge feed cap,
+    the air clearance...) hold where the machine's controller model runs the emitted program, blend
+    arcs (LinuxCNC's run at the faster of two feeds, over its merged lines) included."""
+    name, job, result = run
+    s = result.summary
+    assert s["f_word_caps"] and set(s["f_word_caps"]) <= set(s["limits"])
+    over = {k: s["limits"][k] for k in s["f_word_caps"] if s["limits"][k] > 1.005}
+    assert not over, f"{name}: the executed speed exceeds F-word caps {over}"
+
+
 def test_no_feed_below_min_chip_unless_hard_forced(run):
     name, job, result = run
     emitted = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
@@ -99,9 +111,7 @@ def test_no_feed_below_min_chip_unless_hard_forced(run):
     # a blending controller runs a corner's arc at the faster of its two feeds, so the F words on both sides
     # of a blended corner fit the lowest limit within the arc's reach (`controller.blend_zones`)
     model = controller_model(job)
-    s_end0 = np.cumsum(program.toolpath.lengths())
-    zones = [(s_end0[m0] - d0, s_end0[m0] + d1) for m0, _, d0, d1, _ in
-             blend_zones(program.toolpath, model, path_modes(program, model))]
+    zones = blend_zones(program.toolpath, model, path_modes(program, model))[:, :2]
     ds = float(job.limits["ds_mm"])
     for r in np.unique(sample_run[low]):
         on = sample_run == r

@@ -144,6 +144,17 @@ class JobLimits:
         """The limit each row block (by its name) comes from."""
         return {blk.name: lim for lim in self.limits for blk in window_blocks(grid, [lim], 0, min(len(grid), 1))}
 
+    def f_word_caps(self) -> list[Limit]:
+        """The limits whose speed caps the emitted F words hold (the maximum feed, the plunge feed cap,
+        the air clearance, the drives' voltage...): not loads, not held by the controller itself."""
+        return [lim for lim in self.limits if not isinstance(lim.constraint, SpeedLoad) and lim.f_word
+                and not lim.controller]
+
+    def f_word_cap_names(self, grid: PathGrid) -> tuple[str, ...]:
+        """Names of the speed caps (row blocks) of `f_word_caps`, as the replay reports their ratios."""
+        return tuple(sorted({blk.name for blk in window_blocks(grid, self.f_word_caps(), 0, min(len(grid), 1),
+                                                               caps_only=True)}))
+
     def names(self, **identity) -> tuple[str, ...]:
         """Names of the limits (and of their row blocks) whose identity fields have these values."""
         return tuple(lim.name for lim in self.limits if all(getattr(lim, k) == v for k, v in identity.items()))
