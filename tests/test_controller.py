@@ -104,7 +104,7 @@ def test_bad_model_is_a_config_error():
 # speed-up 1, axes of vmc-small: X/Y/Z 400/400/333.3 mm/s, 3000/2500/2500 mm/s²); the closed forms below
 # reproduce them without LinuxCNC.
 VMC = dict(max_rate_mm_s=(400.0, 400.0, 1000.0 / 3.0), accel_mm_s2=(3000.0, 2500.0, 2500.0), planner="linuxcnc",
-           lookahead_blocks=50)
+           merges_naive_cam=True, lookahead_blocks=50)
 MEASURED = {"G0 X100": 0.517, "G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000": 2.150, "square 20 mm F6000 twice": 1.505,
             "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655, "sine relief F6000": 1.365,
             # `steps` programs (at speed-up 5): 2000 feeds of 0.5 µm along X at F60; 2000 zigzag feeds

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import millpost.optimize as optimize_module
-from millpost.controller import ControllerModel, Execution, execute_program
+from millpost.controller import ControllerModel, Execution, execute_program, path_modes
 from millpost.emit import emitted_positions
 from millpost.gcode import read_text
 from millpost.limits import build_limits
@@ -33,10 +33,12 @@ def replayed(job, eng, result, programmed_text: str) -> dict[str, float]:
     smp = result.samples
     model = ControllerModel.from_machine(job.machine)
     assert model.planner == "linuxcnc"
-    original = read_text(programmed_text, "programmed.nc").toolpath
+    programmed = read_text(programmed_text, "programmed.nc")
+    original = programmed.toolpath
     v = execute_program(program, model).speed_at(*emitted_positions(original, program.toolpath, smp.move,
                                                                     Execution.sample_fractions(smp)))
-    return replay(job, smp, eng, build_limits(job, smp, eng, original), v).ratios
+    limits = build_limits(job, smp, eng, original, modes=path_modes(programmed, model))
+    return replay(job, smp, eng, limits, v).ratios
 
 
 def _run(seed: int):
@@ -56,7 +58,7 @@ def test_optimized_program_exceeds_no_limit_on_linuxcnc_planner(seed):
 def test_without_blend_limits_the_corners_overrun(monkeypatch):
     # the check can fail: the same job with F words that ignore the blend arcs exceeds its limits
     monkeypatch.setattr(optimize_module, "blend_limit", lambda samples, limit, *_: limit)
-    monkeypatch.setattr(optimize_module, "blend_excess", lambda samples, limit, arcs: arcs[:0])
+    monkeypatch.setattr(optimize_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
     job, eng, result, text = _run(822)
     ratios = replayed(job, eng, result, text)
     assert ratios["deflection"] > 1.5
@@ -129,7 +131,6 @@ def _chain_ratio(job, result) -> float:
     emitted = read_text(result.text, "emitted.nc")
     v = execute_program(emitted, model).speed_at(*emitted_positions(program.toolpath, emitted.toolpath, smp.move,
                                                                     Execution.sample_fractions(smp)))
-    from millpost.controller import path_modes
     limits = build_limits(job, smp, eng, program.toolpath, modes=path_modes(program, model))
     return replay(job, smp, eng, limits, v).ratios["plunge_feed"]
 
@@ -144,6 +145,6 @@ def test_blend_arcs_of_merged_chains_keep_the_plunge_cap(tmp_path, monkeypatch):
     assert result.summary["blend_passes"]["over"] == 0
     # the check can fail: the F words of the first emission, from the zones of the programmed moves
     # alone, let the merged lines' arc run the slot's feed into the ramp
-    monkeypatch.setattr(optimize_module, "blend_excess", lambda samples, limit, arcs: arcs[:0])
+    monkeypatch.setattr(optimize_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
     unchecked = optimize(job, progress=False)
     assert _chain_ratio(job, unchecked) > 1.5

@@ -1,5 +1,6 @@
 """Real third-party programs (tests/real_jobs/*/job.toml, programs under ../shared/data) through
-`optimize` with the vmc-small and hobby-router machines, default feed policy:
+`optimize` with the vmc-small and hobby-router machines (and the hobby router on LinuxCNC), default
+feed policy:
 
 - solved (no fallback to the programmed feeds);
 - no slower than programmed on the controller model, unless the programmed feeds exceed a hard limit
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +42,8 @@ from millpost.signals import controller_model
 from millpost.toolpath import ARC_CW, RAPID
 
 JOBS = sorted(p.parent for p in (Path(__file__).parent / "real_jobs").glob("*/job.toml"))
-MACHINES = ["vmc-small", "hobby-router"]
+# the built-in machines, and the hobby router driven by LinuxCNC (whose canon merges naive-CAM feeds)
+MACHINES = ["vmc-small", "hobby-router", "hobby-router:linuxcnc"]
 PATH_TOL_MM = 1e-4
 
 
@@ -51,7 +54,10 @@ def run(request):
     if not SHARED_DATA.exists():
         pytest.skip(f"{SHARED_DATA} is absent (third-party programs, not in the repo)")
     job = load_job(folder)
-    job.machine = Machine.load(machine)
+    name, _, kind = machine.partition(":")
+    job.machine = Machine.load(name)
+    if kind:
+        job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
     try:
         result = optimize(job, progress=False)
     except MillpostError as exc:  # a feature the reader does not support yet, or a cutter-compensation

@@ -69,8 +69,10 @@ class ControllerModel:
     """Planner settings. Rates mm/s, accelerations mm/s², lengths mm, times s (grbl: $110-$112 in
     mm/min, $120-$122, $11 junction deviation, $12 arc tolerance; a buffer of 16 blocks on an AVR.
     LinuxCNC: [AXIS_*] MAX_VELOCITY/MAX_ACCELERATION, G64 P, ARC_BLEND_OPTIMIZATION_DEPTH 50).
-    naive_cam_mm: the naive-CAM tolerance before the program sets a path mode (LinuxCNC's startup
-    G64 Q, or P without Q); 0 for controllers that merge no straight feeds (all but LinuxCNC)."""
+    merges_naive_cam: the controller merges consecutive straight feeds within the naive-CAM tolerance
+    into one line (LinuxCNC's canon layer: `naive_cam_chains`; a program's G64 P/Q sets the tolerance);
+    naive_cam_mm: that tolerance before the program sets a path mode (LinuxCNC's startup G64 Q, or P
+    without Q; 0 where the controller merges nothing)."""
 
     max_rate_mm_s: tuple[float, float, float]
     accel_mm_s2: tuple[float, float, float]
@@ -81,6 +83,7 @@ class ControllerModel:
     exact_stop: bool = False
     planner: str = "grbl"
     blend_tolerance_mm: float = 0.0
+    merges_naive_cam: bool = False
     naive_cam_mm: float = 0.0
     servo_period_s: float = 0.001
     tool_change_s: float = 0.0
@@ -107,18 +110,22 @@ class ControllerModel:
             raise ConfigError("servo_period_s", self.servo_period_s, "must be > 0")
         if self.planner not in PLANNERS:
             raise ConfigError("planner", self.planner, f"one of {', '.join(PLANNERS)}")
+        if self.naive_cam_mm > 0 and not self.merges_naive_cam:
+            raise ConfigError("naive_cam_mm", self.naive_cam_mm, "0 for a controller that merges no straight feeds")
 
     @classmethod
     def from_machine(cls, machine) -> "ControllerModel":
         """The model of a machine's controller: its axis rates and accelerations, its planner (a
-        LinuxCNC controller's blend tolerance is its startup G64 P, which sets the naive-CAM tolerance too)."""
+        LinuxCNC controller's blend tolerance is its startup G64 P, which sets the naive-CAM tolerance
+        too; only LinuxCNC merges naive-CAM feeds, `Controller.merges_naive_cam`)."""
         ax = [machine.axes[a] for a in "xyz"]
         c = machine.controller
         return cls(max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
                    junction_deviation_mm=c.junction_deviation_mm, block_rate_hz=c.block_rate_Hz,
                    planner=c.planner, lookahead_blocks=16 if c.planner == "grbl" else 50,
                    blend_tolerance_mm=c.blend_tolerance_mm, tool_change_s=c.tool_change_s,
-                   naive_cam_mm=c.blend_tolerance_mm if c.kind == "linuxcnc" else 0.0,
+                   merges_naive_cam=c.merges_naive_cam,
+                   naive_cam_mm=c.blend_tolerance_mm if c.merges_naive_cam else 0.0,
                    spindle_start_s=c.spindle_start_s, coolant_s=c.coolant_s, command_s=c.command_s)
 
 
@@ -317,9 +324,10 @@ _FLUSHING_COMMENTS = ("MSG,", "DEBUG,", "LOG,")
 class PathModes:
     """Per move, the path control LinuxCNC runs it in. blend_mm: the blend tolerance (G64 P, mm; 0 for a
     G64 without P) or EXACT_PATH (G61: stop at corners) or EXACT_STOP (G61.1: stop after every move).
-    merge_mm: the naive-CAM tolerance (G64 Q, mm; P when Q is absent, 0 for a plain G64, in G61/G61.1
-    and in canned cycles): consecutive straight feeds whose points lie this close to one line are sent to
-    the planner as that one line (`naive_cam_chains`). flush: a command before the move ends the chain
+    merge_mm: the naive-CAM tolerance (G64 Q, mm; P when Q is absent, 0 for a plain G64, in G61/G61.1,
+    in canned cycles and on a controller that merges nothing, `ControllerModel.merges_naive_cam`):
+    consecutive straight feeds whose points lie this close to one line are sent to the planner as that
+    one line (`naive_cam_chains`). flush: a command before the move ends the chain
     being merged (a pause, a spindle speed, an offset, a path mode, an operator message)."""
 
     blend_mm: np.ndarray
@@ -334,7 +342,8 @@ class PathModes:
 
 def path_modes(program, model: ControllerModel) -> PathModes:
     """The path modes the program sets (`PathModes`); before it sets one, the controller's own
-    (`blend_tolerance_mm`, `naive_cam_mm`).
+    (`blend_tolerance_mm`, `naive_cam_mm`). A G64 P/Q sets a naive-CAM tolerance only on a controller
+    that merges straight feeds (`ControllerModel.merges_naive_cam`).
     The moves of a canned cycle (after its climb to R) run in exact path whatever the mode (LinuxCNC's
     convert_cycle sets G61 for them and restores it after). Tolerances in a G20 program are inches."""
     n = len(program.toolpath)
@@ -353,7 +362,8 @@ def path_modes(program, model: ControllerModel) -> PathModes:
         unit = 25.4 if inch[e.move] else 1.0
         if name == "blend":
             out[e.move:] = 0.0 if p is None else p * unit
-            merge[e.move:] = (p if q is None else q) * unit if (p, q) != (None, None) else 0.0
+            merging = (p, q) != (None, None) and model.merges_naive_cam
+            merge[e.move:] = (p if q is None else q) * unit if merging else 0.0
         else:
             out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP
             merge[e.move:] = 0.0
@@ -413,12 +423,14 @@ def naive_cam_chains(tp: Toolpath, modes: PathModes, feed_mm_min: np.ndarray | N
                        tp.kind == FEED, np.asarray(modes.merge_mm, float), flush, CHAIN_POINTS)
 
 
-def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Execution:
+def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
+                    modes: PathModes | None = None) -> Execution:
     """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the
-    motion and take their time, its path modes (G61/G64 P Q) set the corners and the merging of
-    straight feeds; feed_mm_min overrides the programmed feed per move."""
+    motion and take their time, its path modes (G61/G64 P Q; `path_modes`, computed here unless
+    given) set the corners and the merging of straight feeds; feed_mm_min overrides the programmed
+    feed per move."""
     return execute(program.toolpath, model, feed_mm_min, pauses=pauses_s(program, model),
-                   modes=path_modes(program, model))
+                   modes=path_modes(program, model) if modes is None else modes)
 
 
 def program_time(program, model: ControllerModel) -> float:

@@ -179,7 +179,7 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
-def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes | None):
+def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes):
     """The corner rule of the machine's own planner (`ControllerModel.from_machine`): grbl's junction
     deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds` in the
     path modes `modes`), on the last sample before each corner."""
@@ -194,13 +194,13 @@ def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes | 
 
 
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
-                 release_slices: bool = False, modes: PathModes | None = None) -> JobLimits:
+                 release_slices: bool = False, modes: PathModes) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
     `millpost.progress` callback (stage "forces", in samples). release_slices: once the loads are
     computed, `eng` (changed in place) keeps only what `Engagement.per_sample` keeps (memory: its
     per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built). modes: the
     program's path modes (`controller.path_modes`: where its corners blend and its straight feeds
-    merge); default: the machine controller's own on every move."""
+    merge), required: the program's G61/G64 decide its corner caps."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])

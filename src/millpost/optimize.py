@@ -20,7 +20,7 @@ import numpy as np
 
 from . import controller, safety
 from ._kernels import set_threads
-from .emit import FeedPlan, emitted_positions, original_arc_length, whole_moves, write_feeds
+from .emit import SNAP_TO_PROGRAMMED, FeedPlan, emitted_positions, original_arc_length, whole_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
@@ -67,12 +67,11 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         del stock
         eng = replace(eng, arc_rad=None, step_mm=None, descending=None, move=None, line=None, depth_mm=None)
         t_engage = time.perf_counter()
-        limits = None
+        limits, modes = None, controller.path_modes(program, controller_model(job))
         if job.limits["rpm"] != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True,
-                                  modes=controller.path_modes(program, controller_model(job)))
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True, modes=modes)
         t_limits = time.perf_counter()
-        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
+        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits, modes=modes)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
@@ -83,34 +82,36 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
 
 
 def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
-                     progress: Progress = silent, limits: JobLimits | None = None) -> Result:
+                     progress: Progress = silent, limits: JobLimits | None = None,
+                     modes: controller.PathModes | None = None) -> Result:
     """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
     `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
-    schedule, emitted text, cycle times and the replay check. (Split from `optimize` so that tests can
+    schedule, emitted text, cycle times and the replay check. modes: the program's path modes
+    (`controller.path_modes`, computed here unless given). (Split from `optimize` so that tests can
     give engagements of known geometry.) progress: stages "forces", "schedule", "emission" and "replay"."""
     options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    model = controller_model(job)
+    modes = modes if modes is not None else controller.path_modes(program, model)
     spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
-    if job.limits["rpm"] == "optimize":
-        program, samples, spindle = choose_speeds(job, program, samples, eng, options, progress)
+    if job.limits["rpm"] == "optimize":  # the S words change, the moves and their path modes do not
+        program, samples, spindle = choose_speeds(job, program, samples, eng, options, modes, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
         limits = None  # the loads at the chosen speeds
     tp = program.toolpath
-    model = controller_model(job)
-    modes = controller.path_modes(program, model)
     t_limits = time.perf_counter()
     limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress, modes=modes)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options)
     solver_s = time.perf_counter() - t0
     progress("emission", 0, 4)
-    before = controller.execute_program(program, model)
+    before = controller.execute_program(program, model, modes=modes)
     base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
-    baseline = controller.execute_program(program, model, base_feeds)
+    baseline = controller.execute_program(program, model, base_feeds, modes=modes)
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
         result = schedule_program(replace(job, limits={**job.limits, "rpm": "programmed"}), *as_given, eng, options,
-                                  progress)
+                                  progress, modes=modes)
         result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
         return result
     if failed:
@@ -216,8 +217,9 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
     at the F words written (far longer than one programmed move), and a short line before an arc runs
     at the arc's speed. First the feeds fit the zones of the programmed corners (`blend_zones`, (k, 3)
     in the samples' arc length); then every arc of the emitted program (`Execution.blends`) faster than
-    the lowest limit it covers has that limit laid over its reach (`blend_limit`) and the program is
-    written again; an arc still over on a later emission has its reach widened 2, 4, ... times. The
+    the lowest limit it covers (beyond the emission's snap to a programmed feed held by a bound) has
+    that limit laid over its reach (`blend_limit`) and the program is written again; an arc still
+    over on a later emission has its reach widened 2, 4, ... times. The
     arcs are always checked against `limit_mm_s` itself (the F words only fall). After BLEND_PASSES
     emissions, every arc still over lowers the whole run it lies on (between the controller's stops) to
     the run's lowest limit (`run_limit`), and the summary says so. Returns the text, the program, its
@@ -237,7 +239,7 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
         after = controller.execute_program(emitted, model)
         arcs = after.blends.copy()
         arcs[:, :2] = original_arc_length(tp, emitted.toolpath, arcs[:, :2])
-        over = blend_excess(samples, limit_mm_s, arcs)
+        over = blend_excess(samples, limit_mm_s, arcs, SNAP_TO_PROGRAMMED)  # a feed held at the programmed one
         if not len(over) or passes > BLEND_PASSES:
             break
         if passes < BLEND_PASSES:

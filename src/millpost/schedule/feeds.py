@@ -239,11 +239,12 @@ def _zone_minima(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray
     return idx, owner, zone_min
 
 
-def blend_excess(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray) -> np.ndarray:
-    """The zones (rows of `zones`, see `blend_limit`) whose top speed exceeds the lowest limit they cover."""
+def blend_excess(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, slack: float = ARC_SLACK) -> np.ndarray:
+    """The zones (rows of `zones`, see `blend_limit`) whose top speed exceeds the lowest limit they cover
+    by more than `slack` (relative)."""
     zones = np.asarray(zones, float).reshape(-1, 3)
     _, _, zone_min = _zone_minima(samples, np.asarray(limit_mm_s, float), zones)
-    return zones[zones[:, 2] > zone_min * (1 + ARC_SLACK)]
+    return zones[zones[:, 2] > zone_min * (1 + slack)]
 
 
 def blend_limit(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, widen: float = 0.0,
