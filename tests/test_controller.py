@@ -109,7 +109,10 @@ MEASURED = {"G0 X100": 0.517, "G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000": 2.150, "sq
             "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655, "sine relief F6000": 1.365,
             # `steps` programs (at speed-up 5): 2000 feeds of 0.5 µm along X at F60; 2000 zigzag feeds
             # of 5 µm in X and ±5 µm in Y at F300, merged (Q 10 µm) or not (Q 2 µm)
-            "collinear Q0.01": 1.001, "zigzag Q0.01": 2.004, "zigzag Q0.002": 4.020}
+            "collinear Q0.01": 1.001, "zigzag Q0.01": 2.004, "zigzag Q0.002": 4.020,
+            # `slot_into_ramp` (speed-up 5): a 5 mm slot of 0.05 mm feeds at F3000, a 4 mm ramp down 0.7 mm
+            # of such feeds at F300 or F600, 4 mm more at the bottom at F3000, all under G64 P0.05 Q0.05
+            "slot into ramp F300": 0.689, "slot into ramp F600": 0.477}
 
 
 def steps(mode: str, n: int, step_mm: float, feed_mm_min: float, zig_mm: float = 0.0) -> str:
@@ -122,6 +125,18 @@ def steps(mode: str, n: int, step_mm: float, feed_mm_min: float, zig_mm: float =
 
 def lcnc(**kw):
     return ControllerModel(**{**VMC, **kw})
+
+
+def slot_into_ramp(slow_mm_min: float) -> str:
+    """100 feeds of 0.05 mm along X (Y zigzagging by 1 µm) at F3000, 80 such feeds ramping down 0.7 mm
+    (10°) at the slow feed, 80 more at the bottom at F3000, under G64 P0.05 Q0.05 (naive CAM's output)."""
+    lines = ["G21 G90 G17 G64 P0.05 Q0.05", "G0 X0 Y0 Z0", "G1 X0.05 F3000"]
+    lines += [f"X{0.05 + 0.05 * k:.4f} Y{0.001 * (k % 2):.4f}" for k in range(1, 100)]
+    lines += [f"X{5 + 0.05 * k:.4f} Z{-0.7 * k / 80:.4f}" + (f" F{slow_mm_min:g}" if k == 1 else "")
+              for k in range(1, 81)]
+    lines += [f"X{9 + 0.05 * k:.4f} Y{0.001 * (k % 2):.4f} Z-0.7000" + (" F3000" if k == 1 else "")
+              for k in range(1, 81)]
+    return "\n".join(lines + ["M2"]) + "\n"
 
 
 def test_linuxcnc_single_segment_runs_at_half_acceleration():
@@ -288,6 +303,21 @@ def test_blend_limit_lowers_both_sides_of_a_fast_corner():
                                                                                                        np.inf))).all()
 
 
+def test_run_limit_lowers_the_whole_run_a_zone_lies_on():
+    from millpost.schedule.feeds import run_limit
+
+    tp = feed_tp([("line", (10, 0, 0)), ("line", (20, 0, 0)), ("line", (30, 0, 0))], 600)
+    smp = tp.resample(0.5)
+    limit = np.where(smp.move == 1, 20.0, 50.0)
+    rest = np.flatnonzero(np.isclose(smp.s_mm, 10.0))[-1]  # a stop at the first corner: two runs
+    limit[rest] = 0.0
+    within = limit.copy()
+    within[smp.s_mm > 25.0] = 8.0  # the limit the arcs keep: lowest near the end
+    out = run_limit(smp, limit, [(21.0, 22.0, 40.0)], within)
+    second = smp.s_mm > 10.0
+    assert (out[second] == 8.0).all() and (out[~second] == limit[~second]).all()
+
+
 def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
     from millpost.controller import PathModes, blend_zones, corner_speeds, execute
 
@@ -354,6 +384,24 @@ def test_naive_cam_chain_ends_where_canon_flushes():
     assert chain_sizes(head + "G2 X3 R1\nG1 X4\nX5\nM2\n") == [1, 2]  # an arc
     assert chain_sizes(head + "X0\nM2\n") == [1, 1]  # back to the chain's start
     assert chain_sizes(head + "X0.5\nM2\n") == [1, 1]  # a reversal: X1 lies beyond the new end
+
+
+def test_blend_arc_of_merged_lines_carries_the_fast_feed_into_the_slow_one():
+    # the canon layer merges the slot and the ramp into lines of up to 101 points: the blend arc between the
+    # slot's line and the ramp's (a 10° turn: within P 0.05 mm of the corner it may reach 1.1 mm into each)
+    # reaches 1 mm into the ramp at the slot's 50 mm/s; LinuxCNC ran both programs as the model does, over
+    # a third faster than blend arcs per programmed move (reaching at most 12 µm) would let it
+    from millpost.controller import execute_program
+    from millpost.gcode import read_text
+
+    for slow in (300, 600):
+        program = read_text(slot_into_ramp(slow))
+        ex = execute_program(program, lcnc())
+        assert ex.time_s == pytest.approx(MEASURED[f"slot into ramp F{slow}"], rel=0.005)
+        a, b, top = ex.blends[0]
+        assert a == pytest.approx(5.0 - 1.0, abs=0.01) and b == pytest.approx(5.0 + 1.0, abs=0.01) and top == 50.0
+        unmerged = execute_program(program, lcnc(merges_naive_cam=False))
+        assert unmerged.time_s > 1.35 * ex.time_s and (np.diff(unmerged.blends[:, :2], axis=1) < 0.08).all()
 
 
 def test_naive_cam_chain_runs_as_one_line():
