@@ -213,15 +213,15 @@ class Execution:
     vnom: np.ndarray
     acc: np.ndarray
     v_entry: np.ndarray  # (n+1,)
+    # per block: a short feed segment LinuxCNC runs as one linear ramp (constant acceleration) from its
+    # entry to its exit speed, no faster than either
+    ramp: np.ndarray
     move_start_mm: np.ndarray  # (len(program moves)+1,): the program's arc length where each move starts
     pause_s: float = 0.0  # of time_s, spent stopped between moves (dwells, tool changes, commands)
     # (k, 3): the blend arcs LinuxCNC runs at up to the faster of its two segments' feeds, each with the
     # straight lead-in it absorbed: the program's arc length (mm) where it starts and ends, the highest
     # speed (mm/s) reached on it
     blends: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    # per block: a short feed segment LinuxCNC runs as one linear ramp (constant acceleration) from its
-    # entry to its exit speed, no faster than either (none by default)
-    ramp: np.ndarray | None = None
 
     def _locate(self, move: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Block index and distance into it (mm) of fraction u of move `move`: by the program's arc
@@ -238,12 +238,11 @@ class Execution:
         return k, frac * self.length[k]
 
     def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Actual speed at fraction u of move `move` (sample positions map onto blocks by fraction)."""
+        """Actual speed at fraction u of move `move` (sample positions map onto blocks by fraction): the
+        block's trapezoid, or its linear ramp from entry to exit speed."""
         k, x = self._locate(move, u)
         a, v0, v1, L = self.acc[k], self.v_entry[k], self.v_entry[k + 1], self.length[k]
         v = np.minimum.reduce([np.sqrt(v0**2 + 2 * a * x), self.vnom[k], np.sqrt(v1**2 + 2 * a * (L - x))])
-        if self.ramp is None:
-            return v
         with np.errstate(divide="ignore", invalid="ignore"):
             linear = np.sqrt(np.maximum(v0**2 + (v1**2 - v0**2) * np.where(L > 0, x / L, 1.0), 0.0))
         return np.where(self.ramp[k], linear, v)
@@ -251,7 +250,7 @@ class Execution:
     def time_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Time (s from the program start) at which the tool passes fraction u of move `move`: the
         blocks before plus the time into the block's trapezoid (accelerate from the entry speed at a,
-        cruise at the peak speed, decelerate to the exit speed)."""
+        cruise at the peak speed, decelerate to the exit speed) or linear ramp."""
         k, x = self._locate(move, u)
         a, L, v0, v1 = self.acc[k], self.length[k], self.v_entry[k], self.v_entry[k + 1]
         vp = np.minimum(np.sqrt(np.maximum((2 * a * L + v0**2 + v1**2) / 2, 0)), self.vnom[k])
@@ -263,12 +262,10 @@ class Execution:
             t_cruise = np.where(vp > 0, np.clip(x - d_acc, 0, None) / vp, 0.0)
             t_dec = (np.sqrt(np.maximum(vp**2 - 2 * a * np.clip(x - (L - d_dec), 0, None), 0)) - vp) / -a
         t_cruise = np.minimum(t_cruise, np.where(vp > 0, np.maximum(L - d_acc - d_dec, 0) / vp, 0.0))
-        into = t_acc + t_cruise + t_dec
-        if self.ramp is not None:  # constant acceleration from v0: t = 2x / (v0 + v(x))
-            v = self.speed_at(move, u)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                into = np.where(self.ramp[k], np.where(v0 + v > 0, 2 * x / (v0 + v), 0.0), into)
-        return before + into
+        v = self.speed_at(move, u)  # a linear ramp: constant acceleration from v0, t = 2x / (v0 + v(x))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ramp = np.where(v0 + v > 0, 2 * x / (v0 + v), 0.0)
+        return before + np.where(self.ramp[k], ramp, t_acc + t_cruise + t_dec)
 
     def speed_at_samples(self, samples: Samples) -> np.ndarray:
         """Actual speed at every sample (mm/s); a sample's position along its move by arc length."""
@@ -479,8 +476,8 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
     if cuts:
         t, L, vnom, acc, ve, move, u_end, ramp = _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
-    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, np.r_[0.0, np.cumsum(tp.lengths())],
-                     pause, blends, ramp)
+    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, ramp,
+                     np.r_[0.0, np.cumsum(tp.lengths())], pause, blends)
 
 
 def _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
