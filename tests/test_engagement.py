@@ -146,7 +146,7 @@ def test_inside_corner_engagement_rises_and_returns():
         v = (q[..., 0] - o[0]) * n1[0] + (q[..., 1] - o[1]) * n1[1]
         return ~((u < R - ae) & (v > -R + ae))
 
-    s.top[~in_stock(np.stack([X, Y], -1))] = 0.0
+    s.top[~in_stock(np.stack([X, Y], -1))] = s.z_floor
     pts = np.array([o - 10 * f1, o, o + 10 * f2])
     sm = polyline([(*p, 10 - ap) for p in pts]).resample(0.05)
     e = simulate(s, Tool(D), sm, look_ahead_mm=0.15)
@@ -237,8 +237,26 @@ def test_bridge_over_a_gap_cut_into_the_gap_and_rapid_through_it():
     e = simulate(s, Tool(4.0), polyline([(-5, 5, 4), (25, 5, 4)]).resample(0.1))
     assert v0 - s.volume_mm3() == pytest.approx(e.volume_mm3.sum(), rel=1e-6)
     assert e.volume_mm3.sum() == pytest.approx(10 * 4 * 1.5, rel=2e-3)
-    assert s.top[101, i] == np.float32(2.0) and s.intervals(i, 101) == [(0.0, 2.0)]
+    assert s.z0 + float(s.top[101, i]) == 2.0 and s.intervals(i, 101) == [(0.0, 2.0)]
     # now a rapid along the slot at z = 3 (tip above the lower block) touches nothing; one at z = 1 crashes
     simulate(s, Tool(4.0), polyline([(-5, 5, 12), (-5, 5, 3), (25, 5, 3)], kinds=[FEED, RAPID]).resample(0.1))
     with pytest.raises(MillpostError, match="rapid move runs into the stock"):
         simulate(s, Tool(4.0), polyline([(-5, 5, 12), (-5, 5, 1), (25, 5, 1)], kinds=[FEED, RAPID]).resample(0.1))
+
+
+def test_lowpass_is_scipys_gaussian_filter_per_run():
+    """The area/ae low-pass equals scipy.ndimage.gaussian_filter1d (mode "nearest") on each continuous
+    run, runs shorter than the kernel included."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from millpost.engagement import _lowpass
+
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=300)
+    fresh = np.zeros(300, bool)
+    fresh[[0, 2, 5, 40, 299]] = True  # runs of 2, 3, 35, 259 and 1 samples
+    for sigma in (0.4, 1.0, 2.5):
+        ref = x.copy()
+        for a, b in ((0, 2), (2, 5), (5, 40), (40, 299)):
+            ref[a:b] = gaussian_filter1d(x[a:b], sigma, mode="nearest")
+        assert np.allclose(_lowpass(x, fresh, sigma), ref, rtol=0, atol=1e-13)

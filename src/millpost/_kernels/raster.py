@@ -5,7 +5,8 @@ Each triangle is tested row by row against the cell centres of its XY projection
 edge functions (vertices snapped to 1/4096 of a cell) and a tie rule that gives a point on a shared edge
 to exactly one of the two triangles. The triangle's plane gives z at the centre, clamped to the
 triangle's z range (near-vertical triangles extrapolate badly). Up-facing triangles are where a ray
-leaves material, down-facing ones where it enters.
+leaves material, down-facing ones where it enters. Heights are stored above the stock's z0 (see
+`millpost.stock.grid`): a top left at 0 is never written, so its memory page is not committed.
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ from numba import njit
 from .columns import is_multi, multi_index, ranks
 
 SUB = 4096  # fixed-point subdivisions per cell
-MULTI = np.uint8(128)  # flag bit in the per-column crossing count
+MULTI = np.uint8(128)  # flag in the per-column crossing count: the column enters material above the floor
+UP = np.uint8(64)  # flag: an up-facing crossing was seen (the top holds one)
+COUNT = np.uint8(63)  # the count's bits: it saturates there (a column crossing more is refused)
 BUFFER_ROWS = 16  # grid rows buffered at a time (16 B a cell, 12 B a multi column, 5 B a crossing)
 
 
@@ -40,12 +43,12 @@ def _in_triangle(ax, ay, bx, by, cx, cy, px, py) -> bool:
 
 
 @njit(cache=True)
-def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from, j_to):
+def _triangle_cells(tri, x0, y0, h, nx, ny, z0, out_c, out_z, j_from, j_to):
     """Cells whose centre lies in the triangle's XY projection, on rows j_from..j_to-1 (j_from = -1:
-    from the first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z and
-    returns (count, up, next row or -1 when done), up +1 for an up-facing triangle, -1 down-facing. On each
-    row the inside cells are an interval: its ends are estimated from the edges, widened by a cell
-    and trimmed with the exact test."""
+    from the first), until out_c/out_z (at least nx long) would overflow: writes flat ids and z (rounded
+    to float32, then less the stock's z0: the height it stores) and returns (count, up, next row or -1
+    when done), up +1 for an up-facing triangle, -1 down-facing. On each row the inside cells are an
+    interval: its ends are estimated from the edges, widened by a cell and trimmed with the exact test."""
     X = np.empty(3, np.int64)
     Y = np.empty(3, np.int64)
     for v in range(3):
@@ -102,7 +105,7 @@ def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from, j_to):
             xc = x0 + (i + 0.5) * h
             z = tri[0, 2] - (nxp * (xc - tri[0, 0]) + nyp * (yc - tri[0, 1])) / nzp
             out_c[n] = j * nx + i
-            out_z[n] = min(max(z, zmin), zmax)
+            out_z[n] = np.float64(np.float32(min(max(z, zmin), zmax))) - z0  # float32 z, then above z0
             n += 1
     return n, up, -1
 
@@ -110,37 +113,42 @@ def _triangle_cells(tri, x0, y0, h, nx, ny, out_c, out_z, j_from, j_to):
 @njit(cache=True, inline="always")
 def _count_crossings(cells, zs, n, up, flat, count, z_floor, tol):
     """First pass over one batch of a triangle's cells: count crossings, raise the Z-map to up-facing
-    ones, flag columns entered above the floor."""
+    ones (the first one seen replaces the zero the top starts with), flag columns entered above the
+    floor. A top that keeps its value is not written (its page stays uncommitted)."""
     for k in range(n):
         c = cells[k]
-        cnt = count[c] & 127
-        if cnt < 127:
-            count[c] = (count[c] & MULTI) | np.uint8(cnt + 1)
+        cnt = count[c] & COUNT
+        if cnt < COUNT:
+            count[c] = (count[c] & (MULTI | UP)) | np.uint8(cnt + 1)
         if up > 0:
-            if zs[k] > flat[c]:
-                flat[c] = zs[k]
+            z = np.float32(zs[k])
+            if (count[c] & UP) == 0 or z > flat[c]:
+                if flat[c] != z:
+                    flat[c] = z
+                count[c] |= UP
         elif zs[k] > z_floor + tol:
             count[c] |= MULTI
 
 
 @njit(cache=True)
-def first_pass(tris, x0, y0, h, nx, ny, z_floor, tol, top, count):
-    """Z-map of the up-facing crossings and per-column crossing counts; the MULTI bit marks columns
-    that enter material above z_floor (an undercut or a raised bottom)."""
+def first_pass(tris, x0, y0, h, nx, ny, z0, z_floor, tol, top, count):
+    """Z-map of the up-facing crossings and per-column crossing counts (top: zeros on entry); the
+    MULTI bit marks columns that enter material above z_floor (an undercut or a raised bottom), UP
+    those whose top holds an up-facing crossing."""
     cells = np.empty(BUFFER_ROWS * nx, np.int64)
     zs = np.empty(BUFFER_ROWS * nx, np.float64)
     flat = top.reshape(-1)
     for t in range(tris.shape[0]):
         j = -1
         while True:
-            n, up, j = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, j, ny)
+            n, up, j = _triangle_cells(tris[t], x0, y0, h, nx, ny, z0, cells, zs, j, ny)
             _count_crossings(cells, zs, n, up, flat, count, z_floor, tol)
             if j < 0:
                 break
 
 
 @njit(cache=True)
-def multi_gaps(tris, x0, y0, h, nx, ny, z_floor, bits, rank, ptr, lo, hi, top):
+def multi_gaps(tris, x0, y0, h, nx, ny, z0, z_floor, bits, rank, ptr, lo, hi, top):
     """Gaps and tops of the multi columns, BUFFER_ROWS rows of the grid at a time (only one band's
     crossings are held: 5 B each). On entry ptr[m + 1] is multi column m's crossing count (capped as
     in `first_pass`); on return ptr holds the CSR pointers of its gaps in lo/hi (top-down per column),
@@ -175,7 +183,7 @@ def multi_gaps(tris, x0, y0, h, nx, ny, z_floor, bits, rank, ptr, lo, hi, top):
         for t in range(nt):
             if t_hi[t] < ja or t_lo[t] >= jb:
                 continue
-            n, up, _ = _triangle_cells(tris[t], x0, y0, h, nx, ny, cells, zs, ja, jb)
+            n, up, _ = _triangle_cells(tris[t], x0, y0, h, nx, ny, z0, cells, zs, ja, jb)
             for k in range(n):
                 c = cells[k]
                 if is_multi(c, bits):
@@ -188,7 +196,9 @@ def multi_gaps(tris, x0, y0, h, nx, ny, z_floor, bits, rank, ptr, lo, hi, top):
         for c in range(ja * nx, jb * nx):
             if is_multi(c, bits):
                 ptr[m] = w
-                w, top[c] = _column_gaps(zc, up_c, lptr[m - m0], lptr[m - m0 + 1], lo, hi, w, z_floor)
+                w, t = _column_gaps(zc, up_c, lptr[m - m0], lptr[m - m0 + 1], lo, hi, w, z_floor)
+                if top[c] != t:
+                    top[c] = t
                 m += 1
         m0 = m1
     ptr[nm] = w
@@ -200,7 +210,7 @@ def _column_gaps(zc, up_c, a, b, lo, hi, w, z_floor):
     """One column's crossings zc[a:b] (facing up_c) to its gaps lo/hi[w:] (top-down) and top: sort by
     z (at equal z entries, down-facing −1, first), walk up counting the inside depth; the material
     intervals it meets leave the gaps between them (and below the lowest, down to z_floor). Sorts
-    zc/up_c[a:b] in place (insertion sort: a column holds at most 127). Returns (new w, top)."""
+    zc/up_c[a:b] in place (insertion sort: a column holds fewer than COUNT). Returns (new w, top)."""
     for p in range(a + 1, b):
         z, u = zc[p], up_c[p]
         q = p
@@ -237,13 +247,19 @@ def _column_gaps(zc, up_c, a, b, lo, hi, w, z_floor):
 
 
 @njit(cache=True)
-def multi_columns(count, bits, rank):
+def multi_columns(count, bits, rank, top, z_floor):
     """Mark in `bits` (zeroed; see `millpost._kernels.columns`) the columns that need gaps: crossing
-    count other than 0 or 2, or MULTI set; fill `rank`. Returns ptr (int32, multi columns + 1) with
-    each multi column's crossing count at ptr[m + 1], and the sum of those counts."""
+    count other than 0 or 2, or MULTI set; fill `rank`; set the top of the columns without an up-facing
+    crossing to z_floor. Returns ptr (int32, multi columns + 1) with each multi column's crossing count
+    at ptr[m + 1], the sum of those counts, and a column whose count saturated (-1: none)."""
+    full = -1
     for c in range(count.shape[0]):
         k = count[c]
-        if (k & MULTI) != 0 or ((k & 127) != 2 and k != 0):
+        if (k & UP) == 0 and top[c] != z_floor:
+            top[c] = z_floor
+        if (k & COUNT) == COUNT:
+            full = c
+        if (k & MULTI) != 0 or ((k & COUNT) != 2 and (k & COUNT) != 0):
             bits[c >> 6] |= np.int64(1) << (c & 63)
     n = ranks(bits, rank)
     ptr = np.zeros(n + 1, np.int32)
@@ -251,7 +267,7 @@ def multi_columns(count, bits, rank):
     m = 0
     for c in range(count.shape[0]):
         if is_multi(c, bits):
-            ptr[m + 1] = count[c] & 127
+            ptr[m + 1] = count[c] & COUNT
             total += ptr[m + 1]
             m += 1
-    return ptr, total
+    return ptr, total, full

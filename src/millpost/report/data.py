@@ -210,5 +210,5 @@ def final_stock(job, samples) -> StockMap | None:
         engagement.simulate(stock, dict(job.tools), samples, slices=1, ring_samples=8, progress=False)
     except MillpostError:
         return None  # the coarse grid found material the optimizer's did not: no map rather than a wrong one
-    top = np.where(stock.top > stock.z_floor, stock.top, np.nan).astype(float)
+    top = np.where(stock.top > stock.z_floor, stock.z0 + stock.top.astype(float), np.nan)  # heights above z0
     return StockMap(top, (stock.x0, stock.x0 + stock.nx * stock.cell_mm, stock.y0, stock.y0 + stock.ny * stock.cell_mm))

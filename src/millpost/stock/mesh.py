@@ -15,7 +15,7 @@ import numpy as np
 
 from .._kernels import compiling, raster
 from ..errors import MillpostError
-from .grid import Stock, choose_cell, grid_shape, multi_index_arrays
+from .grid import Stock, choose_cell, grid_shape, multi_index_arrays, zeroed
 
 ANGULAR_TOL_RAD = 0.1
 
@@ -35,25 +35,44 @@ def from_triangles(tris: np.ndarray, cell_mm: float | None = None, *, max_memory
     xy0, xy1 = (lo3[:2], hi3[:2]) if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
     h = choose_cell(xy0, xy1, cell_mm, max_memory_mb)
     nx, ny = grid_shape(xy0, xy1, h)
-    zf = float(lo3[2])
+    z0 = _main_face_height(tris)  # heights are stored above it: z rounded to float32, less z0
+    zf = np.float32(np.float64(np.float32(lo3[2])) - z0)
     tol = 1e-3 * h
-    top = np.full((ny, nx), np.float32(zf), np.float32)
+    top = zeroed((ny, nx))
     count = np.zeros(nx * ny, np.uint8)
     with compiling(raster.first_pass):
-        raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, zf, tol, top, count)
+        raster.first_pass(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, z0, float(zf), tol, top, count)
     bits, rank = multi_index_arrays(nx * ny)
     with compiling(raster.multi_columns):
-        ptr, crossings = raster.multi_columns(count, bits, rank)
+        ptr, crossings, full = raster.multi_columns(count, bits, rank, top.reshape(-1), zf)
     del count
+    if full >= 0:
+        x, y = xy0[0] + (full % nx + 0.5) * h, xy0[1] + (full // nx + 0.5) * h
+        raise MillpostError(f"stock mesh: the vertical line at x = {x:.4f}, y = {y:.4f} mm crosses more than "
+                            f"{raster.COUNT - 1} surfaces, more than a column can hold")
     if crossings // 2 >= 2**31:
         raise MillpostError(f"stock mesh: {crossings // 2} gaps in the columns exceed the 2**31 the stock can index")
     # at most one gap per two crossings; the pages past the gaps written are never touched (no memory)
     lo = np.empty(crossings // 2 + 1, np.float32)
     hi = np.empty_like(lo)
     with compiling(raster.multi_gaps):
-        w = raster.multi_gaps(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, np.float32(zf), bits, rank, ptr, lo, hi,
+        w = raster.multi_gaps(tris, float(xy0[0]), float(xy0[1]), h, nx, ny, z0, zf, bits, rank, ptr, lo, hi,
                               top.reshape(-1))
-    return Stock(float(xy0[0]), float(xy0[1]), h, zf, top, bits, rank, ptr, lo[:w], hi[:w])
+    return Stock(float(xy0[0]), float(xy0[1]), h, float(zf), top, bits, rank, ptr, lo[:w], hi[:w], z0)
+
+
+def _main_face_height(tris: np.ndarray) -> float:
+    """The stock's z0: the height of the largest horizontal up-facing area of the mesh (a block's top
+    face; on the float32 grid), where most columns' tops then store 0; the lowest z when nothing faces
+    straight up."""
+    z = tris[:, :, 2].astype(np.float32)
+    e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    area = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])  # XY area, > 0 facing up
+    flat = (z[:, 0] == z[:, 1]) & (z[:, 0] == z[:, 2]) & (area > 0)
+    if not flat.any():
+        return float(z.min())
+    heights, which = np.unique(z[flat, 0], return_inverse=True)
+    return float(heights[np.argmax(np.bincount(which, weights=area[flat]))])
 
 
 def from_stl(path: str | os.PathLike, cell_mm: float | None = None, **kw) -> Stock:
