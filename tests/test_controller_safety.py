@@ -2,7 +2,9 @@
 that runs it exceeds no limit. LinuxCNC (and the look-ahead controllers modelled by its planner) rounds
 a corner with a blend arc run at the faster of the two moves' feeds, so the slower move's first
 millimetres see the faster feed; optimize lowers both F words around such a corner to the lowest limit
-of the arc's reach (`controller.blend_zones`, `schedule.feeds.blend_limit`).
+of the arc's reach (`controller.blend_zones`, `schedule.feeds.blend_limit`), and checks the arcs of the
+program as emitted (`Execution.blends`: LinuxCNC merges naive-CAM feeds into lines at the F words
+written, whose arcs reach much further), writing it again until none runs faster than its limits.
 
 The jobs are seeded random jobs (`random_jobs.py`) on machines with LinuxCNC's planner whose emitted
 programs, before corners were planned with it, replayed at 1.13-3.5 times a limit on LinuxCNC's model.
