@@ -156,10 +156,11 @@ def sim_latencies(machine: Machine, speedup: float = SPEEDUP) -> dict[str, float
 
 def model(machine: Machine, latencies: dict[str, float]) -> ControllerModel:
     """The machine's controller model as the simulated controller is configured: LinuxCNC's planner
-    with the machine's axes, no G64 P or Q, no block rate limit but the servo period's, and the
+    and canon (it merges naive-CAM feeds) with the machine's axes, no G64 P or Q, no block rate limit but the servo period's, and the
     simulator's command latencies."""
     return dataclasses.replace(ControllerModel.from_machine(machine), planner="linuxcnc", lookahead_blocks=50,
-                               blend_tolerance_mm=0.0, naive_cam_mm=0.0, block_rate_hz=float("inf"), **latencies)
+                               blend_tolerance_mm=0.0, merges_naive_cam=True, naive_cam_mm=0.0,
+                               block_rate_hz=float("inf"), **latencies)
 
 
 def model_seconds(program: Path, controller: ControllerModel) -> float:

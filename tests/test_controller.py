@@ -104,12 +104,15 @@ def test_bad_model_is_a_config_error():
 # speed-up 1, axes of vmc-small: X/Y/Z 400/400/333.3 mm/s, 3000/2500/2500 mm/s²); the closed forms below
 # reproduce them without LinuxCNC.
 VMC = dict(max_rate_mm_s=(400.0, 400.0, 1000.0 / 3.0), accel_mm_s2=(3000.0, 2500.0, 2500.0), planner="linuxcnc",
-           lookahead_blocks=50)
+           merges_naive_cam=True, lookahead_blocks=50)
 MEASURED = {"G0 X100": 0.517, "G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000": 2.150, "square 20 mm F6000 twice": 1.505,
             "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655, "sine relief F6000": 1.365,
             # `steps` programs (at speed-up 5): 2000 feeds of 0.5 µm along X at F60; 2000 zigzag feeds
             # of 5 µm in X and ±5 µm in Y at F300, merged (Q 10 µm) or not (Q 2 µm)
-            "collinear Q0.01": 1.001, "zigzag Q0.01": 2.004, "zigzag Q0.002": 4.020}
+            "collinear Q0.01": 1.001, "zigzag Q0.01": 2.004, "zigzag Q0.002": 4.020,
+            # `slot_into_ramp` (speed-up 5): a 5 mm slot of 0.05 mm feeds at F3000, a 4 mm ramp down 0.7 mm
+            # of such feeds at F300 or F600, 4 mm more at the bottom at F3000, all under G64 P0.05 Q0.05
+            "slot into ramp F300": 0.689, "slot into ramp F600": 0.477}
 
 
 def steps(mode: str, n: int, step_mm: float, feed_mm_min: float, zig_mm: float = 0.0) -> str:
@@ -122,6 +125,18 @@ def steps(mode: str, n: int, step_mm: float, feed_mm_min: float, zig_mm: float =
 
 def lcnc(**kw):
     return ControllerModel(**{**VMC, **kw})
+
+
+def slot_into_ramp(slow_mm_min: float) -> str:
+    """100 feeds of 0.05 mm along X (Y zigzagging by 1 µm) at F3000, 80 such feeds ramping down 0.7 mm
+    (10°) at the slow feed, 80 more at the bottom at F3000, under G64 P0.05 Q0.05 (naive CAM's output)."""
+    lines = ["G21 G90 G17 G64 P0.05 Q0.05", "G0 X0 Y0 Z0", "G1 X0.05 F3000"]
+    lines += [f"X{0.05 + 0.05 * k:.4f} Y{0.001 * (k % 2):.4f}" for k in range(1, 100)]
+    lines += [f"X{5 + 0.05 * k:.4f} Z{-0.7 * k / 80:.4f}" + (f" F{slow_mm_min:g}" if k == 1 else "")
+              for k in range(1, 81)]
+    lines += [f"X{9 + 0.05 * k:.4f} Y{0.001 * (k % 2):.4f} Z-0.7000" + (" F3000" if k == 1 else "")
+              for k in range(1, 81)]
+    return "\n".join(lines + ["M2"]) + "\n"
 
 
 def test_linuxcnc_single_segment_runs_at_half_acceleration():
@@ -236,55 +251,88 @@ def test_canned_cycle_moves_run_in_exact_path():
 
 
 def test_blend_zones_bound_the_blend_arc_at_any_feed():
-    from millpost.controller import blend_zones, execute
+    from millpost.controller import PathModes, blend_zones, execute
 
     tol = 0.05
     tp = feed_tp([("line", (100, 0, 0)), ("line", (100, 100, 0)), ("rapid", (0, 100, 0))], 3000 * 60)
-    (m0, m1, d0, d1, v_top), = blend_zones(tp, lcnc(blend_tolerance_mm=tol), None)  # none at the rapid
+    ctl = lcnc(blend_tolerance_mm=tol)
+    (a, b, v_top), = blend_zones(tp, ctl, PathModes.uniform(len(tp), ctl))  # none at the rapid
     theta = math.pi / 4
     d = math.cos(theta) * tol / (1 - math.sin(theta))  # blendComputeParameters: within P of the corner
-    assert (m0, m1) == (0, 1) and d0 == d1 == pytest.approx(d, rel=1e-12)
+    assert a == pytest.approx(100 - d, rel=1e-12) and b == pytest.approx(100 + d, rel=1e-12)
     assert v_top == pytest.approx(math.sqrt(math.sqrt(0.75) * 2500 * math.tan(theta) * d), rel=1e-12)
     for f_in, f_out in [(180000, 60), (60, 180000), (6000, 600)]:  # the arc runs at the faster feed
         tp.feed_mm_min[:2] = f_in, f_out
-        ex = execute(tp, lcnc(blend_tolerance_mm=tol))
+        ex = execute(tp, ctl)
         arc = ex.move[1:3] == [0, 1]
         assert arc.all() and ex.length[1] <= d + 1e-12 and ex.length[2] <= d + 1e-12
         assert ex.vnom[1] == pytest.approx(min(v_top, max(f_in, f_out) / 60), rel=1e-9)
-    assert blend_zones(tp, model(), None) == []  # grbl: a junction never runs above the slower feed
+        # the execution's own arc: within the zone, its top the highest speed the blocks reach there
+        (a1, b1, v1), = ex.blends
+        assert a - 1e-9 <= a1 < 100 < b1 <= b + 1e-9 and 100 - a1 == pytest.approx(b1 - 100, rel=1e-9)
+        assert v1 <= ex.vnom[1] * (1 + 1e-12)
+        x = np.linspace(0, 1, 201)
+        inside = np.r_[ex.speed_at(np.zeros(201, int), 1 - x * ex.length[1] / 100),
+                       ex.speed_at(np.ones(201, int), x * ex.length[2] / 100)]
+        assert inside.max() <= v1 * (1 + 1e-9) and inside.max() >= v1 * 0.98
+    assert blend_zones(tp, model(), PathModes.uniform(len(tp), model())).shape == (0, 3)  # grbl: never above
+    # the slower block's feed
+    assert execute(tp, model()).blends.shape == (0, 3)
 
 
 def test_blend_limit_lowers_both_sides_of_a_fast_corner():
-    from millpost.controller import blend_zones
-    from millpost.schedule.feeds import blend_limit
+    from millpost.controller import PathModes, blend_zones
+    from millpost.schedule.feeds import blend_excess, blend_limit
 
     tp = feed_tp([("line", (10, 0, 0)), ("line", (10, 10, 0))], 600)
     smp = tp.resample(0.1)
     ctl = lcnc(blend_tolerance_mm=0.05)
-    zones = blend_zones(tp, ctl, None)
+    zones = blend_zones(tp, ctl, PathModes.uniform(len(tp), ctl))
     limit = np.where(smp.move == 0, 100.0, 5.0)  # a heavy cut after the corner, a light one before
-    out = blend_limit(smp, limit, np.cumsum(tp.lengths()), zones)
-    d = zones[0][2]
+    out = blend_limit(smp, limit, zones)
+    d = (zones[0][1] - zones[0][0]) / 2
     near = np.abs(smp.s_mm - 10.0) <= d + 0.1 + 1e-9  # the zone and the next sample on each side
     assert (out[near] == 5.0).all() and (out[~near] == limit[~near]).all()
-    slow = zones[0][:4] + (4.0,)  # an arc no faster than the slow side needs nothing
-    assert (blend_limit(smp, limit, np.cumsum(tp.lengths()), [slow]) == limit).all()
+    assert len(blend_excess(smp, limit, zones)) == 1 and len(blend_excess(smp, out, zones)) == 1
+    slow = np.r_[zones[0][:2], 4.0]  # an arc no faster than the slow side needs nothing
+    assert (blend_limit(smp, limit, [slow]) == limit).all() and len(blend_excess(smp, limit, [slow])) == 0
+    # widened by its length on either side: three times as long; checked against another limit
+    wide = blend_limit(smp, limit, zones, widen=1.0)
+    assert ((np.abs(smp.s_mm - 10.0) <= 3 * d) <= (wide == 5.0)).all()
+    assert (blend_limit(smp, limit, zones, within=np.full(len(smp), 7.0)) == np.minimum(limit, np.where(near, 7.0,
+                                                                                                       np.inf))).all()
+
+
+def test_run_limit_lowers_the_whole_run_a_zone_lies_on():
+    from millpost.schedule.feeds import run_limit
+
+    tp = feed_tp([("line", (10, 0, 0)), ("line", (20, 0, 0)), ("line", (30, 0, 0))], 600)
+    smp = tp.resample(0.5)
+    limit = np.where(smp.move == 1, 20.0, 50.0)
+    rest = np.flatnonzero(np.isclose(smp.s_mm, 10.0))[-1]  # a stop at the first corner: two runs
+    limit[rest] = 0.0
+    within = limit.copy()
+    within[smp.s_mm > 25.0] = 8.0  # the limit the arcs keep: lowest near the end
+    out = run_limit(smp, limit, [(21.0, 22.0, 40.0)], within)
+    second = smp.s_mm > 10.0
+    assert (out[second] == 8.0).all() and (out[~second] == limit[~second]).all()
 
 
 def test_corner_speeds_bound_what_linuxcnc_runs_at_any_feed():
-    from millpost.controller import blend_zones, corner_speeds, execute
+    from millpost.controller import PathModes, blend_zones, corner_speeds, execute
 
     tp = feed_tp([("line", (50, 0, 0)), ("line", (100, 0, 0)), ("line", (100, 50, 0)), ("line", (99.9, 100, 0)),
                   ("rapid", (0, 100, 0))], 6000)
     ctl = lcnc(blend_tolerance_mm=0.05)
     cap = corner_speeds(tp, ctl)
+    zones = blend_zones(tp, ctl, PathModes.uniform(len(tp), ctl))
     assert cap[1] == np.inf and cap[4] == 0.0 and cap[0] == cap[5] == np.inf  # collinear; feed -> rapid stops
-    assert cap[2] == pytest.approx(blend_zones(tp, ctl)[0][4], rel=1e-12)  # the right angle: its blend arc
+    assert cap[2] == pytest.approx(zones[0][2], rel=1e-12)  # the right angle: its blend arc
     # the slight bend (0.11°): the faster of the tangent kink (the velocity jump in one servo period within
     # 10 % of the acceleration) and the blend arc, here the arc
     u0, u1 = np.array([0.0, 1.0, 0.0]), np.array([-0.1, 50.0, 0.0]) / math.hypot(0.1, 50.0)
     kink = 0.1 * 0.001 / np.max(np.abs(u1 - u0) / [3000.0, 2500.0, 2500.0])
-    assert cap[3] == pytest.approx(max(kink, blend_zones(tp, ctl)[1][4]), rel=1e-12) and cap[3] > kink
+    assert cap[3] == pytest.approx(max(kink, zones[1][2]), rel=1e-12) and cap[3] > kink
     # with a naive-CAM tolerance the canon layer merges straight feeds into lines that depend on the feeds
     # written (here the bend, its corner 0.04999 mm off the chord, into one line at 0.05 mm): such a
     # corner is not sure to slow the tool; the right angle (35 mm off any line through its three points)
@@ -336,6 +384,24 @@ def test_naive_cam_chain_ends_where_canon_flushes():
     assert chain_sizes(head + "G2 X3 R1\nG1 X4\nX5\nM2\n") == [1, 2]  # an arc
     assert chain_sizes(head + "X0\nM2\n") == [1, 1]  # back to the chain's start
     assert chain_sizes(head + "X0.5\nM2\n") == [1, 1]  # a reversal: X1 lies beyond the new end
+
+
+def test_blend_arc_of_merged_lines_carries_the_fast_feed_into_the_slow_one():
+    # the canon layer merges the slot and the ramp into lines of up to 101 points: the blend arc between the
+    # slot's line and the ramp's (a 10° turn: within P 0.05 mm of the corner it may reach 1.1 mm into each)
+    # reaches 1 mm into the ramp at the slot's 50 mm/s; LinuxCNC ran both programs as the model does, over
+    # a third faster than blend arcs per programmed move (reaching at most 12 µm) would let it
+    from millpost.controller import execute_program
+    from millpost.gcode import read_text
+
+    for slow in (300, 600):
+        program = read_text(slot_into_ramp(slow))
+        ex = execute_program(program, lcnc())
+        assert ex.time_s == pytest.approx(MEASURED[f"slot into ramp F{slow}"], rel=0.005)
+        a, b, top = ex.blends[0]
+        assert a == pytest.approx(5.0 - 1.0, abs=0.01) and b == pytest.approx(5.0 + 1.0, abs=0.01) and top == 50.0
+        unmerged = execute_program(program, lcnc(merges_naive_cam=False))
+        assert unmerged.time_s > 1.35 * ex.time_s and (np.diff(unmerged.blends[:, :2], axis=1) < 0.08).all()
 
 
 def test_naive_cam_chain_runs_as_one_line():

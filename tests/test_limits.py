@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from millpost.controller import path_modes
 from millpost.engagement import Engagement
 from millpost.gcode import read_text
 from millpost.job import _LIMIT_KEYS, Job
@@ -19,6 +20,7 @@ from millpost.limits import HARD, QUALITY, build_limits
 from millpost.machine import Machine
 from millpost.materials import Material
 from millpost.optimize import schedule_program
+from millpost.signals import controller_model
 from millpost.toolpath import RAPID
 from millpost.tools import Tool
 
@@ -72,7 +74,7 @@ def test_heavier_cut_never_faster(run):
 
 def test_only_hard_limits_lower_by_default(run):
     lower, (job, program, samples, eng, result, feeds) = run
-    lim = build_limits(job, samples, eng, program.toolpath)
+    lim = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     hard_over = result.summary["limits_programmed"]
     hard = {k for k in hard_over if k in result.summary["hard_limits"]}
     cut = samples.kind != RAPID
@@ -114,7 +116,7 @@ def test_hard_limit_needing_less_than_min_chip_is_held_and_listed():
 
 def test_every_limit_carries_its_identity(run):
     lower, (job, program, samples, eng, result, feeds) = run
-    lim = build_limits(job, samples, eng, program.toolpath)
+    lim = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     kinds = {l.name: l.kind for l in lim}
     assert kinds["cutting_force"] == kinds["power"] == kinds["torque"] == kinds["feed"] == HARD
     assert kinds["deflection"] == kinds["chip_load_max"] == kinds["chip_load_min"] == QUALITY

@@ -1,9 +1,11 @@
 """Real third-party programs (tests/real_jobs/*/job.toml, programs under ../shared/data) through
-`optimize` with the vmc-small and hobby-router machines, default feed policy:
+`optimize` with the vmc-small and hobby-router machines (and the hobby router on LinuxCNC), default
+feed policy:
 
 - solved (no fallback to the programmed feeds);
 - no slower than programmed on the controller model, unless the programmed feeds exceed a hard limit
   (then the status says `slower` and the replay of the programmed feeds shows the limit over 1);
+- the executed speed within every speed cap the F words hold (max feed, plunge feed...), 0.5 % slack;
 - no feed below the minimum-chip feed (or the programmed one, if lower) except on samples where the
   summary lists a hard limit as held;
 - the emitted path within 1e-4 mm of the original (each emitted move's ends on the original move,
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +42,8 @@ from millpost.signals import controller_model
 from millpost.toolpath import ARC_CW, RAPID
 
 JOBS = sorted(p.parent for p in (Path(__file__).parent / "real_jobs").glob("*/job.toml"))
-MACHINES = ["vmc-small", "hobby-router"]
+# the built-in machines, and the hobby router driven by LinuxCNC (whose canon merges naive-CAM feeds)
+MACHINES = ["vmc-small", "hobby-router", "hobby-router:linuxcnc"]
 PATH_TOL_MM = 1e-4
 
 
@@ -50,7 +54,10 @@ def run(request):
     if not SHARED_DATA.exists():
         pytest.skip(f"{SHARED_DATA} is absent (third-party programs, not in the repo)")
     job = load_job(folder)
-    job.machine = Machine.load(machine)
+    name, _, kind = machine.partition(":")
+    job.machine = Machine.load(name)
+    if kind:
+        job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
     try:
         result = optimize(job, progress=False)
     except MillpostError as exc:  # a feature the reader does not support yet, or a cutter-compensation
@@ -77,6 +84,17 @@ def test_solved_and_not_slower_without_cause(run):
         assert s["cycle_time_after_s"] <= s["cycle_time_before_s"] * (1 + 1e-3)
 
 
+def test_executed_speed_within_every_f_word_cap(run):
+    """The speed caps the F words hold (`JobLimits.f_word_caps`: the maximum feed, the plunge feed cap,
+    the air clearance...) hold where the machine's controller model runs the emitted program, blend
+    arcs (LinuxCNC's run at the faster of two feeds, over its merged lines) included."""
+    name, job, result = run
+    s = result.summary
+    assert s["f_word_caps"] and set(s["f_word_caps"]) <= set(s["limits"])
+    over = {k: s["limits"][k] for k in s["f_word_caps"] if s["limits"][k] > 1.005}
+    assert not over, f"{name}: the executed speed exceeds F-word caps {over}"
+
+
 def test_no_feed_below_min_chip_unless_hard_forced(run):
     name, job, result = run
     emitted = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
@@ -99,9 +117,7 @@ def test_no_feed_below_min_chip_unless_hard_forced(run):
     # a blending controller runs a corner's arc at the faster of its two feeds, so the F words on both sides
     # of a blended corner fit the lowest limit within the arc's reach (`controller.blend_zones`)
     model = controller_model(job)
-    s_end0 = np.cumsum(program.toolpath.lengths())
-    zones = [(s_end0[m0] - d0, s_end0[m0] + d1) for m0, _, d0, d1, _ in
-             blend_zones(program.toolpath, model, path_modes(program, model))]
+    zones = blend_zones(program.toolpath, model, path_modes(program, model))[:, :2]
     ds = float(job.limits["ds_mm"])
     for r in np.unique(sample_run[low]):
         on = sample_run == r

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from millpost import safety
+from millpost.controller import path_modes
 from millpost.gcode import read_program
 from millpost.job import load_job
 from millpost.limits import build_limits
@@ -19,6 +20,7 @@ from millpost.optimize import optimize
 from millpost.replay import baseline_feeds, replay
 from millpost.schedule import SpeedLoad
 from millpost.signals import predict
+from millpost.signals import controller_model
 from millpost.toolpath import RAPID
 
 JOBS = Path(__file__).resolve().parents[1] / "sample_jobs"
@@ -32,7 +34,7 @@ def drill_and_mill():
     program = read_program(job.program, job.reader_options())
     samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                     progress=False)
-    limits = build_limits(job, samples, eng, program.toolpath)
+    limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     executed = optimize(job, progress=False).trace["feed_executed_mm_min"] / 60.0
     return job, samples, eng, limits, executed
 
@@ -123,7 +125,8 @@ def test_baseline_per_programmed_feed_closed_form(tmp_path, plunge_f):
     program = read_program(job.program, job.reader_options())
     samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                     progress=False)
-    feeds, per_tool = baseline_feeds(program, samples, build_limits(job, samples, eng, program.toolpath))
+    limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
+    feeds, per_tool = baseline_feeds(program, samples, limits)
     h_max = job.material.chip_load_mm(6.0)[1]
     ratio = job.material.strategies.plunge_fz_ratio
     z_n = 3 * 9000.0  # teeth per minute

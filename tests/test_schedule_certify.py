@@ -6,11 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from millpost.controller import path_modes
 from millpost.gcode import read_text
 from millpost.limits import build_limits
 from millpost.schedule import ScheduleOptions, schedule_samples
 from millpost.schedule.assemble import soft_floor
 from millpost.schedule.rows import PathGrid, StepRows
+from millpost.signals import controller_model
 from random_jobs import random_engagement, random_job
 
 
@@ -38,7 +40,7 @@ def test_certified_profile_matches_clarabel_on_random_jobs(seed):
     program = read_text(text, "random.nc")
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     eng = random_engagement(rng, samples, job.tools[1])
-    limits = build_limits(job, samples, eng, program.toolpath)
+    limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     auto = schedule_samples(samples, limits, ScheduleOptions(processes=1))
     ref = schedule_samples(samples, limits, ScheduleOptions.from_choices(solver="clarabel", jobs=1))
     grid = PathGrid.from_samples(samples)
@@ -67,7 +69,7 @@ def test_certified_profile_covers_current_slew():
         program = read_text(text, "random.nc")
         samples = program.toolpath.resample(float(job.limits["ds_mm"]))
         eng = random_engagement(rng, samples, job.tools[1])
-        limits = build_limits(job, samples, eng, program.toolpath)
+        limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
         grid = PathGrid.from_samples(samples)
         if not any(isinstance(blk, StepRows) for lim in limits for blk in lim.blocks(grid)):
             continue

@@ -40,7 +40,7 @@ other command that waits for motion to end (spindle stop or speed, tool length, 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -69,8 +69,10 @@ class ControllerModel:
     """Planner settings. Rates mm/s, accelerations mm/s², lengths mm, times s (grbl: $110-$112 in
     mm/min, $120-$122, $11 junction deviation, $12 arc tolerance; a buffer of 16 blocks on an AVR.
     LinuxCNC: [AXIS_*] MAX_VELOCITY/MAX_ACCELERATION, G64 P, ARC_BLEND_OPTIMIZATION_DEPTH 50).
-    naive_cam_mm: the naive-CAM tolerance before the program sets a path mode (LinuxCNC's startup
-    G64 Q, or P without Q); 0 for controllers that merge no straight feeds (all but LinuxCNC)."""
+    merges_naive_cam: the controller merges consecutive straight feeds within the naive-CAM tolerance
+    into one line (LinuxCNC's canon layer: `naive_cam_chains`; a program's G64 P/Q sets the tolerance);
+    naive_cam_mm: that tolerance before the program sets a path mode (LinuxCNC's startup G64 Q, or P
+    without Q; 0 where the controller merges nothing)."""
 
     max_rate_mm_s: tuple[float, float, float]
     accel_mm_s2: tuple[float, float, float]
@@ -81,6 +83,7 @@ class ControllerModel:
     exact_stop: bool = False
     planner: str = "grbl"
     blend_tolerance_mm: float = 0.0
+    merges_naive_cam: bool = False
     naive_cam_mm: float = 0.0
     servo_period_s: float = 0.001
     tool_change_s: float = 0.0
@@ -107,18 +110,22 @@ class ControllerModel:
             raise ConfigError("servo_period_s", self.servo_period_s, "must be > 0")
         if self.planner not in PLANNERS:
             raise ConfigError("planner", self.planner, f"one of {', '.join(PLANNERS)}")
+        if self.naive_cam_mm > 0 and not self.merges_naive_cam:
+            raise ConfigError("naive_cam_mm", self.naive_cam_mm, "0 for a controller that merges no straight feeds")
 
     @classmethod
     def from_machine(cls, machine) -> "ControllerModel":
         """The model of a machine's controller: its axis rates and accelerations, its planner (a
-        LinuxCNC controller's blend tolerance is its startup G64 P, which sets the naive-CAM tolerance too)."""
+        LinuxCNC controller's blend tolerance is its startup G64 P, which sets the naive-CAM tolerance
+        too; only LinuxCNC merges naive-CAM feeds, `Controller.merges_naive_cam`)."""
         ax = [machine.axes[a] for a in "xyz"]
         c = machine.controller
         return cls(max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
                    junction_deviation_mm=c.junction_deviation_mm, block_rate_hz=c.block_rate_Hz,
                    planner=c.planner, lookahead_blocks=16 if c.planner == "grbl" else 50,
                    blend_tolerance_mm=c.blend_tolerance_mm, tool_change_s=c.tool_change_s,
-                   naive_cam_mm=c.blend_tolerance_mm if c.kind == "linuxcnc" else 0.0,
+                   merges_naive_cam=c.merges_naive_cam,
+                   naive_cam_mm=c.blend_tolerance_mm if c.merges_naive_cam else 0.0,
                    spindle_start_s=c.spindle_start_s, coolant_s=c.coolant_s, command_s=c.command_s)
 
 
@@ -206,8 +213,15 @@ class Execution:
     vnom: np.ndarray
     acc: np.ndarray
     v_entry: np.ndarray  # (n+1,)
+    # per block: a short feed segment LinuxCNC runs as one linear ramp (constant acceleration) from its
+    # entry to its exit speed, no faster than either
+    ramp: np.ndarray
     move_start_mm: np.ndarray  # (len(program moves)+1,): the program's arc length where each move starts
     pause_s: float = 0.0  # of time_s, spent stopped between moves (dwells, tool changes, commands)
+    # (k, 3): the blend arcs LinuxCNC runs at up to the faster of its two segments' feeds, each with the
+    # straight lead-in it absorbed: the program's arc length (mm) where it starts and ends, the highest
+    # speed (mm/s) reached on it
+    blends: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def _locate(self, move: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Block index and distance into it (mm) of fraction u of move `move`: by the program's arc
@@ -224,17 +238,19 @@ class Execution:
         return k, frac * self.length[k]
 
     def speed_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Actual speed at fraction u of move `move` (sample positions map onto blocks by fraction)."""
+        """Actual speed at fraction u of move `move` (sample positions map onto blocks by fraction): the
+        block's trapezoid, or its linear ramp from entry to exit speed."""
         k, x = self._locate(move, u)
-        a = self.acc[k]
-        v = np.minimum.reduce([np.sqrt(self.v_entry[k] ** 2 + 2 * a * x), self.vnom[k],
-                               np.sqrt(self.v_entry[k + 1] ** 2 + 2 * a * (self.length[k] - x))])
-        return v
+        a, v0, v1, L = self.acc[k], self.v_entry[k], self.v_entry[k + 1], self.length[k]
+        v = np.minimum.reduce([np.sqrt(v0**2 + 2 * a * x), self.vnom[k], np.sqrt(v1**2 + 2 * a * (L - x))])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            linear = np.sqrt(np.maximum(v0**2 + (v1**2 - v0**2) * np.where(L > 0, x / L, 1.0), 0.0))
+        return np.where(self.ramp[k], linear, v)
 
     def time_at(self, move: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Time (s from the program start) at which the tool passes fraction u of move `move`: the
         blocks before plus the time into the block's trapezoid (accelerate from the entry speed at a,
-        cruise at the peak speed, decelerate to the exit speed)."""
+        cruise at the peak speed, decelerate to the exit speed) or linear ramp."""
         k, x = self._locate(move, u)
         a, L, v0, v1 = self.acc[k], self.length[k], self.v_entry[k], self.v_entry[k + 1]
         vp = np.minimum(np.sqrt(np.maximum((2 * a * L + v0**2 + v1**2) / 2, 0)), self.vnom[k])
@@ -246,7 +262,10 @@ class Execution:
             t_cruise = np.where(vp > 0, np.clip(x - d_acc, 0, None) / vp, 0.0)
             t_dec = (np.sqrt(np.maximum(vp**2 - 2 * a * np.clip(x - (L - d_dec), 0, None), 0)) - vp) / -a
         t_cruise = np.minimum(t_cruise, np.where(vp > 0, np.maximum(L - d_acc - d_dec, 0) / vp, 0.0))
-        return before + t_acc + t_cruise + t_dec
+        v = self.speed_at(move, u)  # a linear ramp: constant acceleration from v0, t = 2x / (v0 + v(x))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ramp = np.where(v0 + v > 0, 2 * x / (v0 + v), 0.0)
+        return before + np.where(self.ramp[k], ramp, t_acc + t_cruise + t_dec)
 
     def speed_at_samples(self, samples: Samples) -> np.ndarray:
         """Actual speed at every sample (mm/s); a sample's position along its move by arc length."""
@@ -302,9 +321,10 @@ _FLUSHING_COMMENTS = ("MSG,", "DEBUG,", "LOG,")
 class PathModes:
     """Per move, the path control LinuxCNC runs it in. blend_mm: the blend tolerance (G64 P, mm; 0 for a
     G64 without P) or EXACT_PATH (G61: stop at corners) or EXACT_STOP (G61.1: stop after every move).
-    merge_mm: the naive-CAM tolerance (G64 Q, mm; P when Q is absent, 0 for a plain G64, in G61/G61.1
-    and in canned cycles): consecutive straight feeds whose points lie this close to one line are sent to
-    the planner as that one line (`naive_cam_chains`). flush: a command before the move ends the chain
+    merge_mm: the naive-CAM tolerance (G64 Q, mm; P when Q is absent, 0 for a plain G64, in G61/G61.1,
+    in canned cycles and on a controller that merges nothing, `ControllerModel.merges_naive_cam`):
+    consecutive straight feeds whose points lie this close to one line are sent to the planner as that
+    one line (`naive_cam_chains`). flush: a command before the move ends the chain
     being merged (a pause, a spindle speed, an offset, a path mode, an operator message)."""
 
     blend_mm: np.ndarray
@@ -319,7 +339,8 @@ class PathModes:
 
 def path_modes(program, model: ControllerModel) -> PathModes:
     """The path modes the program sets (`PathModes`); before it sets one, the controller's own
-    (`blend_tolerance_mm`, `naive_cam_mm`).
+    (`blend_tolerance_mm`, `naive_cam_mm`). A G64 P/Q sets a naive-CAM tolerance only on a controller
+    that merges straight feeds (`ControllerModel.merges_naive_cam`).
     The moves of a canned cycle (after its climb to R) run in exact path whatever the mode (LinuxCNC's
     convert_cycle sets G61 for them and restores it after). Tolerances in a G20 program are inches."""
     n = len(program.toolpath)
@@ -338,7 +359,8 @@ def path_modes(program, model: ControllerModel) -> PathModes:
         unit = 25.4 if inch[e.move] else 1.0
         if name == "blend":
             out[e.move:] = 0.0 if p is None else p * unit
-            merge[e.move:] = (p if q is None else q) * unit if (p, q) != (None, None) else 0.0
+            merging = (p, q) != (None, None) and model.merges_naive_cam
+            merge[e.move:] = (p if q is None else q) * unit if merging else 0.0
         else:
             out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP
             merge[e.move:] = 0.0
@@ -398,12 +420,14 @@ def naive_cam_chains(tp: Toolpath, modes: PathModes, feed_mm_min: np.ndarray | N
                        tp.kind == FEED, np.asarray(modes.merge_mm, float), flush, CHAIN_POINTS)
 
 
-def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Execution:
+def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
+                    modes: PathModes | None = None) -> Execution:
     """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the
-    motion and take their time, its path modes (G61/G64 P Q) set the corners and the merging of
-    straight feeds; feed_mm_min overrides the programmed feed per move."""
+    motion and take their time, its path modes (G61/G64 P Q; `path_modes`, computed here unless
+    given) set the corners and the merging of straight feeds; feed_mm_min overrides the programmed
+    feed per move."""
     return execute(program.toolpath, model, feed_mm_min, pauses=pauses_s(program, model),
-                   modes=path_modes(program, model))
+                   modes=path_modes(program, model) if modes is None else modes)
 
 
 def program_time(program, model: ControllerModel) -> float:
@@ -417,8 +441,9 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
     """Plan and time the whole program (rapids at the axis rates). feed_mm_min overrides the
     programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
     modes (see `path_modes`; default: the controller's own) set the LinuxCNC planner's path modes."""
+    blends = np.zeros((0, 3))
     if model.planner == "linuxcnc":
-        L, vnom, acc, vj2, move, u_end, ramps, cuts = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, modes)
+        L, vnom, acc, vj2, move, u_end, ramps, cuts, blends = _linuxcnc_blocks(tp, model, feed_mm_min, pauses, modes)
     else:
         cuts = []
         L, vnom, acc, vj2, move, u_end = _grbl_blocks(tp, model, feed_mm_min, pauses)
@@ -439,15 +464,20 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
             t_est = np.where(v_end > 0, 2.0 * L / v_end, np.inf)
         ramp = ramps & (ve[1:] > 0) & (t_est < RAMP_TIME_S)
         t = np.where(ramp, t_ramp, t) + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
+        if len(blends):  # the top of each arc's profile: a linear ramp's faster end, else the trapezoid's peak
+            k = blends[:, 2].astype(np.int64)
+            v0, v1 = ve[k], ve[k + 1]
+            peak = np.minimum(np.sqrt(np.maximum((2 * acc[k] * L[k] + v0**2 + v1**2) / 2, 0)), vnom[k])
+            blends = np.column_stack([blends[:, :2], np.where(ramp[k], np.maximum(v0, v1), peak)])
     pause = 0.0
     if pauses is not None and n:
         first, last = move[0], move[-1]
         inside = np.arange(len(pauses))
         pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
     if cuts:
-        t, L, vnom, acc, ve, move, u_end = _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
-    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, np.r_[0.0, np.cumsum(tp.lengths())],
-                     pause)
+        t, L, vnom, acc, ve, move, u_end, ramp = _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
+    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, ramp,
+                     np.r_[0.0, np.cumsum(tp.lengths())], pause, blends)
 
 
 def _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
@@ -457,7 +487,7 @@ def _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
     cut keeps the block's own place. A piece runs the block's speed profile between the cut points
     (constant acceleration on a linear ramp, the trapezoid elsewhere); the pieces' times share the
     block's time in proportion to those runs. Returns the pieces' t, L, vnom, acc, entry speeds (n+1),
-    move and u_end."""
+    move, u_end and ramp."""
     n = len(L)
     k = np.array([c[0] for c in cuts], np.int64)
     blk = np.r_[k, np.arange(n)]
@@ -480,7 +510,7 @@ def _cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
         run = np.where(ramp[blk], np.where(vs + vf > 0, 2.0 * Lp / (vs + vf), 0.0), _trapezoid_time(Lp, vs, vf, vm, a))
         total = np.bincount(blk, run, minlength=n)
         share = np.where(total[blk] > 0, run / total[blk], f_end - f_start)
-    return t[blk] * share, Lp, vm, a, np.r_[vs, ve[-1]], mv, uu
+    return t[blk] * share, Lp, vm, a, np.r_[vs, ve[-1]], mv, uu, ramp[blk]
 
 
 def _stops(tp: Toolpath, pauses: np.ndarray | None) -> np.ndarray:
@@ -756,21 +786,21 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None 
     return out
 
 
-def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes | None = None) -> list[tuple]:
+def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes) -> np.ndarray:
     """Corners where the controller may run a blend arc at the faster of its two moves' feeds (LinuxCNC
-    blends at max(F_in, F_out)): per corner (move before, move after, length into the move before and
-    into the move after (mm), the arc's top speed (mm/s)). The lengths and the speed bound the arc at
-    any feeds (r ≤ r_geom, v ≤ √(0.87·a·r_geom)), so a feed-independent zone: on it, the slower move's
-    loads see the faster move's feed unless both F words fit the zone. grbl never runs a junction above
-    the slower block's feed: no zones. modes: the path modes (`path_modes`); per programmed move, not
-    merged (the merge depends on the feeds written; feeds change only between chains, so the zones
-    at chain ends are among these). Stops
-    (rapid ↔ feed, reversals, jumps, G61/G61.1) have no zone; pauses are not looked at (a zone
-    there only costs time)."""
-    if model.planner != "linuxcnc":
-        return []
-    segs = _segments(tp, model, None, modes)
+    blends at max(F_in, F_out)), bounded at any feeds: per corner between two programmed moves (k, 3):
+    the arc length (mm) where the arc may start and end (the corner ∓ d_geom) and its top speed
+    √(0.87·a·r_geom) (mm/s), the same columns as `Execution.blends`. On such a zone the slower move's
+    loads see the faster move's feed unless both F words fit it. grbl never runs a junction above the
+    slower block's feed: no zones. modes: the path modes (`path_modes`). Per programmed move, not
+    merged: the canon layer's merging depends on the F words written, and its longer lines reach
+    further; the arcs of the program as emitted are `Execution.blends`. Stops (rapid ↔ feed, reversals,
+    jumps, G61/G61.1) have no zone; pauses are not looked at (a zone there only costs time)."""
     out = []
+    if model.planner != "linuxcnc":
+        return np.zeros((0, 3))
+    segs = _segments(tp, model, None, modes)
+    end = np.cumsum(tp.lengths())
     for prev, cur in zip(segs[:-1], segs[1:]):
         if (prev.rapid or cur.rapid or model.exact_stop
                 or prev.tolerance in (EXACT_PATH, EXACT_STOP) or _dot(prev.t1, cur.t0) < SHARP_CORNER_COS
@@ -781,13 +811,20 @@ def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes | None = 
             continue
         _, _, binormal, d_geom, r_geom = geometry
         v_top = math.sqrt(NORMAL_SHARE * _inscribed(binormal, model.accel_mm_s2) * r_geom)
-        out.append((prev.move, cur.move, d_geom, d_geom, v_top))
-    return out
+        out.append((end[prev.move] - d_geom, end[prev.move] + d_geom, v_top))
+    return np.asarray(out, float).reshape(-1, 3)
 
 
 def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, modes):
-    """LinuxCNC 2.9's queue: segments, blend arcs and the speed caps at their junctions."""
+    """LinuxCNC 2.9's queue: segments, blend arcs and the speed caps at their junctions; and the blend
+    arcs' spans and top speeds (`Execution.blends`)."""
     segs = _segments(tp, model, feed_mm_min, modes, merge=True)
+    at = np.r_[0.0, np.cumsum(tp.lengths())]
+
+    def arc_length(s: _Segment, x: float) -> float:  # the program's arc length x mm along segment s
+        m, u = _place(s, x)
+        return float(at[m] + u * (at[m + 1] - at[m]))
+
     stop = _stops(tp, pauses).tolist()
     dt = model.servo_period_s
     amax = model.accel_mm_s2
@@ -838,7 +875,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     # the arc's speed is dropped from the queue and its rest becomes the straight lead-in of that arc
     consumed = [j + 1 < len(segs) and joints[j + 1][0] == "blend" and not s.arc
                 and s.length < GAP_CYCLES * dt * joints[j + 1][2][2] for j, s in enumerate(segs)]
-    L, vnom, acc, vj2, move, u_end, ramps, cuts = [], [], [], [], [], [], [], []
+    L, vnom, acc, vj2, move, u_end, ramps, cuts, blends = [], [], [], [], [], [], [], [], []
     lead, lead_vj2 = 0.0, np.inf  # a consumed rest waiting for its arc, and the speed cap at its start
     for j, s in enumerate(segs):
         joint = joints[j]
@@ -854,6 +891,8 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             u_end.append(u)
             ramps.append(not s.rapid)
             cuts.append((len(L) - 1, (lead + 0.5 * s_arc) / length, segs[j - 1].move, 1.0))
+            prev = segs[j - 1]
+            blends.append((arc_length(prev, prev.nominal - prev.trim_end - lead), arc_length(s, d), len(L) - 1))
             lead, lead_vj2 = 0.0, np.inf
         if joint is None or joint[0] in ("stop", "pause"):
             start_vj2 = 0.0
@@ -886,7 +925,8 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
                 cuts.append((len(L) - 1, (x - s.trim_start) / span, s.first + k, 1.0))
     vj2.append(0.0)
     return (np.asarray(L, float), np.asarray(vnom, float), np.asarray(acc, float), np.asarray(vj2, float),
-            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool), cuts)
+            np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool), cuts,
+            np.asarray(blends, float).reshape(-1, 3))
 
 
 def _parabolic_speed(prev: _Segment, cur: _Segment) -> float:

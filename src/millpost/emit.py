@@ -471,6 +471,13 @@ def emitted_positions(original: Toolpath, emitted: Toolpath, move: np.ndarray, u
     return k, np.clip(frac, 0.0, 1.0)
 
 
+def original_arc_length(original: Toolpath, emitted: Toolpath, s_mm: np.ndarray) -> np.ndarray:
+    """The original program's arc length (mm) at arc length s_mm of the emitted one: along each original
+    move's pieces (`pieces_of_moves`) in proportion (they are its path within the written precision)."""
+    first = pieces_of_moves(original, emitted)
+    return np.interp(s_mm, np.r_[0.0, np.cumsum(emitted.lengths())][first], np.r_[0.0, np.cumsum(original.lengths())])
+
+
 def replace_numbers(program: Program, words: dict[int, dict[str, float]]) -> str:
     """The program's text with the values of words on given lines replaced ({line: {letter: value}}),
     each written in its own style (decimals, trailing point, case); every other byte as it was. A

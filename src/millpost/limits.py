@@ -144,6 +144,17 @@ class JobLimits:
         """The limit each row block (by its name) comes from."""
         return {blk.name: lim for lim in self.limits for blk in window_blocks(grid, [lim], 0, min(len(grid), 1))}
 
+    def f_word_caps(self) -> list[Limit]:
+        """The limits whose speed caps the emitted F words hold (the maximum feed, the plunge feed cap,
+        the air clearance, the drives' voltage...): not loads, not held by the controller itself."""
+        return [lim for lim in self.limits if not isinstance(lim.constraint, SpeedLoad) and lim.f_word
+                and not lim.controller]
+
+    def f_word_cap_names(self, grid: PathGrid) -> tuple[str, ...]:
+        """Names of the speed caps (row blocks) of `f_word_caps`, as the replay reports their ratios."""
+        return tuple(sorted({blk.name for blk in window_blocks(grid, self.f_word_caps(), 0, min(len(grid), 1),
+                                                               caps_only=True)}))
+
     def names(self, **identity) -> tuple[str, ...]:
         """Names of the limits (and of their row blocks) whose identity fields have these values."""
         return tuple(lim.name for lim in self.limits if all(getattr(lim, k) == v for k, v in identity.items()))
@@ -168,7 +179,7 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
-def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes | None):
+def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes):
     """The corner rule of the machine's own planner (`ControllerModel.from_machine`): grbl's junction
     deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds` in the
     path modes `modes`), on the last sample before each corner."""
@@ -183,13 +194,13 @@ def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes | 
 
 
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
-                 release_slices: bool = False, modes: PathModes | None = None) -> JobLimits:
+                 release_slices: bool = False, modes: PathModes) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
     `millpost.progress` callback (stage "forces", in samples). release_slices: once the loads are
     computed, `eng` (changed in place) keeps only what `Engagement.per_sample` keeps (memory: its
     per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built). modes: the
     program's path modes (`controller.path_modes`: where its corners blend and its straight feeds
-    merge); default: the machine controller's own on every move."""
+    merge), required: the program's G61/G64 decide its corner caps."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])

@@ -199,6 +199,13 @@ class Controller:
         look-ahead planner blending corners within a tolerance) for the others."""
         return "grbl" if self.kind == "grbl" else "linuxcnc"
 
+    @property
+    def merges_naive_cam(self) -> bool:
+        """Whether the controller sends consecutive straight feeds within the naive-CAM tolerance (G64
+        Q, or P) to its planner as one line: LinuxCNC's canon layer does (`controller.naive_cam_chains`);
+        Mach3's and Fanuc's look-ahead blends the programmed moves as they are."""
+        return self.kind == "linuxcnc"
+
 
 @dataclass(frozen=True)
 class Machine:

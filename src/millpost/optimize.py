@@ -20,7 +20,7 @@ import numpy as np
 
 from . import controller, safety
 from ._kernels import set_threads
-from .emit import FeedPlan, emitted_positions, whole_moves, write_feeds
+from .emit import SNAP_TO_PROGRAMMED, FeedPlan, emitted_positions, original_arc_length, whole_moves, write_feeds
 from .gcode import read_program, read_text
 from .gcode.interpret import Program
 from .job import Job
@@ -28,7 +28,7 @@ from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
 from .replay import baseline_feeds, binding_shares, feed_at_samples, replay
 from .schedule import PathGrid, ScheduleOptions, schedule_samples
-from .schedule.feeds import blend_limit, emission_limit, piecewise_feeds
+from .schedule.feeds import blend_excess, blend_limit, emission_limit, piecewise_feeds, run_limit
 from .signals import controller_model, running_rpm
 from .spindle_speed import choose_speeds
 from .toolpath import RAPID, Samples
@@ -67,12 +67,11 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         del stock
         eng = replace(eng, arc_rad=None, step_mm=None, descending=None, move=None, line=None, depth_mm=None)
         t_engage = time.perf_counter()
-        limits = None
+        limits, modes = None, controller.path_modes(program, controller_model(job))
         if job.limits["rpm"] != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True,
-                                  modes=controller.path_modes(program, controller_model(job)))
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True, modes=modes)
         t_limits = time.perf_counter()
-        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits)
+        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits, modes=modes)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
@@ -83,63 +82,62 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
 
 
 def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
-                     progress: Progress = silent, limits: JobLimits | None = None) -> Result:
+                     progress: Progress = silent, limits: JobLimits | None = None,
+                     modes: controller.PathModes | None = None) -> Result:
     """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
     `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
-    schedule, emitted text, cycle times and the replay check. (Split from `optimize` so that tests can
+    schedule, emitted text, cycle times and the replay check. modes: the program's path modes
+    (`controller.path_modes`, computed here unless given). (Split from `optimize` so that tests can
     give engagements of known geometry.) progress: stages "forces", "schedule", "emission" and "replay"."""
     options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    model = controller_model(job)
+    modes = modes if modes is not None else controller.path_modes(program, model)
     spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
-    if job.limits["rpm"] == "optimize":
-        program, samples, spindle = choose_speeds(job, program, samples, eng, options, progress)
+    if job.limits["rpm"] == "optimize":  # the S words change, the moves and their path modes do not
+        program, samples, spindle = choose_speeds(job, program, samples, eng, options, modes, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
         limits = None  # the loads at the chosen speeds
     tp = program.toolpath
-    model = controller_model(job)
-    modes = controller.path_modes(program, model)
     t_limits = time.perf_counter()
     limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress, modes=modes)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options)
     solver_s = time.perf_counter() - t0
     progress("emission", 0, 4)
-    before = controller.execute_program(program, model)
+    before = controller.execute_program(program, model, modes=modes)
     base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
-    baseline = controller.execute_program(program, model, base_feeds)
+    baseline = controller.execute_program(program, model, base_feeds, modes=modes)
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
         result = schedule_program(replace(job, limits={**job.limits, "rpm": "programmed"}), *as_given, eng, options,
-                                  progress)
+                                  progress, modes=modes)
         result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
         return result
     if failed:
         plan = FeedPlan.programmed(program)
         status = "fallback_programmed_feeds"
         message = "; ".join(f"{s.status.value}: {s.message}" for s in failed[:3])
+        text = write_feeds(program, plan)
+        emitted = read_text(text, str(job.program), job.reader_options())  # what will run
+        after = controller.execute_program(emitted, model)
+        blends = {"passes": 1, "over": 0}
+        progress("emission", 4, 4)
     else:
         # F words never exceed the axis rates either (the controller would clamp them, but an emitted
         # feed must not ask for more than the machine can do); ramps and corners stay the controller's
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
-        # corners the controller blends at the faster feed carry it into the slower move
-        limit_mm_s = blend_limit(samples, limit_mm_s, np.cumsum(tp.lengths()),
-                                 controller.blend_zones(tp, model, modes))
-        fragments = whole_moves(program, piecewise_feeds(
-            samples, limit_mm_s, step=float(job.limits["feed_step"]),
-            accel_mm_s2=tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")))
+        # corners the controller blends at the faster feed carry it into the slower move: the bound at every
+        # programmed corner here, the arcs of the program as emitted in `_emit_within`
         hard_cap = np.full(len(tp), np.inf)
         np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD) * 60.0)
-        plan = FeedPlan.from_fragments(program, fragments, float(job.limits["feed_step"]), hard_cap)
+        text, emitted, after, blends = _emit_within(job, program, samples, limit_mm_s,
+                                                    controller.blend_zones(tp, model, modes), hard_cap, model,
+                                                    progress)
         status, message = "solved", ""
-    progress("emission", 2, 4)
-    text = write_feeds(program, plan)
-    progress("emission", 3, 4)
     t_emit = time.perf_counter()
-    emitted = read_text(text, str(job.program), job.reader_options())  # what will run
     emitted_tp = emitted.toolpath
-    progress("emission", 4, 4)
     progress("replay", 0, 3)
-    after = controller.execute_program(emitted, model)
     if status == "solved" and after.time_s > before.time_s * (1 + 1e-3):
         status = "slower"
     # the executed speed at each sample, at the same place of the emitted (split) moves
@@ -173,10 +171,13 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "stage_s": {"limits": round(t0 - t_limits, 3), "schedule": round(solver_s, 3),
                     "emit": round(t_emit - t0 - solver_s, 3), "replay": round(time.perf_counter() - t_emit, 3)},
         "removed_volume_mm3": round(float(np.nansum(eng.volume_mm3)), 3),
+        # emissions until no blend arc of the emitted program ran faster than the limits it covers (`_emit_within`)
+        "blend_passes": blends,
         "policy": limits.lower,
         "limits": {k: round(v, 4) for k, v in sorted(checked.ratios.items())},
         "limits_programmed": {k: round(v, 4) for k, v in sorted(as_programmed.items())},
         "hard_limits": sorted(set(limits.names(kind=HARD))),
+        "f_word_caps": list(limits.f_word_cap_names(PathGrid.from_samples(samples))),
         "binding": by_effect,
         "binding_limits": by_limit,
         "defaults_binding": {k: v for k, v in limits.defaults.items() if by_limit.get(k, 0.0) > 0
@@ -184,7 +185,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
-        "notes": program.notes + _rpm_notes(job, samples)
+        "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
     if spindle:
@@ -201,6 +202,65 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     # 1 where the policy held that limit's bound at the programmed or minimum-chip feed (reported)
     trace.update({f"held_{k}": v.astype(np.int8) for k, v in sorted(limits.held.items())})
     return Result(text, summary, samples, trace)
+
+
+BLEND_PASSES = 6  # emissions at most while blend arcs of the emitted program exceed the feed limit
+
+
+def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray,
+                 hard_cap: np.ndarray, model: controller.ControllerModel, progress: Progress
+                 ) -> tuple[str, Program, controller.Execution, dict]:
+    """The program with F words within the per-sample feed limit (mm/s; `piecewise_feeds`, hard_cap: per
+    move, mm/min) where the controller's blend arcs carry them, what the reader makes of it and how the
+    controller runs it. A blend arc runs at up to the faster of two F words over a reach set by the
+    segments the controller is given: for LinuxCNC the chains of straight feeds its canon layer merges
+    at the F words written (far longer than one programmed move), and a short line before an arc runs
+    at the arc's speed. First the feeds fit the zones of the programmed corners (`blend_zones`, (k, 3)
+    in the samples' arc length); then every arc of the emitted program (`Execution.blends`) faster than
+    the lowest limit it covers (beyond the emission's snap to a programmed feed held by a bound) has
+    that limit laid over its reach (`blend_limit`) and the program is written again; an arc still
+    over on a later emission has its reach widened 2, 4, ... times. The
+    arcs are always checked against `limit_mm_s` itself (the F words only fall). After BLEND_PASSES
+    emissions, every arc still over lowers the whole run it lies on (between the controller's stops) to
+    the run's lowest limit (`run_limit`), and the summary says so. Returns the text, the program, its
+    execution and {"passes": emissions, "over": arcs over the limit in the returned program,
+    "runs_lowered": arcs whose runs were lowered}."""
+    tp = program.toolpath
+    step = float(job.limits["feed_step"])
+    accel = tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")
+    feeds_mm_s = blend_limit(samples, limit_mm_s, zones)
+    stubborn = 0
+    for passes in range(1, BLEND_PASSES + 2):
+        progress("emission", 2, 4)
+        fragments = whole_moves(program, piecewise_feeds(samples, feeds_mm_s, step=step, accel_mm_s2=accel))
+        text = write_feeds(program, FeedPlan.from_fragments(program, fragments, step, hard_cap))
+        progress("emission", 3, 4)
+        emitted = read_text(text, str(job.program), job.reader_options())  # what will run
+        after = controller.execute_program(emitted, model)
+        arcs = after.blends.copy()
+        arcs[:, :2] = original_arc_length(tp, emitted.toolpath, arcs[:, :2])
+        over = blend_excess(samples, limit_mm_s, arcs, SNAP_TO_PROGRAMMED)  # a feed held at the programmed one
+        if not len(over) or passes > BLEND_PASSES:
+            break
+        if passes < BLEND_PASSES:
+            feeds_mm_s = blend_limit(samples, feeds_mm_s, over, (2.0 ** (passes - 1) - 1.0) / 2.0, limit_mm_s)
+        else:
+            stubborn = len(over)
+            feeds_mm_s = run_limit(samples, feeds_mm_s, over, limit_mm_s)
+    progress("emission", 4, 4)
+    return text, emitted, after, {"passes": passes, "over": int(len(over)), "runs_lowered": stubborn}
+
+
+def _blend_notes(blends: dict) -> list[str]:
+    """What the summary says when blend arcs needed more than their reach lowered (`_emit_within`)."""
+    out = []
+    if blends.get("runs_lowered"):
+        out.append(f"note: {blends['runs_lowered']} blend arcs still ran above the feed limit after "
+                   f"{BLEND_PASSES} emissions: the whole runs they lie on were lowered to their lowest limit")
+    if blends.get("over"):
+        out.append(f"warning: {blends['over']} blend arcs of the emitted program run above the feed limit "
+                   "(the controller carries the faster F word into the slower move)")
+    return out
 
 
 def _binding_kind(samples: Samples, sched, limits: JobLimits, kind: str) -> np.ndarray:

@@ -123,7 +123,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     keep_current = cut & ~limits.held["cutting_current"]
     limit_A = np.array([job.machine.axes[a].motor.current_limit_A for a in "xyz"])
     loads = [lim for lim in limits if isinstance(lim.constraint, SpeedLoad)]
-    caps = [lim for lim in limits if not isinstance(lim.constraint, SpeedLoad) and lim.f_word and not lim.controller]
+    caps = limits.f_word_caps()
     rows_of = Counter(lim.name for lim in loads)
     value = {name: np.zeros(n) for name in rows_of}
     # a name of one row keeps that row's bound (no copy); of several, the bound of the highest per sample

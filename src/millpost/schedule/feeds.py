@@ -218,32 +218,68 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
     return out
 
 
-def blend_limit(samples: Samples, limit_mm_s: np.ndarray, move_end_mm: np.ndarray, zones: list[tuple]) -> np.ndarray:
-    """The feed limit (mm/s) with the controller's blend arcs: a controller that rounds a corner with an
-    arc run at the faster of the two moves' feeds (`controller.blend_zones`: move before, move after,
-    the arc's reach into each (mm), its top speed (mm/s)) carries that feed into the slower move. Where
-    the top speed exceeds the lowest limit over the zone (the samples it reaches on both moves, and
-    the next sample on each side), the zone's samples on both sides take that lowest limit, so that
-    both F words around the corner fit it. move_end_mm: arc length (mm) at the end of every move."""
-    out = np.asarray(limit_mm_s, float).copy()
-    if not zones:
-        return out
-    m0, m1, d0, d1, v_top = (np.array(c, float) for c in zip(*zones))
-    corner = np.asarray(move_end_mm, float)[m0.astype(np.int64)]
+ARC_SLACK = 1e-6  # relative: an arc's top speed over a limit by less is float rounding (an F word read back)
+
+
+def _zone_minima(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per zone (start, end (mm of the samples' arc length), top speed): the samples it covers (those
+    within it and the next one on each side: the limit is linear between samples), as (sample index,
+    zone index) pairs, and each zone's lowest finite limit there (mm/s; inf: none)."""
+    zones = np.asarray(zones, float).reshape(-1, 3)
     s = samples.s_mm
-    lo = np.maximum(np.searchsorted(s, corner - d0, side="left") - 1, 0)
-    hi = np.minimum(np.searchsorted(s, corner + d1, side="right") + 1, len(s))
+    lo = np.maximum(np.searchsorted(s, zones[:, 0], side="left") - 1, 0)
+    hi = np.minimum(np.searchsorted(s, zones[:, 1], side="right") + 1, len(s))
     count = np.maximum(hi - lo, 0)
-    keep = count > 0
-    lo, count, m0, m1, v_top = lo[keep], count[keep], m0[keep], m1[keep], v_top[keep]
-    if not len(lo):
-        return out
-    owner = np.repeat(np.arange(len(lo)), count)
+    owner = np.repeat(np.arange(len(zones)), count)
     idx = np.repeat(lo - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
-    mv = samples.move[idx]
-    inside = (mv >= m0[owner]) & (mv <= m1[owner])
-    vals = np.where(inside & np.isfinite(out[idx]), out[idx], np.inf)
-    zone_min = np.minimum.reduceat(vals, np.r_[0, np.cumsum(count)[:-1]])
-    lower = inside & (v_top[owner] > zone_min[owner])
+    vals = np.where(np.isfinite(limit_mm_s[idx]), limit_mm_s[idx], np.inf)
+    zone_min = np.full(len(zones), np.inf)
+    np.minimum.at(zone_min, owner, vals)
+    return idx, owner, zone_min
+
+
+def blend_excess(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, slack: float = ARC_SLACK) -> np.ndarray:
+    """The zones (rows of `zones`, see `blend_limit`) whose top speed exceeds the lowest limit they cover
+    by more than `slack` (relative)."""
+    zones = np.asarray(zones, float).reshape(-1, 3)
+    _, _, zone_min = _zone_minima(samples, np.asarray(limit_mm_s, float), zones)
+    return zones[zones[:, 2] > zone_min * (1 + slack)]
+
+
+def blend_limit(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, widen: float = 0.0,
+                within: np.ndarray | None = None) -> np.ndarray:
+    """The feed limit (mm/s) with the controller's blend arcs: a controller that rounds a corner with an
+    arc run at the faster of the two moves' feeds carries that feed into the slower move. zones (k, 3):
+    where an arc may start and end (mm, the samples' arc length) and its top speed (mm/s)
+    (`controller.blend_zones`, `controller.Execution.blends`), first widened by `widen` times its length
+    on either side. Where the top speed exceeds the lowest limit over the zone (the samples within it,
+    and the next one on each side) of `within` (the limit the arcs must keep; default `limit_mm_s`
+    itself), the zone's samples take at most that lowest limit, so that every F word the arc's feeds
+    come from fits it."""
+    zones = np.asarray(zones, float).reshape(-1, 3).copy()
+    grow = widen * (zones[:, 1] - zones[:, 0])
+    zones[:, 0] -= grow
+    zones[:, 1] += grow
+    out = np.asarray(limit_mm_s, float).copy()
+    idx, owner, zone_min = _zone_minima(samples, out if within is None else np.asarray(within, float), zones)
+    lower = (zones[owner, 2] > zone_min[owner] * (1 + ARC_SLACK)) & np.isfinite(out[idx])
     np.minimum.at(out, idx[lower], zone_min[owner][lower])
+    return out
+
+
+def run_limit(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, within: np.ndarray) -> np.ndarray:
+    """The feed limit (mm/s) with every run that a zone (rows as in `blend_limit`) touches lowered to the
+    run's lowest limit of `within` (the limit the arcs must keep). A run: consecutive samples of
+    positive finite limit, between rest points (0: the controller stops there, so no blend arc crosses)
+    and rapids (nan). One feed over a whole run leaves no blend arc in it faster than the run's lowest
+    limit, however the controller merges its moves."""
+    out = np.asarray(limit_mm_s, float).copy()
+    within = np.asarray(within, float)
+    moving = np.isfinite(out) & (out > 0)
+    run = np.cumsum(~moving)  # one id per run (and per rest point or rapid sample between runs)
+    idx, _, _ = _zone_minima(samples, out, zones)
+    for r in np.unique(run[idx[moving[idx]]]):
+        on = moving & (run == r)
+        out[on] = np.minimum(out[on], np.nanmin(within[on]))
     return out
