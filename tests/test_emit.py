@@ -126,6 +126,18 @@ def test_untouched_lines_keep_their_bytes_and_f_is_added_where_needed():
     assert read_text(out).toolpath.feed_mm_min.tolist()[1:] == [200.0, 350.0, 200.0]
 
 
+@pytest.mark.parametrize("whole,written", [("X10 Y0 F500", "F600"), ("X10. Y0. F500.", "F600.")])
+def test_whole_feeds_follow_the_programs_own_style(whole, written):
+    """A line whose numbers all carry decimals shows no style of its own: its new F is written as the
+    program writes whole numbers ("F600" or "F600."), even where the markers (M30, %) say Fanuc."""
+    text = f"%\nG21 G90 G17\nG0 X0 Y0 Z-1\nG1 {whole}\nG1 X-36.5\nM30\n%\n"
+    prog = read_text(text)
+    assert prog.dialect == "fanuc"
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[int(np.flatnonzero(prog.toolpath.line == 5)[0])] = 600.0
+    assert write_feeds(prog, plan).splitlines()[4] == f"G1 X-36.5 {written}"
+
+
 def test_write_atomic_leaves_no_partial_file(tmp_path):
     target = tmp_path / "out.nc"
     target.write_text("old")

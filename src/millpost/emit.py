@@ -127,6 +127,17 @@ def _decimals(block: Block, default: int) -> int:
     return max(found + [default])
 
 
+def _program_trailing_point(program: Program) -> bool:
+    """Whether the program writes whole numbers as "10." (Fanuc style) or "10": from its own whole
+    coordinates and feeds (comments aside), the more frequent; the dialect's style where it has none."""
+    text = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
+    pointed = len(re.findall(r"[XYZIJKRF]\s*-?\d+\.(?![\d])", text, flags=re.IGNORECASE))
+    bare = len(re.findall(r"[XYZIJKRF]\s*-?\d+(?![\d.])", text, flags=re.IGNORECASE))
+    if pointed == bare:
+        return dialects.get(program.dialect).trailing_point
+    return pointed > bare
+
+
 def _trailing_point(block: Block, default: bool) -> bool:
     """Whether this line writes whole numbers as "10." (from its own numbers, else the dialect)."""
     nums = [w.text[1:].strip() for w in block.words if w.letter in "XYZIJKRF" and "[" not in w.text]
@@ -203,7 +214,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     tp = program.toolpath
     if len(plan.feed_mm_min) != len(tp):
         raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
-    default_trailing = dialects.get(program.dialect).trailing_point if trailing_point is None else trailing_point
+    default_trailing = _program_trailing_point(program) if trailing_point is None else trailing_point
     lines = program.text.splitlines(keepends=True)
     lengths = tp.lengths()
     cutting = tp.kind != RAPID
