@@ -31,6 +31,7 @@ from .gcode.lexer import Block, lex_line
 from .schedule.feeds import cluster
 from .toolpath import ARC_CW, PLANE_AXES, RAPID, Toolpath
 
+SPLIT_TOLERANCE_MM = 1e-4  # a split point lies this close to the original path at most
 SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
 _AXIS_LETTERS = "XYZ"
 _ARC_LETTERS = "IJK"
@@ -329,10 +330,12 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
 
 
 def split_decimals(block: Block, inch: bool) -> int:
-    """Decimals of a split point: the line's own precision plus one digit, at least 4 in mm and 5 in
-    inch, so that a rounded split point lies within 1e-4 mm of the original path (half a unit of
-    the last digit per axis: at most 0.87e-4 mm in 3D, 0.22e-4 mm in inch)."""
-    return max(_decimals(block, 0) + 1, 5 if inch else 4)
+    """Decimals of a split point: the line's own precision plus one digit, and at least enough that
+    rounding every axis by half a unit of the last digit moves the point less than SPLIT_TOLERANCE_MM
+    (√3·½·10⁻ᵈ·scale: 4 decimals in mm, 0.87e-4 mm; 6 in inch, 0.22e-4 mm; 5 in inch would be 2.2e-4)."""
+    scale = INCH if inch else 1.0
+    needed = math.ceil(math.log10(math.sqrt(3) * 0.5 * scale / SPLIT_TOLERANCE_MM))
+    return max(_decimals(block, 0) + 1, needed)
 
 
 def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
