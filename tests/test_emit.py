@@ -62,11 +62,13 @@ def test_scaled_feeds_are_written_and_read_back():
         back = read_text(text, program.path, ReaderOptions.linuxcnc())
         assert len(back.toolpath) == len(tp), program.path
         np.testing.assert_allclose(back.toolpath.end, tp.end, atol=1e-9)
-        # multi-move blocks (canned cycles) take the lowest planned feed of the block: never faster
-        got = back.toolpath.feed_mm_min[cut]
-        want = plan.feed_mm_min[cut]
+        # multi-move blocks (canned cycles) take the lowest planned feed of the block: never faster; a
+        # move of zero length (no time) keeps the F in force
+        timed = cut & (tp.lengths() > 0)
+        got = back.toolpath.feed_mm_min[timed]
+        want = plan.feed_mm_min[timed]
         assert np.all(got <= want * (1 + 1e-3) + 1e-3), program.path
-        single = np.array([np.sum(tp.line == tp.line[i]) == 1 for i in np.flatnonzero(cut)], bool)
+        single = np.array([np.sum(tp.line == tp.line[i]) == 1 for i in np.flatnonzero(timed)], bool)
         np.testing.assert_allclose(got[single], want[single], rtol=2e-3, atol=0.26)  # 0.01 in/min
 
 
@@ -291,3 +293,15 @@ def test_split_points_stay_within_1e_4_mm_of_the_line_in_mm_and_inch(units, end)
         worst = max(worst, max(_off_line(p, a, b) for p in back.end[1:-1]))
         assert np.allclose(back.end[-1], b, atol=1e-12)
     assert worst < 1e-4
+
+
+def test_a_move_of_zero_length_keeps_the_f_in_force():
+    """A repeated point (Tweakie's Cube: `G1 X14.122 Y21.819` where the tool already is) takes no time:
+    it gets no F of its own (the schedule leaves it at the programmed F80), the raised F in force holds
+    and the next move needs no F again; a zero-length move with its own F keeps it (as programmed)."""
+    prog = read_text("G21 G90\nG0 X0 Y0 Z-1\nG1 X5 F80\nG1 X5\nG1 X9\nG1 X9 F80\nG1 X12\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[prog.toolpath.lengths() > 0] = 2242.4
+    out = write_feeds(prog, plan).splitlines()
+    assert out[2:7] == ["G1 X5 F2242.4", "G1 X5", "G1 X9", "G1 X9 F80", "G1 X12 F2242.4"]
+    assert write_feeds(prog, FeedPlan.programmed(prog)) == prog.text

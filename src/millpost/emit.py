@@ -6,8 +6,9 @@ and arcs as arcs (keeping the line's IJK or R style, its distance modes and its 
 F is modal, so an F word is written wherever the wanted feed differs from the one in force; an F the
 program already had and that still holds keeps its bytes; a line holding only an F word just before
 the move (CAMotics' `F369.75` lines) takes the new value instead of the move getting a second F.
-Blocks that run several moves (canned cycles, G28) get the lowest feed any of their moves wants:
-never faster than the plan. Moves under
+A move of zero length (a repeated point) takes no time: it gets no F of its own, the F in force holds.
+Blocks that run several moves (canned cycles, G28) get the lowest feed any of their moves of nonzero
+length wants: never faster than the plan. Moves under
 cutter radius compensation (G41/G42) are never split: the controller offsets whatever coordinates are
 written, so a split point (a point of the offset path) would be offset again; they take one F. Neither
 are moves of canned cycles: a cycle block's X Y Z R are the hole's, not a move's end, nor moves of a
@@ -295,13 +296,20 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
                                              lambda j, f, L: f_text(f_value(j, f, L)), lengths[i], modal_f)
             out.extend(new_lines)
             continue
-        wanted = [plan.feed_mm_min[i] for i in moves if not math.isnan(plan.feed_mm_min[i])]
+        if not flow and all(lengths[i] <= 0.0 and program.feed_mode[i] != 930 for i in moves):
+            # a move to where the tool is takes no time: no F of its own, the F in force holds (or the one it
+            # has, which then holds after it as in the program)
+            modal_f = f_word.value if f_word is not None else modal_f
+            out.append(raw)
+            continue
+        timed = [i for i in moves if lengths[i] > 0.0] or moves  # a block's moves that take time set its F
+        wanted = [plan.feed_mm_min[i] for i in timed if not math.isnan(plan.feed_mm_min[i])]
         if not wanted:
             if f_word is not None:
                 modal_f = f_word.value
             out.append(raw)
             continue
-        k = min(moves, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
+        k = min(timed, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
         value = f_value(k, plan.feed_mm_min[k], lengths[k])
         if program.feed_mode[k] == 930 and len(moves) > 1 and not program.compensated[moves].all():
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
