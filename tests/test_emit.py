@@ -305,3 +305,32 @@ def test_a_move_of_zero_length_keeps_the_f_in_force():
     out = write_feeds(prog, plan).splitlines()
     assert out[2:7] == ["G1 X5 F2242.4", "G1 X5", "G1 X9", "G1 X9 F80", "G1 X12 F2242.4"]
     assert write_feeds(prog, FeedPlan.programmed(prog)) == prog.text
+
+
+@pytest.mark.parametrize("units,planned,written", [
+    ("G20", 24 * 25.4 * (1 - 1.6e-8), "F24"),  # Skull2: a plunge raised to 2 × F12 within the solver's round-off
+    ("G21", 3000 * (1 - 6.7e-9), "F3000"),  # the hobby-router's 3000 mm/min cap, not F2999.9
+    ("G21", 2999.96, "F2999.9"),  # a real excess of the grid value: rounded down
+    ("G20", 24 * 25.4 * (1 - 1e-5), "F23.99"),
+])
+def test_a_feed_at_a_cap_within_round_off_is_written_as_the_cap(units, planned, written):
+    prog = read_text(f"{units} G90\nG0 X0 Y0 Z-0.1\nG1 X5 F12\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[1] = planned
+    assert write_feeds(prog, plan).splitlines()[2] == f"G1 X5 {written}"
+
+
+def test_a_feed_held_at_the_hard_cap_is_the_cap():
+    """The schedule meets a bound to its tolerance: Heart.tap's plunge F10 (in/min) raised to its cap of
+    twice the programmed feed (508 mm/min) came out 507.568 and was written F19.98; within
+    SNAP_TO_PROGRAMMED under the move's hard cap the plan takes the cap (F20), further under it keeps
+    the schedule's feed; never above the cap."""
+    from millpost.schedule.feeds import Fragment
+
+    prog = read_text("G20 G90\nG0 X0 Y0 Z0.5\nG1 Z-0.05 F10\nG1 X1 F10\nG1 X2\nM2\n")
+    cap = np.array([np.inf, 508.0, 3000.0, 3000.0])
+    frags = [Fragment(1, 0.0, 1.0, 507.5678539813687), Fragment(2, 0.0, 1.0, 2999.8), Fragment(3, 0.0, 1.0, 2990.0)]
+    plan = FeedPlan.from_fragments(prog, frags, 0.05, cap)
+    assert plan.feed_mm_min[1:].tolist() == [508.0, 3000.0, 2990.0]
+    out = write_feeds(prog, plan).splitlines()
+    assert out[2:5] == ["G1 Z-0.05 F20", "G1 X1 F118.11", "G1 X2 F117.71"]

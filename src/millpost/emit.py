@@ -33,6 +33,9 @@ from .schedule.feeds import cluster
 from .toolpath import ARC_CW, PLANE_AXES, RAPID, Toolpath
 
 SPLIT_TOLERANCE_MM = 1e-4  # a split point lies this close to the original path at most
+# relative: a planned feed this close under a value of the written grid is that value: the solver's
+# round-off of a bound it holds (3000 mm/min comes out 2999.99998, F2999.9 would be a change of its own)
+FEED_ROUNDOFF = 1e-6
 SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
 _AXIS_LETTERS = "XYZ"
 _ARC_LETTERS = "IJK"
@@ -79,11 +82,15 @@ class FeedPlan:
         programmed_mm_min = program.toolpath.feed_mm_min
 
         def snapped(mv: int, f: float) -> float:
-            """A bound held at the programmed feed is met to the solver's tolerance: a feed within
-            SNAP_TO_PROGRAMMED under the programmed one, where no hard cap is under the programmed feed,
-            is the programmed feed (no F400 → F399.9 churn)."""
-            p = programmed_mm_min[mv]
-            return float(p) if p * (1 - SNAP_TO_PROGRAMMED) <= f < p <= hard_cap_mm_min[mv] else f
+            """A bound held at the programmed feed or at the move's hard cap (machine maximum, plunge
+            raise) is met to the solver's tolerance: a feed within SNAP_TO_PROGRAMMED under the programmed
+            one (where no hard cap is under it), or under the hard cap, is that feed (no F400 → F399.9
+            churn, no F24 → F23.99 for a plunge raised to twice its F12)."""
+            p, cap = programmed_mm_min[mv], hard_cap_mm_min[mv]
+            for held in ((p, cap) if p <= cap else (cap,)):
+                if held * (1 - SNAP_TO_PROGRAMMED) <= f < held:
+                    return float(held)
+            return f
 
         for mv, frs in by_move.items():
             frs.sort(key=lambda f: f.u_start)
@@ -284,9 +291,10 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             return value
 
         def f_text(value: float) -> str:
-            """F in the program's units, rounded down (never faster) to 0.1 mm/min or 0.01 in/min."""
+            """F in the program's units, rounded down (never faster) to 0.1 mm/min or 0.01 in/min; a value
+            within FEED_ROUNDOFF under a grid value is that value (a cap the solver held, not an excess)."""
             d = (2 if inch else 1) + (2 if value < 10 else 0)
-            return _fmt(math.floor(value * 10**d * (1 + 1e-12)) / 10**d, d, trailing_point)
+            return _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, trailing_point)
 
         split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
                  and not computed(block)]
