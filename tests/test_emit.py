@@ -330,7 +330,28 @@ def test_a_feed_held_at_the_hard_cap_is_the_cap():
     prog = read_text("G20 G90\nG0 X0 Y0 Z0.5\nG1 Z-0.05 F10\nG1 X1 F10\nG1 X2\nM2\n")
     cap = np.array([np.inf, 508.0, 3000.0, 3000.0])
     frags = [Fragment(1, 0.0, 1.0, 507.5678539813687), Fragment(2, 0.0, 1.0, 2999.8), Fragment(3, 0.0, 1.0, 2990.0)]
-    plan = FeedPlan.from_fragments(prog, frags, 0.05, cap)
+    plan = FeedPlan.from_fragments(prog, frags, 0.0, cap)  # every change written (no step)
     assert plan.feed_mm_min[1:].tolist() == [508.0, 3000.0, 2990.0]
     out = write_feeds(prog, plan).splitlines()
     assert out[2:5] == ["G1 Z-0.05 F20", "G1 X1 F118.11", "G1 X2 F117.71"]
+
+
+def test_every_written_f_change_is_at_least_the_step_of_the_f_it_leaves():
+    """arcspiral (inch): the schedule's runs differ by 5 % of the lower feed, so falls of 4.8-5 % of the
+    higher one were written (73.62 → 69.94, 40.13 → 38.17). With the plan's step, a fall smaller than
+    the step of the F in force falls a full step (rounded down on the written grid: never faster), a
+    rise smaller than the step keeps the F in force; changes of a step or more are written as planned."""
+    from millpost.schedule.feeds import Fragment
+
+    moves = "G1 X1 F10\n" + "".join(f"G1 X{k}\n" for k in range(2, 8))
+    prog = read_text(f"G20 G90\nG0 X0 Y0 Z-0.1\n{moves}M2\n")
+    wanted = [73.62, 69.94, 66.41, 52.43, 40.13, 38.17, 39.9]  # in/min: falls 2, 6 and the rise 7 < 5 %
+    frags = [Fragment(k + 1, 0.0, 1.0, f * 25.4) for k, f in enumerate(wanted)]
+    cap = np.full(len(prog.toolpath), np.inf)
+    text = write_feeds(prog, FeedPlan.from_fragments(prog, frags, 0.05, cap))
+    assert text.splitlines()[2:9] == ["G1 X1 F73.62", "G1 X2 F69.93", "G1 X3 F66.41", "G1 X4 F52.43",
+                   "G1 X5 F40.13", "G1 X6 F38.12", "G1 X7"]
+    feeds = read_text(text).toolpath.feed_mm_min[1:] / 25.4
+    assert np.all(feeds <= np.array(wanted) + 1e-9)
+    change = np.abs(np.diff(feeds))
+    assert np.all((change == 0) | (change >= 0.05 * feeds[:-1] - 1e-9))

@@ -57,10 +57,12 @@ def _slot(letter: str, line_letters: list[str]) -> tuple[int, int] | None:
 @dataclass
 class FeedPlan:
     """Per move: `feed_mm_min` (nan for moves left as programmed, e.g. rapids) and, for moves split
-    part-way, `fragments[move] = [(u_end, feed_mm_min), ...]` with u_end increasing to 1."""
+    part-way, `fragments[move] = [(u_end, feed_mm_min), ...]` with u_end increasing to 1. `step`
+    (relative): the least change of F worth a word, measured on the F words as written (`_stepped`)."""
 
     feed_mm_min: np.ndarray
     fragments: dict[int, list[tuple[float, float]]]
+    step: float = 0.0
 
     @classmethod
     def programmed(cls, program: Program) -> "FeedPlan":
@@ -75,7 +77,7 @@ class FeedPlan:
         (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
         keeps the program's F (each run at its programmed feed). hard_cap_mm_min: per move, the lowest speed
         cap of the hard limits over its samples (a run is forced slower where it is under the programmed feed)."""
-        plan = cls.programmed(program)
+        plan = replace(cls.programmed(program), step=step)
         by_move: dict[int, list] = {}
         for f in fragments:
             by_move.setdefault(f.move, []).append(f)
@@ -296,12 +298,20 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             d = (2 if inch else 1) + (2 if value < 10 else 0)
             return _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, trailing_point)
 
+        def feed_text(i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
+            """F text for move i at the feed after the F in force `modal` (program units), changes
+            smaller than the plan's step made none or a full step (`_stepped`; not in inverse time)."""
+            text = f_text(f_value(i, feed_mm_min, length_mm))
+            if flow or modal is None or program.feed_mode[i] == 930:
+                return text
+            return f_text(_stepped(float(text), modal, plan.step))
+
         split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
                  and not computed(block)]
         if split and len(moves) == 1:
             i = moves[0]
             new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, trailing_point,
-                                             lambda j, f, L: f_text(f_value(j, f, L)), lengths[i], modal_f)
+                                             feed_text, lengths[i], modal_f)
             out.extend(new_lines)
             continue
         if not flow and all(lengths[i] <= 0.0 and program.feed_mode[i] != 930 for i in moves):
@@ -330,17 +340,19 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         if f_word is not None and _same(f_word.value, value):
             out.append(raw)  # the program's own F still holds: keep its bytes
         elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
-              and (_same(modal_f, value) or _same(modal_f, float(f_text(value))))):
+              and (_same(modal_f, value) or _same(modal_f, float(feed_text(k, plan.feed_mm_min[k], lengths[k], modal_f))))):
             out.append(raw)
             value = modal_f  # the F in force stays the one written
         elif standalone_f is not None and f_word is None and program.feed_mode[k] != 930:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
-            out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": f_text(value)}) + f_ending
+            text = feed_text(k, plan.feed_mm_min[k], lengths[k], modal_f)
+            out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": text}) + f_ending
             out.append(raw)
-            value = float(f_text(value))
+            value = float(text)
         else:
-            out.append(writer.replace({"F": f_text(value)}) + ending)
-            value = float(f_text(value))
+            text = feed_text(k, plan.feed_mm_min[k], lengths[k], modal_f)
+            out.append(writer.replace({"F": text}) + ending)
+            value = float(text)
         modal_f = value
     return "".join(out)
 
@@ -355,7 +367,7 @@ def split_decimals(block: Block, inch: bool) -> int:
 
 
 def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
-                trailing_point: bool, f_text, length_mm: float, modal_f: float | None) -> tuple[list[str], float]:
+                trailing_point: bool, feed_text, length_mm: float, modal_f: float | None) -> tuple[list[str], float]:
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
     words changed; later pieces are new lines in the style of the original (its motion word as written
     or none when it had none, its word order, letter case and spacing; a word it lacks where `_slot`
@@ -398,7 +410,7 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
                     written = round(start[ax] / scale, decimals) * scale
                     c = tp.center[i, ax] if program.arc_absolute[i] else tp.center[i, ax] - written
                     words[_ARC_LETTERS[ax]] = _fmt(c / scale, decimals, trailing_point)
-        f = f_text(i, feed, seg_len)
+        f = feed_text(i, feed, seg_len, modal)
         if (modal is None or not _same(modal, float(f)) or program.feed_mode[i] == 930
                 or (k == 0 and has_f)):
             words["F"] = f
@@ -452,6 +464,19 @@ def whole_moves(program: Program, fragments: list) -> list:
         elif f.move not in whole or f.feed_mm_min < whole[f.move].feed_mm_min:
             whole[f.move] = replace(f, u_start=0.0, u_end=1.0)
     return out + list(whole.values())
+
+
+def _stepped(value: float, modal: float, step: float) -> float:
+    """The F to write (program units) for a wanted F `value` after the F in force `modal`, so that every
+    change is at least `step` of the F it leaves: a rise by less keeps the F in force (slower, never
+    faster than planned), a fall by less falls a full step to modal·(1 − step) (written rounded down).
+    (The schedule's runs differ by `step` of the lower feed; a fall is measured from the higher one, and
+    rounding to the written grid shrinks either.)"""
+    if modal < value < modal * (1 + step):
+        return modal
+    if modal * (1 - step) < value < modal:
+        return modal * (1 - step)
+    return value
 
 
 def _same(a: float, b: float) -> bool:
