@@ -355,3 +355,24 @@ def test_every_written_f_change_is_at_least_the_step_of_the_f_it_leaves():
     assert np.all(feeds <= np.array(wanted) + 1e-9)
     change = np.abs(np.diff(feeds))
     assert np.all((change == 0) | (change >= 0.05 * feeds[:-1] - 1e-9))
+
+
+@pytest.mark.parametrize("units,line,last", [
+    ("G21", "G1 X192.050 Y229.010 Z-0.0500 F100", "G1 X192.050 Y229.010 Z-0.0500 F100"),  # Scorpion, Heart.tap
+    ("G20", "g1 x1.5 y.75 z-.1 f10", "g1 x1.5 y.75 z-.1 f10"),  # arcspiral's lower case, no leading zero
+    ("G21", "G1 X20 Y10 Z0.0000 F100", "G1 X20 Y10 Z0.0000 F100"),
+])
+def test_the_last_piece_of_a_split_line_ends_with_the_lines_own_words(units, line, last):
+    """The last piece of a split line ends at the line's end point: its axis words are the original
+    text, and so is an axis that does not move on any piece (Z0.0000, not Z0. on one piece and Z0 on
+    another)."""
+    prog = read_text(f"{units} G90 G17\nG0 X0 Y0 Z0\n{line}\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    slow = prog.toolpath.feed_mm_min[1] / 2
+    plan.fragments[1] = [(0.5, slow), (1.0, prog.toolpath.feed_mm_min[1])]
+    out = write_feeds(prog, plan).splitlines()
+    assert out[3] == last
+    if "Z0.0000" in line:
+        assert out[2].endswith("Z0.0000 F50")
+    back = read_text("\n".join(out)).toolpath
+    assert np.allclose(back.end[-1], prog.toolpath.end[-1])

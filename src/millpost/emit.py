@@ -371,7 +371,8 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
     words changed; later pieces are new lines in the style of the original (its motion word as written
     or none when it had none, its word order, letter case and spacing; a word it lacks where `_slot`
-    puts it) with the end point, arc centre and F. A piece writes no F where the F in force (modal_f,
+    puts it) with the end point, arc centre and F; an axis word where the piece ends on the line's own end
+    in that axis is the line's own text. A piece writes no F where the F in force (modal_f,
     program units, before the line) already holds, except in inverse time (G93: F on every block).
     Split points take `split_decimals`. Returns the lines and the F in force after them."""
     tp = program.toolpath
@@ -388,6 +389,9 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     points = tp.points(np.full(len(us), i), us)
     a1, a2, an = PLANE_AXES[int(tp.plane[i])]
     written_axes = {w.letter for w in block.words if w.letter in _AXIS_LETTERS}
+    # where a piece ends on the line's own end in an axis (the last piece; an axis that does not move), in
+    # absolute distance mode: that axis word's own text ("Z-0.0500", "z-.1", not Z-0.05, z-0.1)
+    as_written = {} if incremental else {w.letter: w.text[1:].strip() for w in block.words if w.letter in _AXIS_LETTERS}
     out = []
     modal = modal_f
     for k, (u_end, feed) in enumerate(fragments):
@@ -398,7 +402,9 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
             value = (end[ax] - start[ax]) if incremental else end[ax]
             moves_here = abs(end[ax] - start[ax]) > 1e-9
             if _AXIS_LETTERS[ax] in written_axes or moves_here:
-                if k == 0 or moves_here or not incremental:
+                if _AXIS_LETTERS[ax] in as_written and abs(end[ax] - tp.end[i, ax]) <= 1e-9:
+                    words[_AXIS_LETTERS[ax]] = as_written[_AXIS_LETTERS[ax]]
+                elif k == 0 or moves_here or not incremental:
                     words[_AXIS_LETTERS[ax]] = _fmt(value / scale, decimals, trailing_point)
         if arc:
             if uses_r:
