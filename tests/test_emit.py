@@ -376,3 +376,16 @@ def test_the_last_piece_of_a_split_line_ends_with_the_lines_own_words(units, lin
         assert out[2].endswith("Z0.0000 F50")
     back = read_text("\n".join(out)).toolpath
     assert np.allclose(back.end[-1], prog.toolpath.end[-1])
+
+
+def test_a_run_held_at_a_cap_is_the_cap_on_every_move_the_caps_allow():
+    """Letter A: a run of plunges (cap 2 × F5 = 10 in/min) and climbs (no plunge cap) settled to 9.9974
+    in/min: the plunges lifted to the cap alone gave F10 → F9.5 → F10 churn; the run takes the cap on
+    every move whose hard cap allows it, and keeps its feed where the cap is lower."""
+    from millpost.schedule.feeds import Fragment
+
+    prog = read_text("G20 G90\nG0 X0 Y0 Z0\nG1 X1 Z-0.3 F5\nG1 X2 Z0\nG1 X3 Z-0.3\nG1 X4 Z-0.2\nM2\n")
+    run = 9.9974 * 25.4
+    cap = np.array([np.inf, 254.0, 24000.0, 254.0, 253.9])
+    plan = FeedPlan.from_fragments(prog, [Fragment(k, 0.0, 1.0, run) for k in range(1, 5)], 0.05, cap)
+    assert plan.feed_mm_min[1:].tolist() == [254.0, 254.0, 254.0, run]

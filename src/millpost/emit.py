@@ -83,16 +83,29 @@ class FeedPlan:
             by_move.setdefault(f.move, []).append(f)
         programmed_mm_min = program.toolpath.feed_mm_min
 
-        def snapped(mv: int, f: float) -> float:
+        def held(mv: int, f: float) -> float:
             """A bound held at the programmed feed or at the move's hard cap (machine maximum, plunge
             raise) is met to the solver's tolerance: a feed within SNAP_TO_PROGRAMMED under the programmed
-            one (where no hard cap is under it), or under the hard cap, is that feed (no F400 → F399.9
-            churn, no F24 → F23.99 for a plunge raised to twice its F12)."""
+            one (where no hard cap is under it), or under the hard cap, is that bound (no F400 → F399.9
+            churn, no F24 → F23.99 for a plunge raised to twice its F12); nan where none is."""
             p, cap = programmed_mm_min[mv], hard_cap_mm_min[mv]
-            for held in ((p, cap) if p <= cap else (cap,)):
-                if held * (1 - SNAP_TO_PROGRAMMED) <= f < held:
-                    return float(held)
-            return f
+            for bound in ((p, cap) if p <= cap else (cap,)):
+                if bound * (1 - SNAP_TO_PROGRAMMED) <= f < bound:
+                    return float(bound)
+            return math.nan
+
+        # the schedule gives a run of moves one feed (its lowest member's): a feed held at a bound is
+        # that bound on every move of its run whose hard cap allows it (not 10 and 9.9974 alternately)
+        lifted: dict[float, float] = {}
+        for mv, frs in by_move.items():
+            for f in frs:
+                bound = held(mv, f.feed_mm_min)
+                if not math.isnan(bound):
+                    lifted[f.feed_mm_min] = min(lifted.get(f.feed_mm_min, math.inf), bound)
+
+        def snapped(mv: int, f: float) -> float:
+            bound = lifted.get(f, math.nan)
+            return bound if bound <= hard_cap_mm_min[mv] else f
 
         for mv, frs in by_move.items():
             frs.sort(key=lambda f: f.u_start)
