@@ -54,7 +54,7 @@ def test_calc_confirms_every_limit(capsys, tool, material, machine):
     assert out["break_ratio"] <= 1 + 1e-9
     assert out["spindle_power_ratio"] <= 1 + 1e-9
     assert out["feed_mm_min"] <= min(mach.feed_max_mm_min, 6000.0) * (1 + 1e-9)   # machine, 100 mm/s range
-    assert out["h_max_mm"] >= mat.min_chip_mm(tool.edge_radius_mm)
+    assert out["h_max_mm"] >= mat.min_chip_mm(tool.edge_radius_mm, tool.diameter_mm)
     assert out["h_max_mm"] <= np.mean(mat.chip_load_mm(tool.diameter_mm)) * (1 + 1e-9)
     lo, hi = mat.rpm_window(tool.diameter_mm)
     assert max(lo, mach.spindle.rpm_min) * (1 - 1e-9) <= out["rpm"] <= min(hi, mach.spindle.rpm_max) * (1 + 1e-9) \
@@ -89,7 +89,7 @@ def test_near_the_best_of_a_brute_force_grid():
             ok &= loads.power_W <= mach.spindle.power_available_W(n)
             ok &= feed <= min(mach.feed_max_mm_min, 6000)
             ok &= np.abs(loads.force_N[:, 0]) <= mach.axes["x"].max_thrust_N(feed / 60)
-            ok &= f / rctf >= mat.min_chip_mm(tool.edge_radius_mm)
+            ok &= f / rctf >= mat.min_chip_mm(tool.edge_radius_mm, tool.diameter_mm)
             if ok.any():
                 best = max(best, float(np.max(eng.area_mm2[0] * feed[ok])))
     assert rec.mrr_mm3_min >= 0.98 * best, (rec.mrr_mm3_min, best)

@@ -112,6 +112,18 @@ def test_hard_limit_needing_less_than_min_chip_is_held_and_listed():
     floor = float(result.trace["feed_min_chip_mm_min"][samples.line == last].max())
     assert feeds[-1] >= min(floor, PROGRAMMED) * (1 - 1e-3) - 0.1
     assert feeds[-1] <= PROGRAMMED
+    # the optimized program still breaks the tool's force bound there, and the summary says by how much:
+    # the peak force over its bound before the policy, read from the trace
+    tr = result.trace
+    over = np.nanmax(tr["peak_force_N"] / tr["peak_force_limit_N"])
+    assert over > 1.005
+    assert result.summary["hard_limits_exceeded"]["cutting_force"] == pytest.approx(over, rel=1e-3)
+
+
+def test_nothing_reported_exceeded_where_no_hard_limit_is_held(run):
+    lower, (job, program, samples, eng, result, feeds) = run
+    forced = {k for k, h in result.summary["held"].items() if h["kind"] == "hard"}
+    assert set(result.summary["hard_limits_exceeded"]) <= forced
 
 
 def test_every_limit_carries_its_identity(run):

@@ -85,7 +85,18 @@ def test_rpm_window_and_chip_interpolation():
     assert m.chip_load_mm(9) == pytest.approx((0.075, 0.105))             # midway 7 → 11 mm
     assert m.chip_load_mm(3) == pytest.approx((0.06 * 3 / 7, 0.09 * 3 / 7))  # below 7 mm: ∝ D
     assert m.chip_load_mm(30) == pytest.approx((0.12, 0.15))              # above 18 mm: the last row
-    assert m.min_chip_mm(0.006) == pytest.approx(0.0018)
+    assert m.min_chip_mm(0.006, 10.0) == pytest.approx(0.0018)
+
+
+def test_min_chip_of_a_material_that_burns_follows_the_chip_load_table():
+    """Wood scorches below the chart's smallest chip load: its minimum chip is the larger of the
+    ploughing rule (ratio × edge radius) and the share of the table's minimum at the tool's diameter."""
+    m = Material.load("mdf")
+    lo = m.chip_load_mm(3.175)[0]  # 1/8 in bit: 0.102 mm
+    assert lo == pytest.approx(0.102)
+    assert m.min_chip_mm(0.005, 3.175) == pytest.approx(m.min_chip_fz_ratio * lo)
+    assert m.min_chip_mm(0.005, 1.5875) == pytest.approx(m.min_chip_fz_ratio * lo / 2)  # ∝ D below 1/8 in
+    assert Material.load("al6061").min_chip_mm(0.005, 3.175) == pytest.approx(0.3 * 0.005)  # metals: ploughing
 
 
 @pytest.mark.parametrize("edit, field, rule", [

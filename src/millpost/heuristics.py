@@ -159,7 +159,7 @@ def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, mod
     return _Setup(tool, material, machine, limits, material.force_model(model),
                   material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV),
                   ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
-                  material.min_chip_mm(tool.edge_radius_mm), lo, hi, hi_reason, caps[reason], reason,
+                  material.min_chip_mm(tool.edge_radius_mm, tool.diameter_mm), lo, hi, hi_reason, caps[reason], reason,
                   ap_max, strategy, ae_range, (min(0.05 * d, 0.5 * ap_hi), ap_hi))
 
 

@@ -248,7 +248,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
             line = int(samples.line[np.flatnonzero(cutting & (samples.tool == number))[0]])
             raise MillpostError(f"{job.program}:{line}: tool T{number} cuts but the job has no [tools.{number}]")
         idx = np.flatnonzero(samples.tool == number)
-        h_min, h_chip = job.material.min_chip_mm(tool.edge_radius_mm), job.material.chip_load_mm(tool.diameter_mm)[1]
+        h_min, h_chip = job.material.min_chip_mm(tool.edge_radius_mm, tool.diameter_mm), job.material.chip_load_mm(tool.diameter_mm)[1]
         # in chunks: the models' per-slice temporaries (kilobytes a sample) stay bounded by the chunk
         for part in np.array_split(idx, max(1, -(-len(idx) // LOAD_CHUNK))):
             eng_p = eng.select(part)

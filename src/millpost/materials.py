@@ -107,6 +107,9 @@ class Material:
     surface_speed_m_min: {"carbide": (lo, hi), "hss": (lo, hi)}. chip_load: diameters (mm) with the
     recommended f_z range at each (interpolated in between, clamped outside). min_chip_ratio: minimum
     chip thickness over the cutting-edge radius (below it the edge ploughs instead of cutting).
+    min_chip_fz_ratio: for materials that burn or melt (wood, plastics), the minimum chip as a share of
+    the table's smallest chip load for the tool's diameter (below it the edge scrapes dust, and the
+    friction heat scorches wood or melts plastic); 0 where ploughing alone sets the minimum.
     strategies: roughing rules per strategy (optional table; defaults when absent, said in its source).
     end_cutting: drilling/plunging coefficients (None when the file has none: then no end load can be
     predicted and feeds of moves that cut with the tool's end are not raised; `forces.endcut.EndCut`).
@@ -127,6 +130,7 @@ class Material:
     hardness_HB: float = 0.0
     strategies: StrategyRules = StrategyRules()
     end_cutting: EndCuttingCoefficients | None = None
+    min_chip_fz_ratio: float = 0.0
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Material":
@@ -173,6 +177,7 @@ class Material:
         c.done()
         mc = t.table("min_chip")
         ratio = mc.number("ratio_to_edge_radius", gt=0, le=2)
+        fz_ratio = mc.number("ratio_to_chip_load_min", 0.0, ge=0, le=1)
         mc_source = mc.string("source")
         mc.done()
         strategies = StrategyRules.from_table(t.table("strategies")) if t.has("strategies") else StrategyRules()
@@ -184,7 +189,7 @@ class Material:
             e.done()
         t.done(("mechanistic", "strategies", "end_cutting"))
         return cls(name, description, kienzle, mech, speeds, speed_source, dia, fmin, fmax, chip_source,
-                   ratio, mc_source, hardness, strategies, end)
+                   ratio, mc_source, hardness, strategies, end, fz_ratio)
 
     # --- guidance -------------------------------------------------------------------------------
     def chip_load_mm(self, diameter_mm: float) -> tuple[float, float]:
@@ -202,9 +207,11 @@ class Material:
         k = 1000.0 / (np.pi * diameter_mm)
         return lo * k, hi * k
 
-    def min_chip_mm(self, edge_radius_mm: float) -> float:
-        """Minimum uncut chip thickness for a cutting-edge radius (mm)."""
-        return self.min_chip_ratio * edge_radius_mm
+    def min_chip_mm(self, edge_radius_mm: float, diameter_mm: float) -> float:
+        """Minimum uncut chip thickness (mm) for a cutting-edge radius and a tool diameter (mm): the edge
+        ploughs below min_chip_ratio · r_e; a material that burns or melts also needs
+        min_chip_fz_ratio × the table's smallest chip load at that diameter."""
+        return max(self.min_chip_ratio * edge_radius_mm, self.min_chip_fz_ratio * self.chip_load_mm(diameter_mm)[0])
 
     # --- force models ---------------------------------------------------------------------------
     def force_model(self, kind: str = "mechanistic", **settings):

@@ -151,6 +151,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     progress("replay", 3, 3)
     by_effect, by_limit = binding_shares(samples, sched, limits)
     cut = samples.kind != RAPID
+    hard = sorted(set(limits.names(kind=HARD)))
     summary = {
         "program": str(job.program), "output": str(job.output), "status": status, "message": message,
         "samples": int(len(samples)), "cutting_samples": int(cut.sum()),
@@ -176,7 +177,11 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "policy": limits.lower,
         "limits": {k: round(v, 4) for k, v in sorted(checked.ratios.items())},
         "limits_programmed": {k: round(v, 4) for k, v in sorted(as_programmed.items())},
-        "hard_limits": sorted(set(limits.names(kind=HARD))),
+        "hard_limits": hard,
+        # hard limits the optimized program still exceeds (value / bound before the policy): cuts too heavy
+        # for the tool even at the lowest feed millpost writes (listed under `held`)
+        "hard_limits_exceeded": {k: round(v, 4) for k, v in sorted(checked.physical.items())
+                                 if v > 1.005 and k in hard},
         "f_word_caps": list(limits.f_word_cap_names(PathGrid.from_samples(samples))),
         "binding": by_effect,
         "binding_limits": by_limit,

@@ -77,13 +77,15 @@ def feed_at_samples(original: Toolpath, emitted: Toolpath, samples: Samples) -> 
 @dataclass
 class Replay:
     """A schedule checked at the executed speeds. ratios: per limit the largest value / bound over the
-    cutting samples (bounds after the feed policy); loads: per load limit, per sample (its value, its
+    cutting samples (bounds after the feed policy); physical: per load limit the largest value / its
+    bound before the policy (over 1 where the policy held a cut too heavy at any feed it may write); loads: per load limit, per sample (its value, its
     bound before the policy), of the row with the highest ratio where several rows share the name;
     current_ratio: per sample the largest axis motor current over its drive's limit; cut_loads: per
     sample the forward model's peak in-plane force (N), cutting power (W), thrust on the tool (N, +Z)
     and cutting torque (N·m), 0 off the cut; cut: the cutting samples."""
 
     ratios: dict[str, float]
+    physical: dict[str, float]
     loads: dict[str, tuple[np.ndarray, np.ndarray]]
     current_ratio: np.ndarray
     cut_loads: dict[str, np.ndarray]
@@ -129,7 +131,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     # a name of one row keeps that row's bound (no copy); of several, the bound of the highest per sample
     bound = {lim.name: lim.bound if rows_of[lim.name] == 1 else np.zeros(n) for lim in loads}
     cut_loads = {key: np.zeros(n) for key in ("peak_force_N", "power_W", "thrust_N", "torque_Nm")}
-    current, ratios = np.zeros(n), {}
+    current, ratios, physical = np.zeros(n), {}, {}
     for lo in range(0, n, LOAD_CHUNK):
         hi = min(lo + LOAD_CHUNK, n)
         a, b = max(lo - 1, 0), min(hi + 1, n)
@@ -144,6 +146,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
                 ratio = np.where(on, val / np.broadcast_to(np.asarray(c.limit, float), (n,))[at], 0.0)
                 raw = np.where(on, val / lim_bound, 0.0)
             ratios[lim.name] = max(ratios.get(lim.name, 0.0), float(np.nanmax(ratio, initial=0)))
+            physical[lim.name] = max(physical.get(lim.name, 0.0), float(np.nanmax(raw, initial=0)))
             if lim.name in raw_best:  # several rows of one name (per axis): the highest per sample
                 higher = raw > raw_best[lim.name]
                 value[lim.name][at] = np.where(higher, val, value[lim.name][at])
@@ -163,7 +166,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
                        ("thrust_N", sig.force_tool_N[:, 2]), ("torque_Nm", sig.torque_Nm)):
             cut_loads[key][at] = np.where(on, x, 0.0)
     ratios["current"] = float(np.max(current[keep_current], initial=0.0))
-    return Replay(ratios, {name: (value[name], bound[name]) for name in rows_of}, current, cut_loads, cut)
+    return Replay(ratios, physical, {name: (value[name], bound[name]) for name in rows_of}, current, cut_loads, cut)
 
 
 def binding_shares(samples: Samples, sched, limits: JobLimits) -> tuple[dict[str, float], dict[str, float]]:

@@ -91,6 +91,11 @@ def report(s: dict, output: Path) -> str:
         out.append("  the programmed feeds exceed hard limits (x bound): " +
                    ", ".join(f"{k} {v:.2f}" for k, v in sorted(over.items())) +
                    ("; feeds lowered there, hence slower" if s["status"] == "slower" else ""))
+    if s.get("hard_limits_exceeded"):
+        out.append("  warning: the optimized program still exceeds hard limits (x bound) where the cut is too "
+                   "heavy at the lowest feed written (see held): " +
+                   ", ".join(f"{k} {v:.2f}" for k, v in s["hard_limits_exceeded"].items()) +
+                   "; check the tool and the depths of cut before running it")
     for name, why in s.get("defaults_binding", {}).items():
         out.append(f"  default {name}: {why}")
     for name, h in s.get("held", {}).items():
