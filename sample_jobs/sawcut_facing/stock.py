@@ -4,7 +4,7 @@ top is a tilted plane, 1.0 mm above the finished top (Z0) at the corner X0 Y0 an
 Y120 (2.5 mm over the 200 mm length, 1.0 mm over the 120 mm width: a blade that drifted 1.25 % and
 0.8 %). Work zero: the finished top at the block's X0 Y0 corner. Lengths in mm."""
 
-from build123d import Axis, Box, Keep, Plane, Pos, Vector, split
+from build123d import Box, Keep, Plane, Pos, Vector, split
 
 LENGTH, WIDTH, BOTTOM = 200.0, 120.0, -30.0
 TOP_AT_ORIGIN, RISE_X, RISE_Y = 1.0, 2.5, 1.0  # saw-cut top z = 1.0 + 2.5·x/200 + 1.0·y/120 (mm)
