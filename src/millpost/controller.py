@@ -40,6 +40,7 @@ other command that waits for motion to end (spindle stop or speed, tool length, 
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass, field
 
 import numba
@@ -875,7 +876,8 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     # the arc's speed is dropped from the queue and its rest becomes the straight lead-in of that arc
     consumed = [j + 1 < len(segs) and joints[j + 1][0] == "blend" and not s.arc
                 and s.length < GAP_CYCLES * dt * joints[j + 1][2][2] for j, s in enumerate(segs)]
-    L, vnom, acc, vj2, move, u_end, ramps, cuts, blends = [], [], [], [], [], [], [], [], []
+    L, vnom, acc, vj2, move, u_end, ramps, cuts = [], [], [], [], [], [], [], []
+    blends = array("d")  # start, end (mm of arc length), queue index per blend arc: flat, 24 B an arc
     lead, lead_vj2 = 0.0, np.inf  # a consumed rest waiting for its arc, and the speed cap at its start
     for j, s in enumerate(segs):
         joint = joints[j]
@@ -892,7 +894,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             ramps.append(not s.rapid)
             cuts.append((len(L) - 1, (lead + 0.5 * s_arc) / length, segs[j - 1].move, 1.0))
             prev = segs[j - 1]
-            blends.append((arc_length(prev, prev.nominal - prev.trim_end - lead), arc_length(s, d), len(L) - 1))
+            blends.extend((arc_length(prev, prev.nominal - prev.trim_end - lead), arc_length(s, d), len(L) - 1))
             lead, lead_vj2 = 0.0, np.inf
         if joint is None or joint[0] in ("stop", "pause"):
             start_vj2 = 0.0
@@ -926,7 +928,7 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
     vj2.append(0.0)
     return (np.asarray(L, float), np.asarray(vnom, float), np.asarray(acc, float), np.asarray(vj2, float),
             np.asarray(move, np.int64), np.asarray(u_end, float), np.asarray(ramps, bool), cuts,
-            np.asarray(blends, float).reshape(-1, 3))
+            np.frombuffer(blends, float).reshape(-1, 3).copy())
 
 
 def _parabolic_speed(prev: _Segment, cur: _Segment) -> float:
