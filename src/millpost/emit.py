@@ -33,9 +33,10 @@ from .schedule.feeds import cluster
 from .toolpath import ARC_CW, PLANE_AXES, RAPID, Toolpath
 
 SPLIT_TOLERANCE_MM = 1e-4  # a split point lies this close to the original path at most
-# relative: a planned feed this close under a value of the written grid is that value: the solver's
-# round-off of a bound it holds (3000 mm/min comes out 2999.99998, F2999.9 would be a change of its own)
-FEED_ROUNDOFF = 1e-6
+# relative: a planned feed this close under a value of the written grid is that value (float round-off of
+# the unit conversion; the solver's tolerance on a cap is taken up by FeedPlan.from_fragments, which writes
+# the cap itself); no larger, or a cap just under a grid value would be written above it
+FEED_ROUNDOFF = 1e-9
 SNAP_TO_PROGRAMMED = 1e-3  # relative: the solver's tolerance on a bound, far inside every limit's margin
 _AXIS_LETTERS = "XYZ"
 _ARC_LETTERS = "IJK"
