@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -54,7 +55,27 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("millpost: interrupted", file=sys.stderr)
         return 130
+    except SystemError as exc:  # Ctrl-C while numba's dispatcher returned from a compiled kernel
+        cause = exc
+        while isinstance(cause, SystemError):  # numba chains one SystemError per C-level frame
+            cause = cause.__cause__ or cause.__context__
+        if not isinstance(cause, KeyboardInterrupt):
+            raise
+        print("millpost: interrupted", file=sys.stderr)
+        return 130
+
+
+def run() -> None:
+    """The `millpost` command: `main`, then the process ends. After Ctrl-C it ends at once (os._exit:
+    outputs are written whole or not at all before that point), so that worker threads still inside a
+    compiled kernel are not torn down by the interpreter's shutdown (a crash, exit -11, instead of 130)."""
+    code = main()
+    if code == 130:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+    sys.exit(code)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run()
