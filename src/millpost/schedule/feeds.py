@@ -278,8 +278,11 @@ def run_limit(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, withi
     within = np.asarray(within, float)
     moving = np.isfinite(out) & (out > 0)
     run = np.cumsum(~moving)  # one id per run (and per rest point or rapid sample between runs)
+    run_min = np.full(int(run[-1]) + 1 if len(run) else 0, np.inf)
+    np.minimum.at(run_min, run[moving], np.where(np.isnan(within[moving]), np.inf, within[moving]))
     idx, _, _ = _zone_minima(samples, out, zones)
-    for r in np.unique(run[idx[moving[idx]]]):
-        on = moving & (run == r)
-        out[on] = np.minimum(out[on], np.nanmin(within[on]))
+    touched = np.zeros(len(run_min), bool)
+    touched[run[idx[moving[idx]]]] = True
+    on = moving & touched[run]
+    out[on] = np.minimum(out[on], run_min[run[on]])
     return out
