@@ -73,6 +73,6 @@ def test_optimized_program_is_the_posted_path_for_rs274(posted):
             k += 1
         assert k < len(ends_a), f"posted end point {p} is missing from the optimized program"
         k += 1
-    vmax = Machine.load("vmc-small").feed_max_mm_min
+    vmax = Machine.load("vmc-small").feed_cap_mm_min
     feeds = [m[2] for m in after.moves if m[0] != "rapid" and m[2] is not None]
     assert feeds and max(feeds) <= vmax + 1e-6

@@ -105,7 +105,7 @@ def test_emitted_program_keeps_the_path(run, tmp_path):
         assert len(emitted.toolpath) >= len(original.toolpath)  # moves may be split, never merged
     assert swept_path_deviation(original, emitted) < 2e-3  # mm: the 3-decimal output precision
     feeds = emitted.toolpath.feed_mm_min[emitted.toolpath.kind != 0]
-    assert np.nanmax(feeds) <= job.machine.feed_max_mm_min + 1e-9
+    assert np.nanmax(feeds) <= job.machine.feed_cap_mm_min + 1e-9
     if rs274_oracle.RS274:
         out = tmp_path / "emitted.ngc"
         out.write_text(result.text)
@@ -232,3 +232,35 @@ def test_moves_between_stops_are_scheduled(tmp_path, machine):
     assert s["cycle_time_after_s"] <= s["cycle_time_before_s"] * (1 + 1e-3)
     over = {k: v for k, v in s["limits"].items() if v > TOL_LIMIT}
     assert not over, over
+
+
+def test_feed_above_the_axis_rates_is_not_slowed_nor_split_by_direction(tmp_path):
+    """A light 3D finish posted at F6000 on hobby-router (X, Y 3000, Z 2000 mm/min): the controller
+    clamps each axis to its own rate, so a 45° XY move runs 3000·√2 = 4243 mm/min and an X move 3000.
+    The F words used to carry the direction's axis cap (one F per change of direction: 1906 F words on
+    CAMotics' bear) under a vector cap of 3000 (every diagonal slower: the program came out `slower`).
+    Now the axis rates are the controller's: the optimized program is as fast as the programmed one
+    (nothing else binds in a 0.2 mm skim of MDF), one F covers the raster, at least the fastest
+    direction's rate (4243) and at most the machine's cap sqrt(3000² + 3000² + 2000²) = 4690."""
+    rows = []
+    for k in range(6):
+        y = 2.0 + 4.0 * k
+        rows += [f"G1 X10 Y{y:.1f} Z-0.2", "G1 X25 Z-0.25", "G1 X40 Z-0.2", f"G1 X44 Y{y + 4.0:.1f}",
+                 "G1 X10"] if k % 2 == 0 else [f"G1 X6 Y{y + 4.0:.1f}"]
+    (tmp_path / "p.nc").write_text("G21 G90 G17\nT1 M6\nS18000 M3\nG0 X10 Y2 Z5\nG1 Z-0.2 F6000\n"
+                                   + "\n".join(rows) + "\nG0 Z5\nM5\nM30\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "mdf"\nmachine = "hobby-router"\n[stock]\nbox = [[0, 0, -12], [50, 30, 0]]\n'
+        'cell_mm = 0.1\n[tools.1]\ndiameter_mm = 3.175\nflutes = 2\nshape = "ball"\nflute_length_mm = 12\n'
+        'stickout_mm = 20\n')
+    job = load_job(tmp_path / "job.toml")
+    result = optimize(job, progress=False)
+    s = result.summary
+    assert s["status"] == "solved", s["message"]
+    assert s["cycle_time_after_s"] <= s["cycle_time_before_s"] * (1 + 1e-6)
+    tp = read_text(result.text).toolpath
+    feeds = np.unique(tp.feed_mm_min[tp.kind != 0])
+    assert s["f_words"]["optimized"] <= 2, result.text
+    assert feeds.max() >= 3000 * np.sqrt(2) * (1 - 1e-3)
+    assert feeds.max() <= job.machine.feed_cap_mm_min * (1 + 1e-9)
+    assert job.machine.feed_cap_mm_min == pytest.approx(np.sqrt(2 * 3000**2 + 2000**2))

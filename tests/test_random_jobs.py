@@ -34,7 +34,7 @@ def _check(seed: int) -> dict:
     out = {"seed": seed, "status": s["status"], "limits": s["limits"], "held": s["held"]}
     emitted = read_text(result.text, "emitted.nc").toolpath
     feeds = emitted.feed_mm_min[emitted.kind != RAPID]
-    out["feed_over"] = float(np.nanmax(feeds, initial=0.0)) / min(job.machine.feed_max_mm_min,
+    out["feed_over"] = float(np.nanmax(feeds, initial=0.0)) / min(job.machine.feed_cap_mm_min,
                                                                    job.limits["feed_max_mm_min"] or np.inf)
     if seed % 10 == 0 and s["status"] in ("solved", "slower"):
         out["independent"] = _independent(job, eng, result)

@@ -12,8 +12,9 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `baseline`: the baseline's single F obeys it (false for the caps set from the program's own
   feeds, the plunge feed cap and the air clearance: the baseline's moves obey those as a CAM user's
   separate plunge and lead-in feeds would, `millpost.replay.baseline_feeds`);
-- `f_word`: the emitted F words obey its speed cap (false for accelerations, jerk and corner caps,
-  which the controller ramps to on its own);
+- `f_word`: the emitted F words obey its speed cap (false for the axis rates, accelerations, jerk and
+  corner caps, which the controller clamps or ramps to on its own; the F words stay under the
+  "feed" cap of the axes each move drives);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
   limit binds);
 - for a load limit, `signal(signals, at)`: the load it bounds, from the forward model's signals of the
@@ -193,6 +194,14 @@ def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes):
     return CornerSpeed(cap)
 
 
+def feed_cap_mm_min(job: Job) -> float:
+    """The highest F word (mm/min): the machine's (`Machine.feed_cap_mm_min`; the controller clamps
+    each axis to its own rate, so no F word needs a per-direction value) and the user's
+    `feed_max_mm_min`."""
+    cap = job.machine.feed_cap_mm_min
+    return min(cap, float(job.limits["feed_max_mm_min"])) if job.limits["feed_max_mm_min"] else cap
+
+
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
                  release_slices: bool = False, modes: PathModes) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
@@ -206,16 +215,15 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     lower = str(job.limits["lower"])
     ax = [m.axes[a] for a in "xyz"]
     amax = tuple(a.amax_mm_s2 for a in ax)
-    feed_max = m.feed_max_mm_min
-    if job.limits["feed_max_mm_min"]:
-        feed_max = min(feed_max, float(job.limits["feed_max_mm_min"]))
+    feed_max = feed_cap_mm_min(job)
     # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate.
     # It slows by itself there (an F word cannot make it faster or need make it slower): no F word
     # carries this cap, which on a micro-segment would write a crawl into the moves around it
     block_cap = np.where(samples.kind != RAPID, toolpath.lengths()[samples.move] * m.controller.block_rate_Hz, np.inf)
     limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
               Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False),
-              Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True),
+              Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
+                    f_word=False),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
               Limit(_corners(job, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
@@ -364,7 +372,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     stalled = held["cutting_current"]
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
-    v_cap = np.minimum(static_caps(samples, limits), feed_max / 60.0)
+    v_cap = static_caps(samples, limits)
     drive_force = np.empty((n, 3))
     for k in range(3):  # per axis: temporaries of one column (memory)
         at_cap = loads["force_a"][:, k] * v_cap + loads["force_b"][:, k]

@@ -259,6 +259,13 @@ class Machine:
         """Fastest feed along any horizontal direction both X and Y can follow (mm/min)."""
         return min(self.axes["x"].vmax_mm_min, self.axes["y"].vmax_mm_min)
 
+    @property
+    def feed_cap_mm_min(self) -> float:
+        """Highest F word millpost writes (mm/min): the feed with every axis at its maximum rate,
+        sqrt(Σ vmax_k²). The controller clamps each axis to its own rate (as it does a programmed F
+        above it), so a move runs at min_k vmax_k/|t_k|, never faster than this in any direction."""
+        return math.sqrt(sum(self.axes[a].vmax_mm_min ** 2 for a in "xyz"))
+
     def deflection_mm(self, force_N) -> np.ndarray:
         """Machine deflection (mm) under a machine-XYZ force (N), (…, 3): axes in series with the tool."""
         f = np.asarray(force_N, float)

@@ -124,8 +124,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         blends = {"passes": 1, "over": 0}
         progress("emission", 4, 4)
     else:
-        # F words never exceed the axis rates either (the controller would clamp them, but an emitted
-        # feed must not ask for more than the machine can do); ramps and corners stay the controller's
+        # axis rates, ramps and corners stay the controller's: F words keep to the other limits
         limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
         # corners the controller blends at the faster feed carry it into the slower move: the bound at every
         # programmed corner here, the arcs of the program as emitted in `_emit_within`

@@ -133,6 +133,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
         data.binding = _binding(data, feed_cap=None)
         return data
     from ..gcode import read_program
+    from ..limits import feed_cap_mm_min
     program = read_program(job.program, job.reader_options())
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     if len(samples) != n:
@@ -141,10 +142,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
     data.title = job.program.name
     data.operations = operations_from_lines(samples.line, samples.tool, comments)
-    feed_cap = job.machine.feed_max_mm_min
-    if job.limits.get("feed_max_mm_min"):
-        feed_cap = min(feed_cap, float(job.limits["feed_max_mm_min"]))
-    data.binding = _binding(data, feed_cap)
+    data.binding = _binding(data, feed_cap_mm_min(job))
     if stock_map:
         data.stock = final_stock(job, samples)
     return data

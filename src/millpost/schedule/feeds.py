@@ -202,19 +202,62 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
     controller_enforced, and those in ramp_owned while the schedule ramps: the drives' current, whose
     binding share during a ramp is the acceleration) bind — the controller ramps there on its own,
     and programming the ramp as F words would only slow it (a ladder of them ends in F≈0 at a
-    stop). nan on rapids."""
+    stop). There the F word only needs to reach the speed the controller's own caps (axis rates,
+    block rate) leave, so runs of such moves share one F (`hold_runs`). nan on rapids."""
     grid = PathGrid.from_samples(samples)
     out = np.full(len(samples), np.nan)
+    need = np.full(len(samples), np.nan)
     for lo, hi, sch in schedule.segments:
-        caps = [blk for blk in window_blocks(grid, limits, lo, hi, caps_only=True)
-                if blk.name not in controller_enforced]
-        _, b_hi = merged_bounds(caps, hi - lo)
+        blocks = window_blocks(grid, limits, lo, hi, caps_only=True)
+        _, b_hi = merged_bounds([blk for blk in blocks if blk.name not in controller_enforced], hi - lo)
+        _, b_all = merged_bounds(blocks, hi - lo)
         binding = sch.binding.astype(str)
         a = np.abs(sch.a)
         a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)
         ramping = np.r_[a > a_ref, False] | np.r_[False, a > a_ref]
         own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, ramp_owned) & ramping)
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
+        need[lo:hi] = np.where(own, np.sqrt(np.minimum(b_all, b_hi)), sch.feed_mm_s)
+    return hold_runs(samples, out, need)
+
+
+def hold_runs(samples: Samples, limit_mm_s: np.ndarray, need_mm_s: np.ndarray) -> np.ndarray:
+    """The per-sample F-word limit `limit_mm_s` made one value over runs of consecutive moves where
+    one F fits them all: a move may take any F in [max of `need_mm_s`, min of `limit_mm_s`] over its
+    samples (need: the speed the controller runs it at whatever higher F it is given, e.g. the axis
+    rate of its direction, or a short move's block rate). Runs are grown in program order while their
+    intersection is not empty and take the value in it nearest the F in force before them (the last
+    limit of the feed move before; the intersection's lowest, the fastest speed a move of the run
+    needs, at the start), so an F word changes where a limit does, not where the direction of a move does.
+    A move whose own interval is empty (a load that varies along it), a rapid (nan) or a move off the
+    schedule keeps its limit and ends the run."""
+    mv = samples.move
+    out = np.asarray(limit_mm_s, float).copy()
+    if not len(mv):
+        return out
+    starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
+    counts = np.diff(np.r_[starts, len(mv)])
+    with np.errstate(invalid="ignore"):
+        hi = np.minimum.reduceat(out, starts)  # nan where any sample is nan
+        lo = np.maximum.reduceat(np.asarray(need_mm_s, float), starts)
+        free = np.isfinite(hi) & np.isfinite(lo) & (lo <= hi)
+    last = np.where(samples.kind[starts] != RAPID, out[starts + counts - 1], np.nan)  # F is modal over rapids
+    value = np.full(len(starts), np.nan)
+    first, run_lo, run_hi, carry = 0, -np.inf, np.inf, np.nan
+    for k in range(len(starts) + 1):
+        if k < len(starts) and free[k] and max(run_lo, lo[k]) <= min(run_hi, hi[k]):
+            run_lo, run_hi = max(run_lo, lo[k]), min(run_hi, hi[k])
+            continue
+        if k > first:
+            carry = value[first:k] = min(max(carry, run_lo), run_hi) if np.isfinite(carry) else run_lo
+        if k < len(starts) and free[k]:
+            first, run_lo, run_hi = k, lo[k], hi[k]
+        else:
+            first, run_lo, run_hi = k + 1, -np.inf, np.inf
+            if k < len(starts) and np.isfinite(last[k]):
+                carry = last[k]
+    held = np.repeat(free, counts)
+    out[held] = np.repeat(value, counts)[held]
     return out
 
 
