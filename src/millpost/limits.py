@@ -12,9 +12,10 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `baseline`: the baseline's single F obeys it (false for the caps set from the program's own
   feeds, the plunge feed cap and the air clearance: the baseline's moves obey those as a CAM user's
   separate plunge and lead-in feeds would, `millpost.replay.baseline_feeds`);
-- `f_word`: the emitted F words obey its speed cap (false for the axis rates, accelerations, jerk and
-  corner caps, which the controller clamps or ramps to on its own; the F words stay under the
-  "feed" cap of the axes each move drives);
+- `f_word`: the emitted F words obey its speed cap (false for the axis rates, the block rate,
+  accelerations, jerk and corner caps, which the controller clamps or ramps to on its own);
+- `clamp`: the controller holds its speed cap as a steady clamp (the axis rates, the block rate): an
+  F word above it runs at it, so the F word need only reach it (`millpost.schedule.feeds.hold_runs`);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
   limit binds);
 - for a load limit, `signal(signals, at)`: the load it bounds, from the forward model's signals of the
@@ -107,6 +108,7 @@ class Limit:
     controller: bool = False
     baseline: bool = True
     f_word: bool = True
+    clamp: bool = False
     default: str = ""
     signal: Callable[[Any, slice], np.ndarray] | None = None
     bound: np.ndarray | None = None
@@ -221,9 +223,9 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     # carries this cap, which on a micro-segment would write a crawl into the moves around it
     block_cap = np.where(samples.kind != RAPID, toolpath.lengths()[samples.move] * m.controller.block_rate_Hz, np.inf)
     limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
-              Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False),
+              Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False, clamp=True),
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
-                    f_word=False),
+                    f_word=False, clamp=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               Limit(Centripetal(amax), HARD, "inertia", controller=True),
               Limit(_corners(job, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]

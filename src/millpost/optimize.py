@@ -125,7 +125,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         progress("emission", 4, 4)
     else:
         # axis rates, ramps and corners stay the controller's: F words keep to the other limits
-        limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"))
+        limit_mm_s = emission_limit(samples, limits, sched, limits.names(f_word=False), limits.names(effect="current"),
+                                    limits.names(clamp=True))
         # corners the controller blends at the faster feed carry it into the slower move: the bound at every
         # programmed corner here, the arcs of the program as emitted in `_emit_within`
         hard_cap = np.full(len(tp), np.inf)

@@ -195,22 +195,25 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
 
 
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
-                   controller_enforced: tuple[str, ...], ramp_owned: tuple[str, ...] = ()) -> np.ndarray:
+                   controller_enforced: tuple[str, ...], ramp_owned: tuple[str, ...] = (),
+                   clamps: tuple[str, ...] = ()) -> np.ndarray:
     """Per-sample feed limit (mm/s) for `piecewise_feeds`: the schedule's speed where a limit the
     controller does not know binds (loads, chip load, current at steady speed...), and the speed caps
     of the limits it does not enforce itself where only its own dynamics (named in
     controller_enforced, and those in ramp_owned while the schedule ramps: the drives' current, whose
     binding share during a ramp is the acceleration) bind — the controller ramps there on its own,
     and programming the ramp as F words would only slow it (a ladder of them ends in F≈0 at a
-    stop). There the F word only needs to reach the speed the controller's own caps (axis rates,
-    block rate) leave, so runs of such moves share one F (`hold_runs`). nan on rapids."""
+    stop). There the F word only needs to reach the speed the controller's steady clamps (named in
+    clamps: axis rates, block rate) leave, so runs of such moves share one F (`hold_runs`). nan on
+    rapids."""
     grid = PathGrid.from_samples(samples)
     out = np.full(len(samples), np.nan)
     need = np.full(len(samples), np.nan)
     for lo, hi, sch in schedule.segments:
         blocks = window_blocks(grid, limits, lo, hi, caps_only=True)
         _, b_hi = merged_bounds([blk for blk in blocks if blk.name not in controller_enforced], hi - lo)
-        _, b_all = merged_bounds(blocks, hi - lo)
+        _, b_all = merged_bounds([blk for blk in blocks if blk.name not in controller_enforced or blk.name in clamps],
+                                 hi - lo)
         binding = sch.binding.astype(str)
         a = np.abs(sch.a)
         a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)
