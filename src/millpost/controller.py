@@ -851,8 +851,10 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
             prev.kink_share = max(prev.kink_share, share)
             cur.kink_share = max(cur.kink_share, share)
             continue
-        if prev.tolerance == EXACT_PATH:  # G61: no blending, a stop at every corner
-            joints[j] = ("stop", 0.0, None)
+        if prev.tolerance == EXACT_PATH:  # G61: no blending, a stop at every corner, where the kink
+            joints[j] = ("stop", 0.0, None)  # check (tcSetKinkProperties) has taken its share of both
+            prev.kink_share = max(prev.kink_share, KINK_RATIO)  # segments' acceleration all the same
+            cur.kink_share = max(cur.kink_share, KINK_RATIO)
             continue
         kink_vel = v_max * KINK_RATIO / share
         blend = _blend(prev, cur, model)
@@ -869,8 +871,9 @@ def _linuxcnc_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min, pauses, 
         else:
             joints[j] = ("parabolic", 0.0, None)
             prev.halved = cur.halved = True
-    for j, s in enumerate(segs):  # the last queued segment before a pause keeps its parabolic term
-        if j + 1 == len(segs) or joints[j + 1][0] == "pause":
+    for j, s in enumerate(segs):  # the last queued segment before a pause keeps its parabolic term (G64)
+        if (j + 1 == len(segs) or joints[j + 1][0] == "pause") and not exact and s.tolerance not in (EXACT_PATH,
+                                                                                                    EXACT_STOP):
             s.halved = True
     # blendCheckConsume: a line whose rest before a blend arc would take less than GAP_CYCLES periods at
     # the arc's speed is dropped from the queue and its rest becomes the straight lead-in of that arc
