@@ -126,7 +126,7 @@ def test_baseline_per_programmed_feed_closed_form(tmp_path, plunge_f):
     samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                     progress=False)
     limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
-    feeds, per_tool = baseline_feeds(program, samples, limits)
+    feeds, per_tool, _ = baseline_feeds(program, samples, limits)
     h_max = job.material.chip_load_mm(6.0)[1]
     ratio = job.material.strategies.plunge_fz_ratio
     z_n = 3 * 9000.0  # teeth per minute

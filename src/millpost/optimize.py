@@ -105,8 +105,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     solver_s = time.perf_counter() - t0
     progress("emission", 0, 4)
     before = controller.execute_program(program, model, modes=modes)
-    base_feeds, base_per_tool = baseline_feeds(program, samples, limits)
-    baseline = controller.execute_program(program, model, base_feeds, modes=modes)
+    base_feeds, base_per_tool, base_cap = baseline_feeds(program, samples, limits)
+    base_feeds, baseline = _baseline_within(program, samples, base_feeds, base_cap, model, modes)
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
@@ -254,6 +254,28 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
             feeds_mm_s = run_limit(samples, feeds_mm_s, over, limit_mm_s)
     progress("emission", 4, 4)
     return text, emitted, after, {"passes": passes, "over": int(len(over)), "runs_lowered": stubborn}
+
+
+def _baseline_within(program: Program, samples: Samples, feeds: np.ndarray, cap_mm_s: np.ndarray,
+                     model: controller.ControllerModel, modes: controller.PathModes
+                     ) -> tuple[np.ndarray, controller.Execution]:
+    """The baseline's feeds (per move, mm/min) and its run, with its blend arcs kept within the caps it
+    was tuned under (mm/s per sample) as the optimized program's are (`_emit_within`): a blend arc runs
+    the faster of its two feeds into the slower move, so every move an arc faster than the lowest cap
+    it covers reaches runs at that cap (a CAM user's separate lead-in feed there), the reach widened on
+    later runs; after BLEND_PASSES runs, the whole run between stops at its lowest cap."""
+    moving = program.toolpath.kind != RAPID
+    for passes in range(1, BLEND_PASSES + 2):
+        run = controller.execute_program(program, model, feeds, modes=modes)
+        over = blend_excess(samples, cap_mm_s, run.blends, SNAP_TO_PROGRAMMED)
+        if not len(over) or passes > BLEND_PASSES:
+            return feeds, run
+        lowered = (blend_limit(samples, cap_mm_s, over, (2.0 ** (passes - 1) - 1.0) / 2.0) if passes < BLEND_PASSES
+                   else run_limit(samples, cap_mm_s, over, cap_mm_s))
+        move_cap = np.full(len(feeds), np.inf)
+        np.fmin.at(move_cap, samples.move, lowered * 60.0)
+        feeds = np.where(moving, np.fmin(feeds, np.floor(move_cap * (1 + 1e-9))), feeds)
+    return feeds, run
 
 
 def _blend_notes(blends: dict) -> list[str]:

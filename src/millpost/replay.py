@@ -27,15 +27,16 @@ from .signals import predict, step_times_s
 from .toolpath import RAPID, Samples, Toolpath
 
 
-def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tuple[np.ndarray, dict]:
+def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tuple[np.ndarray, dict, np.ndarray]:
     """The honest baseline: per tool and per programmed feed (the moves of one tool programmed at the
     same F form a group: a CAM user's separate cutting, plunge, ramp and lead-in feeds, which a careful
     machinist tunes each) one constant feed (mm/min, floored to a whole mm/min), the highest that
     exceeds no speed-only limit anywhere the group cuts; a group with no sampled move keeps its
     programmed feed. On the moves a cap from the program's own feeds applies to (the limits the group's
     F does not obey: the plunge feed cap on ramps and plunges, the air clearance on approaches) the feed
-    is at most that cap. Rapids are untouched. Returns the feed per move and, per tool, {programmed F:
-    the highest feed that group's moves run at}."""
+    is at most that cap. Rapids are untouched. Returns the feed per move, per tool {programmed F: the
+    highest feed that group's moves run at}, and the cap per sample (mm/s) all its feeds keep (inf
+    where none)."""
     tp = program.toolpath
     cap = static_caps(samples, limits, baseline=True) * 60.0
     feeds = tp.feed_mm_min.copy()
@@ -55,15 +56,17 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     feeds[moving] = base[group]
     own = [lim for lim in limits if not lim.baseline]
     if own:
+        own_cap = static_caps(samples, own)
         move_cap = np.full(len(tp), np.inf)
-        np.minimum.at(move_cap, samples.move, static_caps(samples, own) * 60.0)
+        np.minimum.at(move_cap, samples.move, own_cap * 60.0)
         feeds = np.where(tp.kind != RAPID, np.minimum(feeds, move_cap), feeds)
+        cap = np.fmin(cap, own_cap * 60.0)
     runs = np.zeros(len(groups))
     np.maximum.at(runs, group, feeds[moving])
     per_tool: dict[int, dict[float, float]] = {}
     for (number, programmed), f in zip(groups, runs):
         per_tool.setdefault(int(number), {})[float(programmed)] = float(f)
-    return feeds, per_tool
+    return feeds, per_tool, cap / 60.0
 
 
 def feed_at_samples(original: Toolpath, emitted: Toolpath, samples: Samples) -> np.ndarray:
