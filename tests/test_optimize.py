@@ -43,7 +43,7 @@ SHORT_OF_GOAL = {
                 "block keep F300; its 25 % came from a contour that ran 1 mm outside the block at F24000",
     "adaptive_pocket": "beside the block's -X face the entry plunge, the first loops' fronts and each loop's "
                        "turns within ~0.3 mm of the edge of what it swept are air not known clear within 3 mm of "
-                       "the stock and keep F400/F1500 (87.1 / 54.2 / 47.5 s; returns in swept space are raised)",
+                       "the stock and keep F400/F1500 (87.1 / 54.7 / 47.5 s, the baseline with its blend arcs kept within the caps; returns in swept space are raised)",
     "drill_and_mill": "91.6 / 58.6 / 54.6 s: the face passes (1 mm deep, 4-6 mm of the 6 mm cutter: the "
                       "arc passes φ = 90°, no chip thinning) run at the chip-load maximum F2082 in both (21 s), "
                       "the G81/G83 cycles at the plunge cap 2 × their programmed F in both (14 s), the pocket "
