@@ -224,9 +224,11 @@ def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: flo
     return samples, eng, notes
 
 
-def spindle_off_message(path: str, line: int) -> str:
-    """What is wrong and what to write when the tool cuts at `path`:`line` with the spindle off."""
-    return (f"{path}:{line}: the tool cuts material with the spindle off: expected M3/M4 with S<rpm> before this "
+def spindle_off_message(path: str, line: int, block: str = "") -> str:
+    """What is wrong and what to write when the tool cuts at `path`:`line` (its text `block`, if given)
+    with the spindle off."""
+    quoted = f" (block '{block.strip()}')" if block.strip() else ""
+    return (f"{path}:{line}: the tool cuts material with the spindle off{quoted}: expected M3/M4 with S<rpm> before this "
             "line, or, for a spindle switched by hand, --allow spindle-off (its speed: spindle_rpm = <rpm> in the "
             "job, else the program's S word)")
 
@@ -243,7 +245,9 @@ def check_spindle(program: Program, samples: Samples, eng, hand_rpm: float | Non
     if not off.any():
         return samples
     line = int(samples.line[np.argmax(off)])
-    msg = f"{spindle_off_message(program.path, line)} ({len(np.unique(samples.line[off]))} line(s))"
+    lines = program.text.splitlines()
+    block = lines[line - 1] if 0 < line <= len(lines) else ""
+    msg = f"{spindle_off_message(program.path, line, block)} ({len(np.unique(samples.line[off]))} line(s))"
     refuse_or_note("spindle-off", msg, allow, notes)
     if hand_rpm is not None:
         by_hand = np.full(len(rpm), float(hand_rpm))
