@@ -105,8 +105,9 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     solver_s = time.perf_counter() - t0
     progress("emission", 0, 4)
     before = controller.execute_program(program, model, modes=modes)
+    zones = controller.blend_zones(tp, model, modes)  # the programmed corners' blend arcs, at any feeds
     base_feeds, base_per_tool, base_cap = baseline_feeds(program, samples, limits)
-    base_feeds, baseline = _baseline_within(program, samples, base_feeds, base_cap, model, modes)
+    base_feeds, baseline = _baseline_within(program, samples, base_feeds, base_cap, zones, model, modes)
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
@@ -131,8 +132,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         # programmed corner here, the arcs of the program as emitted in `_emit_within`
         hard_cap = np.full(len(tp), np.inf)
         np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD) * 60.0)
-        text, emitted, after, blends = _emit_within(job, program, samples, limit_mm_s,
-                                                    controller.blend_zones(tp, model, modes), hard_cap, model,
+        text, emitted, after, blends = _emit_within(job, program, samples, limit_mm_s, zones, hard_cap, model,
                                                     progress)
         status, message = "solved", ""
     t_emit = time.perf_counter()
@@ -257,24 +257,34 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
 
 
 def _baseline_within(program: Program, samples: Samples, feeds: np.ndarray, cap_mm_s: np.ndarray,
-                     model: controller.ControllerModel, modes: controller.PathModes
+                     zones: np.ndarray, model: controller.ControllerModel, modes: controller.PathModes
                      ) -> tuple[np.ndarray, controller.Execution]:
     """The baseline's feeds (per move, mm/min) and its run, with its blend arcs kept within the caps it
     was tuned under (mm/s per sample) as the optimized program's are (`_emit_within`): a blend arc runs
     the faster of its two feeds into the slower move, so every move an arc faster than the lowest cap
-    it covers reaches runs at that cap (a CAM user's separate lead-in feed there), the reach widened on
-    later runs; after BLEND_PASSES runs, the whole run between stops at its lowest cap."""
+    it covers reaches runs at that cap (a CAM user's separate lead-in feed there). First the arcs of
+    the programmed corners (`zones`, `controller.blend_zones`) at the faster of the two moves' feeds,
+    then those of each run, their reach widened on later runs; after BLEND_PASSES runs, the whole run
+    between stops at its lowest cap."""
     moving = program.toolpath.kind != RAPID
+
+    def lowered_to(over: np.ndarray, limit: np.ndarray) -> np.ndarray:
+        move_cap = np.full(len(feeds), np.inf)
+        np.fmin.at(move_cap, samples.move, limit * 60.0)
+        return np.where(moving, np.fmin(feeds, np.floor(move_cap * (1 + 1e-9))), feeds)
+
+    ends = np.clip(np.searchsorted(samples.s_mm, zones[:, :2]), 0, len(samples) - 1)
+    arcs = np.column_stack([zones[:, :2], np.minimum(zones[:, 2], np.fmax(*feeds[samples.move[ends]].T) / 60.0)])
+    over = blend_excess(samples, cap_mm_s, arcs, SNAP_TO_PROGRAMMED)
+    if len(over):
+        feeds = lowered_to(over, blend_limit(samples, cap_mm_s, over))
     for passes in range(1, BLEND_PASSES + 2):
         run = controller.execute_program(program, model, feeds, modes=modes)
         over = blend_excess(samples, cap_mm_s, run.blends, SNAP_TO_PROGRAMMED)
         if not len(over) or passes > BLEND_PASSES:
             return feeds, run
-        lowered = (blend_limit(samples, cap_mm_s, over, (2.0 ** (passes - 1) - 1.0) / 2.0) if passes < BLEND_PASSES
-                   else run_limit(samples, cap_mm_s, over, cap_mm_s))
-        move_cap = np.full(len(feeds), np.inf)
-        np.fmin.at(move_cap, samples.move, lowered * 60.0)
-        feeds = np.where(moving, np.fmin(feeds, np.floor(move_cap * (1 + 1e-9))), feeds)
+        feeds = lowered_to(over, blend_limit(samples, cap_mm_s, over, (2.0 ** (passes - 1) - 1.0) / 2.0)
+                           if passes < BLEND_PASSES else run_limit(samples, cap_mm_s, over, cap_mm_s))
     return feeds, run
 
 
