@@ -108,6 +108,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     zones = controller.blend_zones(tp, model, modes)  # the programmed corners' blend arcs, at any feeds
     base_feeds, base_per_tool, base_cap = baseline_feeds(program, samples, limits)
     base_feeds, baseline = _baseline_within(program, samples, base_feeds, base_cap, zones, model, modes)
+    del base_cap  # memory: the emission below is the run's peak
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
