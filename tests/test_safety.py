@@ -237,6 +237,23 @@ def test_interrupted_write_leaves_nothing(tmp_path):
     assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["out.nc"]
 
 
+def test_abrupt_exit_removes_the_temporary_file(tmp_path):
+    """What the command's Ctrl-C handler does before it ends the process (os._exit, no unwinding): the
+    temporary file of an output being written is removed and the old file stays as it was."""
+    from millpost.files import PENDING, atomic_path, remove_pending
+
+    target = tmp_path / "out.nc"
+    target.write_text("old")
+    with pytest.raises(OSError):  # the block cannot finish the file it lost (the process would be gone)
+        with atomic_path(target) as tmp:
+            tmp.write_text("half")
+            assert str(tmp) in PENDING
+            remove_pending()
+            assert not tmp.exists()
+    assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["out.nc"]
+    assert not PENDING
+
+
 def test_ctrl_c_prints_interrupted_and_exits_130(tmp_path):
     """A real SIGINT in the middle of `optimize`: exit 130, one line, no traceback, no output file."""
     job = job_copy(tmp_path, "adaptive_pocket")

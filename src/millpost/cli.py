@@ -15,10 +15,12 @@ import argparse
 import importlib
 import os
 import pkgutil
+import signal
 import sys
 
 from . import __version__, commands
 from .errors import MillpostError
+from .files import remove_pending
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -65,10 +67,19 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+def _interrupted(signum, frame) -> None:
+    """Ctrl-C in the `millpost` command: the temporary files of unfinished outputs removed, one line, and
+    the process ends at once (os._exit 130), before an exception could unwind through a compiled
+    kernel's worker threads (that crashed the process, exit -11, about once in ten interrupts)."""
+    remove_pending()
+    os.write(2, b"\nmillpost: interrupted\n" if os.isatty(2) else b"millpost: interrupted\n")
+    os._exit(130)
+
+
 def run() -> None:
-    """The `millpost` command: `main`, then the process ends. After Ctrl-C it ends at once (os._exit:
-    outputs are written whole or not at all before that point), so that worker threads still inside a
-    compiled kernel are not torn down by the interpreter's shutdown (a crash, exit -11, instead of 130)."""
+    """The `millpost` command: `main`, then the process ends. Ctrl-C ends it at once (`_interrupted`:
+    outputs are written whole or not at all); `main` alone, in process, turns it into exit code 130."""
+    signal.signal(signal.SIGINT, _interrupted)
     code = main()
     if code == 130:
         sys.stdout.flush()

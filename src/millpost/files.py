@@ -40,6 +40,19 @@ def _new_file_mode() -> int:
     return 0o666 & ~mask
 
 
+PENDING: set[str] = set()  # temporary files being written now (`remove_pending` on an abrupt exit)
+
+
+def remove_pending() -> None:
+    """Remove the temporary files of the outputs still being written (before the process ends at once,
+    `millpost.cli.run` on Ctrl-C): no half-written file is left beside a target."""
+    for tmp in list(PENDING):
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary path beside `path` to write to; renamed onto `path` when the block ends without
@@ -50,6 +63,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     except OSError as exc:
         raise MillpostError(f"output {path}: cannot write there ({exc.strerror})") from None
     os.close(fd)
+    PENDING.add(tmp)
     try:
         yield Path(tmp)
         try:
@@ -64,6 +78,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        PENDING.discard(tmp)
 
 
 def write_atomic(path: str | os.PathLike, text: str) -> None:
