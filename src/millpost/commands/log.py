@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 
 from ..config import builtin_names
@@ -56,7 +57,13 @@ def run(args: argparse.Namespace) -> int:
     probe.close()
     logger = SpindleLogger(client, regmap, args.output, rate_hz=args.rate,
                            progress=progress_line(regmap.columns) if sys.stderr.isatty() else None)
-    summary = logger.run(args.duration)
+    # Ctrl-C is how a log ends (the logger finishes its file on KeyboardInterrupt), not the command's
+    # immediate exit (`millpost.cli.run`): the default handler while it runs
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        summary = logger.run(args.duration)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     if sys.stderr.isatty():
         sys.stderr.write("\n")
     text = json.dumps(summary.as_dict(), indent=2)
