@@ -80,12 +80,7 @@ def run() -> None:
     """The `millpost` command: `main`, then the process ends. Ctrl-C ends it at once (`_interrupted`:
     outputs are written whole or not at all); `main` alone, in process, turns it into exit code 130."""
     signal.signal(signal.SIGINT, _interrupted)
-    code = main()
-    if code == 130:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(130)
-    sys.exit(code)
+    sys.exit(main())
 
 
 if __name__ == "__main__":

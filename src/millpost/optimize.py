@@ -248,11 +248,8 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
         over = blend_excess(samples, limit_mm_s, arcs, SNAP_TO_PROGRAMMED)  # a feed held at the programmed one
         if not len(over) or passes > BLEND_PASSES:
             break
-        if passes < BLEND_PASSES:
-            feeds_mm_s = blend_limit(samples, feeds_mm_s, over, (2.0 ** (passes - 1) - 1.0) / 2.0, limit_mm_s)
-        else:
-            stubborn = len(over)
-            feeds_mm_s = run_limit(samples, feeds_mm_s, over, limit_mm_s)
+        stubborn = len(over) if passes == BLEND_PASSES else 0
+        feeds_mm_s = _arcs_kept(samples, feeds_mm_s, over, limit_mm_s, passes)
     progress("emission", 4, 4)
     return text, emitted, after, {"passes": passes, "over": int(len(over)), "runs_lowered": stubborn}
 
@@ -284,9 +281,18 @@ def _baseline_within(program: Program, samples: Samples, feeds: np.ndarray, cap_
         over = blend_excess(samples, cap_mm_s, run.blends, SNAP_TO_PROGRAMMED)
         if not len(over) or passes > BLEND_PASSES:
             return feeds, run
-        feeds = lowered_to(over, blend_limit(samples, cap_mm_s, over, (2.0 ** (passes - 1) - 1.0) / 2.0)
-                           if passes < BLEND_PASSES else run_limit(samples, cap_mm_s, over, cap_mm_s))
+        feeds = lowered_to(over, _arcs_kept(samples, cap_mm_s, over, cap_mm_s, passes))
     return feeds, run
+
+
+def _arcs_kept(samples: Samples, limit_mm_s: np.ndarray, over: np.ndarray, within: np.ndarray, passes: int
+               ) -> np.ndarray:
+    """The feed limit (mm/s) lowered for the blend arcs `over` found on run `passes`: over each arc's
+    reach widened (2^(passes−1) − 1)/2 times on either side (`blend_limit`), after BLEND_PASSES runs
+    over the whole run between stops it lies on (`run_limit`); `within`: the limit the arcs must keep."""
+    if passes < BLEND_PASSES:
+        return blend_limit(samples, limit_mm_s, over, (2.0 ** (passes - 1) - 1.0) / 2.0, within)
+    return run_limit(samples, limit_mm_s, over, within)
 
 
 def _blend_notes(blends: dict) -> list[str]:
