@@ -212,15 +212,14 @@ def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
     for lo, hi, sch in schedule.segments:
         blocks = window_blocks(grid, limits, lo, hi, caps_only=True)
         _, b_hi = merged_bounds([blk for blk in blocks if blk.name not in controller_enforced], hi - lo)
-        _, b_all = merged_bounds([blk for blk in blocks if blk.name not in controller_enforced or blk.name in clamps],
-                                 hi - lo)
+        _, b_clamp = merged_bounds([blk for blk in blocks if blk.name in clamps], hi - lo)
         binding = sch.binding.astype(str)
         a = np.abs(sch.a)
         a_ref = 1e-3 * max(float(a.max(initial=0.0)), 1e-9)
         ramping = np.r_[a > a_ref, False] | np.r_[False, a > a_ref]
         own = np.isin(binding, controller_enforced + ("",)) | (np.isin(binding, ramp_owned) & ramping)
         out[lo:hi] = np.where(own, np.sqrt(b_hi), sch.feed_mm_s)
-        need[lo:hi] = np.where(own, np.sqrt(np.minimum(b_all, b_hi)), sch.feed_mm_s)
+        need[lo:hi] = np.where(own, np.sqrt(np.minimum(b_clamp, b_hi)), sch.feed_mm_s)
     return hold_runs(samples, out, need)
 
 
