@@ -15,11 +15,11 @@ import pytest
 from millpost.controller import path_modes
 from millpost.engagement import Engagement
 from millpost.gcode import read_text
-from millpost.job import _LIMIT_KEYS, Job
+from millpost.job import _LIMIT_KEYS, Job, load_job
 from millpost.limits import HARD, QUALITY, build_limits
 from millpost.machine import Machine
 from millpost.materials import Material
-from millpost.optimize import schedule_program
+from millpost.optimize import optimize, schedule_program
 from millpost.signals import controller_model
 from millpost.toolpath import RAPID
 from millpost.tools import Tool
@@ -134,3 +134,29 @@ def test_every_limit_carries_its_identity(run):
     assert kinds["deflection"] == kinds["chip_load_max"] == kinds["chip_load_min"] == QUALITY
     assert {l.name for l in lim if l.controller} >= {"axis_acceleration", "junction"}
     assert set(result.summary["binding"]) <= {l.effect for l in lim}
+
+
+def test_binding_shares_are_shares_of_the_time_the_program_runs(tmp_path):
+    """A 100 mm full slot 1 mm deep from a standstill at one programmed feed (Al 6061, 6 mm 3-flute):
+    the chip-load maximum sets the feed along the slot, and the axes only accelerate over v²/(2a) at its
+    start, well under 1 % of its time. The shares are weighted by the time the emitted program runs
+    (a schedule's speed at a standstill's first step may be far below what the controller runs there;
+    weighted by it, one step took most of the time and 'inertia' most of the share)."""
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n'
+        "[stock]\nbox = [[-5, -5, -5], [110, 5, 0]]\ncell_mm = 0.1\n"
+        "[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = \"flat\"\nflute_length_mm = 16\nstickout_mm = 24\n")
+    (tmp_path / "p.nc").write_text("G21 G90 G94\nT1 M6\nS9000 M3\nG0 X-4 Y0 Z1\nG1 Z-1 F300\n"
+                                   "G1 X105 F1500\nG0 Z5\nM30\n")
+    job = load_job(tmp_path)
+    result = optimize(job, progress=False)
+    tr = result.trace
+    slot = (tr["line"] == 6) & (tr["ae_mm"] > 5.9)
+    v = float(np.median(tr["feed_executed_mm_min"][slot])) / 60.0
+    a = min(ax.amax_mm_s2 for ax in job.machine.axes.values())
+    assert np.mean(tr["chip_mm"][slot] >= 0.99 * tr["chip_limit_mm"][slot]) > 0.95  # the chip load sets it
+    accel_share = (v / (2 * a)) / (100.0 / v)  # the time of a ramp to v, over the slot's time
+    assert accel_share < 0.01
+    shares = result.summary["binding"]
+    assert shares.get("chip load", 0.0) >= 0.9, shares
+    assert shares.get("inertia", 0.0) <= 0.05, shares

@@ -150,7 +150,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     progress("replay", 2, 3)
     checked = replay(job, samples, eng, limits, executed)
     progress("replay", 3, 3)
-    by_effect, by_limit = binding_shares(samples, sched, limits)
+    by_effect, by_limit = binding_shares(samples, sched, limits, executed)
     cut = samples.kind != RAPID
     hard = sorted(set(limits.names(kind=HARD)))
     summary = {

@@ -172,15 +172,18 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     return Replay(ratios, physical, {name: (value[name], bound[name]) for name in rows_of}, current, cut_loads, cut)
 
 
-def binding_shares(samples: Samples, sched, limits: JobLimits) -> tuple[dict[str, float], dict[str, float]]:
-    """Share of the scheduled cutting time each limit binds, grouped by effect and by limit name
-    (time weights: `signals.step_times_s`)."""
+def binding_shares(samples: Samples, sched, limits: JobLimits, speed_mm_s: np.ndarray
+                   ) -> tuple[dict[str, float], dict[str, float]]:
+    """Share of the feed moves' time each limit binds in the schedule, grouped by effect and by limit
+    name. Time weights (`signals.step_times_s`) are taken at speed_mm_s (mm/s per sample), the program
+    as it runs: the schedule's own speed at a standstill's first step can be far below what the
+    controller runs there, and a step's time grows as 1/v."""
     total = 0.0
     by_effect: dict[str, float] = {}
     by_name: dict[str, float] = {}
     owner = limits.by_block(PathGrid.from_samples(samples))
     for lo, hi, s in sched.segments:
-        dt = step_times_s(samples.s_mm[lo:hi], s.feed_mm_s)
+        dt = step_times_s(samples.s_mm[lo:hi], speed_mm_s[lo:hi])
         total += float(dt.sum())
         blocks, which = np.unique(s.binding.astype(str), return_inverse=True)
         for block, w in zip(blocks, np.bincount(which.reshape(-1), weights=dt, minlength=len(blocks))):
