@@ -283,6 +283,20 @@ def test_empty_program_is_a_clear_error(tmp_path, capsys):
     assert strict_json(capsys.readouterr().out)["bbox_mm"] is None
 
 
+def test_rapids_only_allowed_is_written_unchanged(tmp_path, capsys):
+    """A program of rapids only (no feed move): refused by the no-cut gate; allowed, it is written as
+    it came (no F word to change), with a warning, not a traceback."""
+    job = job_copy(tmp_path)
+    text = "G21 G90\nG0 Z5\nG0 X10 Y10\nG0 Z1\nG0 Z5\nM30\n"
+    (job / "program.nc").write_text(text)
+    out = tmp_path / "o.nc"
+    assert main(["optimize", str(job), "-o", str(out)]) == 2
+    assert "no feed moves" in capsys.readouterr().err and not out.exists()
+    assert main(["optimize", str(job), "-o", str(out), "--allow", "no-cut"]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+    assert out.read_text() == text
+
+
 @pytest.mark.parametrize("table,key,value", [
     ("[limits]\nds_mm = 0", "limits.ds_mm", "0"), ("[limits]\nds_mm = -0.1", "limits.ds_mm", "-0.1"),
     ("[limits]\nds_mm = nan", "limits.ds_mm", "nan"), ("[limits]\nfeed_max_mm_min = inf", "limits.feed_max_mm_min", "inf"),

@@ -178,6 +178,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     cols = [np.concatenate(c) for c in zip(*parts)]
     order = np.argsort(cols[0], kind="stable")
     k_of, u0, u1, feeds, length = (c[order] for c in cols)
+    if not len(k_of):  # no cutting move carries a limit (a program of rapids only)
+        return []
     k_of = k_of.astype(np.int64)
     move = np.asarray(mv)[starts[k_of]]
     joined = np.r_[False, (move[1:] == move[:-1]) | (move[1:] == move[:-1] + 1)]
