@@ -531,6 +531,24 @@ def test_cutting_with_the_spindle_off_is_a_gate_with_a_stated_speed(tmp_path, ca
     assert rc == 0 and f_words(out) == f_words(out_m3) == f_words(out_s)
 
 
+def test_m3_without_an_s_word_is_an_unknown_speed_not_a_spindle_off(tmp_path, capsys):
+    """`M3` with no S word in force runs the spindle at a speed the program does not give: refused as an
+    unknown speed naming the M3's line (not as 'spindle off', which --allow would not cure); with the job's
+    spindle_rpm it runs, without --allow, exactly as the same program with that S word written."""
+    no_s = NO_T.replace("S10000 M3\n", "M3\n")
+    m3_line = next(k for k, ln in enumerate(no_s.splitlines(), 1) if ln.strip() == "M3")
+    d = small_job(tmp_path, no_s, name="nos")
+    assert optimized(d)[0] == 2
+    err = capsys.readouterr().err
+    assert "unknown spindle speed" in err and f"the M3/M4 at line {m3_line} runs the spindle" in err
+    assert "spindle off" not in err and "--allow" not in err
+    rc, summary, out = optimized(small_job(tmp_path, no_s, extra="spindle_rpm = 10000", name="nos_rpm"))
+    assert rc == 0, capsys.readouterr().err
+    assert any(f"M3/M4 at line {m3_line}), it turns at 10000 rpm" in n for n in summary["notes"])
+    rc, _, out_m3 = optimized(small_job(tmp_path, NO_T, name="m3s"))
+    assert rc == 0 and f_words(out) == f_words(out_m3)
+
+
 def test_spindle_rpm_out_of_range_is_refused(tmp_path, capsys):
     assert optimized(small_job(tmp_path, NO_T, extra="spindle_rpm = 0"))[0] == 2
     assert "spindle_rpm" in capsys.readouterr().err

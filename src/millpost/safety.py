@@ -18,7 +18,8 @@ a rapid into material is a crash whatever the user says, and an output must neve
 - ``spindle-off``: the tool meets material where the program has not turned the spindle on (no M3/M4
   with S before it). Allowed for a spindle switched by hand (a trim router), whose speed is then the
   job's ``spindle_rpm``, else the program's S word in force; with neither the job is refused: millpost
-  never guesses a spindle speed.
+  never guesses a spindle speed. A spindle the program runs (M3/M4) with no S word in force is not
+  off: it turns at the job's ``spindle_rpm``, else the job is refused (not a gate).
 - ``large``: the resampled path would need more than `MAX_SAMPLES` samples, or more than 80 % of the
   memory free now (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
 - ``clobber`` (always refused): an output path is an input (program, job, stock, tool, material or
@@ -224,40 +225,70 @@ def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: flo
     return samples, eng, notes
 
 
-def spindle_off_message(path: str, line: int, block: str = "") -> str:
+def spindle_off_message(path: str, line: int, block: str = "", started: int | None = None) -> str:
     """What is wrong and what to write when the tool cuts at `path`:`line` (its text `block`, if given)
-    with the spindle off."""
+    with the spindle off, or (started: the line of the M3/M4 that runs it) on at no known speed."""
     quoted = f" (block '{block.strip()}')" if block.strip() else ""
+    if started is not None:
+        return (f"{path}:{line}: the tool cuts material at an unknown spindle speed{quoted}: the M3/M4 at line "
+                f"{started} runs the spindle with no S word in force: expected S<rpm> before this line, or its "
+                "speed as spindle_rpm = <rpm> in the job")
     return (f"{path}:{line}: the tool cuts material with the spindle off{quoted}: expected M3/M4 with S<rpm> before this "
-            "line, or, for a spindle switched by hand, --allow spindle-off (its speed: spindle_rpm = <rpm> in the "
-            "job, else the program's S word)")
+            "line; a spindle switched by hand turns at spindle_rpm = <rpm> in the job, else at the program's S word")
+
+
+def _spindle_started(program: Program, moves: np.ndarray) -> np.ndarray:
+    """Per move index, the line of the M3/M4 that runs the spindle there (0 where it is off)."""
+    on = [(e.move, e.line if e.value[0] in ("cw", "ccw") else 0) for e in program.events
+          if e.kind == "spindle" and e.value[0] != "speed"]
+    at, line = (np.array(on).T if on else (np.zeros(0, int), np.zeros(0, int)))
+    k = np.searchsorted(at, moves, side="right") - 1
+    return np.where(k >= 0, line[np.maximum(k, 0)] if len(line) else 0, 0).astype(int)
 
 
 def check_spindle(program: Program, samples: Samples, eng, hand_rpm: float | None, allow: Iterable[str],
                   notes: list[str]) -> Samples:
-    """The ``spindle-off`` gate: samples where the tool meets material (ap > 0) with the spindle off
-    (programmed rpm 0). Allowed, the spindle is switched by hand and turns, wherever the program leaves
-    it off, at `hand_rpm` (the job's ``spindle_rpm``: what the dial is set to), else at the program's S
-    word in force (set without M3): the samples are returned with that speed. Allowed with neither,
-    refused: a guessed speed would set every chip load and force."""
+    """Where the tool meets material (ap > 0) at no spindle speed (programmed rpm 0). Run by an M3/M4
+    with no S word in force, it turns at the job's ``spindle_rpm`` (noted), else the job is refused
+    (millpost never guesses a speed). Off, the ``spindle-off`` gate: allowed, the spindle is switched
+    by hand and turns, wherever the program leaves it off, at `hand_rpm` (the job's ``spindle_rpm``:
+    what the dial is set to), else at the program's S word in force (set without M3): the samples are
+    returned with that speed; allowed with neither, refused."""
     rpm = np.asarray(samples.rpm, float)
-    off = (eng.ap_mm > 1e-9) & (rpm <= 0)
-    if not off.any():
+    stopped = (eng.ap_mm > 1e-9) & (rpm <= 0)
+    if not stopped.any():
         return samples
-    line = int(samples.line[np.argmax(off)])
     lines = program.text.splitlines()
-    block = lines[line - 1] if 0 < line <= len(lines) else ""
-    msg = f"{spindle_off_message(program.path, line, block)} ({len(np.unique(samples.line[off]))} line(s))"
+
+    def block(k: int) -> tuple[int, str]:
+        line = int(samples.line[k])
+        return line, lines[line - 1] if 0 < line <= len(lines) else ""
+
+    started = _spindle_started(program, np.asarray(samples.move))
+    running = stopped & (started > 0)
+    by_hand = np.zeros(len(rpm))
+    if running.any():
+        k = int(np.argmax(running))
+        if hand_rpm is None:
+            raise MillpostError(spindle_off_message(program.path, *block(k), started=int(started[k])))
+        by_hand[running] = float(hand_rpm)
+        notes.append(f"note: where the program runs the spindle with no S word (M3/M4 at line {int(started[k])}), "
+                     f"it turns at {hand_rpm:g} rpm (the job's spindle_rpm)")
+    off = stopped & ~running
+    if not off.any():
+        return replace(samples, rpm=np.where(rpm > 0, rpm, by_hand))
+    k = int(np.argmax(off))
+    msg = f"{spindle_off_message(program.path, *block(k))} ({len(np.unique(samples.line[off]))} line(s))"
     refuse_or_note("spindle-off", msg, allow, notes)
     if hand_rpm is not None:
-        by_hand = np.full(len(rpm), float(hand_rpm))
+        by_hand[off] = float(hand_rpm)
         notes.append(f"note: where the program leaves the spindle off, it turns at {hand_rpm:g} rpm (the job's "
                      "spindle_rpm, switched by hand)")
     else:  # the S word in force at each move: the last one set before it
         words = [(e.move, float(e.value)) for e in program.events if e.kind == "s_word"]
         at, value = np.array(words).T if words else (np.zeros(0), np.zeros(0))
         k = np.searchsorted(at, np.asarray(samples.move), side="right") - 1
-        by_hand = np.where(k >= 0, value[np.maximum(k, 0)] if len(value) else 0.0, 0.0)
+        by_hand[off] = np.where(k >= 0, value[np.maximum(k, 0)] if len(value) else 0.0, 0.0)[off]
         if np.any(off & (by_hand <= 0)):
             bad = int(samples.line[np.argmax(off & (by_hand <= 0))])
             raise MillpostError(f"{program.path}:{bad}: the tool cuts with the spindle off (allowed: switched by "
