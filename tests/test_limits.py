@@ -120,6 +120,21 @@ def test_hard_limit_needing_less_than_min_chip_is_held_and_listed():
     assert result.summary["hard_limits_exceeded"]["cutting_force"] == pytest.approx(over, rel=1e-3)
 
 
+def test_held_limits_say_how_far_over_their_bound(run):
+    """A limit the policy held reports the largest value over its bound before the policy in the
+    optimized program: for the deflection, the trace's deflection over its limit."""
+    lower, (job, program, samples, eng, result, feeds) = run
+    held, tr = result.summary["held"], result.trace
+    assert held
+    for name, h in held.items():
+        assert h["over_bound"] == pytest.approx(result.summary.get("hard_limits_exceeded", {}).get(name, h["over_bound"]),
+                                                rel=1e-3)
+    if "deflection" in held:
+        cut = tr["ap_mm"] > 0
+        assert held["deflection"]["over_bound"] == pytest.approx(
+            float(np.nanmax(tr["deflection_mm"][cut] / tr["deflection_limit_mm"][cut])), rel=2e-3)
+
+
 def test_nothing_reported_exceeded_where_no_hard_limit_is_held(run):
     lower, (job, program, samples, eng, result, feeds) = run
     forced = {k for k, h in result.summary["held"].items() if h["kind"] == "hard"}
@@ -160,3 +175,56 @@ def test_binding_shares_are_shares_of_the_time_the_program_runs(tmp_path):
     shares = result.summary["binding"]
     assert shares.get("chip load", 0.0) >= 0.9, shares
     assert shares.get("inertia", 0.0) <= 0.05, shares
+
+
+def test_a_plunge_cap_relative_to_the_program_never_lowers_the_move_after_it(tmp_path):
+    """A plunge at F100 into plywood, then the cut at F300 (a Tweakie.CNC program): the controller blends
+    the corner at the bottom at the faster feed, so the programmed program itself runs the plunge's end
+    above 2 × F100. The plunge cap (plunge_raise_max × the programmed feed) is relative to the program:
+    the programmed program never reads over it, and the F300 move is not lowered for it (it was written
+    F200, and the summary said the programmed feeds broke a hard limit, 1.12 ×)."""
+    (tmp_path / "job.toml").write_text(
+        'program = "p.nc"\nmaterial = "plywood"\nmachine = "vmc-small"\n'
+        "[stock]\nbox = [[0, -10, -6], [40, 10, 0]]\ncell_mm = 0.1\n"
+        "[tools.1]\ndiameter_mm = 3.175\nflutes = 2\nshape = \"flat\"\nflute_length_mm = 12\nstickout_mm = 20\n")
+    (tmp_path / "p.nc").write_text("G21 G90 G94\nT1 M6\nS12000 M3\nG0 X5 Y0 Z6\nG1 Z-2 F100\n"
+                                   "G1 X5.04 Y0.02 F300\nG1 X30 Y0.5\nG0 Z5\nM30\n")
+    result = optimize(load_job(tmp_path), progress=False)
+    s = result.summary
+    assert s["limits_programmed"]["plunge_feed"] <= 1.0 + 1e-9
+    assert s["limits"]["plunge_feed"] <= 1.005
+    emitted = read_text(result.text, "o.nc").toolpath
+    fed = emitted.kind != RAPID
+    level = fed & (np.abs(emitted.start[:, 2] + 2.0) < 1e-9) & (np.abs(emitted.end[:, 2] + 2.0) < 1e-9)
+    assert emitted.feed_mm_min[level].min() >= 300.0
+    into = fed & (emitted.end[:, 2] < emitted.start[:, 2]) & (emitted.end[:, 2] < 0.0)
+    assert emitted.feed_mm_min[into].max() <= 200.0 + 1e-9  # the plunge's cut: at most 2 × F100
+
+
+@pytest.mark.parametrize("machine", ["vmc-small", "hobby-router"])
+def test_a_micro_arc_is_the_controllers_to_slow_for_not_the_f_words(machine, tmp_path):
+    """CAM output with arcs of radius 0.0127 mm (0.0005 in, ~0.02 µm long) where two arcs meet (a
+    pygcode Alien.tap): √(a·r) is ~5 mm/s there. LinuxCNC's planner clamps each arc at √(a_n·r) by itself,
+    so the F words need not carry it: written on the ≥ 2 mm fragments around it, the cap ran millimetres
+    of cut at F340 and the optimized program came out slower than the one-feed baseline (Alien.tap 26.4 s
+    against 24.4 s), its lines listed below the chip floor (here one line on each machine). Now no line is below the floor, the program is no
+    slower than the baseline, and the replay (the controller's own speed there) keeps every limit."""
+    (tmp_path / "job.toml").write_text(
+        f'program = "p.nc"\nmaterial = "mdf"\nmachine = "{machine}"\n'
+        "[stock]\nbox = [[-40, -40, -6], [40, 40, 0]]\ncell_mm = 0.1\n"
+        "[tools.1]\ndiameter_mm = 3.175\nflutes = 2\nshape = \"flat\"\nflute_length_mm = 12\nstickout_mm = 20\n")
+    lines = ["G21 G90 G94 G17", "T1 M6", "S18000 M3", "G0 X0 Y0 Z2", "G1 Z-1.5 F300", "G1 X-10 F800"]
+    x, y = -10.0, 0.0
+    for k in range(12):  # arcs of radius 8 mm, 3 mm long, a micro-arc where each pair meets
+        x, y = x + (0.9 if k % 2 else -0.9), y + 3.0
+        lines.append(f"G2 X{x:.5f} Y{y:.5f} R8")
+        x, y = x - 0.00003, y + 0.00025
+        lines.append(f"G3 X{x:.5f} Y{y:.5f} R0.0127")
+    lines += ["G0 Z5", "M30"]
+    (tmp_path / "p.nc").write_text("\n".join(lines) + "\n")
+    result = optimize(load_job(tmp_path), progress=False)
+    s = result.summary
+    assert s["status"] == "solved"
+    assert s["below_min_chip"]["line_count"] == 0
+    assert s["cycle_time_after_s"] <= s["cycle_time_baseline_s"] * (1 + 1e-3)
+    assert max(s["limits"].values()) <= 1.005

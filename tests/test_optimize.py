@@ -172,7 +172,8 @@ def test_cli_report_says_why_slower():
          "hard_limits": ["cutting_force", "feed"], "binding_limits": {"cutting_force": 0.98, "junction": 0.01},
          "limits_programmed": {"cutting_force": 1.56, "deflection": 2.0},
          "defaults_binding": {"cutting_force": "tool safety factor 3"},
-         "held": {"deflection": {"kind": "quality", "lines": [20, 21], "line_count": 2, "reason": "reported"}},
+         "held": {"deflection": {"kind": "quality", "lines": [20, 21], "line_count": 2, "reason": "reported",
+                                  "over_bound": 1.8}},
          "tools": {1: {"programmed_s": 18.1, "optimized_s": 26.5, "programmed_feed_mm_min": [333.3, 1000.0],
                        "optimized_feed_mm_min": [594.9, 20000.0]}}}
     text = report(s, Path("out.nc"))
@@ -181,6 +182,7 @@ def test_cli_report_says_why_slower():
     assert "cutting_force 98% (hard)" in text and "cutting_force 1.56; feeds lowered there, hence slower" in text
     assert "deflection 2.00" not in text  # a quality limit the program exceeds does not make it slower
     assert "default cutting_force: tool safety factor 3" in text and "deflection (quality) held on 2 lines" in text
+    assert "up to 1.8 x its bound in the optimized program" in text
     assert "T1" in text and "333.3-1000" in text and "594.9-20000" in text
 
 

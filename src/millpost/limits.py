@@ -13,7 +13,8 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
   feeds, the plunge feed cap and the air clearance: the baseline's moves obey those as a CAM user's
   separate plunge and lead-in feeds would, `millpost.replay.baseline_feeds`);
 - `f_word`: the emitted F words obey its speed cap (false for the axis rates, the block rate,
-  accelerations, jerk and corner caps, which the controller clamps or ramps to on its own);
+  accelerations, jerk and corner caps, which the controller clamps or ramps to on its own, and for the
+  centripetal cap of an arc on a planner that runs arcs whole, clamping each at √(a_n·r));
 - `clamp`: the controller holds its speed cap as a steady clamp (the axis rates, the block rate): an
   F word above it runs at it, so the F word need only reach it (`millpost.schedule.feeds.hold_runs`);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
@@ -42,8 +43,10 @@ buckling load and the torque under its torsional strength, both over the tool sa
 "thrust", "tool_torque"). The end's axial chip f_z·descent·sin κ joins the chip-load limit (quality),
 up to the material's `plunge_fz_ratio` of the chip load for a milling cutter entering along its axis
 with the end enclosed. The user's `plunge_feed_max_mm_min` caps the feed there, and so does
-`plunge_raise_max` (default 2) times the programmed feed (hard, "plunge_feed", a cap like the maximum
-feed: never held by the policy); a material without end-cutting data keeps the programmed feed there
+`plunge_raise_max` (default 2) times the programmed feed, or on a corner the controller blends the
+speed the programmed program's arc runs into the plunge's end (the faster of its two feeds, up to the
+arc's top speed: the programmed program never reads over it) (hard, "plunge_feed", a cap like the
+maximum feed: never held by the policy); a material without end-cutting data keeps the programmed feed there
 (its end loads are unknown).
 
 Air clearance (`air_clearance_mm`, c): where the tool cuts nothing it is raised up to the machine's
@@ -80,12 +83,13 @@ import numpy as np
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
-from .controller import ControllerModel, PathModes, corner_speeds
+from .controller import ControllerModel, PathModes, blend_zones, corner_speeds
 from .progress import Progress, silent
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
+from .schedule.feeds import programmed_arcs
 from .safety import spindle_off_message
 from .signals import running_rpm
 from .toolpath import RAPID, Samples, Toolpath
@@ -218,6 +222,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     ax = [m.axes[a] for a in "xyz"]
     amax = tuple(a.amax_mm_s2 for a in ax)
     feed_max = feed_cap_mm_min(job)
+    planner = ControllerModel.from_machine(m)
     # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate.
     # It slows by itself there (an F word cannot make it faster or need make it slower): no F word
     # carries this cap, which on a micro-segment would write a crawl into the moves around it
@@ -227,7 +232,9 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
                     f_word=False, clamp=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
-              Limit(Centripetal(amax), HARD, "inertia", controller=True),
+              # LinuxCNC's planner (`controller`) runs an arc as one segment clamped at √(a_n·r) by itself;
+              # grbl runs it as chords whose F word it keeps, so the F word carries the cap there
+              Limit(Centripetal(amax), HARD, "inertia", controller=True, f_word=planner.planner == "grbl"),
               Limit(_corners(job, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
@@ -352,7 +359,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
     # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
     raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
-    plunge_cap = np.minimum(plunge_cap, np.where(v_prog > 0, raise_max * v_prog, np.inf))
+    # (the program itself runs a blended corner at the faster of its two feeds, into the plunge's end)
+    raised = np.maximum(np.where(v_prog > 0, raise_max * v_prog, np.inf),
+                        programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes)))
+    plunge_cap = np.minimum(plunge_cap, raised)
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed",
                         baseline=False))
     limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))

@@ -189,7 +189,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "defaults_binding": {k: v for k, v in limits.defaults.items() if by_limit.get(k, 0.0) > 0
                              or np.any(limits.held.get(k, False))},
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
-        "held": _held_lines(samples, limits),
+        "held": _held_lines(samples, limits, checked.physical),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
         "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
@@ -349,9 +349,11 @@ def _below_min_chip(samples: Samples, limits: JobLimits, feed_mm_min: np.ndarray
             "reason": "a hard limit on a heavier part of the same F needs a feed below the chip floor here"}
 
 
-def _held_lines(samples: Samples, limits: JobLimits) -> dict:
-    """Per limit whose bound the policy held (see `millpost.limits`): its kind, the sample count and the
-    first source lines. A hard limit held means the cut needs a feed below the minimum-chip feed."""
+def _held_lines(samples: Samples, limits: JobLimits, physical: dict[str, float]) -> dict:
+    """Per limit whose bound the policy held (see `millpost.limits`): its kind, the sample count, the
+    first source lines and `over_bound`, the largest value / its bound before the policy over the
+    optimized program (`replay.Replay.physical`). A hard limit held means the cut needs a feed below
+    the minimum-chip feed; a quality limit held does not lower the feed (other limits may)."""
     out = {}
     for name, mask in sorted(limits.held.items()):
         if not mask.any():
@@ -359,10 +361,11 @@ def _held_lines(samples: Samples, limits: JobLimits) -> dict:
         kind = HARD if name in limits.forced else "quality"
         lines = np.unique(samples.line[mask])
         out[name] = {"kind": kind, "samples": int(mask.sum()), "lines": [int(x) for x in lines[:20]],
-                     "line_count": int(len(lines)),
+                     "line_count": int(len(lines)), "over_bound": round(float(physical.get(name, 0.0)), 3),
                      "reason": ("the cut needs a feed below the minimum-chip feed (or the programmed one): held "
                                 "there; the cut itself is too heavy for the tool" if kind == HARD else
-                                "the programmed feed already exceeds it: not lowered, reported")}
+                                "the programmed feed already exceeds it: it does not lower the feed there (hard "
+                                "limits may), reported")}
     return out
 
 

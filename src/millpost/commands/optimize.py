@@ -100,7 +100,8 @@ def report(s: dict, output: Path) -> str:
         out.append(f"  default {name}: {why}")
     for name, h in s.get("held", {}).items():
         lines = ", ".join(map(str, h["lines"])) + (" ..." if h["line_count"] > len(h["lines"]) else "")
-        out.append(f"  {name} ({h['kind']}) held on {h['line_count']} lines [{lines}]: {h['reason']}")
+        out.append(f"  {name} ({h['kind']}) held on {h['line_count']} lines [{lines}]: {h['reason']}; "
+                   f"up to {h['over_bound']:g} x its bound in the optimized program")
     out.append("  tool  programmed s  optimized s  programmed F  optimized F (mm/min)")
     for number, row in s.get("tools", {}).items():
         out.append(f"  T{number:<4} {row['programmed_s']:12.1f} {row['optimized_s']:12.1f}  "

@@ -268,18 +268,39 @@ def hold_runs(samples: Samples, limit_mm_s: np.ndarray, need_mm_s: np.ndarray) -
 ARC_SLACK = 1e-6  # relative: an arc's top speed over a limit by less is float rounding (an F word read back)
 
 
-def _zone_minima(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _zone_samples(samples: Samples, zones: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per zone (start, end (mm of the samples' arc length), top speed): the samples it covers (those
-    within it and the next one on each side: the limit is linear between samples), as (sample index,
-    zone index) pairs, and each zone's lowest finite limit there (mm/s; inf: none)."""
-    zones = np.asarray(zones, float).reshape(-1, 3)
+    within it and the next one on each side: a speed is linear between samples), as (sample index,
+    zone index) pairs."""
     s = samples.s_mm
     lo = np.maximum(np.searchsorted(s, zones[:, 0], side="left") - 1, 0)
     hi = np.minimum(np.searchsorted(s, zones[:, 1], side="right") + 1, len(s))
     count = np.maximum(hi - lo, 0)
     owner = np.repeat(np.arange(len(zones)), count)
     idx = np.repeat(lo - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
+    return idx, owner
+
+
+def programmed_arcs(samples: Samples, v_prog_mm_s: np.ndarray, zones: np.ndarray) -> np.ndarray:
+    """Per sample the speed (mm/s) the programmed program's blend arcs pass it at: over each zone (see
+    `blend_limit`) the faster programmed feed it covers, at most the arc's top speed (0 off the zones).
+    A cap set relative to the programmed feeds is never below it: the program runs that fast there."""
+    zones = np.asarray(zones, float).reshape(-1, 3)
+    idx, owner = _zone_samples(samples, zones)
+    top = np.zeros(len(zones))
+    np.maximum.at(top, owner, np.nan_to_num(np.asarray(v_prog_mm_s, float)[idx], nan=0.0))
+    out = np.zeros(len(samples))
+    np.maximum.at(out, idx, np.minimum(top, zones[:, 2])[owner])
+    return out
+
+
+def _zone_minima(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per zone (start, end (mm of the samples' arc length), top speed): the samples it covers
+    (`_zone_samples`), as (sample index, zone index) pairs, and each zone's lowest finite limit there
+    (mm/s; inf: none)."""
+    zones = np.asarray(zones, float).reshape(-1, 3)
+    idx, owner = _zone_samples(samples, zones)
     vals = np.where(np.isfinite(limit_mm_s[idx]), limit_mm_s[idx], np.inf)
     zone_min = np.full(len(zones), np.inf)
     np.minimum.at(zone_min, owner, vals)
