@@ -402,6 +402,28 @@ def test_naive_cam_merges_straight_feeds_within_q():
     assert chain_sizes(steps("G64 P0.0004", 6, 0.0002, 10, zig_mm=0.0005).replace("G21", "G20")) == [1] * 6
 
 
+def test_block_lengths_are_the_merged_chains():
+    # the planner receives a chain of 101 collinear 0.5 µm feeds as one line of 50.5 µm, so a block rate
+    # of 2000 Hz caps it at 101 mm/s, not at the 1 mm/s of one move; a controller that merges nothing,
+    # and a G64 with Q0, leave each move its own block
+    from millpost.controller import block_lengths, path_modes
+    from millpost.gcode import read_text
+    from millpost.toolpath import FEED
+
+    def lengths(text: str, model) -> np.ndarray:
+        prog = read_text(text)
+        return block_lengths(prog.toolpath, path_modes(prog, model))[prog.toolpath.kind == FEED]
+
+    merged = lengths(steps("G64 P0.01 Q0.01", 250, 0.0005, 60), lcnc())
+    np.testing.assert_allclose(merged, [101 * 0.0005] * 202 + [48 * 0.0005] * 48, rtol=1e-9)
+    for text, model in ((steps("G64 P0.01 Q0.01", 250, 0.0005, 60), lcnc(merges_naive_cam=False)),
+                        (steps("G64 P0.01 Q0", 250, 0.0005, 60), lcnc())):
+        np.testing.assert_allclose(lengths(text, model), 0.0005, rtol=1e-9)
+    # a zigzag's chain is its chord: 101 steps of 5 µm along X, ending at Y 5 µm
+    zig = lengths(steps("G64 P0.01 Q0.01", 250, 0.005, 300, zig_mm=0.005), lcnc())
+    assert zig[0] == pytest.approx(math.hypot(101 * 0.005, 0.005), rel=1e-9)
+
+
 def test_naive_cam_chain_ends_where_canon_flushes():
     head = "G21 G90 G64 P0.01\nG0 X0 Y0 Z0\nG1 X1 F600\n"
     assert chain_sizes(head + "X2\nX3\nM2\n") == [3]

@@ -421,6 +421,20 @@ def naive_cam_chains(tp: Toolpath, modes: PathModes, feed_mm_min: np.ndarray | N
                        tp.kind == FEED, np.asarray(modes.merge_mm, float), flush, CHAIN_POINTS)
 
 
+def block_lengths(tp: Toolpath, modes: PathModes) -> np.ndarray:
+    """Per move the length (mm) of the block the planner receives it in, at the programmed feeds: the
+    move itself, or in a chain of straight feeds the controller merges (`naive_cam_chains`) the line
+    from the chain's start to its last point. A controller that reads at most `block_rate_hz` blocks
+    per second runs a block of length L at most at L·rate (mm/s)."""
+    first = naive_cam_chains(tp, modes)
+    chain = np.cumsum(np.r_[True, first[1:] != first[:-1]]) - 1
+    last = np.flatnonzero(np.r_[first[1:] != first[:-1], True])[chain]
+    merged = last != first
+    out = tp.lengths().astype(float)
+    out[merged] = np.linalg.norm(tp.end[last[merged]] - tp.start[first[merged]], axis=1)
+    return out
+
+
 def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
                     modes: PathModes | None = None) -> Execution:
     """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the

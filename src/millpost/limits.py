@@ -83,7 +83,7 @@ import numpy as np
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
-from .controller import ControllerModel, PathModes, blend_zones, corner_speeds
+from .controller import ControllerModel, PathModes, block_lengths, blend_zones, corner_speeds
 from .progress import Progress, silent
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
@@ -223,10 +223,12 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     amax = tuple(a.amax_mm_s2 for a in ax)
     feed_max = feed_cap_mm_min(job)
     planner = ControllerModel.from_machine(m)
-    # the controller reads at most block_rate blocks per second: a move of length L runs at most L·rate.
-    # It slows by itself there (an F word cannot make it faster or need make it slower): no F word
-    # carries this cap, which on a micro-segment would write a crawl into the moves around it
-    block_cap = np.where(samples.kind != RAPID, toolpath.lengths()[samples.move] * m.controller.block_rate_Hz, np.inf)
+    # the controller reads at most block_rate blocks per second: a block of length L runs at most L·rate,
+    # a block being a move or the chain of straight feeds it merges them into (`block_lengths`). It slows
+    # by itself there (an F word cannot make it faster or need make it slower): no F word carries this
+    # cap, which on a micro-segment would write a crawl into the moves around it
+    block_cap = np.where(samples.kind != RAPID,
+                         block_lengths(toolpath, modes)[samples.move] * m.controller.block_rate_Hz, np.inf)
     limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
               Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False, clamp=True),
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
