@@ -354,6 +354,11 @@ def test_cycles_are_written_whole_and_taps_and_bores_keep_their_feed(tmp_path):
     assert tap.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[tap & (emitted.toolpath.kind != 0)] == 625)
     bore = emitted.cycle == 850
     assert bore.sum() >= 4 and np.all(emitted.toolpath.feed_mm_min[bore & (emitted.toolpath.kind != 0)] <= 90)
+    # the honest baseline keeps them too (a machinist does not retune a tap's feed)
+    base, cycle = result.trace["feed_baseline_mm_min"], original.cycle[result.samples.move]
+    assert np.all(base[cycle == 840][np.isfinite(base[cycle == 840])] == 625)
+    assert np.all(base[cycle == 850][np.isfinite(base[cycle == 850])] <= 90)
+    assert result.summary["baseline_feed_mm_min"][2] == {625.0: 625.0}
 
 
 def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):

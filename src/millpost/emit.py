@@ -115,12 +115,7 @@ class FeedPlan:
             else:
                 plan.fragments[mv] = [(f.u_end, snapped(mv, f.feed_mm_min)) for f in frs]
                 plan.feed_mm_min[mv] = min(f for _, f in plan.fragments[mv])
-        # a tapping cycle feeds at the tap's pitch times the spindle speed (synchronised): its F is never
-        # changed; a boring cycle's feed sets the finish of the bore: it is never raised (a hard limit may lower it)
-        held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
-        programmed = program.toolpath.feed_mm_min[held]
-        plan.feed_mm_min[held] = np.where(np.isin(program.cycle[held], TAPPING_CYCLES), programmed,
-                                          np.fmin(plan.feed_mm_min[held], programmed))
+        plan.feed_mm_min, held = cycle_feeds(program, plan.feed_mm_min)
         for mv in held:
             plan.fragments.pop(int(mv), None)
         if program.control_flow:
@@ -138,6 +133,18 @@ class FeedPlan:
             plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], cluster(per_line, step)[inverse])
             plan.fragments = {}
         return plan
+
+
+def cycle_feeds(program: Program, feed_mm_min: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-move feeds (mm/min) with the canned cycles whose feed is not free: a tapping cycle feeds at
+    the tap's pitch times the spindle speed (synchronised), so its F is never changed; a boring cycle's
+    feed sets the finish of the bore, so it is never raised (a hard limit may lower it). Returns the
+    feeds and the indices of those cycles' moves."""
+    held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
+    programmed = program.toolpath.feed_mm_min[held]
+    out = np.array(feed_mm_min, float, copy=True)
+    out[held] = np.where(np.isin(program.cycle[held], TAPPING_CYCLES), programmed, np.fmin(out[held], programmed))
+    return out, held
 
 
 class _Unknown(dict):

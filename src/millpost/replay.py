@@ -16,7 +16,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .controller import Execution
-from .emit import emitted_positions
+from .emit import cycle_feeds, emitted_positions
 from .engagement import Engagement
 from .gcode.interpret import Program
 from .job import Job
@@ -34,7 +34,8 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
     exceeds no speed-only limit anywhere the group cuts; a group with no sampled move keeps its
     programmed feed. On the moves a cap from the program's own feeds applies to (the limits the group's
     F does not obey: the plunge feed cap on ramps and plunges, the air clearance on approaches) the feed
-    is at most that cap. Rapids are untouched. Returns the feed per move, per tool {programmed F: the
+    is at most that cap. A tapping cycle keeps its programmed feed and a boring cycle's is never raised
+    (`emit.cycle_feeds`), as in the optimized program. Rapids are untouched. Returns the feed per move, per tool {programmed F: the
     highest feed that group's moves run at}, and the cap per sample (mm/s) all its feeds keep (inf
     where none)."""
     tp = program.toolpath
@@ -61,6 +62,7 @@ def baseline_feeds(program: Program, samples: Samples, limits: JobLimits) -> tup
         np.minimum.at(move_cap, samples.move, own_cap * 60.0)
         feeds = np.where(tp.kind != RAPID, np.minimum(feeds, move_cap), feeds)
         cap = np.fmin(cap, own_cap * 60.0)
+    feeds, _ = cycle_feeds(program, feeds)  # tapping and boring feeds, as the optimized program keeps them
     runs = np.zeros(len(groups))
     np.maximum.at(runs, group, feeds[moving])
     per_tool: dict[int, dict[float, float]] = {}
