@@ -377,3 +377,27 @@ def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):
     assert "  G1 F[#1] X[#2]" in result.text.splitlines()
     assert result.summary["status"] == "solved"
     assert result.summary["cycle_time_after_s"] <= result.summary["cycle_time_before_s"] * (1 + 1e-3)
+    assert any(n.startswith("note: line 2 runs several times") and "keep the program's F" in n
+               for n in result.summary["notes"])
+
+
+def test_subroutine_line_with_one_f_for_all_runs_is_noted(tmp_path):
+    """A subroutine line with no F word of its own, called twice at the modal F300: the first call cuts a
+    full 4 mm slot in aluminium, the second runs again in the slot it cut (air). One F word serves both
+    runs, so the air run goes no faster than the slot allows: the summary names the line, and the F
+    written on it is the slot's (its chip-load feed), not the air's."""
+    (tmp_path / "p.ngc").write_text("o100 sub\n  G1 X[#1]\no100 endsub\nG21 G90 G17\nT1 M6\nS9000 M3\n"
+                                    "G0 X-10 Y0 Z2\nG1 Z-4 F300\no100 call [20]\nG1 X0\no100 call [20]\n"
+                                    "G0 Z10\nM2\n")
+    (tmp_path / "job.toml").write_text(
+        'program = "p.ngc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-5, -10, -10], [25, 10, 0]]\n'
+        'cell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = "flat"\nflute_length_mm = 16\n'
+        'stickout_mm = 24\n')
+    result = optimize(load_job(tmp_path / "job.toml"), progress=False)
+    assert any(n.startswith("note: line 2 runs several times") and "one F serves every run" in n
+               for n in result.summary["notes"]), result.summary["notes"]
+    trace = result.trace
+    line2 = (trace["line"] == 2) & np.isfinite(trace["feed_schedule_mm_min"])
+    emitted = read_text(result.text)
+    f_line2 = set(emitted.toolpath.feed_mm_min[(emitted.toolpath.line == 2) & (emitted.toolpath.kind != 0)])
+    assert len(f_line2) == 1 and f_line2.pop() < np.nanmax(trace["feed_schedule_mm_min"][line2]) / 1.5

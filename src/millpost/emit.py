@@ -64,6 +64,10 @@ class FeedPlan:
     feed_mm_min: np.ndarray
     fragments: dict[int, list[tuple[float, float]]]
     step: float = 0.0
+    # source lines that run several times (control flow): those that keep the program's F, and those
+    # whose one F, the lowest any run allows, slows a run that could go faster (`from_fragments`)
+    kept_lines: tuple[int, ...] = ()
+    shared_lines: tuple[int, ...] = ()
 
     @classmethod
     def programmed(cls, program: Program) -> "FeedPlan":
@@ -130,8 +134,16 @@ class FeedPlan:
             own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
                               for n in lines], bool)
             keep = own_f & ~forced & (cluster(per_line, step) < prog_max * (1 - 1e-9))
+            run_max = np.zeros(len(lines))
+            np.maximum.at(run_max, inverse, plan.feed_mm_min[fed])
             plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], cluster(per_line, step)[inverse])
             plan.fragments = {}
+            runs = np.zeros(len(lines), int)  # moves of each line outside canned cycles: its runs
+            np.add.at(runs, inverse, program.cycle[fed] == 0)
+            again = runs > 1
+            plan.kept_lines = tuple(int(n) for n in lines[keep & again])
+            plan.shared_lines = tuple(int(n) for n in lines[~keep & again
+                                                             & (run_max > cluster(per_line, step) * (1 + step))])
         return plan
 
 

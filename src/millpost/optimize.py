@@ -133,8 +133,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         # programmed corner here, the arcs of the program as emitted in `_emit_within`
         hard_cap = np.full(len(tp), np.inf)
         np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD) * 60.0)
-        text, emitted, after, blends = _emit_within(job, program, samples, limit_mm_s, zones, hard_cap, model,
-                                                    progress)
+        text, emitted, after, blends, plan = _emit_within(job, program, samples, limit_mm_s, zones, hard_cap, model,
+                                                          progress)
         status, message = "solved", ""
     t_emit = time.perf_counter()
     emitted_tp = emitted.toolpath
@@ -191,7 +191,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits, checked.physical),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
-        "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends)
+        "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends) + _flow_notes(plan)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
     if spindle:
@@ -215,7 +215,7 @@ BLEND_PASSES = 6  # emissions at most while blend arcs of the emitted program ex
 
 def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray,
                  hard_cap: np.ndarray, model: controller.ControllerModel, progress: Progress
-                 ) -> tuple[str, Program, controller.Execution, dict]:
+                 ) -> tuple[str, Program, controller.Execution, dict, FeedPlan]:
     """The program with F words within the per-sample feed limit (mm/s; `piecewise_feeds`, hard_cap: per
     move, mm/min) where the controller's blend arcs carry them, what the reader makes of it and how the
     controller runs it. A blend arc runs at up to the faster of two F words over a reach set by the
@@ -229,8 +229,8 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
     arcs are always checked against `limit_mm_s` itself (the F words only fall). After BLEND_PASSES
     emissions, every arc still over lowers the whole run it lies on (between the controller's stops) to
     the run's lowest limit (`run_limit`), and the summary says so. Returns the text, the program, its
-    execution and {"passes": emissions, "over": arcs over the limit in the returned program,
-    "runs_lowered": arcs whose runs were lowered}."""
+    execution, {"passes": emissions, "over": arcs over the limit in the returned program,
+    "runs_lowered": arcs whose runs were lowered} and the feed plan written."""
     tp = program.toolpath
     step = float(job.limits["feed_step"])
     accel = tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")
@@ -239,7 +239,8 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
     for passes in range(1, BLEND_PASSES + 2):
         progress("emission", 2, 4)
         fragments = whole_moves(program, piecewise_feeds(samples, feeds_mm_s, step=step, accel_mm_s2=accel))
-        text = write_feeds(program, FeedPlan.from_fragments(program, fragments, step, hard_cap))
+        plan = FeedPlan.from_fragments(program, fragments, step, hard_cap)
+        text = write_feeds(program, plan)
         progress("emission", 3, 4)
         emitted = read_text(text, str(job.program), job.reader_options())  # what will run
         after = controller.execute_program(emitted, model)
@@ -251,7 +252,7 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
         stubborn = len(over) if passes == BLEND_PASSES else 0
         feeds_mm_s = _arcs_kept(samples, feeds_mm_s, over, limit_mm_s, passes)
     progress("emission", 4, 4)
-    return text, emitted, after, {"passes": passes, "over": int(len(over)), "runs_lowered": stubborn}
+    return text, emitted, after, {"passes": passes, "over": int(len(over)), "runs_lowered": stubborn}, plan
 
 
 def _baseline_within(program: Program, samples: Samples, feeds: np.ndarray, cap_mm_s: np.ndarray,
@@ -304,6 +305,25 @@ def _blend_notes(blends: dict) -> list[str]:
     if blends.get("over"):
         out.append(f"warning: {blends['over']} blend arcs of the emitted program run above the feed limit "
                    "(the controller carries the faster F word into the slower move)")
+    return out
+
+
+def _flow_notes(plan: FeedPlan) -> list[str]:
+    """What the summary says of source lines that run several times (a subroutine or loop): one F word
+    serves all their runs (`FeedPlan.from_fragments`)."""
+    def some(lines: tuple[int, ...]) -> str:
+        if len(lines) == 1:
+            return f"line {lines[0]} runs"
+        more = f" and {len(lines) - 10} more" if len(lines) > 10 else ""
+        return "lines " + ", ".join(map(str, lines[:10])) + more + " run"
+
+    out = []
+    if plan.kept_lines:
+        out.append(f"note: {some(plan.kept_lines)} several times (a subroutine or loop) at different programmed "
+                   "feeds and keep the program's F: one F for every run would slow the faster runs")
+    if plan.shared_lines:
+        out.append(f"note: {some(plan.shared_lines)} several times (a subroutine or loop): one F serves every "
+                   "run, the lowest any run allows, so the others run slower than they could")
     return out
 
 
