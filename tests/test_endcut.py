@@ -377,7 +377,7 @@ def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):
     assert "  G1 F[#1] X[#2]" in result.text.splitlines()
     assert result.summary["status"] == "solved"
     assert result.summary["cycle_time_after_s"] <= result.summary["cycle_time_before_s"] * (1 + 1e-3)
-    assert any(n.startswith("note: line 2 runs several times") and "keep the program's F" in n
+    assert any(n.startswith("note: line 2 runs several times") and "keeps the program's F" in n
                for n in result.summary["notes"])
 
 

@@ -319,8 +319,9 @@ def _flow_notes(plan: FeedPlan) -> list[str]:
 
     out = []
     if plan.kept_lines:
+        keeps = "keeps" if len(plan.kept_lines) == 1 else "keep"
         out.append(f"note: {some(plan.kept_lines)} several times (a subroutine or loop) at different programmed "
-                   "feeds and keep the program's F: one F for every run would slow the faster runs")
+                   f"feeds and {keeps} the program's F: one F for every run would slow the faster runs")
     if plan.shared_lines:
         out.append(f"note: {some(plan.shared_lines)} several times (a subroutine or loop): one F serves every "
                    "run, the lowest any run allows, so the others run slower than they could")
