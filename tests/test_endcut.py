@@ -361,19 +361,25 @@ def test_cycles_are_written_whole_and_taps_and_bores_keep_their_feed(tmp_path):
     assert result.summary["baseline_feed_mm_min"][2] == {625.0: 625.0}
 
 
+def _subroutine_job(tmp_path, main: str, body: str, x_min: float):
+    """Optimize `main` (G21 G90, T1 at S9000, ends G0 Z10 M2) with subroutine o100 = `body` (line 2), a
+    6 mm 3-flute flat end mill in an al6061 block from X x_min to x_min + 30, top at Z0, on vmc-small."""
+    (tmp_path / "p.ngc").write_text(f"o100 sub\n  {body}\no100 endsub\nG21 G90 G17\nT1 M6\nS9000 M3\n{main}"
+                                    "G0 Z10\nM2\n")
+    (tmp_path / "job.toml").write_text(
+        f'program = "p.ngc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\n'
+        f'box = [[{x_min}, -10, -10], [{x_min + 30}, 10, 0]]\ncell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\n'
+        'flutes = 3\nshape = "flat"\nflute_length_mm = 16\nstickout_mm = 24\n')
+    return optimize(load_job(tmp_path / "job.toml"), progress=False)
+
+
 def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):
     """A subroutine line `G1 F[#1] ...` called at F300 and at F3000 (above the chip-load feed, which the
     default policy does not lower): one constant F for the line would run the F3000 call at the lowest
     feed any run may take. No hard limit needs either run slower, so the line keeps the program's F
     expression, and the optimized program is no slower than the programmed one."""
-    (tmp_path / "p.ngc").write_text("o100 sub\n  G1 F[#1] X[#2]\no100 endsub\nG21 G90 G17\nT1 M6\nS9000 M3\n"
-                                    "G0 X0 Y0 Z2\nG1 Z-1 F100\no100 call [300] [10]\no100 call [3000] [20]\n"
-                                    "G0 Z10\nM2\n")
-    (tmp_path / "job.toml").write_text(
-        'program = "p.ngc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-10, -10, -10], [30, 10, 0]]\n'
-        'cell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = "flat"\nflute_length_mm = 16\n'
-        'stickout_mm = 24\n')
-    result = optimize(load_job(tmp_path / "job.toml"), progress=False)
+    result = _subroutine_job(tmp_path, "G0 X0 Y0 Z2\nG1 Z-1 F100\no100 call [300] [10]\no100 call [3000] [20]\n",
+                             "G1 F[#1] X[#2]", -10)
     assert "  G1 F[#1] X[#2]" in result.text.splitlines()
     assert result.summary["status"] == "solved"
     assert result.summary["cycle_time_after_s"] <= result.summary["cycle_time_before_s"] * (1 + 1e-3)
@@ -386,14 +392,8 @@ def test_subroutine_line_with_one_f_for_all_runs_is_noted(tmp_path):
     full 4 mm slot in aluminium, the second runs again in the slot it cut (air). One F word serves both
     runs, so the air run goes no faster than the slot allows: the summary names the line, and the F
     written on it is the slot's (its chip-load feed), not the air's."""
-    (tmp_path / "p.ngc").write_text("o100 sub\n  G1 X[#1]\no100 endsub\nG21 G90 G17\nT1 M6\nS9000 M3\n"
-                                    "G0 X-10 Y0 Z2\nG1 Z-4 F300\no100 call [20]\nG1 X0\no100 call [20]\n"
-                                    "G0 Z10\nM2\n")
-    (tmp_path / "job.toml").write_text(
-        'program = "p.ngc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[-5, -10, -10], [25, 10, 0]]\n'
-        'cell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\nflutes = 3\nshape = "flat"\nflute_length_mm = 16\n'
-        'stickout_mm = 24\n')
-    result = optimize(load_job(tmp_path / "job.toml"), progress=False)
+    result = _subroutine_job(tmp_path, "G0 X-10 Y0 Z2\nG1 Z-4 F300\no100 call [20]\nG1 X0\no100 call [20]\n",
+                             "G1 X[#1]", -5)
     assert any(n.startswith("note: line 2 runs several times") and "one F serves every run" in n
                for n in result.summary["notes"]), result.summary["notes"]
     trace = result.trace

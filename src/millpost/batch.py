@@ -6,7 +6,6 @@ results table (CSV and HTML) has each job's status, cycle times, run time and li
 from __future__ import annotations
 
 import html
-import json
 import logging
 import time
 import traceback
