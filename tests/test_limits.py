@@ -125,14 +125,10 @@ def test_held_limits_say_how_far_over_their_bound(run):
     optimized program: for the deflection, the trace's deflection over its limit."""
     lower, (job, program, samples, eng, result, feeds) = run
     held, tr = result.summary["held"], result.trace
-    assert held
-    for name, h in held.items():
-        assert h["over_bound"] == pytest.approx(result.summary.get("hard_limits_exceeded", {}).get(name, h["over_bound"]),
-                                                rel=1e-3)
-    if "deflection" in held:
-        cut = tr["ap_mm"] > 0
-        assert held["deflection"]["over_bound"] == pytest.approx(
-            float(np.nanmax(tr["deflection_mm"][cut] / tr["deflection_limit_mm"][cut])), rel=2e-3)
+    assert "deflection" in held  # the deep slots bend the 6 mm tool over its limit at the programmed feed
+    cut = tr["ap_mm"] > 0
+    assert held["deflection"]["over_bound"] == pytest.approx(
+        float(np.nanmax(tr["deflection_mm"][cut] / tr["deflection_limit_mm"][cut])), rel=2e-3)
 
 
 def test_nothing_reported_exceeded_where_no_hard_limit_is_held(run):

@@ -126,24 +126,24 @@ class FeedPlan:
             tp = program.toolpath
             fed = np.flatnonzero(np.isfinite(plan.feed_mm_min) & (tp.kind != RAPID))
             lines, inverse = np.unique(tp.line[fed], return_inverse=True)
-            per_line, prog_max, forced = np.full(len(lines), np.inf), np.zeros(len(lines)), np.zeros(len(lines), bool)
+            per_line, run_max = np.full(len(lines), np.inf), np.zeros(len(lines))
+            prog_max, forced = np.zeros(len(lines)), np.zeros(len(lines), bool)
             np.minimum.at(per_line, inverse, plan.feed_mm_min[fed])
+            np.maximum.at(run_max, inverse, plan.feed_mm_min[fed])
             np.maximum.at(prog_max, inverse, tp.feed_mm_min[fed])
+            one_f = cluster(per_line, step)  # one F per line: the lowest of its runs, clustered
             np.logical_or.at(forced, inverse, hard_cap_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
             text = program.text.splitlines()
             own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
                               for n in lines], bool)
-            keep = own_f & ~forced & (cluster(per_line, step) < prog_max * (1 - 1e-9))
-            run_max = np.zeros(len(lines))
-            np.maximum.at(run_max, inverse, plan.feed_mm_min[fed])
-            plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], cluster(per_line, step)[inverse])
+            keep = own_f & ~forced & (one_f < prog_max * (1 - 1e-9))
+            plan.feed_mm_min[fed] = np.where(keep[inverse], tp.feed_mm_min[fed], one_f[inverse])
             plan.fragments = {}
             runs = np.zeros(len(lines), int)  # moves of each line outside canned cycles: its runs
             np.add.at(runs, inverse, program.cycle[fed] == 0)
             again = runs > 1
             plan.kept_lines = tuple(int(n) for n in lines[keep & again])
-            plan.shared_lines = tuple(int(n) for n in lines[~keep & again
-                                                             & (run_max > cluster(per_line, step) * (1 + step))])
+            plan.shared_lines = tuple(int(n) for n in lines[~keep & again & (run_max > one_f * (1 + step))])
         return plan
 
 

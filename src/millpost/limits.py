@@ -186,11 +186,10 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     return np.where(held, a * v_keep + b, bound), held
 
 
-def _corners(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes):
-    """The corner rule of the machine's own planner (`ControllerModel.from_machine`): grbl's junction
-    deviation, or the speeds a blending planner passes corners at (`controller.corner_speeds` in the
-    path modes `modes`), on the last sample before each corner."""
-    model = ControllerModel.from_machine(job.machine)
+def _corners(model: ControllerModel, samples: Samples, toolpath: Toolpath, modes: PathModes):
+    """The corner rule of the machine's own planner `model`: grbl's junction deviation, or the speeds a
+    blending planner passes corners at (`controller.corner_speeds` in the path modes `modes`), on the
+    last sample before each corner."""
     if model.planner == "grbl":
         return Junction(model.accel_mm_s2, model.junction_deviation_mm)
     corner = corner_speeds(toolpath, model, modes)
@@ -209,13 +208,14 @@ def feed_cap_mm_min(job: Job) -> float:
 
 
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
-                 release_slices: bool = False, modes: PathModes) -> JobLimits:
+                 release_slices: bool = False, modes: PathModes, zones: np.ndarray | None = None) -> JobLimits:
     """Every limit of the job over the resampled program, with the feed policy applied. progress: a
     `millpost.progress` callback (stage "forces", in samples). release_slices: once the loads are
     computed, `eng` (changed in place) keeps only what `Engagement.per_sample` keeps (memory: its
     per-slice arrays, ~0.4 KB a sample, are freed before the limits' own arrays are built). modes: the
     program's path modes (`controller.path_modes`: where its corners blend and its straight feeds
-    merge), required: the program's G61/G64 decide its corner caps."""
+    merge), required: the program's G61/G64 decide its corner caps. zones: the blend arcs of the
+    programmed corners (`controller.blend_zones` of `toolpath` in `modes`; computed here unless given)."""
     n = len(samples)
     m = job.machine
     lower = str(job.limits["lower"])
@@ -237,7 +237,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
               # LinuxCNC's planner (`controller`) runs an arc as one segment clamped at √(a_n·r) by itself;
               # grbl runs it as chords whose F word it keeps, so the F word carries the cap there
               Limit(Centripetal(amax), HARD, "inertia", controller=True, f_word=planner.planner == "grbl"),
-              Limit(_corners(job, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
+              Limit(_corners(planner, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
                             f_word=False))
@@ -363,7 +363,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
     # (the program itself runs a blended corner at the faster of its two feeds, into the plunge's end)
     raised = np.maximum(np.where(v_prog > 0, raise_max * v_prog, np.inf),
-                        programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes)))
+                        programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None
+                                        else zones))
     plunge_cap = np.minimum(plunge_cap, raised)
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed",
                         baseline=False))

@@ -67,11 +67,15 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         del stock
         eng = replace(eng, arc_rad=None, step_mm=None, descending=None, move=None, line=None, depth_mm=None)
         t_engage = time.perf_counter()
-        limits, modes = None, controller.path_modes(program, controller_model(job))
+        model = controller_model(job)
+        limits, modes = None, controller.path_modes(program, model)
+        zones = controller.blend_zones(program.toolpath, model, modes)  # the programmed corners' blend arcs
         if job.limits["rpm"] != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True, modes=modes)
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True, modes=modes,
+                                  zones=zones)
         t_limits = time.perf_counter()
-        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits, modes=modes)
+        result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits, modes=modes,
+                                  zones=zones)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
@@ -83,29 +87,30 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
 
 def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
                      progress: Progress = silent, limits: JobLimits | None = None,
-                     modes: controller.PathModes | None = None) -> Result:
+                     modes: controller.PathModes | None = None, zones: np.ndarray | None = None) -> Result:
     """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
     `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
     schedule, emitted text, cycle times and the replay check. modes: the program's path modes
-    (`controller.path_modes`, computed here unless given). (Split from `optimize` so that tests can
+    (`controller.path_modes`), zones: its programmed corners' blend arcs (`controller.blend_zones`),
+    both computed here unless given. (Split from `optimize` so that tests can
     give engagements of known geometry.) progress: stages "forces", "schedule", "emission" and "replay"."""
     options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
     model = controller_model(job)
     modes = modes if modes is not None else controller.path_modes(program, model)
+    zones = zones if zones is not None else controller.blend_zones(program.toolpath, model, modes)
     spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
     if job.limits["rpm"] == "optimize":  # the S words change, the moves and their path modes do not
-        program, samples, spindle = choose_speeds(job, program, samples, eng, options, modes, progress)
+        program, samples, spindle = choose_speeds(job, program, samples, eng, options, modes, zones, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
         limits = None  # the loads at the chosen speeds
     tp = program.toolpath
     t_limits = time.perf_counter()
-    limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress, modes=modes)
+    limits = limits if limits is not None else build_limits(job, samples, eng, tp, progress, modes=modes, zones=zones)
     t0 = time.perf_counter()
     sched = schedule_samples(samples, limits, options)
     solver_s = time.perf_counter() - t0
     progress("emission", 0, 4)
     before = controller.execute_program(program, model, modes=modes)
-    zones = controller.blend_zones(tp, model, modes)  # the programmed corners' blend arcs, at any feeds
     base_feeds, base_per_tool, base_cap = baseline_feeds(program, samples, limits)
     base_feeds, baseline = _baseline_within(program, samples, base_feeds, base_cap, zones, model, modes)
     del base_cap  # memory: the emission below is the run's peak
@@ -113,7 +118,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
         result = schedule_program(replace(job, limits={**job.limits, "rpm": "programmed"}), *as_given, eng, options,
-                                  progress, modes=modes)
+                                  progress, modes=modes, zones=zones)
         result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
         return result
     if failed:

@@ -237,13 +237,18 @@ def spindle_off_message(path: str, line: int, block: str = "", started: int | No
             "line; a spindle switched by hand turns at spindle_rpm = <rpm> in the job, else at the program's S word")
 
 
+def _in_force(events: list[tuple[int, float]], moves: np.ndarray) -> np.ndarray:
+    """Per move index, the value of the last (move, value) event at or before it (0 before the first)."""
+    at, value = np.array(events, float).T if events else (np.zeros(0), np.zeros(0))
+    k = np.searchsorted(at, moves, side="right") - 1
+    return np.where(k >= 0, value[np.maximum(k, 0)] if len(value) else 0.0, 0.0)
+
+
 def _spindle_started(program: Program, moves: np.ndarray) -> np.ndarray:
     """Per move index, the line of the M3/M4 that runs the spindle there (0 where it is off)."""
     on = [(e.move, e.line if e.value[0] in ("cw", "ccw") else 0) for e in program.events
           if e.kind == "spindle" and e.value[0] != "speed"]
-    at, line = (np.array(on).T if on else (np.zeros(0, int), np.zeros(0, int)))
-    k = np.searchsorted(at, moves, side="right") - 1
-    return np.where(k >= 0, line[np.maximum(k, 0)] if len(line) else 0, 0).astype(int)
+    return _in_force(on, moves).astype(int)
 
 
 def check_spindle(program: Program, samples: Samples, eng, hand_rpm: float | None, allow: Iterable[str],
@@ -286,9 +291,7 @@ def check_spindle(program: Program, samples: Samples, eng, hand_rpm: float | Non
                      "spindle_rpm, switched by hand)")
     else:  # the S word in force at each move: the last one set before it
         words = [(e.move, float(e.value)) for e in program.events if e.kind == "s_word"]
-        at, value = np.array(words).T if words else (np.zeros(0), np.zeros(0))
-        k = np.searchsorted(at, np.asarray(samples.move), side="right") - 1
-        by_hand[off] = np.where(k >= 0, value[np.maximum(k, 0)] if len(value) else 0.0, 0.0)[off]
+        by_hand[off] = _in_force(words, np.asarray(samples.move))[off]
         if np.any(off & (by_hand <= 0)):
             bad = int(samples.line[np.argmax(off & (by_hand <= 0))])
             raise MillpostError(f"{program.path}:{bad}: the tool cuts with the spindle off (allowed: switched by "

@@ -118,10 +118,11 @@ def _plain_number(text: str) -> bool:
 
 
 def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions, modes: PathModes,
-                  progress: Progress = silent) -> tuple[Program, Samples, dict]:
+                  zones: np.ndarray, progress: Progress = silent) -> tuple[Program, Samples, dict]:
     """The program and samples at the chosen speeds (the text with the new S words, toolpath and samples
     with the new rpm) and a summary: per S block its line, programmed and chosen S, window and times.
-    modes: the program's path modes (`controller.path_modes`)."""
+    modes, zones: the program's path modes and its programmed corners' blend arcs (`controller.path_modes`,
+    `controller.blend_zones`)."""
     blocks = speed_blocks(job, program)
     free = [b for b in blocks if b.window is not None]
     sample_block = np.full(len(samples), -1)
@@ -129,12 +130,12 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
         sample_block[np.isin(samples.move, b.moves)] = k
     grids = {id(b): _grid(*b.window[:2]) for b in free}
     tries = max((len(g) for g in grids.values()), default=0)
-    times = [_block_times(job, program, samples, eng, options, modes, blocks, sample_block)]  # as programmed
+    times = [_block_times(job, program, samples, eng, options, modes, zones, blocks, sample_block)]  # as programmed
     for c in range(tries):  # the c-th speed of every block's grid at once (the blocks' times are their own)
         progress("spindle speeds", c, tries)
         rpm = {b.line: float(grids[id(b)][min(c, len(grids[id(b)]) - 1)]) for b in free}
         times.append(_block_times(job, program, _with_rpm(samples, blocks, sample_block, rpm), eng, options, modes,
-                                  blocks, sample_block))
+                                  zones, blocks, sample_block))
     progress("spindle speeds", tries, tries)
     chosen: dict[int, float] = {}
     rows = []
@@ -194,10 +195,10 @@ def _with_rpm(samples: Samples, blocks: list[SpeedBlock], sample_block: np.ndarr
 
 
 def _block_times(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions, modes: PathModes,
-                 blocks: list[SpeedBlock], sample_block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                 zones: np.ndarray, blocks: list[SpeedBlock], sample_block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per block the scheduled time (s) of its samples under the job's limits at the samples' rpm (inf
     for every block when a segment's solve fails), and how many of its samples the feed policy holds."""
-    limits = build_limits(job, samples, eng, program.toolpath, modes=modes)
+    limits = build_limits(job, samples, eng, program.toolpath, modes=modes, zones=zones)
     with reporting(silent):  # the stage is "spindle speeds", not the schedule's own
         sched = schedule_samples(samples, limits, options)
     mine = sample_block >= 0
