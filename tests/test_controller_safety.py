@@ -159,9 +159,16 @@ def test_merged_chains_run_no_slower_than_the_baseline(tmp_path):
     F1500 where the baseline's F4690 runs 3000 (2.77 s against the baseline's 2.62 s)."""
     from millpost.optimize import optimize
 
-    s = optimize(_chain_job(tmp_path), progress=False).summary
+    job = _chain_job(tmp_path)
+    result = optimize(job, progress=False)
+    s, tr = result.summary, result.trace
     assert s["cycle_time_after_s"] <= s["cycle_time_baseline_s"] * (1 + 1e-3)
     assert s["limits"]["plunge_feed"] <= 1 + TOL
+    # mid-slot the merged lines run at the X axis rate, above the 0.05 mm moves' block-rate speed
+    mid = (tr["x"] > 0) & (tr["x"] < 7) & (np.abs(tr["z"] + 0.3) < 1e-9)
+    x_rate = job.machine.axes["x"].vmax_mm_min
+    assert x_rate > 1.5 * 0.05 * job.machine.controller.block_rate_Hz * 60
+    assert np.median(tr["feed_executed_mm_min"][mid]) == pytest.approx(x_rate, rel=1e-3)
 
 
 def _baseline_ratio(job, result) -> float:
