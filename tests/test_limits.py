@@ -20,7 +20,7 @@ from millpost.limits import HARD, QUALITY, build_limits
 from millpost.machine import Machine
 from millpost.materials import Material
 from millpost.optimize import optimize, schedule_program
-from millpost.signals import controller_model
+from millpost.signals import controller_model, predict
 from millpost.toolpath import RAPID
 from millpost.tools import Tool
 
@@ -118,6 +118,13 @@ def test_hard_limit_needing_less_than_min_chip_is_held_and_listed():
     over = np.nanmax(tr["peak_force_N"] / tr["peak_force_limit_N"])
     assert over > 1.005
     assert result.summary["hard_limits_exceeded"]["cutting_force"] == pytest.approx(over, rel=1e-3)
+    # and how far the programmed feeds break it: the peak force at the programmed feed (every slot reaches
+    # it) over the same bound before the policy, not over the held bound (the policy's own load)
+    cut = tr["ap_mm"] > 0
+    at_programmed = predict(job, samples, eng, np.where(cut, PROGRAMMED / 60.0, 0.0), peaks=True)
+    programmed_over = np.nanmax(at_programmed.peak_force_xy_N[cut] / tr["peak_force_limit_N"][cut])
+    assert programmed_over > over
+    assert result.summary["limits_programmed"]["cutting_force"] == pytest.approx(programmed_over, rel=1e-3)
 
 
 def test_held_limits_say_how_far_over_their_bound(run):

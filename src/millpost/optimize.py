@@ -150,8 +150,12 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     executed = after.speed_at(*emitted_positions(tp, emitted_tp, samples.move,
                                                  controller.Execution.sample_fractions(samples)))
     progress("replay", 1, 3)
-    # the programmed run first: only its ratios are kept, so its signals are freed before the emitted run's
-    as_programmed = replay(job, samples, eng, limits, before.speed_at_samples(samples)).ratios
+    # the programmed run first: only its ratios are kept, so its signals are freed before the emitted run's;
+    # a load against its bound before the policy (the policy's held bound is the programmed feed's own load,
+    # against which the programmed feeds would read 1 however far over the limit they are)
+    programmed_run = replay(job, samples, eng, limits, before.speed_at_samples(samples))
+    as_programmed = programmed_run.ratios | programmed_run.physical
+    del programmed_run
     progress("replay", 2, 3)
     checked = replay(job, samples, eng, limits, executed)
     progress("replay", 3, 3)
