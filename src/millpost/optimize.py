@@ -393,7 +393,7 @@ def _held_lines(samples: Samples, limits: JobLimits, physical: dict[str, float])
         out[name] = {"kind": kind, "samples": int(mask.sum()), "lines": [int(x) for x in lines[:20]],
                      "line_count": int(len(lines)), "over_bound": round(float(physical.get(name, 0.0)), 3),
                      "reason": ("the cut needs a feed below the minimum-chip feed (or the programmed one): held "
-                                "there; the cut itself is too heavy for the tool" if kind == HARD else
+                                "there; the cut itself is too heavy for this tool on this machine" if kind == HARD else
                                 "the programmed feed already exceeds it: it does not lower the feed there (hard "
                                 "limits may), reported")}
     return out
