@@ -360,6 +360,26 @@ def test_every_written_f_change_is_at_least_the_step_of_the_f_it_leaves():
     assert np.all((change == 0) | (change >= 0.05 * feeds[:-1] - 1e-9))
 
 
+def test_the_feed_step_never_takes_a_feed_below_the_programmed_one():
+    """By default only a hard limit lowers a feed below the programmed one; the feed step does not. A
+    move wanting its programmed F400 after a faster F420 (a fall of 4.5 %) would fall a full step to
+    F399; a move programmed F400 wanting F405 after F390 (a rise of 3.8 %) would keep F390. Where the
+    wanted F is the programmed one or more, the written F is too (a change smaller than the step);
+    under it (a limit), the step rule holds."""
+    from millpost.schedule.feeds import Fragment
+
+    prog = read_text("G21 G90\nG0 X0 Y0 Z-1\nG1 X10 F400\nG1 X20\nG1 X30\nG1 X40\nG1 X50 F390\n"
+                     "G1 X60 F400\nM2\n")
+    wanted = [420.0, 401.0, 385.0, 400.0, 390.0, 405.0]  # mm/min; 385: a hard limit under the F400
+    frags = [Fragment(k + 1, 0.0, 1.0, f) for k, f in enumerate(wanted)]
+    cap = np.full(len(prog.toolpath), np.inf)
+    text = write_feeds(prog, FeedPlan.from_fragments(prog, frags, 0.05, cap))
+    # F401 after F420 stops at the programmed F400; F385, under it, falls a full step from F400; F405
+    # after F390 is the programmed F400
+    assert text.splitlines()[2:8] == ["G1 X10 F420", "G1 X20 F400", "G1 X30 F380", "G1 X40 F400",
+                                      "G1 X50 F390", "G1 X60 F400"]
+
+
 @pytest.mark.parametrize("units,line,last", [
     ("G21", "G1 X192.050 Y229.010 Z-0.0500 F100", "G1 X192.050 Y229.010 Z-0.0500 F100"),  # Scorpion, Heart.tap
     ("G20", "g1 x1.5 y.75 z-.1 f10", "g1 x1.5 y.75 z-.1 f10"),  # arcspiral's lower case, no leading zero

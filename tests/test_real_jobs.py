@@ -7,7 +7,7 @@ LinuxCNC), default feed policy:
   (then the status says `slower` and the replay of the programmed feeds shows the limit over 1);
 - the executed speed within every speed cap the F words hold (max feed, plunge feed...), 0.5 % slack;
 - no feed below the minimum-chip feed (or the programmed one, if lower) except on samples where the
-  summary lists a hard limit as held;
+  summary lists a hard limit as held, and none below the programmed feed but where a hard limit forces it;
 - the emitted path within 1e-4 mm of the original (each emitted move's ends on the original move,
   read at full precision), and LinuxCNC's rs274 reads the emitted program as millpost does;
 - at least 95 % of consecutive feed changes at least the feed step (5 %);
@@ -97,17 +97,35 @@ def test_executed_speed_within_every_f_word_cap(run):
 
 def test_no_feed_below_min_chip_unless_hard_forced(run):
     name, job, result = run
+    tr = result.trace
+    need = np.minimum(tr["feed_min_chip_mm_min"], np.nan_to_num(tr["feed_programmed_mm_min"], nan=np.inf))
+    low, unforced = _runs_below(job, result, need)
+    assert result.summary["below_min_chip"]["samples"] == int(low.sum())
+    assert not unforced, f"{name}: below the minimum-chip feed with no hard cause: " + ", ".join(unforced[:5])
+
+
+def test_no_feed_below_programmed_unless_hard_forced(run):
+    """By default (`lower = "hard"`) only a hard limit lowers a feed below the programmed one: not the
+    settling of F words into runs, nor the feed step (a change smaller than the step is written)."""
+    name, job, result = run
+    _, unforced = _runs_below(job, result, np.nan_to_num(result.trace["feed_programmed_mm_min"], nan=0.0))
+    assert not unforced, f"{name}: below the programmed feed with no hard cause: " + ", ".join(unforced[:5])
+
+
+def _runs_below(job, result, need: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """The cutting samples whose emitted F is under `need` (mm/min per sample), and the emitted F words
+    ("line N FX") among them that no hard limit forces. Forced: a hard limit caps the F somewhere on
+    the run of moves it covers (one F word, settled over consecutive moves; a fragment's F is the lowest
+    limit of the samples it touches, so the run's samples include the one before it and the one after
+    it) under `need`, or one needs less than the chip floor there (a cut too heavy at any feed: the
+    policy holds the floor); and the F is at that cap or floor but for one feed step down (the F
+    words quantise down: `emit._stepped` makes a fall smaller than the step a whole step)."""
     emitted = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
     program = read_program(job.program, job.reader_options())
     feed = feed_at_samples(program.toolpath, emitted, result.samples)
     tr = result.trace
     cut = (result.samples.kind != RAPID) & (tr["feed_min_chip_mm_min"] > 0)
-    need = np.minimum(tr["feed_min_chip_mm_min"], np.nan_to_num(tr["feed_programmed_mm_min"], nan=np.inf))
     low = cut & (feed < need * (1 - 1e-3) - 0.1)  # F words are rounded down to 0.1 mm/min
-    assert result.summary["below_min_chip"]["samples"] == int(low.sum())
-    # each such F is forced: a hard limit caps it somewhere on the run of moves that F covers (one F
-    # word, settled over consecutive moves; a fragment's F is the lowest limit of the samples it
-    # touches, so the run's samples include the one before it and the one after it)
     move, _ = emitted_positions(program.toolpath, emitted, result.samples.move,
                                 Execution.sample_fractions(result.samples))
     f = emitted.feed_mm_min
@@ -123,6 +141,7 @@ def test_no_feed_below_min_chip_unless_hard_forced(run):
     held_hard = np.zeros(len(result.samples), bool)
     for limit in result.summary["hard_limits"]:
         held_hard |= tr.get(f"held_{limit}", held_hard) > 0
+    unforced = []
     for r in np.unique(sample_run[low]):
         on = sample_run == r
         on |= np.r_[on[1:], False] | np.r_[False, on[:-1]]
@@ -131,13 +150,17 @@ def test_no_feed_below_min_chip_unless_hard_forced(run):
             if (near & on).any():
                 on |= near
         k = int(move[np.flatnonzero(sample_run == r)[0]])
-        capped = cap[on].min() <= f[k] * (1 + 1e-3) + 0.1
-        # or a hard limit needs less than the chip floor on the run (a cut too heavy at any feed: the
-        # policy holds the floor there) and the F is the floor but for one feed step down (`emit._stepped`:
-        # a fall smaller than the step falls a whole step)
-        at_floor = held_hard[on].any() and f[k] >= need[on].min() * (1 - step) * (1 - 1e-3) - 0.1
-        assert capped or at_floor, \
-            f"{name}: line {emitted.line[k]} F{f[k]:g} below the minimum-chip feed with no hard cause"
+        wanted = need[low & (sample_run == r)].min()
+        if cap[on].min() < wanted * (1 - 1e-3):
+            bound = cap[on].min()  # a hard limit caps the run under what was needed
+        elif held_hard[on].any():
+            bound = wanted  # a hard limit held at the floor
+        else:
+            unforced.append(f"line {emitted.line[k]} F{f[k]:g}")
+            continue
+        if f[k] < bound * (1 - step) * (1 - 1e-3) - 0.1:
+            unforced.append(f"line {emitted.line[k]} F{f[k]:g} (more than a step under {bound:.1f})")
+    return low, unforced
 
 
 def _distance_to_move(tp, i: int, p: np.ndarray) -> float:
@@ -170,18 +193,26 @@ def test_emitted_path_within_tolerance(run, tmp_path):
     if rs274_oracle.RS274:
         out = tmp_path / "emitted.ngc"
         out.write_text(result.text)
-        trace = rs274_oracle.run(out)
+        # the job's tool diameters, for the cutter compensation (G41/G42) rs274 applies as millpost does
+        trace = rs274_oracle.run(out, diameters_mm={n: t.diameter_mm for n, t in job.tools.items()})
         ours = read_text(result.text, str(out), job.reader_options())
         assert rs274_oracle.mismatches(ours, trace, prefix=trace.error is not None) == []
 
 
 def test_feed_changes_are_meaningful(run):
+    """At least 95 % of the feed changes millpost writes are at least the feed step; a change between two
+    feeds the program itself has there (CAMotics' wave steps its own F by 1-5 %) is the program's."""
     name, job, result = run
     tp = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
-    f = tp.feed_mm_min[tp.kind != RAPID]
-    f = f[np.isfinite(f)]
+    original = read_text(job.program.read_text(), str(job.program), job.reader_options()).toolpath
+    programmed: dict[int, float] = {}  # the program's feed at each source line
+    for line, feed in zip(original.line[original.kind != RAPID], original.feed_mm_min[original.kind != RAPID]):
+        programmed.setdefault(int(line), float(feed))
+    moving = (tp.kind != RAPID) & np.isfinite(tp.feed_mm_min)
+    f = tp.feed_mm_min[moving]
+    own = np.isclose(f, [programmed.get(int(line), np.nan) for line in tp.line[moving]], rtol=1e-9)
     changes = np.abs(np.diff(f)) / np.minimum(f[1:], f[:-1])
-    changed = changes > 1e-9
+    changed = (changes > 1e-9) & ~(own[1:] & own[:-1])
     if changed.sum() < 5:
         return
     step = float(job.limits["feed_step"])

@@ -163,6 +163,23 @@ def test_settle_and_cluster_never_raise_and_space_the_feeds():
     assert np.array_equal(settle(np.array([100.0, 103.0, 120.0, 119.0]), 0.05), [100.0, 100.0, 119.0, 119.0])
 
 
+def test_settle_never_lowers_a_feed_below_its_programmed_one():
+    """CAMotics' wave programs F392.055 then F410.849 (+4.8 %): one run would write F392.055 over moves
+    programmed F410.849 with no limit asking for it. A feed a limit holds under its programmed one
+    still pulls its run down."""
+    from millpost.schedule.feeds import settle
+    f = np.array([392.055, 410.849])
+    np.testing.assert_array_equal(settle(f, 0.05), [392.055, 392.055])
+    np.testing.assert_array_equal(settle(f, 0.05, f), f)
+    np.testing.assert_array_equal(settle(np.array([400.0, 410.0, 420.0]), 0.05, np.array([500.0, 300.0, 300.0])),
+                                  [400.0, 400.0, 400.0])
+    rng = np.random.default_rng(2)
+    f = 1000 * np.exp(np.cumsum(rng.normal(0, 0.03, 3000)))
+    keep = f * rng.uniform(0.8, 1.2, len(f))
+    out = settle(f, 0.05, keep)
+    assert np.all(out <= f) and np.all(out >= np.minimum(f, keep))
+
+
 def test_reachable_joins_short_peaks_only():
     from millpost.schedule.feeds import reachable
     joined = np.array([False, True, True, True])

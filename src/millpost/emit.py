@@ -333,11 +333,13 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
 
         def feed_text(i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
             """F text for move i at the feed after the F in force `modal` (program units), changes
-            smaller than the plan's step made none or a full step (`_stepped`; not in inverse time)."""
+            smaller than the plan's step made none or a full step, never below the move's programmed
+            F where the wanted one is not (`_stepped`; not in inverse time)."""
             text = f_text(f_value(i, feed_mm_min, length_mm))
             if flow or modal is None or program.feed_mode[i] == 930:
                 return text
-            return f_text(_stepped(float(text), modal, plan.step))
+            keep = float(f_text(f_value(i, tp.feed_mm_min[i], length_mm))) if np.isfinite(tp.feed_mm_min[i]) else 0.0
+            return f_text(_stepped(float(text), modal, plan.step, keep))
 
         split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
                  and not computed(block)]
@@ -505,17 +507,21 @@ def whole_moves(program: Program, fragments: list) -> list:
     return out + list(whole.values())
 
 
-def _stepped(value: float, modal: float, step: float) -> float:
+def _stepped(value: float, modal: float, step: float, keep: float = 0.0) -> float:
     """The F to write (program units) for a wanted F `value` after the F in force `modal`, so that every
     change is at least `step` of the F it leaves: a rise by less keeps the F in force (slower, never
-    faster than planned), a fall by less falls a full step to modal·(1 − step) (written rounded down).
+    faster than planned), a fall by less falls a full step to modal·(1 − step) (written rounded down);
+    but where the wanted F is at least `keep` (the programmed F) the written one is too: only a limit
+    lowers a feed below the programmed one, the step rule makes a smaller change there instead.
     (The schedule's runs differ by `step` of the lower feed; a fall is measured from the higher one, and
     rounding to the written grid shrinks either.)"""
     if modal < value < modal * (1 + step):
-        return modal
-    if modal * (1 - step) < value < modal:
-        return modal * (1 - step)
-    return value
+        out = modal
+    elif modal * (1 - step) < value < modal:
+        out = modal * (1 - step)
+    else:
+        out = value
+    return max(out, keep) if value >= keep else out
 
 
 def _same(a: float, b: float) -> bool:

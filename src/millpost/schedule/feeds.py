@@ -59,25 +59,29 @@ def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarra
 SLOWEST_FEED_MM_MIN = 1.0  # the slowest feed written (F0 would be no feed at all)
 
 
-def settle(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
+def settle(feeds_mm_min: np.ndarray, step: float, keep_mm_min: np.ndarray | None = None) -> np.ndarray:
     """Feeds in program order lowered into runs of one feed each, so that F words change only where
     the feed changes meaningfully: a feed joins the current run while the run's largest member stays
     within `step` (relative) of its smallest, and the run takes its smallest (never above any
-    member's limit). Repeated until no two neighbouring runs lie within `step` of each other (a run
-    pulled down by a later member may land next to the one before)."""
+    member's limit), but never below a member's `keep_mm_min` (its programmed feed: only a limit
+    lowers a feed below the programmed one, not the settling; a feed under its keep is not raised).
+    Repeated until no two neighbouring runs lie within `step` of each other (a run pulled down by a
+    later member may land next to the one before)."""
     out = np.asarray(feeds_mm_min, float).copy()
     if step <= 0 or len(out) == 0:
         return out
+    floor = np.zeros_like(out) if keep_mm_min is None else np.minimum(out, np.nan_to_num(keep_mm_min, nan=0.0))
     while True:
         prev = out.copy()
-        start, lo, hi = 0, out[0], out[0]
+        start, lo, hi, need = 0, out[0], out[0], floor[0]
         for i in range(1, len(out) + 1):
-            if i < len(out) and max(hi, out[i]) <= min(lo, out[i]) * (1 + step):
-                lo, hi = min(lo, out[i]), max(hi, out[i])
+            if (i < len(out) and max(hi, out[i]) <= min(lo, out[i]) * (1 + step)
+                    and max(need, floor[i]) <= min(lo, out[i])):
+                lo, hi, need = min(lo, out[i]), max(hi, out[i]), max(need, floor[i])
                 continue
             out[start:i] = lo
             if i < len(out):
-                start, lo, hi = i, out[i], out[i]
+                start, lo, hi, need = i, out[i], out[i], floor[i]
         if np.array_equal(out, prev):
             return out
 
@@ -135,7 +139,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
                     max_changes_per_mm: float = 0.2, step: float = 0.05,
                     accel_mm_s2: tuple[float, float, float] | None = None) -> list[Fragment]:
     """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
-    and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`) and, with the axes'
+    and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`, never below a fragment's
+    programmed feed where its limit allows that feed) and, with the axes'
     accelerations (mm/s²), short peaks the controller cannot reach joined to their neighbours
     (`reachable`), repeated until stable; equal neighbours within a move merged.
 
@@ -183,9 +188,10 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     k_of = k_of.astype(np.int64)
     move = np.asarray(mv)[starts[k_of]]
     joined = np.r_[False, (move[1:] == move[:-1]) | (move[1:] == move[:-1] + 1)]
+    programmed = samples.feed_mm_min[starts[k_of]]  # mm/min, of each fragment's move
     for _ in range(20):
         before = feeds
-        feeds = reachable(settle(feeds, step), length, accel[k_of], joined, step)
+        feeds = reachable(settle(feeds, step, programmed), length, accel[k_of], joined, step)
         if np.array_equal(feeds, before):
             break
     # equal neighbours within a move merged
