@@ -49,7 +49,8 @@ _UNSUPPORTED_G = {
     383: "probing (G38.3)", 384: "probing (G38.4)", 385: "probing (G38.5)", 434: "5-axis tool centre point (G43.4)",
     435: "5-axis tool centre point (G43.5)", 500: "scaling (G50)", 510: "scaling (G51)", 501: "mirroring (G50.1)",
     511: "mirroring (G51.1)", 650: "macro call (G65)", 680: "coordinate rotation (G68)",
-    682: "5-axis tilted work plane (G68.2)", 700: "lathe cycle (G70)", 710: "lathe cycle (G71)", 720: "lathe cycle (G72)",
+    682: "5-axis tilted work plane (G68.2)", 700: "lathe cycle (G70; inch units on some older controls: write G20)",
+    710: "lathe cycle (G71; millimetre units on some older controls: write G21)", 720: "lathe cycle (G72)",
     960: "constant surface speed (G96)", 1000: "user G code",
 }
 MAX_CYCLE_MOVES = 100_000  # one canned-cycle block (repeats x pecks)
