@@ -331,15 +331,21 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             d = (2 if inch else 1) + (2 if value < 10 else 0)
             return _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, trailing_point)
 
+        written = {"f": math.nan, "held": False}  # the last F feed_text wrote; under its move's programmed F?
+
         def feed_text(i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
             """F text for move i at the feed after the F in force `modal` (program units), changes
-            smaller than the plan's step made none or a full step, never below the move's programmed
-            F where the wanted one is not (`_stepped`; not in inverse time)."""
+            smaller than the plan's step made none or a full step, under the move's programmed F only
+            where a limit asks for it (`_stepped`; not in inverse time)."""
             text = f_text(f_value(i, feed_mm_min, length_mm))
             if flow or modal is None or program.feed_mode[i] == 930:
                 return text
             keep = float(f_text(f_value(i, tp.feed_mm_min[i], length_mm))) if np.isfinite(tp.feed_mm_min[i]) else 0.0
-            return f_text(_stepped(float(text), modal, plan.step, keep))
+            # the F in force is one a limit held under the programmed F of the move it was written for
+            held = _same(modal, written["f"]) and written["held"]
+            out = f_text(_stepped(float(text), modal, plan.step, keep, held))
+            written.update(f=float(out), held=float(out) < keep)
+            return out
 
         split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
                  and not computed(block)]
@@ -507,21 +513,20 @@ def whole_moves(program: Program, fragments: list) -> list:
     return out + list(whole.values())
 
 
-def _stepped(value: float, modal: float, step: float, keep: float = 0.0) -> float:
+def _stepped(value: float, modal: float, step: float, keep: float = 0.0, held: bool = False) -> float:
     """The F to write (program units) for a wanted F `value` after the F in force `modal`, so that every
     change is at least `step` of the F it leaves: a rise by less keeps the F in force (slower, never
-    faster than planned), a fall by less falls a full step to modal·(1 − step) (written rounded down);
-    but where the wanted F is at least `keep` (the programmed F) the written one is too: only a limit
-    lowers a feed below the programmed one, the step rule makes a smaller change there instead.
-    (The schedule's runs differ by `step` of the lower feed; a fall is measured from the higher one, and
-    rounding to the written grid shrinks either.)"""
+    faster than planned), a fall by less falls a full step to modal·(1 − step) (written rounded down).
+    Where the wanted F is at least `keep` (the move's programmed F), only a limit may leave the written
+    one under it: a rise by less keeps a modal under `keep` only if a limit `held` it there (one F for
+    a run a limit slows in part), and a fall stops at `keep`; otherwise the change is smaller than the
+    step. (The schedule's runs differ by `step` of the lower feed; a fall is measured from the higher
+    one, and rounding to the written grid shrinks either.)"""
     if modal < value < modal * (1 + step):
-        out = modal
-    elif modal * (1 - step) < value < modal:
-        out = modal * (1 - step)
-    else:
-        out = value
-    return max(out, keep) if value >= keep else out
+        return modal if held or modal >= keep or value < keep else keep
+    if modal * (1 - step) < value < modal:
+        return modal * (1 - step) if value < keep else max(modal * (1 - step), keep)
+    return value
 
 
 def _same(a: float, b: float) -> bool:

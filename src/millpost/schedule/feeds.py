@@ -63,25 +63,30 @@ def settle(feeds_mm_min: np.ndarray, step: float, keep_mm_min: np.ndarray | None
     """Feeds in program order lowered into runs of one feed each, so that F words change only where
     the feed changes meaningfully: a feed joins the current run while the run's largest member stays
     within `step` (relative) of its smallest, and the run takes its smallest (never above any
-    member's limit), but never below a member's `keep_mm_min` (its programmed feed: only a limit
-    lowers a feed below the programmed one, not the settling; a feed under its keep is not raised).
-    Repeated until no two neighbouring runs lie within `step` of each other (a run pulled down by a
-    later member may land next to the one before)."""
+    member's limit). `keep_mm_min`: each feed's programmed one; a run takes a member under it only
+    where its smallest member is itself under its own (a limit holds it there: one F for a run a
+    limit slows in part), never for a run of feeds all at or above their programmed ones (only a
+    limit lowers a feed below the programmed one, not the settling). Repeated until no two
+    neighbouring runs lie within `step` of each other (a run pulled down by a later member may land
+    next to the one before)."""
     out = np.asarray(feeds_mm_min, float).copy()
     if step <= 0 or len(out) == 0:
         return out
-    floor = np.zeros_like(out) if keep_mm_min is None else np.minimum(out, np.nan_to_num(keep_mm_min, nan=0.0))
+    keep = np.zeros_like(out) if keep_mm_min is None else np.nan_to_num(keep_mm_min, nan=0.0)
+    floor = np.minimum(out, keep)
     while True:
         prev = out.copy()
-        start, lo, hi, need = 0, out[0], out[0], floor[0]
+        held = out < keep * (1 - 1e-9)  # a limit holds it under its keep (its own, or its run's)
+        start, lo, hi, need, lo_held = 0, out[0], out[0], floor[0], held[0]
         for i in range(1, len(out) + 1):
-            if (i < len(out) and max(hi, out[i]) <= min(lo, out[i]) * (1 + step)
-                    and max(need, floor[i]) <= min(lo, out[i])):
-                lo, hi, need = min(lo, out[i]), max(hi, out[i]), max(need, floor[i])
-                continue
+            if i < len(out):
+                low, low_held = (out[i], held[i]) if out[i] < lo else (lo, lo_held)
+                if max(hi, out[i]) <= low * (1 + step) and (low_held or max(need, floor[i]) <= low):
+                    lo, hi, need, lo_held = low, max(hi, out[i]), max(need, floor[i]), low_held
+                    continue
             out[start:i] = lo
             if i < len(out):
-                start, lo, hi, need = i, out[i], out[i], floor[i]
+                start, lo, hi, need, lo_held = i, out[i], out[i], floor[i], held[i]
         if np.array_equal(out, prev):
             return out
 
@@ -139,8 +144,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
                     max_changes_per_mm: float = 0.2, step: float = 0.05,
                     accel_mm_s2: tuple[float, float, float] | None = None) -> list[Fragment]:
     """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
-    and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`, never below a fragment's
-    programmed feed where its limit allows that feed) and, with the axes'
+    and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`: under a fragment's programmed
+    feed only in a run a limit slows in part) and, with the axes'
     accelerations (mm/s²), short peaks the controller cannot reach joined to their neighbours
     (`reachable`), repeated until stable; equal neighbours within a move merged.
 
