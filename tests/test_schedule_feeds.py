@@ -214,24 +214,3 @@ def test_feeds_within_solver_tolerance_under_the_programmed_are_the_programmed()
     assert plan.feed_mm_min[3] == 396.0
     capped = FeedPlan.from_fragments(prog, frags, 0.05, np.full(4, 399.9))
     assert capped.feed_mm_min[1] == 399.9 and capped.feed_mm_min[3] == 396.0
-
-
-def test_hold_runs_writes_no_f_above_what_the_controller_runs():
-    """`hold_runs` (mm/s): a move whose limit varies past what its own clamps need (a Z descent through
-    air, 30, into the cut, 5, where the Z axis rate clamps it at 20) takes, per sample, the speed the
-    controller runs it at (20 in the air: not 30, above the Z axis rate; 5 in the cut); a run of moves
-    the F in force (5) does not fit takes the lowest F they all need (60, not their limit 100)."""
-    from millpost.schedule.feeds import hold_runs
-    tp = read_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F300\nG1 X10 F600\nG1 X20 Y5\nM2\n").toolpath
-    s = tp.resample(0.5)
-    limit, need = np.full(len(s), np.nan), np.full(len(s), np.nan)
-    descent = np.flatnonzero(s.move == 1)
-    air, cut = descent[: len(descent) // 2], descent[len(descent) // 2:]
-    limit[air], need[air] = 30.0, 20.0
-    limit[cut], need[cut] = 5.0, 5.0
-    for move, clamp in ((2, 50.0), (3, 60.0)):
-        limit[s.move == move], need[s.move == move] = 100.0, clamp
-    out = hold_runs(s, limit, need)
-    np.testing.assert_array_equal(out[air], 20.0)
-    np.testing.assert_array_equal(out[cut], 5.0)
-    np.testing.assert_array_equal(out[(s.move == 2) | (s.move == 3)], 60.0)

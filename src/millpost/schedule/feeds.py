@@ -241,12 +241,11 @@ def hold_runs(samples: Samples, limit_mm_s: np.ndarray, need_mm_s: np.ndarray) -
     one F fits them all: a move may take any F in [max of `need_mm_s`, min of `limit_mm_s`] over its
     samples (need: the speed the controller runs it at whatever higher F it is given, e.g. the axis
     rate of its direction, or a short move's block rate). Runs are grown in program order while their
-    intersection is not empty and take the F in force before them (the last limit of the feed move
-    before) where it lies in it, else its lowest (the fastest speed a move of the run needs: no F above
-    what the run needs), so an F word changes where a limit does, not where the direction of a move
-    does. A move whose own interval is empty (a load that varies along it) takes, per sample, `need`
-    (where the controller's clamps bind, the speed it runs at anyway); it, a rapid (nan) and a move
-    off the schedule end the run."""
+    intersection is not empty and take the value in it nearest the F in force before them (the last
+    limit of the feed move before; the intersection's lowest, the fastest speed a move of the run
+    needs, at the start), so an F word changes where a limit does, not where the direction of a move does.
+    A move whose own interval is empty (a load that varies along it), a rapid (nan) or a move off the
+    schedule keeps its limit and ends the run."""
     mv = samples.move
     out = np.asarray(limit_mm_s, float).copy()
     if not len(mv):
@@ -257,9 +256,6 @@ def hold_runs(samples: Samples, limit_mm_s: np.ndarray, need_mm_s: np.ndarray) -
         hi = np.minimum.reduceat(out, starts)  # nan where any sample is nan
         lo = np.maximum.reduceat(np.asarray(need_mm_s, float), starts)
         free = np.isfinite(hi) & np.isfinite(lo) & (lo <= hi)
-    # a move with no run: per sample the speed the controller runs it at anyway (no F above its axis rate)
-    alone = ~np.repeat(free, counts)
-    out[alone] = np.fmin(out[alone], np.asarray(need_mm_s, float)[alone])
     last = np.where(samples.kind[starts] != RAPID, out[starts + counts - 1], np.nan)  # F is modal over rapids
     value = np.full(len(starts), np.nan)
     first, run_lo, run_hi, carry = 0, -np.inf, np.inf, np.nan
@@ -268,7 +264,7 @@ def hold_runs(samples: Samples, limit_mm_s: np.ndarray, need_mm_s: np.ndarray) -
             run_lo, run_hi = max(run_lo, lo[k]), min(run_hi, hi[k])
             continue
         if k > first:
-            carry = value[first:k] = carry if run_lo <= carry <= run_hi else run_lo
+            carry = value[first:k] = min(max(carry, run_lo), run_hi) if np.isfinite(carry) else run_lo
         if k < len(starts) and free[k]:
             first, run_lo, run_hi = k, lo[k], hi[k]
         else:
