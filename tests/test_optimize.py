@@ -51,15 +51,6 @@ SHORT_OF_GOAL = {
                       "s: the first, a 4 mm deep full slot, holds the group at F1260 by deflection, the thin "
                       "rings and the air of the cleared pocket after it run faster); rapids, the tool change and "
                       "the spindle take 15.6 s in both",
-    "offset_pocket": "rings at 40 % stepover engage 78° of the cutter (sin 78° = 0.98: no chip thinning) and the "
-                     "chip-load maximum binds before deflection or power: F2126 on their straights against F2083 "
-                     "in the slot-like first ring, steps and corners, so one constant feed is already near the "
-                     "best (111.7 / 54.8 / 52.3 s; the ramps keep 2 × their F500 in both)",
-    "forging_contour": "a 12 mm end mill at S10000 in aluminium is held by the chip-load maximum at every width of cut "
-                       "(the executed feed is within 3 % of it over 63 % of the cutting time; deflection reaches 0.026 "
-                       "of 0.048 mm, power 2.0 of 5.5 kW), so the forging's varying allowance (a_e 0.2-5.5 mm) moves "
-                       "the feed only through chip thinning: F5807 on the thin -X wall of the first depth, F3771 at "
-                       "the fillet-heavy foot of the second, which sets the baseline's F3728 (15.9 / 12.8 / 10.0 s)",
 }
 TOL_TIME = 0.03  # relative drift allowed on cycle times
 TOL_LIMIT = 1.005  # emitted program: no limit above its bound by more than 0.5 %

@@ -54,6 +54,8 @@ class Engagement:
     meets the original stock and its tip disc (radius R) is not inside it, so air over a pocket's
     floor or a faced top is not near (None when no clearance was asked for). Read from the original
     tops' range per block of ~0.5 mm: it errs towards near, by up to a block's diagonal.
+    edge_ratio (N,): the feed at the cutting edge over the feed of the tool centre (1 on straight moves;
+    `edge_feed_ratio`): the flank's chip and loads are those of the centre's feed per tooth times it.
     swept_air (N,) bool: a near_stock sample that is known air all the same: its step, and the next
     step unless that one is not near, lie wholly in space the program's earlier feed steps swept with
     the tool (at or below it, whatever the stock model says; None when no clearance was asked). Read
@@ -83,9 +85,15 @@ class Engagement:
     look_ahead_mm: np.ndarray | None = None
     near_stock: np.ndarray | None = None
     swept_air: np.ndarray | None = None
+    edge_ratio: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ap_mm)
+
+    @property
+    def edge(self) -> np.ndarray:
+        """(N,) `edge_ratio`, 1 where it was not computed (a cut given, not stepped)."""
+        return np.ones(len(self)) if self.edge_ratio is None else self.edge_ratio
 
     @classmethod
     def concatenate(cls, parts: "list[Engagement]") -> "Engagement":
@@ -171,10 +179,11 @@ def _lowpass(x: np.ndarray, fresh: np.ndarray, sigma: float) -> np.ndarray:
     return out
 
 
-def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: float) -> np.ndarray:
+def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: float) -> tuple[np.ndarray, np.ndarray]:
     """(n, 4) ring centre (x, y) and feed direction (x, y) per sample: the path point `look_ahead`
     mm further along the path and the direction of the step there (following arcs and polyline
-    corners rather than the tangent line); past the end of a continuous run, straight on."""
+    corners rather than the tangent line); past the end of a continuous run, straight on. Also (n,)
+    the sample whose step holds that point."""
     n = len(xyz)
     d = np.diff(xyz[:, :2], axis=0, prepend=xyz[:1, :2])
     ln = np.hypot(d[:, 0], d[:, 1])
@@ -195,7 +204,50 @@ def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: 
     u = np.where(span > 0, (target - s[jm]) / np.where(span > 0, span, 1.0), 1.0)
     centre = xyz[jm, :2] + u[:, None] * (xyz[j, :2] - xyz[jm, :2])
     centre[beyond] = xyz[j[beyond], :2] + (target - s[j])[beyond, None] * dirs[j[beyond]]
-    return np.ascontiguousarray(np.column_stack([centre, dirs[j]]))
+    return np.ascontiguousarray(np.column_stack([centre, dirs[j]])), j
+
+
+def edge_feed_ratio(phi_st: np.ndarray, phi_ex: np.ndarray, r_mm: np.ndarray, tangent: np.ndarray,
+                    curvature: np.ndarray) -> np.ndarray:
+    """(N,) feed at the cutting edge over the feed of the tool centre, per sample.
+
+    On a path that curves in the horizontal plane with radius ρ about a centre O, the cutter's edge
+    point at distance r_e from O moves past the workpiece r_e/ρ times as fast as the centre, so its
+    feed per tooth, and the chip, is the centre's times r_e/ρ: on an inside (concave) arc the edge
+    generating the wall is at ρ + R and cuts thicker chips than the centre's feed says, on an outside
+    (convex) arc at ρ − R, thinner. This is the circular-interpolation rule of the tool makers,
+    v_f,centre = v_f,edge·(D_m − D_c)/D_m inside and ·(D_m + D_c)/D_m outside (Sandvik Coromant,
+    Metalcutting technical guide, milling: circular interpolation; Harvey Performance, "Circular
+    Interpolation: Machining Circular Tool Paths"); the stepping's wider engaged arc on an inside arc
+    (a_e = (D_m² − D_w²)/(4(D_m − D_c)) in the same guide) is the other half of that rule.
+
+    The edge point of a slice is the end of its engaged arc that generates the surface (the end farther
+    from φ = π/2, where the edge meets the wall; on a slot the farther of the two from O), in the feed
+    frame of Altintas (x the feed, y to its left, φ clockwise from +y: p = r(sin φ, cos φ)); O lies at
+    y_O = ±ρ (left on a left turn). ρ is the radius of the horizontal projection of the path,
+    |t_xy|³ / |t_xy × k_xy| from the unit tangent t and curvature vector k = d²q/ds² (a helix's radius;
+    an arc in a vertical plane does not curve the horizontal feed: 1). The largest ratio over the slices;
+    1 where nothing cuts."""
+    t, k = np.asarray(tangent, float)[:, :2], np.asarray(curvature, float)[:, :2]
+    tn = np.hypot(t[:, 0], t[:, 1])
+    cross = t[:, 0] * k[:, 1] - t[:, 1] * k[:, 0]
+    turning = (np.abs(cross) > 1e-9) & (tn > 1e-9)
+    out = np.ones(len(t))
+    if not turning.any():
+        return out
+    rows = np.flatnonzero(turning)
+    rho = tn[rows] ** 3 / np.abs(cross[rows])
+    y_o = (np.sign(cross[rows]) * rho)[:, None]
+    st, ex, r = phi_st[rows], phi_ex[rows], r_mm[rows]
+    cuts = np.isfinite(st) & np.isfinite(ex) & (r > 0)
+    st, ex = np.clip(np.nan_to_num(st), 0.0, np.pi), np.clip(np.nan_to_num(ex), 0.0, np.pi)
+    r_st = np.sqrt(np.maximum(r * r + y_o * y_o - 2.0 * r * y_o * np.cos(st), 0.0))
+    r_ex = np.sqrt(np.maximum(r * r + y_o * y_o - 2.0 * r * y_o * np.cos(ex), 0.0))
+    c_st, c_ex = np.abs(np.cos(st)), np.abs(np.cos(ex))
+    r_e = np.where(c_st > c_ex + 1e-9, r_st, np.where(c_ex > c_st + 1e-9, r_ex, np.maximum(r_st, r_ex)))
+    ratio = np.where(cuts, r_e / rho[:, None], 0.0).max(axis=1, initial=0.0)
+    out[rows] = np.where(cuts.any(axis=1), ratio, 1.0)
+    return out
 
 
 def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices: int = 8,
@@ -270,10 +322,12 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     report("engagement", 0, n)  # started: its bar's clock runs from here
     chunk = 50_000
     ahead = np.zeros(n)
+    at = np.arange(n)  # the sample whose step holds each ring
     for a, b, t in runs:
         shape, R, rc, r_tip, tan_half = _tool_params(t)
         la = look_ahead_mm if look_ahead_mm is not None else max(2 * ds, math.sqrt(R * stock.cell_mm))
-        ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
+        ring_at, at[a:b] = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
+        at[a:b] += a
         ahead[a:b] = la
         for c0 in range(a, b, chunk):
             c1 = min(b, c0 + chunk)
@@ -307,6 +361,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
         depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead,
         near_stock=out["near"] if clearance_mm is not None else None,
+        edge_ratio=edge_feed_ratio(out["phi_st"], out["phi_ex"], out["rad"], np.asarray(samples.tangent)[at],
+                                   np.asarray(samples.curvature)[at]),
         swept_air=out["near"] & out["swept"] & ~unknown_next if clearance_mm is not None else None)
 
 

@@ -273,13 +273,16 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
             eng_p = eng.select(part)
             progress("forces", done, n)
             done += len(part)
+            # the flank cuts at the edge's feed, the centre's times `edge` (larger on an inside arc).
             # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
+            edge = eng_p.edge
             ll = model.linear_loads(eng_p, tool, rpm[part],
-                                    feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[part], nan=100.0))
+                                    feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[part], nan=100.0) * edge)
             for key in ("peak", "power", "torque", "force"):
-                loads[f"{key}_a"][part] = getattr(ll, f"{key}_a") * 60.0  # per mm/min → per mm/s
+                a = getattr(ll, f"{key}_a")  # per mm/min of the edge → per mm/s of the centre
+                loads[f"{key}_a"][part] = a * 60.0 * (edge[:, None] if a.ndim == 2 else edge)
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
-            sin_max[part] = max_sin(eng_p)  # per chunk: its (N, K) temporaries stay bounded
+            sin_max[part] = max_sin(eng_p) * edge  # per chunk: its (N, K) temporaries stay bounded
             sin_end[part] = end_chip_factor(eng_p, tool)
             chip_factor[part] = np.maximum(sin_max[part],
                                            entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio,

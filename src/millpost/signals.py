@@ -3,7 +3,8 @@
 Program + job + the speed the controller executes → per path sample, and on the controller's time base:
 
 - force on the tool F_tool (N, machine XYZ): the force model's mean over a tooth period at the feed per
-  tooth f_z = v / (flutes · n), rotated from the feed frame to machine axes, plus where the tool moves
+  tooth f_z = v / (flutes · n) of the centre (`fz_mm`) times the edge's ratio on arcs
+  (`Engagement.edge_ratio`: the flank's edge runs faster than the centre on an inside arc), rotated from the feed frame to machine axes, plus where the tool moves
   down the thrust and torque of its end edges (`millpost.forces.endcut`); the force on the workpiece
   (what a table dynamometer reads) is −F_tool;
 - spindle: cutting torque T_c and power P_c = T_c ω; the spindle's total power P_c + P_idle(n) and its
@@ -184,7 +185,7 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
         fz[idx] = v[idx] * 60.0 / (tool.flutes * rpm[idx])
         if loads is None:
             eng_t = eng.select(idx)
-            got = model.predict(eng_t, fz[idx], rpm[idx], tool, peaks=peaks)
+            got = model.predict(eng_t, fz[idx] * eng_t.edge, rpm[idx], tool, peaks=peaks)  # the edge's feed
             force[idx], torque[idx], peak[idx] = got.force_N, got.torque_Nm, got.peak_force_xy_N
             if end_model is not None:  # the end's thrust (+Z on the tool) and torque where it moves down
                 thrust, end_torque = end_model.predict(eng_t, fz[idx], tool)
