@@ -227,14 +227,13 @@ def test_moves_between_stops_are_scheduled(tmp_path, machine):
     assert not over, over
 
 
-def test_feed_above_the_axis_rates_is_not_slowed_nor_split_by_direction(tmp_path):
+def test_feed_above_the_axis_rates_is_written_at_the_rates_of_each_direction(tmp_path):
     """A light 3D finish posted at F6000 on hobby-router (X, Y 3000, Z 2000 mm/min): the controller
     clamps each axis to its own rate, so a 45° XY move runs 3000·√2 = 4243 mm/min and an X move 3000.
-    The F words used to carry the direction's axis cap (one F per change of direction: 1906 F words on
-    CAMotics' bear) under a vector cap of 3000 (every diagonal slower: the program came out `slower`).
-    Now the axis rates are the controller's: the optimized program is as fast as the programmed one
-    (nothing else binds in a 0.2 mm skim of MDF), one F covers the raster, at least the fastest
-    direction's rate (4243) and at most the machine's cap sqrt(3000² + 3000² + 2000²) = 4690."""
+    An F word above what its move runs at reads as a typo (F39395 on an X axis of 24000): each move's
+    F is at most the rate of its direction, min over the axes of vmax_i / |u_i| (u the unit direction),
+    and the program is exactly as fast as the programmed one (the controller ran those speeds already;
+    nothing else binds in a 0.2 mm skim of MDF)."""
     rows = []
     for k in range(6):
         y = 2.0 + 4.0 * k
@@ -250,10 +249,13 @@ def test_feed_above_the_axis_rates_is_not_slowed_nor_split_by_direction(tmp_path
     result = optimize(job, progress=False)
     s = result.summary
     assert s["status"] == "solved", s["message"]
-    assert s["cycle_time_after_s"] <= s["cycle_time_before_s"] * (1 + 1e-6)
+    assert s["cycle_time_after_s"] == pytest.approx(s["cycle_time_before_s"], rel=1e-3)
     tp = read_text(result.text).toolpath
-    feeds = np.unique(tp.feed_mm_min[tp.kind != 0])
-    assert s["f_words"]["optimized"] <= 2, result.text
-    assert feeds.max() >= 3000 * np.sqrt(2) * (1 - 1e-3)
-    assert feeds.max() <= job.machine.feed_cap_mm_min * (1 + 1e-9)
-    assert job.machine.feed_cap_mm_min == pytest.approx(np.sqrt(2 * 3000**2 + 2000**2))
+    feed = (tp.kind != 0) & (tp.lengths() > 0)
+    u = np.abs(tp.end - tp.start)[feed] / tp.lengths()[feed, None]
+    vmax = np.array([job.machine.axes[a].vmax_mm_min for a in "xyz"])
+    with np.errstate(divide="ignore"):
+        rate = np.min(np.where(u > 1e-12, vmax / u, np.inf), axis=1)
+    assert np.all(tp.feed_mm_min[feed] <= rate * (1 + 1e-9))
+    diagonal = (u[:, 0] > 0.5) & (u[:, 1] > 0.5)
+    assert tp.feed_mm_min[feed][diagonal] == pytest.approx(3000 * np.sqrt(2), rel=1e-3)

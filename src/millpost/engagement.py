@@ -54,6 +54,10 @@ class Engagement:
     meets the original stock and its tip disc (radius R) is not inside it, so air over a pocket's
     floor or a faced top is not near (None when no clearance was asked for). Read from the original
     tops' range per block of ~0.5 mm: it errs towards near, by up to a block's diagonal.
+    below_top (N,) bool: a feed sample whose tool tip is below the top of the stock as loaded within the
+    tool's radius (from the original tops' highest per block of ~0.5 mm: errs towards below by up to a
+    block's width beside the stock): where a move there cuts nothing, it is in space the program cut
+    before, which a restart from a later line, a skipped operation or a broken tool leaves uncut.
     edge_ratio (N,): the feed at the cutting edge over the feed of the tool centre (1 on straight moves;
     `edge_feed_ratio`): the flank's chip and loads are those of the centre's feed per tooth times it.
     swept_air (N,) bool: a near_stock sample that is known air all the same: its step, and the next
@@ -85,6 +89,7 @@ class Engagement:
     look_ahead_mm: np.ndarray | None = None
     near_stock: np.ndarray | None = None
     swept_air: np.ndarray | None = None
+    below_top: np.ndarray | None = None
     edge_ratio: np.ndarray | None = None
 
     def __len__(self) -> int:
@@ -179,11 +184,10 @@ def _lowpass(x: np.ndarray, fresh: np.ndarray, sigma: float) -> np.ndarray:
     return out
 
 
-def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: float) -> tuple[np.ndarray, np.ndarray]:
+def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: float) -> np.ndarray:
     """(n, 4) ring centre (x, y) and feed direction (x, y) per sample: the path point `look_ahead`
     mm further along the path and the direction of the step there (following arcs and polyline
-    corners rather than the tangent line); past the end of a continuous run, straight on. Also (n,)
-    the sample whose step holds that point."""
+    corners rather than the tangent line); past the end of a continuous run, straight on."""
     n = len(xyz)
     d = np.diff(xyz[:, :2], axis=0, prepend=xyz[:1, :2])
     ln = np.hypot(d[:, 0], d[:, 1])
@@ -204,7 +208,20 @@ def _ring_frames(xyz: np.ndarray, s: np.ndarray, fresh: np.ndarray, look_ahead: 
     u = np.where(span > 0, (target - s[jm]) / np.where(span > 0, span, 1.0), 1.0)
     centre = xyz[jm, :2] + u[:, None] * (xyz[j, :2] - xyz[jm, :2])
     centre[beyond] = xyz[j[beyond], :2] + (target - s[j])[beyond, None] * dirs[j[beyond]]
-    return np.ascontiguousarray(np.column_stack([centre, dirs[j]])), j
+    return np.ascontiguousarray(np.column_stack([centre, dirs[j]]))
+
+
+def path_radius(tangent: np.ndarray, curvature: np.ndarray) -> np.ndarray:
+    """(N,) radius (mm) of the horizontal projection of the path, |t_xy|³ / |t_xy × k_xy| from the unit
+    tangent t and curvature vector k = d²q/ds² (a helix's radius; an arc in a vertical plane does not
+    curve it): positive on a left turn (the centre to the left of the feed), negative on a right one,
+    inf on a straight."""
+    t, k = np.asarray(tangent, float)[:, :2], np.asarray(curvature, float)[:, :2]
+    tn = np.hypot(t[:, 0], t[:, 1])
+    cross = t[:, 0] * k[:, 1] - t[:, 1] * k[:, 0]
+    turning = (np.abs(cross) > 1e-9) & (tn > 1e-9)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(turning, np.sign(cross) * tn**3 / np.abs(cross), np.inf)
 
 
 def edge_feed_ratio(phi_st: np.ndarray, phi_ex: np.ndarray, r_mm: np.ndarray, tangent: np.ndarray,
@@ -224,20 +241,15 @@ def edge_feed_ratio(phi_st: np.ndarray, phi_ex: np.ndarray, r_mm: np.ndarray, ta
     The edge point of a slice is the end of its engaged arc that generates the surface (the end farther
     from φ = π/2, where the edge meets the wall; on a slot the farther of the two from O), in the feed
     frame of Altintas (x the feed, y to its left, φ clockwise from +y: p = r(sin φ, cos φ)); O lies at
-    y_O = ±ρ (left on a left turn). ρ is the radius of the horizontal projection of the path,
-    |t_xy|³ / |t_xy × k_xy| from the unit tangent t and curvature vector k = d²q/ds² (a helix's radius;
-    an arc in a vertical plane does not curve the horizontal feed: 1). The largest ratio over the slices;
-    1 where nothing cuts."""
-    t, k = np.asarray(tangent, float)[:, :2], np.asarray(curvature, float)[:, :2]
-    tn = np.hypot(t[:, 0], t[:, 1])
-    cross = t[:, 0] * k[:, 1] - t[:, 1] * k[:, 0]
-    turning = (np.abs(cross) > 1e-9) & (tn > 1e-9)
-    out = np.ones(len(t))
-    if not turning.any():
+    y_O = ±ρ (left on a left turn), ρ the `path_radius` (an arc in a vertical plane does not curve the
+    horizontal feed: 1). The largest ratio over the slices; 1 where nothing cuts."""
+    signed = path_radius(tangent, curvature)
+    out = np.ones(len(signed))
+    rows = np.flatnonzero(np.isfinite(signed))
+    if not len(rows):
         return out
-    rows = np.flatnonzero(turning)
-    rho = tn[rows] ** 3 / np.abs(cross[rows])
-    y_o = (np.sign(cross[rows]) * rho)[:, None]
+    rho = np.abs(signed[rows])
+    y_o = signed[rows][:, None]
     st, ex, r = phi_st[rows], phi_ex[rows], r_mm[rows]
     cuts = np.isfinite(st) & np.isfinite(ex) & (r > 0)
     st, ex = np.clip(np.nan_to_num(st), 0.0, np.pi), np.clip(np.nan_to_num(ex), 0.0, np.pi)
@@ -303,8 +315,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     # 4 × 4 columns: an eighth of the grid's size at most)
     clear = -1.0 if clearance_mm is None else float(clearance_mm)
     B = max(4, round(0.5 / stock.cell_mm))
-    omax, omin = (_k.block_range(top, stock.nx, stock.ny, B, stock.z_floor) if clear >= 0
-                  else (np.full(1, -np.inf, np.float32), np.full(1, np.inf, np.float32)))
+    omax, omin = _k.block_range(top, stock.nx, stock.ny, B, stock.z_floor)
     zmax = float(omax.max())
     prev_f = np.array([1.0, 0.0])
     moving = steps[steps > 0]
@@ -322,12 +333,10 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     report("engagement", 0, n)  # started: its bar's clock runs from here
     chunk = 50_000
     ahead = np.zeros(n)
-    at = np.arange(n)  # the sample whose step holds each ring
     for a, b, t in runs:
         shape, R, rc, r_tip, tan_half = _tool_params(t)
         la = look_ahead_mm if look_ahead_mm is not None else max(2 * ds, math.sqrt(R * stock.cell_mm))
-        ring_at, at[a:b] = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
-        at[a:b] += a
+        ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
         ahead[a:b] = la
         for c0 in range(a, b, chunk):
             c1 = min(b, c0 + chunk)
@@ -341,6 +350,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                 bad += a
                 raise CrashError(int(samples.line[bad]), xyz[bad] + origin)
             report("engagement", c1, n)
+    below = _below_original(xyz, ~rapid, runs, omax, B, stock)
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:
         for c0 in range(a, b, KAPPA_ROWS):  # in chunks: the profile's temporaries stay small
@@ -360,10 +370,31 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
         step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
         depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead,
-        near_stock=out["near"] if clearance_mm is not None else None,
-        edge_ratio=edge_feed_ratio(out["phi_st"], out["phi_ex"], out["rad"], np.asarray(samples.tangent)[at],
-                                   np.asarray(samples.curvature)[at]),
+        near_stock=out["near"] if clearance_mm is not None else None, below_top=below,
+        # the path's curvature at the sample itself: the move whose feed runs there
+        edge_ratio=edge_feed_ratio(out["phi_st"], out["phi_ex"], out["rad"], samples.tangent, samples.curvature),
         swept_air=out["near"] & out["swept"] & ~unknown_next if clearance_mm is not None else None)
+
+
+def _below_original(xyz: np.ndarray, feed: np.ndarray, runs: list, omax: np.ndarray, B: int, stock) -> np.ndarray:
+    """(n,) bool: a feed sample whose tool tip is below the original stock's top somewhere within its
+    radius R (the blocks' top maxima `omax` of B × B columns, over the square of blocks within R of
+    the axis: it errs towards below, by up to a block's width beside the stock). xyz: heights above
+    stock.z0, as the tops."""
+    from scipy.ndimage import maximum_filter
+    w = B * stock.cell_mm
+    nbx, nby = -(-stock.nx // B), -(-stock.ny // B)
+    tops = omax.reshape(nby, nbx)
+    out = np.zeros(len(xyz), bool)
+    for a, b, t in runs:
+        reach = math.ceil(t.radius_mm / w)
+        grown = maximum_filter(tops, size=2 * reach + 1, mode="constant", cval=stock.z_floor)
+        bi = np.floor((xyz[a:b, 0] - stock.x0) / w).astype(np.int64)
+        bj = np.floor((xyz[a:b, 1] - stock.y0) / w).astype(np.int64)
+        over = (bi >= -reach) & (bi < nbx + reach) & (bj >= -reach) & (bj < nby + reach)
+        top_at = grown[np.clip(bj, 0, nby - 1), np.clip(bi, 0, nbx - 1)]
+        out[a:b] = feed[a:b] & over & (xyz[a:b, 2] < top_at - 1e-6)
+    return out
 
 
 def _swept_field(stock, radius_mm: float, clear: float) -> tuple[np.ndarray, tuple[int, int, float, float, float]]:

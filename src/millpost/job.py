@@ -21,7 +21,13 @@
                                       # solver ("auto"|"clarabel": Clarabel on every segment),
                                       # rpm ("programmed"|"optimize": choose S per operation),
                                       # air_clearance_mm (3: feed moves that cut nothing within it
-                                      # of the stock keep their programmed feed)
+                                      # of the stock keep their programmed feed),
+                                      # trust_cut_space (false: a move going down below the stock's
+                                      # top keeps the plunge rules where the program cut before),
+                                      # air_feed_max_mm_min (cap on feed moves through cut space
+                                      # below the stock's top; default the machine's maximum),
+                                      # slower_max (1.25: refuse an optimized program slower than
+                                      # this × the programmed one, unless --allow slower)
     [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
 
 A folder stands for the `job.toml` inside it. Every number must be finite and inside its stated
@@ -47,14 +53,15 @@ from .tools.library import load_tool, tool_from_table
 _LIMIT_KEYS = {"deflection_mm": None, "feed_max_mm_min": None, "tool_safety_factor": None,
                "ds_mm": 0.1, "model": "mechanistic", "jerk_mm_s3": None, "plunge_feed_max_mm_min": None,
                "plunge_raise_max": 2.0, "lower": "hard", "feed_step": 0.05, "solver": "auto", "rpm": "programmed",
-               "air_clearance_mm": 3.0}
+               "air_clearance_mm": 3.0, "trust_cut_space": False, "air_feed_max_mm_min": None, "slower_max": 1.25}
 _CHOICES = {"lower": ("hard", "all"), "solver": ("auto", "clarabel"), "rpm": ("programmed", "optimize")}
 # the stated range of each numeric limit, both ends included: outside it a value is a slip (a unit or
 # a digit wrong), not a wish. ds_mm below 1 µm or above 5 mm cannot resolve a cut; a deflection
 # budget of 5 mm or a feed of 1000 m/min is no limit at all.
 LIMIT_RANGES = {"deflection_mm": (1e-4, 5.0), "feed_max_mm_min": (1.0, 1e6), "tool_safety_factor": (1.0, 100.0),
                 "ds_mm": (1e-3, 5.0), "jerk_mm_s3": (1.0, 1e9), "plunge_feed_max_mm_min": (1.0, 1e6),
-                "plunge_raise_max": (1.0, 100.0), "air_clearance_mm": (0.0, 100.0)}
+                "plunge_raise_max": (1.0, 100.0), "air_clearance_mm": (0.0, 100.0), "air_feed_max_mm_min": (1.0, 1e6),
+                "slower_max": (1.0, 100.0)}
 CELL_RANGE_MM = (1e-3, 10.0)
 SPINDLE_RPM_RANGE = (1.0, 2e5)  # rpm: no milling spindle turns faster than 200 000 rpm
 STOCK_SPAN_MM = 1e5  # no stock corner is 100 m from the work zero
@@ -187,6 +194,9 @@ def load_job(path: str | Path) -> Job:
         elif key in _CHOICES:
             if value not in _CHOICES[key]:
                 raise ConfigError(f"limits.{key}", value, " or ".join(_CHOICES[key]), file=f)
+        elif key == "trust_cut_space":
+            if not isinstance(value, bool):
+                raise ConfigError("limits.trust_cut_space", value, "must be true or false", file=f)
         elif key == "feed_step":
             if not (_number(value) and 0 <= value <= 1):
                 raise ConfigError("limits.feed_step", value, "must be a number in [0, 1] (relative)", file=f)

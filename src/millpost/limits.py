@@ -12,9 +12,10 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `baseline`: the baseline's single F obeys it (false for the caps set from the program's own
   feeds, the plunge feed cap and the air clearance: the baseline's moves obey those as a CAM user's
   separate plunge and lead-in feeds would, `millpost.replay.baseline_feeds`);
-- `f_word`: the emitted F words obey its speed cap (false for the axis rates, the block rate,
-  accelerations, jerk and corner caps, which the controller clamps or ramps to on its own, and for the
-  centripetal cap of an arc on a planner that runs arcs whole, clamping each at √(a_n·r));
+- `f_word`: the emitted F words obey its speed cap (false for the block rate, accelerations, jerk
+  and corner caps, which the controller clamps or ramps to on its own, and for the centripetal cap of
+  an arc on a planner that runs arcs whole, clamping each at √(a_n·r); true for the axis rates, which
+  the controller clamps too, but an F word above the rates of its move's direction reads as a typo);
 - `clamp`: the controller holds its speed cap as a steady clamp (the axis rates, the block rate): an
   F word above it runs at it, so the F word need only reach it (`millpost.schedule.feeds.hold_runs`);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
@@ -75,7 +76,7 @@ user's `deflection_mm`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -92,6 +93,7 @@ from .schedule.constraints import window_blocks
 from .schedule.feeds import programmed_arcs
 from .safety import spindle_off_message
 from .signals import running_rpm
+from .engagement import path_radius
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
 
@@ -99,6 +101,7 @@ HARD, QUALITY = "hard", "quality"
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
 RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
+DESCENDING = 1e-9  # a sample whose tangent points down by more (dz/ds) goes down
 LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
 
 
@@ -200,8 +203,8 @@ def _corners(model: ControllerModel, samples: Samples, toolpath: Toolpath, modes
 
 
 def feed_cap_mm_min(job: Job) -> float:
-    """The highest F word (mm/min): the machine's (`Machine.feed_cap_mm_min`; the controller clamps
-    each axis to its own rate, so no F word needs a per-direction value) and the user's
+    """The highest F word (mm/min): the machine's (`Machine.feed_cap_mm_min`, the fastest any direction
+    runs; the axis rates of each move's direction are a limit of their own) and the user's
     `feed_max_mm_min`."""
     cap = job.machine.feed_cap_mm_min
     return min(cap, float(job.limits["feed_max_mm_min"])) if job.limits["feed_max_mm_min"] else cap
@@ -231,8 +234,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                          block_lengths(toolpath, modes)[samples.move] * m.controller.block_rate_Hz, np.inf)
     limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
               Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False, clamp=True),
+              # the controller clamps each axis to its rate by itself, but an F word above the rates of its
+              # move's direction reads as a typo: F words keep to them too
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
-                    f_word=False, clamp=True),
+                    clamp=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               # LinuxCNC's planner (`controller`) runs an arc as one segment clamped at √(a_n·r) by itself;
               # grbl runs it as chords whose F word it keeps, so the F word carries the cap there
@@ -260,6 +265,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
     defaults: dict[str, str] = {}
     rough_by_tool: dict[int, float] = {}
+    restart = restart_descents(job, samples, eng)
     done = 0
     for number in np.unique(samples.tool[cutting]):
         tool = job.tools.get(int(number))
@@ -282,11 +288,20 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                 a = getattr(ll, f"{key}_a")  # per mm/min of the edge → per mm/s of the centre
                 loads[f"{key}_a"][part] = a * 60.0 * (edge[:, None] if a.ndim == 2 else edge)
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
-            sin_max[part] = max_sin(eng_p) * edge  # per chunk: its (N, K) temporaries stay bounded
+            # a corner tighter than the tool (its centre's radius under R) wraps the tool: a full slot's
+            # chip at the wall (sin φ = 1) whatever the stock model shows (a closing corner pre-cut by
+            # the lead-in reads lighter than the cut a machinist programs it for)
+            wraps = (edge > 1.0) & (np.abs(path_radius(samples.tangent[part], samples.curvature[part])) < tool.radius_mm)
+            sin_flank = max_sin(eng_p)  # per chunk: its (N, K) temporaries stay bounded
+            sin_max[part] = np.where(wraps & (sin_flank > 0), 1.0, sin_flank) * edge
             sin_end[part] = end_chip_factor(eng_p, tool)
-            chip_factor[part] = np.maximum(sin_max[part],
-                                           entry_chip_factor(eng_p, tool, job.material.strategies.plunge_fz_ratio,
-                                                             sin_end[part]))
+            ratio = job.material.strategies.plunge_fz_ratio
+            chip_factor[part] = np.maximum(sin_max[part], entry_chip_factor(eng_p, tool, ratio, sin_end[part]))
+            if restart is not None:  # a descent into space cut before: its chip as a plunge into solid
+                mine = restart[part]
+                full = replace(eng_p, end_engaged=np.ones_like(eng_p.end_engaged))
+                chip_factor[part] = np.where(mine, np.maximum(chip_factor[part], entry_chip_factor(
+                    full, tool, ratio, end_chip_factor(full, tool))), chip_factor[part])
             if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
                 # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
                 # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
@@ -316,8 +331,11 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         per_tooth = tool.flutes * rpm[cut_here] / 60.0  # mm/s per mm of feed per tooth
         chip_a[cut_here] = chip_factor[cut_here] / per_tooth  # chip thickness (over its share) per mm/s
         h_max[cut_here] = h_chip
-        # the floor: the thickest chip, flank's or end's, reaches the minimum chip
-        floor[cut_here] = h_min / np.maximum(sin_max[cut_here], sin_end[cut_here]) * per_tooth
+        # the floor: the thickest chip, flank's or end's, reaches the minimum chip (none where the tool
+        # cuts nothing: a restart's descent)
+        thickest = np.maximum(sin_max[cut_here], sin_end[cut_here])
+        with np.errstate(divide="ignore"):
+            floor[cut_here] = np.where(thickest > 0, h_min / thickest * per_tooth, 0.0)
     progress("forces", n, n)
     if release_slices:  # below, only the per-sample fields are read
         lean = eng.per_sample()
@@ -358,7 +376,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
     load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max,
                lambda s, at: s.fz_mm * chip_factor[at])
-    plunging = sin_end > 0
+    plunging = (sin_end > 0) | (restart if restart is not None else False)
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
     # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
@@ -404,9 +422,28 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                         HARD, "current"))
     if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
         near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
-        cap = _air_clearance(near, near & eng.swept_air, engaged, samples, v_prog, v_cap)
+        known = near & eng.swept_air
+        if not job.limits["trust_cut_space"]:  # a descent, whatever was swept: the tool enters what it meets
+            known &= ~(samples.tangent[:, 2] < -DESCENDING)
+        cap = _air_clearance(near, known, engaged, samples, v_prog, v_cap)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
+    if job.limits["air_feed_max_mm_min"] and eng.below_top is not None:  # the user's cap on air in cut space
+        air = cutting & ~engaged & eng.below_top
+        limits.append(Limit(FeedLimit(np.where(air, float(job.limits["air_feed_max_mm_min"]) / 60.0, np.inf),
+                                      name="air_feed"), HARD, "feed", baseline=False))
     return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
+
+
+def restart_descents(job: Job, samples: Samples, eng) -> np.ndarray | None:
+    """Feed samples going down below the top of the stock as loaded (`Engagement.below_top`): the
+    plunge rules hold there as if the material were still there (the chip of an end entering solid
+    material, at most `plunge_raise_max` × the programmed feed), also where the program cut that space
+    before: a restart from a later line, a skipped operation or a broken tool leaves it uncut. None
+    with `[limits] trust_cut_space = true` (the program always runs whole) or without the stepping's
+    record."""
+    if job.limits["trust_cut_space"] or eng.below_top is None or eng.descent is None:
+        return None
+    return eng.below_top & (eng.descent > 0) & (samples.kind != RAPID)
 
 
 def _air_clearance(near: np.ndarray, known: np.ndarray, engaged: np.ndarray, samples: Samples, v_prog: np.ndarray,

@@ -205,6 +205,10 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     }
     if spindle:
         summary["spindle"] = spindle
+    if (status == "slower" and after.time_s > before.time_s * float(job.limits["slower_max"])
+            and any(as_programmed.get(k, 0.0) > 1.0 for k in hard)):  # not quality limits lowered by `lower = "all"`
+        safety.refuse_or_note("slower", _too_heavy(job, samples, limits, before.time_s, after.time_s), job.allow,
+                              summary["notes"])
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
              "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
@@ -397,6 +401,33 @@ def _held_lines(samples: Samples, limits: JobLimits, physical: dict[str, float])
                                 "the programmed feed already exceeds it: it does not lower the feed there (hard "
                                 "limits may), reported")}
     return out
+
+
+def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, after_s: float) -> str:
+    """Why the optimized program is much slower than the programmed one: per tool, each hard load limit
+    the programmed feeds exceed, its first lines and how far over its bound the load is at the
+    programmed feed (the factor the cut must lose)."""
+    v_prog = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0
+    over: dict[tuple[int, str], tuple[float, np.ndarray]] = {}  # (tool, limit) → (largest ratio, its samples)
+    for lim in limits:
+        if lim.bound is None or lim.kind != HARD:
+            continue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.nan_to_num((lim.constraint.alpha * v_prog + lim.constraint.beta) / lim.bound)
+        for tool in np.unique(samples.tool[ratio > 1.0]):
+            mine = (ratio > 1.0) & (samples.tool == tool)
+            was_ratio, was = over.get((int(tool), lim.name), (0.0, mine))
+            over[(int(tool), lim.name)] = (max(was_ratio, float(ratio[mine].max())), was | mine)
+    parts = []
+    for (tool, name), (ratio, mine) in sorted(over.items()):
+        lines = np.unique(samples.line[mine])
+        more = f" and {len(lines) - 8} more" if len(lines) > 8 else ""
+        parts.append(f"T{tool} {name} up to {ratio:.2f}x its bound on lines {', '.join(map(str, lines[:8]))}{more}")
+    return (f"{job.program}: the programmed cuts exceed hard limits of this machine and tool "
+            f"({'; '.join(parts) or 'see limits_programmed'}): within them the program takes {after_s:.1f} s "
+            f"against {before_s:.1f} s programmed ({after_s / before_s:.2f}x, more than slower_max "
+            f"{float(job.limits['slower_max']):g}x); the cuts need to be lighter by those factors, or another tool "
+            "or a stronger machine")
 
 
 def _rpm_notes(job: Job, samples: Samples) -> list[str]:

@@ -24,6 +24,12 @@ a rapid into material is a crash whatever the user says, and an output must neve
   memory free now (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
 - ``clobber`` (always refused): an output path is an input (program, job, stock, tool, material or
   machine file), another output, or a folder that does not exist.
+- ``slower``: the optimized program would take more than `[limits] slower_max` (1.25) × the programmed
+  time because the programmed cuts exceed hard limits (spindle power, torque, the tool's strength, the
+  drives) that no feed millpost writes brings them under: the machine cannot cut the program as
+  planned; the refusal lists per tool the lines, the limit and how far over it the programmed feed is
+  (a lighter cut, another tool or a stronger spindle). Checked after the schedule, before anything is
+  written.
 """
 
 from __future__ import annotations
@@ -70,6 +76,8 @@ GATES = {g.name: g for g in (
     Gate("spindle-off", True, "the tool cuts material with the spindle off"),
     Gate("large", True, "the path needs more samples or memory than stated"),
     Gate("clobber", False, "an output would replace an input or another output"),
+    Gate("slower", True, "the programmed cuts exceed hard limits so far that the optimized program is more "
+                         "than slower_max × the programmed time"),
 )}
 
 
