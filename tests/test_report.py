@@ -12,8 +12,8 @@ import pytest
 from millpost.cli import main
 from millpost.errors import MillpostError
 from millpost.gcode import read_program
-from millpost.report import collect, read_trace, render
-from millpost.report.data import operation_times, operations_from_lines, sample_times_s
+from millpost.report import collect, figures, read_trace, render
+from millpost.report.data import ReportData, StockMap, operation_times, operations_from_lines, sample_times_s
 from millpost.report.figures import envelope
 from millpost.toolpath import RAPID
 
@@ -103,3 +103,120 @@ def test_trace_must_be_an_optimize_trace(tmp_path):
     bad.write_text("a,b\n1,2\n")
     with pytest.raises(MillpostError, match="not an optimize trace"):
         read_trace(bad)
+
+
+def zigzag_report(width_mm: float, height_mm: float, n: int = 200_000) -> tuple[ReportData, np.ndarray]:
+    """A raster over width × height mm (rapids before it and between its two operations, tools 1 and 2)
+    with its report data, and the samples where the optimized feed dips for one sample only. Limits hold
+    the feed: chip load on every 10th cutting sample, axis rates on one stretch, ramps elsewhere."""
+    t = np.linspace(0.0, 40.0, n)
+    row = np.minimum(t.astype(int), 39)
+    x = np.where(row % 2 == 0, t - row, 1.0 - (t - row)) * width_mm
+    y = row / 39 * height_mm
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    programmed = np.full(n, 1000.0)
+    programmed[: n // 50] = programmed[n // 2: n // 2 + n // 100] = np.nan  # rapids
+    executed = 2000.0 + 300.0 * np.sin(s / 7.0)
+    cut = np.isfinite(programmed)
+    dips = np.flatnonzero(cut)[np.linspace(10, cut.sum() - 10, 40).astype(int)]
+    executed[dips] = 150.0 + np.arange(40)
+    binding = np.where(cut, "ramps and corners (controller)", "").astype(object)
+    binding[np.flatnonzero(cut)[::10]] = "chip load"
+    binding[n // 5: n // 5 + n // 20] = "axis rates or current"
+    tool = np.where(np.arange(n) < n // 2, 1, 2)
+    trace = {"s_mm": s, "x": x, "y": y, "z": np.zeros(n), "tool": tool, "feed_programmed_mm_min": programmed,
+             "feed_executed_mm_min": executed}
+    ops = operations_from_lines(np.zeros(n, int), tool, [])
+    return ReportData({}, trace, ops, binding=binding, title="zigzag"), dips
+
+
+@pytest.fixture
+def drawn(monkeypatch) -> dict:
+    """The figures the page builder draws, by name (the page gets no SVG)."""
+    figs = {}
+
+    def keep(fig, name: str) -> str:
+        figs[name] = fig
+        return ""
+    monkeypatch.setattr(figures, "svg", keep)
+    return figs
+
+
+def _series(ax, prefix: str) -> tuple[np.ndarray, np.ndarray]:
+    """The finite points of every curve and point cloud on `ax` whose label starts with `prefix`."""
+    xy = [line.get_xydata() for line in ax.lines if line.get_label().startswith(prefix)]
+    xy += [np.asarray(c.get_offsets()) for c in ax.collections if c.get_label().startswith(prefix)]
+    xy = np.concatenate(xy)
+    ok = np.isfinite(xy).all(axis=1)
+    return xy[ok, 0], xy[ok, 1]
+
+
+def _area(collection) -> float:
+    """The area (data units) a filled collection covers (shoelace over its closed paths)."""
+    total = 0.0
+    for path in collection.get_paths():
+        x, y = path.vertices.T
+        total += 0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1)))
+    return total
+
+
+def test_feed_along_path_shows_the_whole_job(drawn):
+    data, dips = zigzag_report(200.0, 20.0)
+    render(data)
+    fig = drawn["feed-along-path"]
+    ax = fig.axes[0]
+    tr, cut = data.trace, data.cutting
+    s, v = tr["s_mm"], tr["feed_executed_mm_min"]
+    s0, s1 = s[cut][0], s[cut][-1]
+    xs, ys = _series(ax, "optimized")
+    assert xs.min() <= s0 + 0.01 * (s1 - s0) and xs.max() >= s1 - 0.01 * (s1 - s0)  # the whole cutting length
+    lo, hi = ax.get_xlim()
+    assert lo <= s0 and hi >= s1 and hi - lo <= 1.05 * (s1 - s0)
+    assert xs.size <= 10_000  # reduced, but every one-sample dip drawn
+    assert set(zip(s[dips].tolist(), v[dips].tolist())) <= set(zip(xs.tolist(), ys.tolist()))
+    # every operation's start marked
+    starts = {float(s[op.index[cut[op.index]][0]]) for op in data.operations}
+    assert starts <= {float(line.get_xdata()[0]) for line in ax.lines}
+    # below: each limit's share of the cutting length, none drawn over another
+    ds = np.diff(s, prepend=s[0])
+    shares = fig.axes[1]
+    for name in ("ramps and corners (controller)", "chip load", "axis rates or current"):
+        (band,) = [c for c in shares.collections if c.get_label() == name]
+        share = ds[cut & (data.binding == name)].sum() / ds[cut].sum()
+        assert _area(band) / (s1 - s0) == pytest.approx(share, abs=0.02), name
+
+
+@pytest.mark.parametrize("name", ["top-view", "stock-map"])
+@pytest.mark.parametrize("size", [(200.0, 20.0), (20.0, 200.0), (80.0, 80.0), (3000.0, 10.0)])
+def test_plan_views_show_the_part_at_a_readable_size(drawn, name, size):
+    width, height = size
+    data, _ = zigzag_report(width, height, n=20_000)
+    data.stock = StockMap(np.zeros((40, 40)), (0.0, width, 0.0, height))
+    render(data)
+    fig = drawn[name]
+    fig.draw_without_rendering()
+    fw, fh = fig.get_size_inches()
+    ax, bar = fig.axes[:2]
+    box, cbox = ax.get_position(), bar.get_position()
+    w, h = box.width * fw, box.height * fh
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    assert (x1 - x0) / w == pytest.approx((y1 - y0) / h, rel=0.02)  # X and Y at one scale
+    assert x0 <= 0 and x1 >= width and y0 <= 0 and y1 >= height  # the whole part ...
+    assert max(width / (x1 - x0), height / (y1 - y0)) >= 0.85  # ... filling the view along its long side
+    assert w * h >= 0.35 * fw * fh and min(w, h) >= 1.5 and max(w, h) >= 5.5  # inches: not a strip
+    cw, ch = cbox.width * fw, cbox.height * fh
+    length, side = (cw, w) if cw > ch else (ch, h)
+    assert length == pytest.approx(side, rel=0.05)  # the colour bar as long as the view beside it
+
+
+def test_top_view_draws_every_cut(drawn):
+    data, dips = zigzag_report(200.0, 20.0)
+    render(data)
+    ax = drawn["top-view"].axes[0]
+    (cloud,) = [c for c in ax.collections if c.get_array() is not None]
+    xy, feed = np.asarray(cloud.get_offsets()), np.asarray(cloud.get_array())
+    assert len(xy) <= 200_000
+    tr = data.trace
+    for k in dips:  # each one-sample dip drawn where it is, with its feed (a thinned cloud misses most)
+        near = np.hypot(xy[:, 0] - tr["x"][k], xy[:, 1] - tr["y"][k]) < 0.5
+        assert tr["feed_executed_mm_min"][k] in feed[near], k

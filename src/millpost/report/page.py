@@ -64,17 +64,20 @@ def render(data: ReportData) -> str:
               "F, as a machinist tunes a CAM program's cutting, plunge and lead-in feeds: the highest constant feed "
               "that exceeds no limit anywhere those moves cut; plunges and approaches at most their caps) and as "
               "the controller model executes the optimized program (with its ramps). The headline's totals are the controller model's for the whole program.</p>",
-              _table(rows, [("operation", "operation", ""), ("tool", "tool", "d"), ("length_mm", "cut length (mm)", ".0f"),
-                            ("programmed_s", "programmed (s)", ".1f"), ("baseline_s", "baseline (s)", ".1f"),
-                            ("optimized_s", "optimized (s)", ".1f")]),
+              _table([{**r, "operation": f"{k + 1}. {r['operation']}"} for k, r in enumerate(rows)],
+                     [("operation", "operation", ""), ("tool", "tool", "d"),
+                      ("length_mm", "cut length (mm)", ".0f"), ("programmed_s", "programmed (s)", ".1f"),
+                      ("baseline_s", "baseline (s)", ".1f"), ("optimized_s", "optimized (s)", ".1f")]),
               f"<figure>{figures.cycle_times(data)}</figure>",
-              "<h2>Feed along the path</h2><p>Programmed feed (grey) and the optimized feed as executed, coloured "
-              "by the limit that holds it.</p>", f"<figure>{figures.feed_along_path(data)}</figure>",
+              "<h2>Feed along the path</h2><p>From the first cut to the last: the programmed feed (grey) and the "
+              "optimized feed as executed (blue), each with the lowest and highest feed of every stretch drawn; "
+              "below, the share of each stretch's cutting length each limit holds. Dotted lines: operation starts, "
+              "numbered as in the table.</p>", f"<figure>{figures.feed_along_path(data)}</figure>",
               "<h2>Loads against their limits</h2><p>Along the path at the optimized feed; the last panel is each "
               "limit's largest value over its bound on the whole program replayed (drive current included).</p>",
               f"<figure>{figures.loads_vs_limits(data)}</figure>",
-              "<h2>Top view</h2><p>Cutting moves coloured by the optimized feed; crosses where it is slower than "
-              "programmed.</p>", f"<figure>{figures.top_view(data)}</figure>"]
+              "<h2>Top view</h2><p>Every cutting move, coloured by the lowest optimized feed at each spot; "
+              "crosses where it is slower than programmed.</p>", f"<figure>{figures.top_view(data)}</figure>"]
     if data.stock is not None:
         parts += ["<h2>Final stock</h2>", f"<figure>{figures.stock_map(data)}</figure>"]
     notes = list(s.get("notes", []))
