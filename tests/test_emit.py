@@ -412,3 +412,34 @@ def test_a_run_held_at_a_cap_is_the_cap_on_every_move_the_caps_allow():
     cap = np.array([np.inf, 254.0, 24000.0, 254.0, 253.9])
     plan = FeedPlan.from_fragments(prog, [Fragment(k, 0.0, 1.0, run) for k in range(1, 5)], 0.05, cap)
     assert plan.feed_mm_min[1:].tolist() == [254.0, 254.0, 254.0, run]
+
+
+def test_no_split_where_the_written_feed_does_not_change():
+    """Two fragments whose F words as written are one (a rise under the step keeps the F in force) are
+    not a split: the line keeps its single move and its bytes."""
+    prog = read_text("G21 G90 G17\nG0 X0 Y0 Z-1\nG1 X1 F1000\nG1 X10\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.step = 0.05
+    plan.fragments[int(np.flatnonzero(prog.toolpath.line == 4)[0])] = [(0.5, 1000.0), (1.0, 1020.0)]
+    out = write_feeds(prog, plan)
+    assert out.splitlines()[3] == "G1 X10"
+    assert len(read_text(out).toolpath) == len(prog.toolpath)
+
+
+def test_no_f_word_repeats_the_f_in_force():
+    """A line whose own F changed the feed in the program but whose new F is the one already in force
+    gets no F word (a repeated F reads as a post's glitch); a line that repeated the F in force in the
+    program keeps repeating it (its style)."""
+    prog = read_text("G21 G90 G17\nG0 X0 Y0 Z-1\nG1 X5 F800\nG1 X10 F900\nG1 X15 F900\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[prog.toolpath.kind != RAPID] = 1000.0
+    assert write_feeds(prog, plan).splitlines()[2:5] == ["G1 X5 F1000", "G1 X10", "G1 X15 F1000"]
+
+
+@pytest.mark.parametrize("f,written", [("F400.000", "F2082.870"), ("F400.", "F2082.8"), ("F400", "F2082.8")])
+def test_f_words_keep_the_programs_padded_decimals(f, written):
+    """FreeCAD pads its F words (F400.000): the new ones are written to the same decimals, not F2082.8 beside F400.000."""
+    prog = read_text(f"G21 G90 G17\nG0 X0 Y0 Z-1\nG1 X5 {f}\nG1 X10\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[int(np.flatnonzero(prog.toolpath.line == 4)[0])] = 2082.87
+    assert write_feeds(prog, plan).splitlines()[3] == f"G1 X10 {written}"

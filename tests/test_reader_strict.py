@@ -61,6 +61,9 @@ REFUSED = [
     ("G0 X" + "[" * (MAX_DEPTH + 5) + "1" + "]" * (MAX_DEPTH + 5), None, "", "nested", False),
     ("G0 X[" + "-" * 3000 + "1]", None, "", "nested", False),
     ("G0 X nan", 4, "X", "not followed by a number", True),
+    ("G2 X2 Y0 I1 J0 K0", 16, "K0", "K word given for an arc in the XY plane", True),
+    ("G18 G2 X2 Z0 I1 K0 J0", 20, "J0", "J word given for an arc in the XZ plane", True),
+    ("G19 G3 Y2 Z0 J1 K0 I0", 20, "I0", "I word given for an arc in the YZ plane", True),
     ("G0 Xinf", 4, "Xinf", "not followed by a number", True),
 ]
 
@@ -221,3 +224,10 @@ def test_a_program_beyond_the_size_ceiling_is_refused_before_reading(tmp_path, m
     with pytest.raises(ParseError) as info:
         read_program(f)
     assert str(f) in str(info.value) and "MB" in info.value.word and info.value.line == 1
+
+
+def test_an_off_plane_arc_offset_is_read_where_the_controller_ignores_it():
+    """grbl and Fanuc posts may write K0 on XY arcs; their controllers ignore it: read as written there."""
+    for dialect in ("grbl", "fanuc"):
+        tp = read_text(HEAD + "G2 X2 Y0 I1 J0 K0\nM2\n", "k.nc", ReaderOptions(dialect=dialect)).toolpath
+        assert tp.center[-1].tolist()[:2] == [1.0, 0.0]

@@ -52,6 +52,14 @@ def test_rapid_into_stock_before_the_first_feed_move_is_refused(tmp_path, capsys
     assert "Traceback" not in err and not (tmp_path / "t.csv").exists()
 
 
+def test_a_crash_in_an_inch_program_is_said_in_inch(tmp_path, capsys):
+    """The point where the rapid first meets material, in the program's own units (X0.3937, not X10.000:
+    millimetres read as inches)."""
+    rc = simulate(tmp_path, "G20 G90\nG0 X0.3937 Y0.3937 Z0.2\nG0 Z-0.0787\nG0 Z0.2\nS10000 M3\nG1 X-0.2 F12\nM30\n")
+    err = capsys.readouterr().err
+    assert rc == 2 and "rapid move runs into the stock at X0.3937 Y0.3937 Z-0.0" in err and "(in, a crash" in err
+
+
 def test_first_move_ending_in_material_is_refused(tmp_path, capsys):
     assert simulate(tmp_path, "G21 G90\nG0 X10 Y10 Z-2\nG0 Z5\nS10000 M3\nG1 X-5 F300\nM30\n") == 2
     assert f"{tmp_path / 'p.nc'}:2: rapid move runs into the stock" in capsys.readouterr().err

@@ -197,6 +197,10 @@ def test_reachable_joins_short_peaks_only():
     out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05)
     # 1 µm: it peaks at sqrt(100 + 3) mm/s = 609 mm/min, within 5 % of 600: joined to its neighbours
     np.testing.assert_array_equal(out, [600.0, 600.0, 600.0, 6000.0])
+    # unless that takes it under its programmed feed (F630 programmed there): only a limit lowers a feed
+    # below the programmed one (a short G3 F39.37 carried the plunge's F12.46 before it)
+    out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05, np.array([600.0, 630.0, 600.0, 6000.0]))
+    np.testing.assert_array_equal(out, f)
 
 
 def test_feeds_within_solver_tolerance_under_the_programmed_are_the_programmed():

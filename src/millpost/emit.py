@@ -182,6 +182,17 @@ def _program_trailing_point(program: Program) -> bool:
     return pointed > bare
 
 
+def _f_decimals(program: Program) -> int | None:
+    """The program's own way of writing F (comments aside): a fixed count of decimals where every F word
+    has that many and some end in a zero (FreeCAD's F400.000: padded), else None (as many as the value
+    needs, 0.1 mm/min or 0.01 in/min)."""
+    found = re.findall(r"[Ff]\s*[-+]?\d*(?:\.(\d*))?(?![\d#\[])", re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text))
+    counts = {len(frac) for frac in found}
+    if len(counts) != 1 or not any(frac.endswith("0") for frac in found):
+        return None
+    return counts.pop()
+
+
 def _trailing_point(block: Block, default: bool) -> bool:
     """Whether this line writes whole numbers as "10." (from its own numbers, else the dialect)."""
     nums = [w.text[1:].strip() for w in block.words if w.letter in "XYZIJKRF" and "[" not in w.text]
@@ -259,6 +270,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     if len(plan.feed_mm_min) != len(tp):
         raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
     default_trailing = _program_trailing_point(program) if trailing_point is None else trailing_point
+    f_decimals = _f_decimals(program)
     lines = program.text.splitlines(keepends=True)
     lengths = tp.lengths()
     cutting = tp.kind != RAPID
@@ -269,6 +281,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     # the style of a line too short to show its own: the program's (comments aside)
     spaced = bool(re.search(_SPACED, re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)))
     modal_f: float | None = None  # F in force in the output (program units)
+    in_f: float | None = None  # F in force in the program (program units)
     # With O-word control flow a line may run several times, with other parameters and after other
     # lines than the text shows: every line that feeds gets its own F (the lowest any run of it
     # wants), no F is kept for its value, and parameters only locate the words.
@@ -299,7 +312,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
                 params.update(block.assigns)
                 f = next((w for w in block.words if w.letter == "F"), None)
                 if f is not None:
-                    modal_f = f.value
+                    modal_f = in_f = f.value
                     if not flow and len(block.words) == 1 and not block.assigns:
                         f_line = (len(out), body, block, ending)
             out.append(raw)
@@ -327,9 +340,14 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
 
         def f_text(value: float) -> str:
             """F in the program's units, rounded down (never faster) to 0.1 mm/min or 0.01 in/min; a value
-            within FEED_ROUNDOFF under a grid value is that value (a cap the solver held, not an excess)."""
-            d = (2 if inch else 1) + (2 if value < 10 else 0)
-            return _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, trailing_point)
+            within FEED_ROUNDOFF under a grid value is that value (a cap the solver held, not an excess).
+            Padded with zeros to the program's own fixed decimals where it pads its F words (`_f_decimals`)."""
+            d = max((2 if inch else 1) + (2 if value < 10 else 0), f_decimals or 0)
+            text = _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, trailing_point)
+            if f_decimals:
+                whole, _, frac = text.partition(".")
+                text = f"{whole}.{frac:0<{f_decimals}}"
+            return text
 
         written = {"f": math.nan, "held": False}  # the last F feed_text wrote; under its move's programmed F?
 
@@ -347,14 +365,36 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             written.update(f=float(out), held=float(out) < keep)
             return out
 
+        def distinct(i: int, fragments: list[tuple[float, float]]) -> list[tuple[float, float]]:
+            """Move i's fragments with each one whose F as written would be the F before it merged into
+            that one: no split point where the feed does not change."""
+            saved, pieces, u_prev, modal = dict(written), [], 0.0, modal_f
+            for u_end, feed in fragments:
+                text = feed_text(i, feed, lengths[i] * (u_end - u_prev), modal)
+                if pieces and text == pieces[-1][2] and program.feed_mode[i] != 930:
+                    pieces[-1] = (u_end, pieces[-1][1], text)
+                else:
+                    pieces.append((u_end, feed, text))
+                u_prev, modal = u_end, float(text)
+            written.update(saved)
+            return [(u, f) for u, f, _ in pieces]
+
+        in_before = in_f  # the program's F in force before this line
+        if f_word is not None:
+            in_f = f_word.value
+        repeats = f_word is not None and in_before is not None and _same(f_word.value, in_before)
         split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
                  and not computed(block)]
+        one_feed = None  # a split move whose pieces all write one F: not split, that F
         if split and len(moves) == 1:
             i = moves[0]
-            new_lines, modal_f = _split_move(program, i, plan.fragments[i], block, writer, ending, trailing_point,
-                                             feed_text, lengths[i], modal_f)
-            out.extend(new_lines)
-            continue
+            pieces = distinct(i, plan.fragments[i])
+            if len(pieces) > 1:
+                new_lines, modal_f = _split_move(program, i, pieces, block, writer, ending, trailing_point,
+                                                 feed_text, lengths[i], modal_f, repeats)
+                out.extend(new_lines)
+                continue
+            one_feed = pieces[0][1]
         if not flow and all(lengths[i] <= 0.0 and program.feed_mode[i] != 930 for i in moves):
             # a move to where the tool is takes no time: no F of its own, the F in force holds (or the one it
             # has, which then holds after it as in the program)
@@ -369,7 +409,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             out.append(raw)
             continue
         k = min(timed, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
-        value = f_value(k, plan.feed_mm_min[k], lengths[k])
+        feed_k = plan.feed_mm_min[k] if one_feed is None else one_feed
+        value = f_value(k, feed_k, lengths[k])
         if program.feed_mode[k] == 930 and len(moves) > 1 and not program.compensated[moves].all():
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
         if flow:  # its own F, evaluated as it runs, still right on every run: keep it; else write one
@@ -381,18 +422,22 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         if f_word is not None and _same(f_word.value, value):
             out.append(raw)  # the program's own F still holds: keep its bytes
         elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
-              and (_same(modal_f, value) or _same(modal_f, float(feed_text(k, plan.feed_mm_min[k], lengths[k], modal_f))))):
+              and (_same(modal_f, value) or _same(modal_f, float(feed_text(k, feed_k, lengths[k], modal_f))))):
             out.append(raw)
             value = modal_f  # the F in force stays the one written
         elif standalone_f is not None and f_word is None and program.feed_mode[k] != 930:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
-            text = feed_text(k, plan.feed_mm_min[k], lengths[k], modal_f)
+            text = feed_text(k, feed_k, lengths[k], modal_f)
             out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": text}) + f_ending
             out.append(raw)
             value = float(text)
         else:
-            text = feed_text(k, plan.feed_mm_min[k], lengths[k], modal_f)
-            out.append(writer.replace({"F": text}) + ending)
+            text = feed_text(k, feed_k, lengths[k], modal_f)
+            if (modal_f is not None and _same(float(text), modal_f) and not repeats
+                    and program.feed_mode[k] != 930):  # the F in force holds: no F word repeating it
+                out.append(writer.replace({}, drop={"F"}) + ending)
+            else:
+                out.append(writer.replace({"F": text}) + ending)
             value = float(text)
         modal_f = value
     return "".join(out)
@@ -408,13 +453,15 @@ def split_decimals(block: Block, inch: bool) -> int:
 
 
 def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
-                trailing_point: bool, feed_text, length_mm: float, modal_f: float | None) -> tuple[list[str], float]:
+                trailing_point: bool, feed_text, length_mm: float, modal_f: float | None,
+                repeats: bool = False) -> tuple[list[str], float]:
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
     words changed; later pieces are new lines in the style of the original (its motion word as written
     or none when it had none, its word order, letter case and spacing; a word it lacks where `_slot`
     puts it) with the end point, arc centre and F; an axis word where the piece ends on the line's own end
     in that axis is the line's own text. A piece writes no F where the F in force (modal_f,
-    program units, before the line) already holds, except in inverse time (G93: F on every block).
+    program units, before the line) already holds, except in inverse time (G93: F on every block) and
+    on the first piece of a line whose own F repeats the program's F in force (`repeats`: its style).
     Split points take `split_decimals`. Returns the lines and the F in force after them."""
     tp = program.toolpath
     inch = bool(program.move_inch[i])
@@ -459,10 +506,10 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
                     words[_ARC_LETTERS[ax]] = _fmt(c / scale, decimals, trailing_point)
         f = feed_text(i, feed, seg_len, modal)
         if (modal is None or not _same(modal, float(f)) or program.feed_mode[i] == 930
-                or (k == 0 and has_f)):
+                or (k == 0 and has_f and repeats)):
             words["F"] = f
         if k == 0:
-            drop = set(_AXIS_LETTERS + _ARC_LETTERS + "R") - set(words)
+            drop = set(_AXIS_LETTERS + _ARC_LETTERS + "RF") - set(words)
             out.append(writer.replace(words, drop=drop) + ending)
         else:
             def rank(L: str) -> tuple[int, int, int]:

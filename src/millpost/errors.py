@@ -53,11 +53,13 @@ class SafetyError(MillpostError):
 
 
 class CrashError(SafetyError):
-    """A rapid move runs into material at `xyz` (mm, program frame), on source `line` of `file`."""
+    """A rapid move runs into material at `xyz` (mm, program frame), on source `line` of `file`; the
+    message gives the point in the program's units there (inch: 4 decimals)."""
 
-    def __init__(self, line: int, xyz, file: str | None = None) -> None:
-        self.line, self.xyz, self.file = line, tuple(float(v) for v in xyz), file
-        x, y, z = self.xyz
+    def __init__(self, line: int, xyz, file: str | None = None, inch: bool = False) -> None:
+        self.line, self.xyz, self.file, self.inch = line, tuple(float(v) for v in xyz), file, inch
+        x, y, z = (v / 25.4 for v in self.xyz) if inch else self.xyz
+        d, unit = (4, "in") if inch else (3, "mm")
         where = f"{file}:{line}" if file else f"line {line}"
-        super().__init__(f"{where}: rapid move runs into the stock at X{x:.3f} Y{y:.3f} Z{z:.3f} "
-                         "(a crash; use a feed move to cut, or correct the stock)", gate="rapid")
+        super().__init__(f"{where}: rapid move runs into the stock at X{x:.{d}f} Y{y:.{d}f} Z{z:.{d}f} ({unit}, "
+                         "a crash; use a feed move to cut, or correct the stock)", gate="rapid")

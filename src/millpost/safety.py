@@ -228,7 +228,9 @@ def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: flo
         eng = engagement.simulate(stock, tools, samples, slices=slices, progress=progress,
                                   start=known_start(program, samples), clearance_mm=clearance_mm)
     except CrashError as exc:
-        raise CrashError(exc.line, exc.xyz, file=program.path) from None
+        on_line = np.flatnonzero(program.toolpath.line == exc.line)
+        inch = bool(len(on_line) and program.move_inch[on_line[0]])
+        raise CrashError(exc.line, exc.xyz, file=program.path, inch=inch) from None
     check_cut(program, bounds, tools, samples, eng, allow, notes)
     return samples, eng, notes
 

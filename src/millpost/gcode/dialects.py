@@ -39,7 +39,9 @@ class Dialect:
     "set the cycle up, do not run it". cycle_dwell_any: every canned cycle reads P (dwell), not only
     G82/G86/G88/G89. boring_shift_q: G76/G87 read Q (the shift off the wall). tap_peck_q: G74/G84
     read Q (peck tapping, modelled with a retract to R after each peck). g49_takes_h:
-    G49 may carry H (H0, the cancelled offset; Centroid and Haas postambles). Dwell units: `dwell_s`.
+    G49 may carry H (H0, the cancelled offset; Centroid and Haas postambles). off_plane_arc_offset_refused:
+    an arc's centre offset along the plane's normal (K in G17, J in G18, I in G19) is an error
+    (LinuxCNC: "K word given for arc in xy plane"), not ignored. Dwell units: `dwell_s`.
     What the writer needs to know: g43_without_h: G43 with no H takes the loaded tool's length
     (LinuxCNC); path_modes: the controller has G61/G61.1/G64 path control modes (grbl has not).
     """
@@ -67,6 +69,7 @@ class Dialect:
     tap_peck_q: bool = False
     g43_without_h: bool = False
     path_modes: bool = True
+    off_plane_arc_offset_refused: bool = False
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""
@@ -99,6 +102,7 @@ GRBL = Dialect("grbl", canned_cycles=False, end_code="M30", tool_length_codes=fr
                path_modes=False,
                markers=(r"^\s*\$[A-Z0-9]", r"grbl", r"^G90 G94$", r"^\(When using Fusion 360 for Personal Use"))
 LINUXCNC = Dialect("linuxcnc", starts_g98=False, g76_lathe=True, zero_repeats_refused=True, g43_without_h=True,
+                   off_plane_arc_offset_refused=True,
                    markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P", r"linuxcnc",
                             r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
 FANUC = Dialect("fanuc", trailing_point=True, line_numbers=5, dwell_ms=True,

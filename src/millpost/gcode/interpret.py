@@ -971,6 +971,10 @@ class Interpreter:
         a1, a2, an = PLANE_AXES[self.plane]
         offs = ("I", "J", "K")
         o1, o2 = offs[a1], offs[a2]
+        if self.dialect.off_plane_arc_offset_refused and offs[an] in val:
+            raise self.err(f"{offs[an]} word given for an arc in the {('XY', 'XZ', 'YZ')[self.plane]} plane (LinuxCNC "
+                           "refuses it)", b, val[offs[an]], f"only {o1} and {o2} on a G{17 + self.plane} arc, or the "
+                           "job's dialect of a controller that ignores it (dialect = \"fanuc\" or \"grbl\")")
         end = self.target(axis_words)
         start = self.pos
         cw = self.motion == 20

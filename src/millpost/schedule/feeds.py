@@ -107,12 +107,14 @@ def cluster(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
 
 
 def reachable(feeds_mm_min: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.ndarray, joined: np.ndarray,
-              step: float) -> np.ndarray:
+              step: float, keep_mm_min: np.ndarray | None = None) -> np.ndarray:
     """Feeds of pieces too short to reach them taken down to their faster neighbour's: a piece of
     length L between neighbours at lower feeds v_prev, v_next, accelerating and braking at most at a,
     peaks at v² = (v_prev² + v_next²)/2 + a·L; where that is within `step` of the faster neighbour the
     piece's own F changes nothing meaningful on the machine and is not written (a bounds the path
-    acceleration from above, so the loss is under `step`). joined[i]: piece i continues piece i − 1."""
+    acceleration from above, so the loss is under `step`), unless that neighbour's feed is under the
+    piece's programmed one (`keep_mm_min`: only a limit lowers a feed below the programmed one, not
+    the writing of F words). joined[i]: piece i continues piece i − 1."""
     v = np.asarray(feeds_mm_min, float) / 60.0
     nxt_joined = np.r_[joined[1:], False]
     prev = np.r_[np.inf, v[:-1]]
@@ -121,6 +123,8 @@ def reachable(feeds_mm_min: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.n
     peak = np.sqrt((prev**2 + nxt**2) / 2 + accel_mm_s2 * length_mm)
     faster = np.maximum(prev, nxt)
     take = inner & (peak <= faster * (1 + step))
+    if keep_mm_min is not None:
+        take &= faster * 60.0 >= np.nan_to_num(keep_mm_min, nan=0.0) * (1 - 1e-9)
     return np.where(take, faster, v) * 60.0
 
 
@@ -196,7 +200,7 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     programmed = samples.feed_mm_min[starts[k_of]]  # mm/min, of each fragment's move
     for _ in range(20):
         before = feeds
-        feeds = reachable(settle(feeds, step, programmed), length, accel[k_of], joined, step)
+        feeds = reachable(settle(feeds, step, programmed), length, accel[k_of], joined, step, programmed)
         if np.array_equal(feeds, before):
             break
     # equal neighbours within a move merged
