@@ -13,7 +13,8 @@ from millpost.cli import main
 from millpost.errors import MillpostError
 from millpost.gcode import read_program
 from millpost.report import collect, figures, read_trace, render
-from millpost.report.data import ReportData, StockMap, operation_times, operations_from_lines, sample_times_s
+from millpost.operations import operations_from_lines
+from millpost.report.data import ReportData, StockMap, operation_times, sample_times_s
 from millpost.report.figures import envelope
 from millpost.toolpath import RAPID
 

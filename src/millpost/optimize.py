@@ -26,6 +26,7 @@ from .gcode.interpret import Program
 from .job import Job
 from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
+from .operations import restart_points
 from .replay import baseline_feeds, binding_shares, feed_at_samples, replay
 from .schedule import PathGrid, ScheduleOptions, schedule_samples
 from .schedule.feeds import blend_excess, blend_limit, emission_limit, piecewise_feeds, run_limit
@@ -200,6 +201,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits, checked.physical),
         "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
+        # the operations' starts: a restart there keeps every descent below the stock's top at its plunge feeds
+        "restart_from": restart_points(program, samples),
         "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends) + _flow_notes(plan)
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }

@@ -102,6 +102,11 @@ def report(s: dict, output: Path) -> str:
         lines = ", ".join(map(str, h["lines"])) + (" ..." if h["line_count"] > len(h["lines"]) else "")
         out.append(f"  {name} ({h['kind']}) held on {h['line_count']} lines [{lines}]: {h['reason']}; "
                    f"up to {h['over_bound']:g} x its bound in the optimized program")
+    if s.get("restart_from"):
+        starts = s["restart_from"]
+        shown = ", ".join(f"{r['line']} ({r['operation']})" for r in starts[:6]) + (" ..." if len(starts) > 6 else "")
+        out.append(f"  restart from an operation's start: line {shown}; descents below the stock's top keep "
+                   "their plunge feeds there")
     out.append("  tool  programmed s  optimized s  programmed F  optimized F (mm/min)")
     for number, row in s.get("tools", {}).items():
         out.append(f"  T{number:<4} {row['programmed_s']:12.1f} {row['optimized_s']:12.1f}  "

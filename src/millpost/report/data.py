@@ -21,20 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MillpostError
+from ..operations import Operation, operations_from_lines
 from ..signals import step_times_s
 
 RAPID_FEED = np.nan  # the trace's programmed feed on rapids
 TIGHT = 0.97  # a ratio this close to 1 counts as binding
 STOCK_CELLS = 250_000  # the report's stock map resolution (cells)
-
-
-@dataclass
-class Operation:
-    """A run of the program under one tool and one CAM comment (the operation's name as posted)."""
-
-    name: str
-    tool: int
-    index: np.ndarray  # sample indices
 
 
 @dataclass
@@ -103,23 +95,6 @@ def operation_times(data: ReportData) -> list[dict]:
         rows.append({"operation": op.name, "tool": op.tool, "length_mm": float(ds[i].sum()),
                      **{f"{k}_s": float(t[i].sum()) for k, t in times.items()}})
     return rows
-
-
-def operations_from_lines(lines: np.ndarray, tools: np.ndarray, comments: list[tuple[int, str]]) -> list[Operation]:
-    """Operations by source line: a sample belongs to the last comment at or before its line (the
-    operation name a CAM post writes before each operation) and to its tool."""
-    comment_lines = np.array([c[0] for c in comments], int)
-    texts = [c[1] for c in comments]
-    at = np.searchsorted(comment_lines, lines, side="right") - 1 if len(comment_lines) else np.full(len(lines), -1)
-    ops: dict[tuple[int, int], list[int]] = {}
-    for k, key in enumerate(zip(at.tolist(), tools.astype(int).tolist())):
-        ops.setdefault(key, []).append(k)
-    out = []
-    for (c, tool), idx in sorted(ops.items(), key=lambda kv: kv[1][0]):
-        if tool < 0:
-            continue
-        out.append(Operation(texts[c].strip() if c >= 0 else f"T{tool}", tool, np.asarray(idx)))
-    return out
 
 
 def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map: bool = True) -> ReportData:
