@@ -1,4 +1,5 @@
-"""Real third-party programs (tests/real_jobs/*/job.toml, programs under ../shared/data) through
+"""Real third-party programs (tests/real_jobs/*/job.toml, programs under ../shared/data or, copied with their
+licences, under tests/real_programs) through
 `optimize` with the built-in machines (vmc-small, hobby-router, benchtop-belt, and the hobby router on
 LinuxCNC), default feed policy:
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import tomllib
 from dataclasses import replace
 from pathlib import Path
 
@@ -45,13 +47,20 @@ JOBS = sorted(p.parent for p in (Path(__file__).parent / "real_jobs").glob("*/jo
 # the built-in machines, and the hobby router driven by LinuxCNC (whose canon merges naive-CAM feeds)
 MACHINES = ["vmc-small", "hobby-router", "benchtop-belt", "hobby-router:linuxcnc"]
 PATH_TOL_MM = 1e-4
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _program_in_repo(folder: Path) -> bool:
+    """Whether the job's program lies inside the repository (tests/real_programs), so it runs without ../shared."""
+    program = (folder / tomllib.loads((folder / "job.toml").read_text())["program"]).resolve()
+    return program.is_relative_to(REPO)
 
 
 @pytest.fixture(scope="module", params=[(j, m) for j in JOBS for m in MACHINES],
                 ids=[f"{j.name}-{m}" for j in JOBS for m in MACHINES])
 def run(request):
     folder, machine = request.param
-    if not SHARED_DATA.exists():
+    if not SHARED_DATA.exists() and not _program_in_repo(folder):
         pytest.skip(f"{SHARED_DATA} is absent (third-party programs, not in the repo)")
     job = load_job(folder)
     name, _, kind = machine.partition(":")
