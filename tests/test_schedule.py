@@ -305,8 +305,9 @@ def test_seeded_random_problems_exceed_no_limit():
     for _ in range(count):
         smp, grid, limits, kw = random_case(rng)
         sch = solve_path(grid, path_blocks(grid, limits), ScheduleOptions(solver=SolverOptions(tol=1e-7)))
-        assert sch.status in (Status.SOLVED, Status.FALLBACK), sch.message
-        solved += sch.status == Status.SOLVED
+        # ALMOST_SOLVED: the certified profile kept on a stretch whose conic solve failed (feasible)
+        assert sch.status in (Status.SOLVED, Status.ALMOST_SOLVED, Status.FALLBACK), sch.message
+        solved += sch.status in (Status.SOLVED, Status.ALMOST_SOLVED)
         ratios = check_limits(grid.tangent, grid.curvature, grid.s_mm, sch.b, **kw)
         if sch.status == Status.FALLBACK:
             ratios.pop("jerk", None)  # the fallback profile is not jerk limited (documented)
@@ -337,11 +338,13 @@ def test_chip_load_floor_met_where_reachable_and_reported_elsewhere():
 
 
 def test_solver_failure_returns_status_and_feasible_fallback():
+    """Clarabel stopped after 2 iterations: the certified O(N) profile is kept where its solve failed
+    (feasible, within its proven gap: ALMOST_SOLVED, the message says where and why)."""
     smp = pocket_toolpath().resample(0.2)
     grid = PathGrid.from_samples(smp)
     blocks = vel_acc_blocks(grid)
     sch = solve_path(grid, blocks, ScheduleOptions(solver=SolverOptions(max_iter=2)))
-    assert sch.status == Status.FALLBACK and "MaxIterations" in sch.message
+    assert sch.status == Status.ALMOST_SOLVED and "MaxIterations" in sch.message
     r = check_limits(grid.tangent, grid.curvature, grid.s_mm, sch.b, vmax=VMAX, amax=AMAX, feed=120.0)
     assert max(r.values()) <= 1 + 1e-9
     ok = solve_path(grid, blocks)

@@ -28,7 +28,7 @@ from .errors import MillpostError
 from .gcode import dialects
 from .gcode.flow import control_of
 from .gcode.interpret import BORING_CYCLES, INCH, TAPPING_CYCLES, Program
-from .gcode.lexer import Block, lex_line
+from .gcode.lexer import Block, lex_line, source_lines
 from .schedule.feeds import cluster
 from .toolpath import ARC_CW, PLANE_AXES, RAPID, Toolpath
 
@@ -133,7 +133,7 @@ class FeedPlan:
             np.maximum.at(prog_max, inverse, tp.feed_mm_min[fed])
             one_f = cluster(per_line, step)  # one F per line: the lowest of its runs, clustered
             np.logical_or.at(forced, inverse, hard_cap_mm_min[fed] < tp.feed_mm_min[fed] * (1 - step))
-            text = program.text.splitlines()
+            text = source_lines(program.text)
             own_f = np.array([bool(re.search(r"[Ff]\s*[-+\d.#\[]", re.sub(r"\([^)]*\)|;.*", "", text[n - 1])))
                               for n in lines], bool)
             keep = own_f & ~forced & (one_f < prog_max * (1 - 1e-9))
@@ -271,7 +271,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
     default_trailing = _program_trailing_point(program) if trailing_point is None else trailing_point
     f_decimals = _f_decimals(program)
-    lines = program.text.splitlines(keepends=True)
+    lines = source_lines(program.text, keepends=True)
     lengths = tp.lengths()
     cutting = tp.kind != RAPID
     by_line: dict[int, list[int]] = {}
@@ -548,7 +548,7 @@ def whole_moves(program: Program, fragments: list) -> list:
     computes a word (`computed`), merged into one over the whole move at their lowest feed (such moves
     are written with one F, see the module docstring)."""
     out, whole = [], {}
-    lines, move_line = program.text.splitlines(), program.toolpath.line
+    lines, move_line = source_lines(program.text), program.toolpath.line
     suspect = {int(move_line[f.move]) for f in fragments}
     computed_lines = {n for n in suspect if 0 < n <= len(lines) and ("#" in lines[n - 1] or "[" in lines[n - 1])
                       and _computed_line(lines[n - 1], n, program.path)}
@@ -634,7 +634,7 @@ def replace_numbers(program: Program, words: dict[int, dict[str, float]]) -> str
     """The program's text with the values of words on given lines replaced ({line: {letter: value}}),
     each written in its own style (decimals, trailing point, case); every other byte as it was. A
     letter the line does not have is an error (nothing is added)."""
-    lines = program.text.splitlines(keepends=True)
+    lines = source_lines(program.text, keepends=True)
     for n, new in sorted(words.items()):
         body = lines[n - 1].rstrip("\r\n")
         block = lex_line(body, n, program.path, _Unknown())

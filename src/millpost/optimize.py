@@ -204,6 +204,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         # the operations' starts: a restart there keeps every descent below the stock's top at its plunge feeds
         "restart_from": restart_points(program, samples),
         "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends) + _flow_notes(plan)
+        + [f"note: {s.message}" for _, _, s in sched.segments if s.status.ok and s.message]
         + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
     }
     if spindle:

@@ -26,7 +26,7 @@ from ..errors import ParseError
 from ..toolpath import ARC_CW, PLANE_AXES, RAPID
 from .dialects import Dialect
 from .interpret import INCH, Program
-from .lexer import Block, lex_line
+from .lexer import Block, lex_line, source_lines
 
 _WCS = {1: "G54", 2: "G55", 3: "G56", 4: "G57", 5: "G58", 6: "G59", 7: "G59.1", 8: "G59.2", 9: "G59.3"}
 
@@ -42,7 +42,7 @@ class SourceBlocks:
     read (values of parameter words are not evaluated: check `Word.text`)."""
 
     def __init__(self, program: Program) -> None:
-        self.lines, self.file = program.text.splitlines(), program.path
+        self.lines, self.file = source_lines(program.text), program.path
         self._cache: dict[int, Block | None] = {}
 
     def __getitem__(self, line: int) -> Block | None:

@@ -27,6 +27,18 @@ _PLAIN = re.compile(r"(?:[ \t]*[A-Za-z@^][ \t]*[-+]?[ \t]*(?:\d+\.?\d*|\.\d+))*[
 _COMMENT = re.compile(r"\([^()]*\)")
 _CHECKSUM = re.compile(r"\*[ \t]*\d+[ \t]*$")
 LENGTH_LIMIT = 1e6  # program units (1 km in mm)
+
+
+def source_lines(text: str, keepends: bool = False) -> list[str]:
+    """A program's lines as the interpreter numbers them: ended by LF only (a CR alone, as in PyCAM's
+    CR CR LF, is not a line break), each without its line end (CRs before the LF included) unless
+    `keepends`."""
+    parts = text.split("\n")
+    tail = parts.pop()  # what follows the last LF (nothing when the text ends with one)
+    last = [tail] if tail else []
+    if keepends:
+        return [part + "\n" for part in parts] + last
+    return [part.rstrip("\r") for part in parts + last]
 NUMBER_LIMIT = 1e9
 _LIMITS = {**dict.fromkeys("XYZUVWIJKRQ@", LENGTH_LIMIT), "G": 999.9, "M": 999.0}
 

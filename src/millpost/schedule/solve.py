@@ -331,8 +331,8 @@ def _patch(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, cert, b_l
     """The certified profile with the stretches whose proven gap exceeds `certify_gap` solved by
     Clarabel (b fixed to the profile at the stretch's ends: the profile is feasible and sits on the
     speed cap there, so the result is feasible everywhere). A stretch whose solve fails keeps the
-    certified profile (feasible): status FALLBACK, and the message says where and why. Stretches run
-    in parallel processes."""
+    certified profile (feasible, within its proven gap of the optimum): status ALMOST_SOLVED, and the
+    message says where and why. Stretches run in parallel processes."""
     n, ds = len(grid), grid.ds
     nfix = _nfix(blocks)
     cuts = [0, *_anchors(cert.b, b_hi, max(1, round(n / opts.window)), margin=nfix + 3), n - 1]
@@ -356,7 +356,7 @@ def _patch(grid: PathGrid, blocks: list[Block], opts: ScheduleOptions, cert, b_l
         floor_unmet[lo:hi] = (fl > 0) & (slack > 1e-6 * np.maximum(fl, 1e-12)) & (b[lo:hi] < fl * (1 - 1e-6))
     a = np.diff(b) / (2 * ds)
     message = ("certified profile kept where the conic solve failed: " + "; ".join(failed[:3])) if failed else ""
-    return Schedule(b, a, Status.FALLBACK if failed else Status.SOLVED, traversal_time(ds, b), message, floor_unmet,
+    return Schedule(b, a, Status.ALMOST_SOLVED if failed else Status.SOLVED, traversal_time(ds, b), message, floor_unmet,
                     _excess(grid, blocks, b, a), _binding(grid, blocks, b, a), secs, windows)
 
 
