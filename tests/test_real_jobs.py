@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import machinist
 import rs274_oracle
 from conftest import SHARED_DATA
 from millpost.controller import Execution, blend_zones, path_modes
@@ -67,6 +68,7 @@ def run(request):
     job.machine = Machine.load(name)
     if kind:
         job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
+    job.allow = job.allow | {"slower"}  # the refusal is checked from its warning (the other checks need the output)
     try:
         result = optimize(job, progress=False)
     except MillpostError as exc:  # a feature the reader does not support yet, or a cutter-compensation
@@ -89,8 +91,32 @@ def test_solved_and_not_slower_without_cause(run):
         over = {k: v for k, v in s["limits_programmed"].items() if k in s["hard_limits"] and v > 1.0}
         assert over, f"{name}: slower ({s['cycle_time_after_s']} > {s['cycle_time_before_s']} s) with no hard " \
                      f"limit exceeded by the programmed feeds"
+        # much slower: refused (written here only because the fixture allows it), naming the limits
+        refused = any(n.startswith("warning (slower, allowed)") for n in s["notes"])
+        assert refused == (s["cycle_time_after_s"] > float(job.limits["slower_max"]) * s["cycle_time_before_s"])
     else:
         assert s["cycle_time_after_s"] <= s["cycle_time_before_s"] * (1 + 1e-3)
+
+
+def test_what_a_machinist_checks_descents_approaches_and_axis_rates(run):
+    """Read from the programs' text (`machinist`): every descent below the stock's top within
+    plunge_raise_max × its programmed F (a restart from an operation's start, a skipped operation or a
+    broken tool makes it a plunge into solid material; the programmed F where the material has no
+    end-cutting data), every descent into the clearance over the top (an approach) within its
+    programmed F, and no F word above the axis rates of its move's direction."""
+    name, job, result = run
+    original = read_text(job.program.read_text(), str(job.program), job.reader_options())
+    emitted = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
+    bounds = job.stock().bounds()
+    top, c = float(bounds[1][2]), float(job.limits["air_clearance_mm"])
+    reach = max(t.radius_mm for t in job.tools.values()) + c
+    box = np.array([bounds[0][:2] - reach, bounds[1][:2] + reach])
+    raise_max = float(job.limits["plunge_raise_max"]) if job.material.end_cutting else 1.0
+    inch = bool(original.move_inch.any())
+    assert machinist.descent_excess(original.toolpath, emitted, top, raise_max, inch) == [], name
+    assert machinist.approach_excess(original.toolpath, emitted, top, c, box, inch) == [], name
+    vmax = [job.machine.axes[a].vmax_mm_min for a in "xyz"]
+    assert machinist.axis_rate_excess(emitted, vmax, inch) == [], name
 
 
 def test_executed_speed_within_every_f_word_cap(run):
