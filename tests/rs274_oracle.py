@@ -20,8 +20,9 @@ _PLANES = {"CANON_PLANE_XY": (0, 1, 2), "CANON_PLANE_XZ": (2, 0, 1), "CANON_PLAN
 
 @dataclass
 class Trace:
-    """Moves from the canonical trace: kind, end point and feed in the program's units, and whether
-    the units were inches; `error` holds the interpreter's message when it stopped on one."""
+    """Moves from the canonical trace: kind, end point in the program's units, feed in mm/min (LinuxCNC's
+    canon converts SET_FEED_RATE with the units in force when it is called: `G20 F6` is 6 mm/min), and
+    whether the units were inches; `error` holds the interpreter's message when it stopped on one."""
 
     moves: list[tuple[str, tuple[float, float, float], float | None, bool]]
     error: str | None
@@ -62,8 +63,8 @@ def parse(text: str) -> Trace:
             inch = "INCHES" in args
         elif name == "SELECT_PLANE":
             plane = _PLANES.get(args.strip(), plane)
-        elif name == "SET_FEED_RATE":
-            feed = float(args)
+        elif name == "SET_FEED_RATE":  # in the length units in force when it is set (the canon keeps mm)
+            feed = float(args) * (25.4 if inch else 1.0)
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
             v = [float(x) for x in args.split(",")]
             moves.append(("rapid" if name == "STRAIGHT_TRAVERSE" else "feed", tuple(v[:3]),
@@ -95,8 +96,8 @@ def mismatches(program, trace: Trace, tol: float = 1e-4, prefix: bool = False) -
         mine = tp.end[i] / scale
         same = KIND_NAMES[tp.kind[i]] == kind and max(abs(a - b) for a, b in zip(mine, end)) <= tol
         if same:
-            if feed is not None and abs(tp.feed_mm_min[i] / scale - feed) > tol * max(1.0, feed):
-                out.append(f"move {i} (line {tp.line[i]}): feed {tp.feed_mm_min[i] / scale:g} vs {feed:g}")
+            if feed is not None and abs(tp.feed_mm_min[i] - feed) > tol * scale * max(1.0, feed / scale):
+                out.append(f"move {i} (line {tp.line[i]}): feed {tp.feed_mm_min[i]:g} vs {feed:g} mm/min")
             prev_ours, prev_theirs = tp.end[i], end
             i, j = i + 1, j + 1
         elif prev_theirs is not None and max(abs(a - b) for a, b in zip(end, prev_theirs)) <= tol:

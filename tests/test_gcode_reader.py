@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+
+import rs274_oracle
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -196,3 +198,21 @@ def test_detection_weighs_distinct_markers():
     assert dialects.detect(mach3).name == "mach3"
     lcnc = "O0100\no100 sub\nG1 X1 F100\no100 endsub\no100 call\no100 call\nM2\n"
     assert dialects.detect(lcnc).name == "linuxcnc"
+
+
+def test_f_on_a_units_change_line_is_in_the_units_before_it_on_linuxcnc(tmp_path):
+    """LinuxCNC sets the feed rate before the block's length units (its order of execution: rs274 prints
+    SET_FEED_RATE(6) before USE_LENGTH_UNITS(INCHES), and the canon keeps 6 mm/min): CAMotics' vcarve
+    starts `G20 F6` and runs at 6 mm/min on LinuxCNC, not 6 in/min (its harness run took 25 times the
+    model's time). grbl converts F with the block's units. Either way a warning says which was read."""
+    text = "G20 F6\nG0 X0 Y0 Z0\nG1 X1\nM2\n"
+    lcnc = read_text(text, "u.ngc", ReaderOptions(dialect="linuxcnc"))
+    assert lcnc.toolpath.feed_mm_min[-1] == pytest.approx(6.0)
+    assert any("F6 shares its line with the change to inch" in n for n in lcnc.notes)
+    grbl = read_text(text, "u.nc", ReaderOptions(dialect="grbl"))
+    assert grbl.toolpath.feed_mm_min[-1] == pytest.approx(6 * 25.4)
+    if rs274_oracle.RS274:
+        (tmp_path / "u.ngc").write_text(text)
+        trace = rs274_oracle.run(tmp_path / "u.ngc")
+        assert trace.moves[-1][2] == pytest.approx(6.0)  # mm/min
+        assert rs274_oracle.mismatches(lcnc, trace) == []

@@ -557,8 +557,15 @@ class Interpreter:
         if "F" in val:
             if val["F"].value < 0:
                 raise self.err("negative feed rate", b, val["F"], "F >= 0")
-            # held in mm (per min or per rev) as set: a later G20/G21 does not change the machine's feed
-            self.f = val["F"].value * (1.0 if self.feed_mode == 930 else self.pending_scale(b))
+            # held in mm (per min or per rev) as set: a later G20/G21 does not change the machine's feed. LinuxCNC
+            # sets F before the block's G20/G21 (its order of execution), so F is in the units before them
+            scale = self.scale if self.dialect.feed_before_units else self.pending_scale(b)
+            if scale != self.pending_scale(b) and self.feed_mode != 930:
+                was, new = ("mm", "inch") if scale == 1.0 else ("inch", "mm")
+                self.notes.append(f"warning: line {b.line}: F{val['F'].value:g} shares its line with the change to {new}: read "
+                                  f"in {was} per minute, the units before it, as {self.dialect.name} does; write F on a "
+                                  f"line after the G{20 if new == 'inch' else 21} if {new} per minute was meant")
+            self.f = val["F"].value * (1.0 if self.feed_mode == 930 else scale)
         if "S" in val:
             if val["S"].value < 0:
                 raise self.err("negative spindle speed", b, val["S"], "S >= 0")
