@@ -42,7 +42,7 @@ def axis_rates(tp: Toolpath, vmax_mm_min: np.ndarray) -> np.ndarray:
 def axis_rate_excess(emitted: Toolpath, vmax_mm_min, inch: bool = False) -> list[str]:
     rate = axis_rates(emitted, np.asarray(vmax_mm_min, float))
     f = emitted.feed_mm_min
-    bad = np.flatnonzero(np.isfinite(rate) & (f > rate * (1 + 1e-6) + _rounding(inch)))
+    bad = np.flatnonzero(np.isfinite(rate) & (f > rate * (1 + 1e-5) + _rounding(inch)))
     return [f"line {emitted.line[i]}: F{f[i]:.1f} mm/min above the axis rate {rate[i]:.1f} of its direction"
             for i in bad]
 

@@ -69,3 +69,17 @@ def test_line_resample_spacing():
     s = tp.resample(0.3)
     assert len(s) == 35 and np.all(np.diff(s.s_mm) <= 0.3 + 1e-12)
     assert s.xyz_mm[-1, 0] == 10.0
+
+
+def test_axis_shares_over_a_whole_move_are_the_closed_forms():
+    """The largest |t_i| anywhere on a move: a line's direction cosines; a quarter arc from θ = 0 to π/2
+    has its tangent along Y at the start and along X at the end (both 1); a helical quarter from θ = π/2
+    to π of radius 1 dropping 1 mm has L = √((π/2)² + 1) and shares (π/2)/L in the plane, 1/L along Z;
+    a CW quarter from θ = 0 to −π/2 passes both too."""
+    from millpost.gcode import read_text
+    tp = read_text("G21 G90 G17\nG0 X1 Y0 Z0\nG3 X0 Y1 I-1 J0 F100\nG3 X-1 Y0 Z-1 I0 J-1\nG1 X2 Y4 Z0\n"
+                   "G2 X1 Y3 I-1 J0\nM2\n").toolpath
+    L = np.hypot(np.pi / 2, 1.0)
+    expected = [[1, 0, 0], [1, 1, 0], [np.pi / 2 / L, np.pi / 2 / L, 1 / L],
+                np.array([3, 4, 1]) / np.sqrt(26), [1, 1, 0]]
+    np.testing.assert_allclose(tp.axis_shares(), expected, atol=1e-12)

@@ -12,10 +12,11 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 - `baseline`: the baseline's single F obeys it (false for the caps set from the program's own
   feeds, the plunge feed cap and the air clearance: the baseline's moves obey those as a CAM user's
   separate plunge and lead-in feeds would, `millpost.replay.baseline_feeds`);
-- `f_word`: the emitted F words obey its speed cap (false for the block rate, accelerations, jerk
-  and corner caps, which the controller clamps or ramps to on its own, and for the centripetal cap of
-  an arc on a planner that runs arcs whole, clamping each at √(a_n·r); true for the axis rates, which
-  the controller clamps too, but an F word above the rates of its move's direction reads as a typo);
+- `f_word`: the emitted F words obey its speed cap (false for the block rate, the axis rates per
+  sample, accelerations, jerk and corner caps, which the controller clamps or ramps to on its own, and
+  for the centripetal cap of an arc on a planner that runs arcs whole, clamping each at √(a_n·r); true
+  for the axis rates over a whole move, "axis_rate", which the controller clamps too, but an F word
+  above what its move runs at reads as a typo);
 - `clamp`: the controller holds its speed cap as a steady clamp (the axis rates, the block rate): an
   F word above it runs at it, so the F word need only reach it (`millpost.schedule.feeds.hold_runs`);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
@@ -202,6 +203,15 @@ def _corners(model: ControllerModel, samples: Samples, toolpath: Toolpath, modes
     return CornerSpeed(cap)
 
 
+def axis_rates(toolpath: Toolpath, samples: Samples, axes) -> np.ndarray:
+    """Per sample the highest speed (mm/s) at which no axis exceeds its rate anywhere on the sample's
+    move (min_i vmax_i / share_i, `Toolpath.axis_shares`); inf on rapids."""
+    vmax = np.array([a.vmax_mm_min / 60.0 for a in axes])
+    with np.errstate(divide="ignore"):
+        rate = np.min(np.where(toolpath.axis_shares() > 1e-12, vmax / toolpath.axis_shares(), np.inf), axis=1)
+    return np.where(samples.kind != RAPID, rate[samples.move], np.inf)
+
+
 def feed_cap_mm_min(job: Job) -> float:
     """The highest F word (mm/min): the machine's (`Machine.feed_cap_mm_min`, the fastest any direction
     runs; the axis rates of each move's direction are a limit of their own) and the user's
@@ -234,9 +244,11 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                          block_lengths(toolpath, modes)[samples.move] * m.controller.block_rate_Hz, np.inf)
     limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
               Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False, clamp=True),
-              # the controller clamps each axis to its rate by itself, but an F word above the rates of its
-              # move's direction reads as a typo: F words keep to them too
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
+                    f_word=False, clamp=True),
+              # the same rates over each whole move (an arc's every direction): the controller clamps an F
+              # above them by itself, but an F word above what its move runs at reads as a typo
+              Limit(FeedLimit(axis_rates(toolpath, samples, ax), name="axis_rate"), HARD, "inertia", controller=True,
                     clamp=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               # LinuxCNC's planner (`controller`) runs an arc as one segment clamped at √(a_n·r) by itself;

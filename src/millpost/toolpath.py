@@ -82,6 +82,34 @@ class Toolpath:
         dn = self.end[rows, ax[:, 2]] - self.start[rows, ax[:, 2]]
         return r0, r1, a0, sweep, dn, ax
 
+    def axis_shares(self) -> np.ndarray:
+        """(N, 3) per move the largest share |t_i| of each axis in its unit tangent anywhere along it: a
+        line's |Δ_i| / L; on an arc the in-plane share s = √(1 − (Δn/L)²) times the largest |sin θ| (first
+        plane axis) or |cos θ| (second) over the swept angles θ of the radius (1 where the sweep passes the
+        point where the tangent lies along that axis), and the normal travel |Δn| / L (a helix). The
+        controller runs a move at most at min_i vmax_i / share_i."""
+        L = self.lengths()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = np.where(L[:, None] > 0, np.abs(self.end - self.start) / L[:, None], 0.0)
+        arc = np.flatnonzero((self.kind >= ARC_CW) & (L > 0))
+        if len(arc):
+            _, _, a0, sweep, dn, ax = self.subset(arc)._arc_params()
+            normal = np.abs(dn) / L[arc]
+            s = np.sqrt(np.maximum(1.0 - normal**2, 0.0))
+            lo, hi = np.minimum(a0, a0 + sweep), np.maximum(a0, a0 + sweep)
+
+            def largest(f, at: float) -> np.ndarray:  # max |f| over [lo, hi], |f| = 1 at `at` + kπ
+                passes = np.ceil((lo - at) / np.pi) <= np.floor((hi - at) / np.pi)
+                return np.where(passes, 1.0, np.maximum(np.abs(f(lo)), np.abs(f(hi))))
+
+            rows = np.arange(len(arc))
+            share = np.zeros((len(arc), 3))
+            share[rows, ax[:, 0]] = s * largest(np.sin, np.pi / 2)  # the tangent is ∝ (−sin θ, cos θ)
+            share[rows, ax[:, 1]] = s * largest(np.cos, 0.0)
+            share[rows, ax[:, 2]] = normal
+            out[arc] = share
+        return out
+
     def lengths(self) -> np.ndarray:
         """Path length of each move (mm); helices as helices (radius varying linearly if the
         programmed end radius differs slightly from the start radius)."""
