@@ -443,3 +443,12 @@ def test_f_words_keep_the_programs_padded_decimals(f, written):
     plan = FeedPlan.programmed(prog)
     plan.feed_mm_min[int(np.flatnonzero(prog.toolpath.line == 4)[0])] = 2082.87
     assert write_feeds(prog, plan).splitlines()[3] == f"G1 X10 {written}"
+
+
+def test_a_one_word_line_takes_the_programs_usual_spacing():
+    """Fabex writes `G00 Z10.0` once and every other line unspaced (`G1Z0F500`, `Y98.402F1000`): a new F
+    on a one-word line follows the many, not the one."""
+    prog = read_text("G21\nG17G90\nG00 Z10.0\nG0X0Y0Z10\nG1Z0F500\nY98.4\nX1Y1\nY0\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[int(np.flatnonzero(prog.toolpath.line == 6)[0])] = 1200.0
+    assert write_feeds(prog, plan).splitlines()[5] == "Y98.4F1200"

@@ -215,6 +215,7 @@ def _fmt(value: float, decimals: int, trailing_point: bool) -> str:
 
 
 _SPACED = r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]"  # a word, blanks, the next word
+_UNSPACED = r"[0-9.\]>][A-Za-z]"  # a word's value, the next word
 
 
 class _LineWriter:
@@ -279,7 +280,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         by_line.setdefault(int(tp.line[i]), []).append(int(i))
     out: list[str] = []
     # the style of a line too short to show its own: the program's (comments aside)
-    spaced = bool(re.search(_SPACED, re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)))
+    code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
+    spaced = len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))  # the program's usual way
     modal_f: float | None = None  # F in force in the output (program units)
     in_f: float | None = None  # F in force in the program (program units)
     # With O-word control flow a line may run several times, with other parameters and after other
