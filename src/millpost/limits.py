@@ -395,9 +395,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
     raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
     # (the program itself runs a blended corner at the faster of its two feeds, into the plunge's end)
-    raised = np.maximum(np.where(v_prog > 0, raise_max * v_prog, np.inf),
-                        programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None
-                                        else zones))
+    # the speed the programmed program's own blend arcs pass each sample at (a cap set from the programmed
+    # feeds never reads the programmed program over it)
+    carried = programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None else zones)
+    raised = np.maximum(np.where(v_prog > 0, raise_max * v_prog, np.inf), carried)
     plunge_cap = np.minimum(plunge_cap, raised)
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed",
                         baseline=False))
@@ -437,7 +438,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         known = near & eng.swept_air
         if not job.limits["trust_cut_space"]:  # a descent, whatever was swept: the tool enters what it meets
             known &= ~(samples.tangent[:, 2] < -DESCENDING)
-        cap = _air_clearance(near, known, engaged, samples, v_prog, v_cap)
+        cap = np.maximum(_air_clearance(near, known, engaged, samples, v_prog, v_cap), carried)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     if job.limits["air_feed_max_mm_min"] and eng.below_top is not None:  # the user's cap on air in cut space
         air = cutting & ~engaged & eng.below_top
