@@ -209,9 +209,11 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     }
     if spindle:
         summary["spindle"] = spindle
-    if (status == "slower" and after.time_s > before.time_s * float(job.limits["slower_max"])
+    slower_max = float(job.limits["slower_max"])
+    slow = {t: row for t, row in summary["tools"].items() if row["optimized_s"] > slower_max * row["programmed_s"]}
+    if ((after.time_s > before.time_s * slower_max or slow)
             and any(as_programmed.get(k, 0.0) > 1.0 for k in hard)):  # not quality limits lowered by `lower = "all"`
-        safety.refuse_or_note("slower", _too_heavy(job, samples, limits, before.time_s, after.time_s), job.allow,
+        safety.refuse_or_note("slower", _too_heavy(job, samples, limits, before.time_s, after.time_s, slow), job.allow,
                               summary["notes"])
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
@@ -407,10 +409,12 @@ def _held_lines(samples: Samples, limits: JobLimits, physical: dict[str, float])
     return out
 
 
-def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, after_s: float) -> str:
-    """Why the optimized program is much slower than the programmed one: per tool, each hard load limit
-    the programmed feeds exceed, its first lines and how far over its bound the load is at the
-    programmed feed (the factor the cut must lose)."""
+def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, after_s: float,
+               slow: dict[int, dict]) -> str:
+    """Why the optimized program, or the work of some tools (`slow`: their rows of the summary's tool
+    table), is much slower than programmed: per tool, each hard load limit the programmed feeds
+    exceed, its first lines and how far over its bound the load is at the programmed feed (the factor
+    the cut must lose)."""
     v_prog = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0
     over: dict[tuple[int, str], tuple[float, np.ndarray]] = {}  # (tool, limit) → (largest ratio, its samples)
     for lim in limits:
@@ -427,11 +431,12 @@ def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, a
         lines = np.unique(samples.line[mine])
         more = f" and {len(lines) - 8} more" if len(lines) > 8 else ""
         parts.append(f"T{tool} {name} up to {ratio:.2f}x its bound on lines {', '.join(map(str, lines[:8]))}{more}")
+    tools = "; ".join(f"T{t} {row['optimized_s']:.1f} s against {row['programmed_s']:.1f} s" for t, row in slow.items())
     return (f"{job.program}: the programmed cuts exceed hard limits of this machine and tool "
             f"({'; '.join(parts) or 'see limits_programmed'}): within them the program takes {after_s:.1f} s "
-            f"against {before_s:.1f} s programmed ({after_s / before_s:.2f}x, more than slower_max "
-            f"{float(job.limits['slower_max']):g}x); the cuts need to be lighter by those factors, or another tool "
-            "or a stronger machine")
+            f"against {before_s:.1f} s programmed ({after_s / before_s:.2f}x{'; ' + tools if tools else ''}: more "
+            f"than slower_max {float(job.limits['slower_max']):g}x); the cuts need to be lighter by those factors, "
+            "or another tool or a stronger machine")
 
 
 def _rpm_notes(job: Job, samples: Samples) -> list[str]:

@@ -24,8 +24,8 @@ a rapid into material is a crash whatever the user says, and an output must neve
   memory free now (an estimate at `BYTES_PER_SAMPLE`, made before any of it is allocated).
 - ``clobber`` (always refused): an output path is an input (program, job, stock, tool, material or
   machine file), another output, or a folder that does not exist.
-- ``slower``: the optimized program would take more than `[limits] slower_max` (1.25) × the programmed
-  time because the programmed cuts exceed hard limits (spindle power, torque, the tool's strength, the
+- ``slower``: the optimized program, or one tool's work in it, would take more than `[limits]
+  slower_max` (1.25) × the programmed time because the programmed cuts exceed hard limits (spindle power, torque, the tool's strength, the
   drives) that no feed millpost writes brings them under: the machine cannot cut the program as
   planned; the refusal lists per tool the lines, the limit and how far over it the programmed feed is
   (a lighter cut, another tool or a stronger spindle). Checked after the schedule, before anything is
