@@ -65,6 +65,17 @@ blank may be larger, the sheet thicker or bowed) and CAM posts approaches at the
 the tool is about to cut: within c of the modelled stock the tool would otherwise meet unmodelled
 material at up to the machine's maximum feed.
 
+Arcs: the flank cuts at the feed of its edge, the centre's times `Engagement.edge_ratio` (r_e/ρ: larger
+on an inside arc, smaller on an outside one), so every flank load and the chip are those of that feed;
+a corner tighter than the tool (ρ < R) takes a full slot's chip at its wall whatever the stock model
+shows.
+
+Restarts (`restart_descents`): a feed move going down below the top of the stock as loaded keeps the
+plunge rules (the chip of an end entering solid material, the plunge feed cap) even where the program
+cut that space before, since a restart from a later line, a skipped operation or a broken tool leaves
+it solid; `[limits] trust_cut_space = true` lifts it. Air moves through cut space below the top are
+capped at `air_feed_max_mm_min` when given ("air_feed").
+
 Deflection default (`deflection_mm` not given): a roughing limit per tool, max(0.025 mm, 0.4 % of
 the diameter). CNCCookbook (B. Warfield, "Tool Deflection Control", G-Wizard) takes 0.001 in
 (0.025 mm) as suitable for roughing with a 1/8 in end mill and 0.0002 in (0.005 mm) for
@@ -207,8 +218,9 @@ def axis_rates(toolpath: Toolpath, samples: Samples, axes) -> np.ndarray:
     """Per sample the highest speed (mm/s) at which no axis exceeds its rate anywhere on the sample's
     move (min_i vmax_i / share_i, `Toolpath.axis_shares`); inf on rapids."""
     vmax = np.array([a.vmax_mm_min / 60.0 for a in axes])
+    share = toolpath.axis_shares()
     with np.errstate(divide="ignore"):
-        rate = np.min(np.where(toolpath.axis_shares() > 1e-12, vmax / toolpath.axis_shares(), np.inf), axis=1)
+        rate = np.min(np.where(share > 1e-12, vmax / share, np.inf), axis=1)
     return np.where(samples.kind != RAPID, rate[samples.move], np.inf)
 
 
