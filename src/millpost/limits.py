@@ -399,7 +399,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], tool_torque_limit,
                lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
     load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max,
-               lambda s, at: s.fz_mm * chip_factor[at])
+               lambda s, at: s.speed_mm_s * chip_a[at])  # a restart's descent has a chip where nothing cuts
     plunging = (sin_end > 0) | (restart if restart is not None else False)
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)

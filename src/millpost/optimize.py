@@ -211,8 +211,10 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
         summary["spindle"] = spindle
     slower_max = float(job.limits["slower_max"])
     slow = {t: row for t, row in summary["tools"].items() if row["optimized_s"] > slower_max * row["programmed_s"]}
-    if ((after.time_s > before.time_s * slower_max or slow)
-            and any(as_programmed.get(k, 0.0) > 1.0 for k in hard)):  # not quality limits lowered by `lower = "all"`
+    # the cuts exceed a physical hard limit (a load: power, torque, the tool's strength, the drives): not
+    # quality limits lowered by `lower = "all"`, nor caps the user set (plunge_feed_max_mm_min)
+    loads = {lim.name for lim in limits if lim.kind == HARD and lim.bound is not None}
+    if (after.time_s > before.time_s * slower_max or slow) and any(as_programmed.get(k, 0.0) > 1.0 for k in loads):
         safety.refuse_or_note("slower", _too_heavy(job, samples, limits, before.time_s, after.time_s, slow), job.allow,
                               summary["notes"])
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
