@@ -1,0 +1,114 @@
+"""Running a program through the controller model: the planner's blocks (`grbl`, `linuxcnc`), their
+speeds planned over the look-ahead (`profile.plan_speeds`), each block's time, the pauses between moves."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .._kernels import compiling
+from ..toolpath import Toolpath
+from .execution import Execution
+from .grbl import grbl_blocks
+from .linuxcnc import linuxcnc_blocks
+from .paths import PathModes, path_modes
+from .pauses import pauses_s
+from .profile import plan_speeds, trapezoid_time
+from .segments import RAMP_TIME_S
+
+if TYPE_CHECKING:
+    from .model import ControllerModel
+
+
+def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
+                    modes: PathModes | None = None) -> Execution:
+    """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the
+    motion and take their time, its path modes (G61/G64 P Q; `path_modes`, computed here unless
+    given) set the corners and the merging of straight feeds; feed_mm_min overrides the programmed
+    feed per move."""
+    return execute(program.toolpath, model, feed_mm_min, pauses=pauses_s(program, model),
+                   modes=path_modes(program, model) if modes is None else modes)
+
+
+def program_time(program, model: ControllerModel) -> float:
+    """Cycle time of an interpreted program (s): motion and the pauses between its first and last
+    move, in the path modes (G61/G64) the program sets."""
+    return execute_program(program, model).time_s
+
+
+def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
+            pauses: np.ndarray | None = None, modes: PathModes | None = None) -> Execution:
+    """Plan and time the whole program (rapids at the axis rates). feed_mm_min overrides the
+    programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
+    modes (see `path_modes`; default: the controller's own) set the LinuxCNC planner's path modes."""
+    blends = np.zeros((0, 3))
+    if model.planner == "linuxcnc":
+        L, vnom, acc, vj2, move, u_end, ramps, cuts, blends = linuxcnc_blocks(tp, model, feed_mm_min, pauses, modes)
+    else:
+        cuts = []
+        L, vnom, acc, vj2, move, u_end = grbl_blocks(tp, model, feed_mm_min, pauses)
+    vj2 = vj2.copy()
+    vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
+    n = len(L)
+    with compiling(plan_speeds):
+        v2 = plan_speeds(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
+    ve = np.sqrt(np.maximum(v2, 0))
+    t = trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
+    ramp = np.zeros(n, bool)
+    if model.planner == "linuxcnc":
+        # a feed segment run in less than RAMP_TIME_S that flows into the next changes speed linearly
+        # from end to end (no cruise above both ends); one ending at rest ends half a period late
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_ramp = np.where(ve[:-1] + ve[1:] > 0, 2.0 * L / (ve[:-1] + ve[1:]), np.inf)
+            v_end = ve[:-1] + np.minimum(ve[1:], vnom)
+            t_est = np.where(v_end > 0, 2.0 * L / v_end, np.inf)
+        ramp = ramps & (ve[1:] > 0) & (t_est < RAMP_TIME_S)
+        t = np.where(ramp, t_ramp, t) + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
+        if len(blends):  # the top of each arc's profile: a linear ramp's faster end, else the trapezoid's peak
+            k = blends[:, 2].astype(np.int64)
+            v0, v1 = ve[k], ve[k + 1]
+            peak = np.minimum(np.sqrt(np.maximum((2 * acc[k] * L[k] + v0**2 + v1**2) / 2, 0)), vnom[k])
+            blends = np.column_stack([blends[:, :2], np.where(ramp[k], np.maximum(v0, v1), peak)])
+    pause = 0.0
+    if pauses is not None and n:
+        first, last = move[0], move[-1]
+        inside = np.arange(len(pauses))
+        pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
+    if cuts:
+        t, L, vnom, acc, ve, move, u_end, ramp = cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
+    return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, ramp,
+                     np.r_[0.0, np.cumsum(tp.lengths())], pause, blends)
+
+
+def cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
+    """Blocks cut where they pass from one program move onto the next (a blend arc's two halves, a
+    merged chain's moves), so that every piece lies on one move. cuts: (block, fraction of it at the
+    cut, the move and the fraction of it where the piece before the cut ends); the piece after the last
+    cut keeps the block's own place. A piece runs the block's speed profile between the cut points
+    (constant acceleration on a linear ramp, the trapezoid elsewhere); the pieces' times share the
+    block's time in proportion to those runs. Returns the pieces' t, L, vnom, acc, entry speeds (n+1),
+    move, u_end and ramp."""
+    n = len(L)
+    k = np.array([c[0] for c in cuts], np.int64)
+    blk = np.r_[k, np.arange(n)]
+    f_end = np.r_[np.clip([c[1] for c in cuts], 0.0, 1.0), np.ones(n)]
+    mv = np.r_[np.array([c[2] for c in cuts], np.int64), move]
+    uu = np.r_[np.array([c[3] for c in cuts], float), u_end]
+    order = np.lexsort((f_end, blk))
+    blk, f_end, mv, uu = blk[order], f_end[order], mv[order], uu[order]
+    f_start = np.r_[0.0, np.where(blk[1:] == blk[:-1], f_end[:-1], 0.0)]
+    v0, v1, Lb, a, vm = ve[blk], ve[blk + 1], L[blk], acc[blk], vnom[blk]
+
+    def speed(f):
+        linear = np.sqrt(np.maximum(v0**2 + (v1**2 - v0**2) * f, 0.0))
+        trapezoid = np.minimum.reduce([np.sqrt(v0**2 + 2 * a * f * Lb), vm, np.sqrt(v1**2 + 2 * a * (1 - f) * Lb)])
+        return np.where(f <= 0.0, v0, np.where(f >= 1.0, v1, np.where(ramp[blk], linear, trapezoid)))
+
+    vs, vf = speed(f_start), speed(f_end)
+    Lp = (f_end - f_start) * Lb
+    with np.errstate(divide="ignore", invalid="ignore"):
+        run = np.where(ramp[blk], np.where(vs + vf > 0, 2.0 * Lp / (vs + vf), 0.0), trapezoid_time(Lp, vs, vf, vm, a))
+        total = np.bincount(blk, run, minlength=n)
+        share = np.where(total[blk] > 0, run / total[blk], f_end - f_start)
+    return t[blk] * share, Lp, vm, a, np.r_[vs, ve[-1]], mv, uu, ramp[blk]
