@@ -103,6 +103,20 @@ def parabolic_speed(prev: Segment, cur: Segment) -> float:
     return min(min(out[0], t_blend * acc[0]), min(out[1], t_blend * acc[1]))
 
 
+def _halts(prev: Segment, cur: Segment, tp: Toolpath, model: ControllerModel) -> bool:
+    """Whether the motion stops between two programmed moves whatever the feeds: exact stop, G61/G61.1,
+    a reversal (within 2°) or a jump in position."""
+    return bool(model.exact_stop or prev.tolerance in (EXACT_PATH, EXACT_STOP)
+                or dot(prev.t1, cur.t0) < SHARP_CORNER_COS
+                or np.linalg.norm(tp.start[cur.move] - tp.end[prev.move]) > 1e-6)
+
+
+def _arc_top_speed(binormal, r_geom: float, model: ControllerModel) -> float:
+    """Top speed (mm/s) of the largest blend arc that fits a corner: √(0.87·a·r_geom), a the
+    acceleration every direction of the corner's plane allows."""
+    return math.sqrt(NORMAL_SHARE * inscribed(binormal, model.accel_mm_s2) * r_geom)
+
+
 def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None = None) -> np.ndarray:
     """LinuxCNC's planner: per junction (len(tp) + 1; index j: before move j) the highest speed (mm/s)
     at which it passes the corner whatever the feeds: 0 where it stops (rapid ↔ feed, a reversal, a
@@ -116,9 +130,7 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None 
     segs = build_segments(tp, model, np.full(len(tp), np.inf), modes)
     amax, dt = model.accel_mm_s2, model.servo_period_s
     for prev, cur in zip(segs[:-1], segs[1:]):
-        if (prev.rapid != cur.rapid or model.exact_stop or prev.tolerance in (EXACT_PATH, EXACT_STOP)
-                or dot(prev.t1, cur.t0) < SHARP_CORNER_COS
-                or np.linalg.norm(tp.start[cur.move] - tp.end[prev.move]) > 1e-6):
+        if prev.rapid != cur.rapid or _halts(prev, cur, tp, model):
             out[cur.move] = 0.0
             continue
         jump = max(abs(cur.t0[i] - prev.t1[i]) / amax[i] for i in range(3))
@@ -127,8 +139,7 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None 
         v = KINK_RATIO * dt / jump * (TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0)
         geometry = blend_geometry(prev, cur)
         if geometry is not None:
-            _, _, binormal, _, r_geom = geometry
-            v = max(v, math.sqrt(NORMAL_SHARE * inscribed(binormal, model.accel_mm_s2) * r_geom))
+            v = max(v, _arc_top_speed(geometry[2], geometry[4], model))
         else:
             v = max(v, parabolic_speed(prev, cur))
         out[cur.move] = v
@@ -152,24 +163,22 @@ def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes) -> np.nd
     the arc length (mm) where the arc may start and end (the corner ∓ d_geom) and its top speed
     √(0.87·a·r_geom) (mm/s), the same columns as `Execution.blends`. On such a zone the slower move's
     loads see the faster move's feed unless both F words fit it. grbl never runs a junction above the
-    slower block's feed: no zones. modes: the path modes (`path_modes`). Per programmed move, not
-    merged: the canon layer's merging depends on the F words written, and its longer lines reach
-    further; the arcs of the program as emitted are `Execution.blends`. Stops (rapid ↔ feed, reversals,
-    jumps, G61/G61.1) have no zone; pauses are not looked at (a zone there only costs time)."""
+    slower block's feed: no zones. modes: the path modes
+    (`path_modes`). Per programmed move, not merged: the canon layer's merging depends on the F words
+    written, and its longer lines reach further; the arcs of the program as emitted are
+    `Execution.blends`. Stops (rapid ↔ feed, reversals, jumps, G61/G61.1) have no zone; pauses are not
+    looked at (a zone there only costs time)."""
     out = []
     if model.planner != "linuxcnc":
         return np.zeros((0, 3))
     segs = build_segments(tp, model, None, modes)
     end = np.cumsum(tp.lengths())
     for prev, cur in zip(segs[:-1], segs[1:]):
-        if (prev.rapid or cur.rapid or model.exact_stop
-                or prev.tolerance in (EXACT_PATH, EXACT_STOP) or dot(prev.t1, cur.t0) < SHARP_CORNER_COS
-                or np.linalg.norm(tp.start[cur.move] - tp.end[prev.move]) > 1e-6):
+        if prev.rapid or cur.rapid or _halts(prev, cur, tp, model):
             continue
         geometry = blend_geometry(prev, cur)
         if geometry is None:
             continue
         _, _, binormal, d_geom, r_geom = geometry
-        v_top = math.sqrt(NORMAL_SHARE * inscribed(binormal, model.accel_mm_s2) * r_geom)
-        out.append((end[prev.move] - d_geom, end[prev.move] + d_geom, v_top))
+        out.append((end[prev.move] - d_geom, end[prev.move] + d_geom, _arc_top_speed(binormal, r_geom, model)))
     return np.asarray(out, float).reshape(-1, 3)

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..toolpath import Samples
+from .profile import peak_speed
 
 
 @dataclass
@@ -64,7 +65,7 @@ class Execution:
         cruise at the peak speed, decelerate to the exit speed) or linear ramp."""
         k, x = self._locate(move, u)
         a, L, v0, v1 = self.acc[k], self.length[k], self.v_entry[k], self.v_entry[k + 1]
-        vp = np.minimum(np.sqrt(np.maximum((2 * a * L + v0**2 + v1**2) / 2, 0)), self.vnom[k])
+        vp = peak_speed(L, v0, v1, self.vnom[k], a)
         d_acc = (vp**2 - v0**2) / (2 * a)
         d_dec = (vp**2 - v1**2) / (2 * a)
         before = np.concatenate([[0.0], np.cumsum(self.block_time_s)])[k]

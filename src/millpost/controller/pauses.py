@@ -46,3 +46,12 @@ def stops(tp: Toolpath, pauses: np.ndarray | None) -> np.ndarray:
         stop[1:] |= np.linalg.norm(tp.start[1:] - tp.end[:-1], axis=1) > 1e-6
     return stop
 
+
+def paused_s(pauses: np.ndarray | None, first: int, last: int) -> float:
+    """Time (s) stood still between move `first` and the end of move `last`: the pauses at the
+    junctions after the first motion, up to the last (times count from the first motion to the end of
+    the last)."""
+    if pauses is None:
+        return 0.0
+    inside = np.arange(len(pauses))
+    return float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))

@@ -38,10 +38,15 @@ def plan_speeds(L, vnom, acc, vj, depth):
     return v2
 
 
+def peak_speed(L, vin, vout, vmax, a):
+    """Top speed of a trapezoidal (or triangular) profile from vin to vout over L at acceleration a,
+    at most vmax."""
+    return np.minimum(np.sqrt(np.maximum((2 * a * L + vin**2 + vout**2) / 2, 0)), vmax)
+
+
 def trapezoid_time(L, vin, vout, vmax, a):
     """Time of a trapezoidal (or triangular) profile from vin to vout over L at acceleration a."""
-    vpeak2 = (2 * a * L + vin**2 + vout**2) / 2
-    vp = np.minimum(np.sqrt(np.maximum(vpeak2, 0)), vmax)
+    vp = peak_speed(L, vin, vout, vmax, a)
     d_acc = (vp**2 - vin**2) / (2 * a)
     d_dec = (vp**2 - vout**2) / (2 * a)
     cruise = np.maximum(L - d_acc - d_dec, 0)

@@ -13,8 +13,8 @@ from .execution import Execution
 from .grbl import grbl_blocks
 from .linuxcnc import linuxcnc_blocks
 from .paths import PathModes, path_modes
-from .pauses import pauses_s
-from .profile import plan_speeds, trapezoid_time
+from .pauses import paused_s, pauses_s
+from .profile import peak_speed, plan_speeds, trapezoid_time
 from .segments import RAMP_TIME_S
 
 if TYPE_CHECKING:
@@ -68,13 +68,9 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None
         if len(blends):  # the top of each arc's profile: a linear ramp's faster end, else the trapezoid's peak
             k = blends[:, 2].astype(np.int64)
             v0, v1 = ve[k], ve[k + 1]
-            peak = np.minimum(np.sqrt(np.maximum((2 * acc[k] * L[k] + v0**2 + v1**2) / 2, 0)), vnom[k])
+            peak = peak_speed(L[k], v0, v1, vnom[k], acc[k])
             blends = np.column_stack([blends[:, :2], np.where(ramp[k], np.maximum(v0, v1), peak)])
-    pause = 0.0
-    if pauses is not None and n:
-        first, last = move[0], move[-1]
-        inside = np.arange(len(pauses))
-        pause = float(np.nansum(np.where((inside > first) & (inside <= last), pauses, 0.0)))
+    pause = paused_s(pauses, move[0], move[-1]) if n else 0.0
     if cuts:
         t, L, vnom, acc, ve, move, u_end, ramp = cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
     return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, ramp,
