@@ -7,17 +7,13 @@ bound these at any feeds, for the limits and the F words."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..toolpath import FEED, Toolpath
-from .paths import EXACT_PATH, EXACT_STOP, PathModes
+from .model import EXACT_PATH, EXACT_STOP, ControllerModel, PathModes
 from .segments import (ANGLE_EPS, KINK_RATIO, NORMAL_SHARE, SHARP_CORNER_COS, TANGENTIAL_SHARE, Segment, arc_maxvel,
                        build_segments, dot, inscribed)
-
-if TYPE_CHECKING:
-    from .model import ControllerModel
 
 
 def blend_geometry(prev: Segment, cur: Segment):
@@ -162,14 +158,14 @@ def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes) -> np.nd
     blends at max(F_in, F_out)), bounded at any feeds: per corner between two programmed moves (k, 3):
     the arc length (mm) where the arc may start and end (the corner ∓ d_geom) and its top speed
     √(0.87·a·r_geom) (mm/s), the same columns as `Execution.blends`. On such a zone the slower move's
-    loads see the faster move's feed unless both F words fit it. grbl never runs a junction above the
-    slower block's feed: no zones. modes: the path modes
+    loads see the faster move's feed unless both F words fit it. A planner that blends no corners
+    (grbl: it never runs a junction above the slower block's feed) has no zones. modes: the path modes
     (`path_modes`). Per programmed move, not merged: the canon layer's merging depends on the F words
     written, and its longer lines reach further; the arcs of the program as emitted are
     `Execution.blends`. Stops (rapid ↔ feed, reversals, jumps, G61/G61.1) have no zone; pauses are not
     looked at (a zone there only costs time)."""
     out = []
-    if model.planner != "linuxcnc":
+    if not model.planner.blends_corners:
         return np.zeros((0, 3))
     segs = build_segments(tp, model, None, modes)
     end = np.cumsum(tp.lengths())

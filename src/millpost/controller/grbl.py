@@ -9,16 +9,13 @@ of the last one."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..toolpath import ARC_CW, RAPID, Toolpath
+from .model import ControllerModel, PathModes, Planner, Queue
 from .pauses import stops
 from .profile import axis_limited
-
-if TYPE_CHECKING:
-    from .model import ControllerModel
 
 
 @dataclass
@@ -55,26 +52,20 @@ def to_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | No
     return Blocks(start, end, move, u, feed[move] / 60.0)
 
 
-def grbl_blocks(tp, model, feed_mm_min, pauses):
-    """Chord blocks with grbl's junction-deviation corner speeds."""
-    blk = to_blocks(tp, model, feed_mm_min)
-    d = blk.end - blk.start
-    L = np.linalg.norm(d, axis=1)
-    u = d / np.maximum(L, 1e-300)[:, None]
-    amax = np.asarray(model.accel_mm_s2)
-    axis_rate = axis_limited(u, model.max_rate_mm_s)
-    acc = axis_limited(u, amax)
-    rapid = tp.kind[blk.move] == RAPID
-    vnom = np.where(rapid | ~np.isfinite(blk.feed_mm_s), axis_rate, np.minimum(blk.feed_mm_s, axis_rate))
-    vnom = np.minimum(vnom, L * model.block_rate_hz)
-    n = len(L)
+def _junction_speeds2(tp: Toolpath, blk: Blocks, u: np.ndarray, model: ControllerModel,
+                      pauses: np.ndarray | None) -> np.ndarray:
+    """Squared junction speed caps (n+1) by grbl's junction deviation: v² = a·δ·sin(θ/2)/(1 − sin(θ/2)),
+    a the acceleration the axes allow along the direction change, θ the angle between the reversed
+    incoming and the outgoing direction (inf where collinear, 0 at a reversal); 0 at the ends, at a
+    jump in position, before a paused move and everywhere in exact stop. u: the blocks' directions."""
+    n = len(u)
     vj = np.zeros(n + 1)
     if n > 1 and not model.exact_stop:
         u0, u1 = u[:-1], u[1:]
         cos_t = np.clip(-(u0 * u1).sum(1), -1, 1)  # grbl: cos of the angle between reversed in and out
         jv = u1 - u0
         jv /= np.maximum(np.linalg.norm(jv, axis=1), 1e-300)[:, None]
-        aj = axis_limited(jv, amax)
+        aj = axis_limited(jv, np.asarray(model.accel_mm_s2))
         sin_half = np.sqrt(np.maximum(0.5 * (1 - cos_t), 0))
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             v2 = np.where(cos_t < -0.999999, np.inf,  # grbl: collinear
@@ -85,4 +76,32 @@ def grbl_blocks(tp, model, feed_mm_min, pauses):
         first_of_move = np.r_[True, blk.move[1:] != blk.move[:-1]][1:]
         paused = stops(tp, pauses)[blk.move[1:]] & first_of_move
         vj[1:-1] = np.where(cont & ~paused, v2, 0.0)
-    return L, vnom, acc, vj, blk.move, blk.u_end
+    return vj
+
+
+@dataclass(frozen=True)
+class GrblPlanner(Planner):
+    """grbl's planner: arcs as chords (their F word carries the centripetal cap), junction deviation at
+    corners, 16-block look-ahead; grbl merges no feeds and has no path modes."""
+
+    lookahead_blocks = 16
+    runs_arcs_whole = False
+    blends_corners = False
+
+    def queue(self, tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None,
+              pauses: np.ndarray | None, modes: PathModes | None) -> Queue:
+        """Chord blocks (`to_blocks`) with grbl's junction-deviation corner speeds; modes play no part."""
+        blk = to_blocks(tp, model, feed_mm_min)
+        d = blk.end - blk.start
+        L = np.linalg.norm(d, axis=1)
+        u = d / np.maximum(L, 1e-300)[:, None]
+        axis_rate = axis_limited(u, model.max_rate_mm_s)
+        acc = axis_limited(u, np.asarray(model.accel_mm_s2))
+        rapid = tp.kind[blk.move] == RAPID
+        vnom = np.where(rapid | ~np.isfinite(blk.feed_mm_s), axis_rate, np.minimum(blk.feed_mm_s, axis_rate))
+        vnom = np.minimum(vnom, L * model.block_rate_hz)
+        return Queue(L, vnom, acc, _junction_speeds2(tp, blk, u, model, pauses), blk.move, blk.u_end,
+                     np.zeros(len(L), bool))
+
+
+Planner.register("grbl", GrblPlanner())

@@ -4,49 +4,23 @@ planner as that line (`naive_cam_chains`), so the planner's blocks are the chain
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
 import numba
 import numpy as np
 
 from .._kernels import compiling
 from ..toolpath import FEED, Toolpath
+from .model import EXACT_PATH, EXACT_STOP, ControllerModel, PathModes
 
-if TYPE_CHECKING:
-    from .model import ControllerModel
-
-EXACT_PATH, EXACT_STOP = -1.0, -2.0  # path modes in a blend-tolerance array: G61, G61.1
 CHAIN_POINTS = 101  # LinuxCNC's canon chains at most this many points into one line (linkable: size > 100)
 # the comments LinuxCNC's canon passes on (to the operator or the log): they flush its chain of straight
 # feeds like every other command; other comments do not
 _FLUSHING_COMMENTS = ("MSG,", "DEBUG,", "LOG,")
 
 
-@dataclass(frozen=True)
-class PathModes:
-    """Per move, the path control LinuxCNC runs it in. blend_mm: the blend tolerance (G64 P, mm; 0 for a
-    G64 without P) or EXACT_PATH (G61: stop at corners) or EXACT_STOP (G61.1: stop after every move).
-    merge_mm: the naive-CAM tolerance (G64 Q, mm; P when Q is absent, 0 for a plain G64, in G61/G61.1,
-    in canned cycles and on a controller that merges nothing, `ControllerModel.merges_naive_cam`):
-    consecutive straight feeds whose points lie this close to one line are sent to the planner as that
-    one line (`naive_cam_chains`). flush: a command before the move ends the chain
-    being merged (a pause, a spindle speed, an offset, a path mode, an operator message)."""
-
-    blend_mm: np.ndarray
-    merge_mm: np.ndarray
-    flush: np.ndarray
-
-    @classmethod
-    def uniform(cls, n: int, model: ControllerModel) -> PathModes:
-        """The controller's own modes on every move."""
-        return cls(np.full(n, model.blend_tolerance_mm), np.full(n, model.naive_cam_mm), np.zeros(n, bool))
-
-
 def path_modes(program, model: ControllerModel) -> PathModes:
     """The path modes the program sets (`PathModes`); before it sets one, the controller's own
     (`blend_tolerance_mm`, `naive_cam_mm`). A G64 P/Q sets a naive-CAM tolerance only on a controller
-    that merges straight feeds (`ControllerModel.merges_naive_cam`).
+    that merges straight feeds (`Planner.merges_naive_cam`).
     The moves of a canned cycle (after its climb to R) run in exact path whatever the mode (LinuxCNC's
     convert_cycle sets G61 for them and restores it after). Tolerances in a G20 program are inches."""
     n = len(program.toolpath)
@@ -65,7 +39,7 @@ def path_modes(program, model: ControllerModel) -> PathModes:
         unit = 25.4 if inch[e.move] else 1.0
         if name == "blend":
             out[e.move:] = 0.0 if p is None else p * unit
-            merging = (p, q) != (None, None) and model.merges_naive_cam
+            merging = (p, q) != (None, None) and model.planner.merges_naive_cam
             merge[e.move:] = (p if q is None else q) * unit if merging else 0.0
         else:
             out[e.move:] = EXACT_PATH if name == "exact path" else EXACT_STOP

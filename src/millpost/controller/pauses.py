@@ -4,14 +4,10 @@ that waits for the motion to end (spindle stop or speed, tool length, user M cod
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from ..toolpath import Toolpath
-
-if TYPE_CHECKING:
-    from .model import ControllerModel
+from .model import ControllerModel
 
 # events that wait for the motion to stop, and which time of the model each costs
 PAUSE_KINDS = {"dwell": None, "tool_change": "tool_change_s", "coolant": "coolant_s", "tool_length": "command_s",

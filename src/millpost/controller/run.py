@@ -1,24 +1,17 @@
-"""Running a program through the controller model: the planner's blocks (`grbl`, `linuxcnc`), their
-speeds planned over the look-ahead (`profile.plan_speeds`), each block's time, the pauses between moves."""
+"""Running a program through the controller model: the planner's queue (`Planner.queue`), its speeds
+planned over the look-ahead (`profile.plan_speeds`), each block's time, and the pauses between moves."""
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._kernels import compiling
 from ..toolpath import Toolpath
 from .execution import Execution
-from .grbl import grbl_blocks
-from .linuxcnc import linuxcnc_blocks
-from .paths import PathModes, path_modes
+from .model import ControllerModel, PathModes
+from .paths import path_modes
 from .pauses import paused_s, pauses_s
-from .profile import peak_speed, plan_speeds, trapezoid_time
-from .segments import RAMP_TIME_S
-
-if TYPE_CHECKING:
-    from .model import ControllerModel
+from .profile import plan_speeds, trapezoid_time
 
 
 def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
@@ -39,40 +32,25 @@ def program_time(program, model: ControllerModel) -> float:
 
 def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
             pauses: np.ndarray | None = None, modes: PathModes | None = None) -> Execution:
-    """Plan and time the whole program (rapids at the axis rates). feed_mm_min overrides the
-    programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between moves;
-    modes (see `path_modes`; default: the controller's own) set the LinuxCNC planner's path modes."""
-    blends = np.zeros((0, 3))
-    if model.planner == "linuxcnc":
-        L, vnom, acc, vj2, move, u_end, ramps, cuts, blends = linuxcnc_blocks(tp, model, feed_mm_min, pauses, modes)
-    else:
-        cuts = []
-        L, vnom, acc, vj2, move, u_end = grbl_blocks(tp, model, feed_mm_min, pauses)
-    vj2 = vj2.copy()
+    """Plan and time the whole program (rapids at the axis rates) on the model's planner. feed_mm_min
+    overrides the programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between
+    moves; modes (see `path_modes`; default: the controller's own) set the path modes. A junction is
+    never faster than the slower of its two blocks; a controller that processes at most `block_rate_hz`
+    blocks per second runs a block of length L at most at L·rate."""
+    q = model.planner.queue(tp, model, feed_mm_min, pauses, modes)
+    L, vnom, acc = q.length, q.vnom, q.acc
+    vj2 = q.vj2.copy()
     vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)
     n = len(L)
     with compiling(plan_speeds):
         v2 = plan_speeds(L, vnom, acc, vj2, int(model.lookahead_blocks)) if n else np.zeros(1)
     ve = np.sqrt(np.maximum(v2, 0))
     t = trapezoid_time(L, ve[:-1], ve[1:], vnom, acc) if n else np.zeros(0)
-    ramp = np.zeros(n, bool)
-    if model.planner == "linuxcnc":
-        # a feed segment run in less than RAMP_TIME_S that flows into the next changes speed linearly
-        # from end to end (no cruise above both ends); one ending at rest ends half a period late
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_ramp = np.where(ve[:-1] + ve[1:] > 0, 2.0 * L / (ve[:-1] + ve[1:]), np.inf)
-            v_end = ve[:-1] + np.minimum(ve[1:], vnom)
-            t_est = np.where(v_end > 0, 2.0 * L / v_end, np.inf)
-        ramp = ramps & (ve[1:] > 0) & (t_est < RAMP_TIME_S)
-        t = np.where(ramp, t_ramp, t) + np.where(ve[1:] == 0.0, 0.5 * model.servo_period_s, 0.0)
-        if len(blends):  # the top of each arc's profile: a linear ramp's faster end, else the trapezoid's peak
-            k = blends[:, 2].astype(np.int64)
-            v0, v1 = ve[k], ve[k + 1]
-            peak = peak_speed(L[k], v0, v1, vnom[k], acc[k])
-            blends = np.column_stack([blends[:, :2], np.where(ramp[k], np.maximum(v0, v1), peak)])
-    pause = paused_s(pauses, move[0], move[-1]) if n else 0.0
-    if cuts:
-        t, L, vnom, acc, ve, move, u_end, ramp = cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end)
+    t, ramp, blends = model.planner.timed(q, ve, t, model)
+    pause = paused_s(pauses, q.move[0], q.move[-1]) if n else 0.0
+    move, u_end = q.move, q.u_end
+    if q.cuts:
+        t, L, vnom, acc, ve, move, u_end, ramp = cut_blocks(q.cuts, t, L, vnom, acc, ve, ramp, move, u_end)
     return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, ramp,
                      np.r_[0.0, np.cumsum(tp.lengths())], pause, blends)
 

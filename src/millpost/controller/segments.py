@@ -7,16 +7,13 @@ blendmath.h, tc_types.h and the [TRAJ] defaults) that the blends and the queue s
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..toolpath import ARC_CW, RAPID, Toolpath
-from .paths import PathModes, naive_cam_chains
+from .model import ControllerModel, PathModes
+from .paths import naive_cam_chains
 from .profile import axis_limited
-
-if TYPE_CHECKING:
-    from .model import ControllerModel
 
 NORMAL_SHARE = math.sqrt(1.0 - 0.5**2)  # BLEND_ACC_RATIO_NORMAL: share of a kept for the turn
 TANGENTIAL_SHARE = 0.5  # BLEND_ACC_RATIO_TANGENTIAL: share of a along an arc
