@@ -97,7 +97,7 @@ def one(size: int, mono_max: int) -> dict:
     import toppra.constraint
     from toppra.interpolator import AbstractGeometricPath
 
-    from millpost.controller import ControllerModel, execute
+    from millpost.controller import ControllerModel, GrblPlanner, execute
     from millpost.schedule import PathGrid, ScheduleOptions, path_blocks, solve_path
 
     tp, smp = program(size)
@@ -157,7 +157,8 @@ def one(size: int, mono_max: int) -> dict:
     # kinematics + junction, against the grbl-like planner at the max feed
     kin = path_blocks(grid, limits(grid, False))
     ours_kin = solve_path(grid, kin, socp_opts)
-    ex = execute(tp, ControllerModel(VMAX, AMAX, junction_deviation_mm=0.01, lookahead_blocks=16))
+    grbl = ControllerModel(VMAX, AMAX, junction_deviation_mm=0.01, lookahead_blocks=16, planner=GrblPlanner())
+    ex = execute(tp, grbl)
     row["time_ratio_vs_grbl_planner"] = ours_kin.time_s / ex.time_s
     row["time_s_full_limits"] = sch.time_s
     row["time_s_grbl_planner"] = ex.time_s

@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from millpost.controller import ControllerModel, program_time
+from millpost.controller import ControllerModel, LinuxCNCPlanner, program_time
 from millpost.gcode import ReaderOptions, read_program
 from millpost.machine import Machine
 
@@ -158,8 +158,8 @@ def model(machine: Machine, latencies: dict[str, float]) -> ControllerModel:
     """The machine's controller model as the simulated controller is configured: LinuxCNC's planner
     and canon (it merges naive-CAM feeds) with the machine's axes, no G64 P or Q, no block rate limit but the servo period's, and the
     simulator's command latencies."""
-    return dataclasses.replace(ControllerModel.from_machine(machine), planner="linuxcnc", lookahead_blocks=50,
-                               blend_tolerance_mm=0.0, merges_naive_cam=True, naive_cam_mm=0.0,
+    return dataclasses.replace(ControllerModel.from_machine(machine), planner=LinuxCNCPlanner(merges_naive_cam=True),
+                               lookahead_blocks=50, blend_tolerance_mm=0.0, naive_cam_mm=0.0,
                                block_rate_hz=float("inf"), **latencies)
 
 

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 from test_schedule import make_toolpath
 
-from millpost.controller import ControllerModel, execute, to_blocks
+from millpost.controller import ControllerModel, GrblPlanner, LinuxCNCPlanner, Planner, execute, to_blocks
 from millpost.errors import ConfigError
+from millpost.machine import CONTROLLERS, Machine
 
 A, F = 500.0, 50.0  # mm/s², mm/s
 
@@ -22,7 +24,7 @@ def trap(L, vin, vout, vmax, a):
 
 
 def model(**kw):
-    base = dict(max_rate_mm_s=(200.0, 200.0, 100.0), accel_mm_s2=(A, A, A))
+    base = dict(max_rate_mm_s=(200.0, 200.0, 100.0), accel_mm_s2=(A, A, A), planner=GrblPlanner())
     base.update(kw)
     return ControllerModel(**base)
 
@@ -94,17 +96,39 @@ def test_arc_chords_follow_arc_tolerance():
 
 def test_bad_model_is_a_config_error():
     with pytest.raises(ConfigError):
-        ControllerModel((1.0, 1.0), (1.0, 1.0, 1.0))
+        ControllerModel((1.0, 1.0), (1.0, 1.0, 1.0), planner=GrblPlanner())
     with pytest.raises(ConfigError):
         model(lookahead_blocks=0)
+    with pytest.raises(ConfigError):
+        model(planner="linuxcnc")  # a planner object, not its name
+    with pytest.raises(ConfigError):
+        model(naive_cam_mm=0.05)  # grbl's planner merges nothing
+    with pytest.raises(ConfigError):
+        Planner.of_kind("haas")  # no planner runs that kind
+
+
+@pytest.mark.parametrize("kind", CONTROLLERS)
+def test_machine_kind_picks_the_planner(kind):
+    """Every `[controller] kind` has a planner: grbl's for grbl, LinuxCNC's for the others."""
+    router = Machine.load("hobby-router")
+    machine = dataclasses.replace(router, controller=dataclasses.replace(router.controller, kind=kind,
+                                                                         blend_tolerance_mm=0.02))
+    ctl = ControllerModel.from_machine(machine)
+    grbl = kind == "grbl"
+    assert isinstance(ctl.planner, GrblPlanner if grbl else LinuxCNCPlanner)
+    assert ctl.lookahead_blocks == (16 if grbl else 50)
+    assert ctl.planner.runs_arcs_whole == ctl.planner.blends_corners == (not grbl)
+    # only LinuxCNC's canon merges naive-CAM feeds: its startup G64 P sets the tolerance
+    assert ctl.planner.merges_naive_cam == (kind == "linuxcnc")
+    assert ctl.naive_cam_mm == (0.02 if kind == "linuxcnc" else 0.0)
 
 
 # --- LinuxCNC's planner ---------------------------------------------------------------------------
 # Cycle times LinuxCNC 2.9 itself gave for these two-line programs (the harness in ../shared/tools/lcnc at
 # speed-up 1, axes of vmc-small: X/Y/Z 400/400/333.3 mm/s, 3000/2500/2500 mm/s²); the closed forms below
 # reproduce them without LinuxCNC.
-VMC = dict(max_rate_mm_s=(400.0, 400.0, 1000.0 / 3.0), accel_mm_s2=(3000.0, 2500.0, 2500.0), planner="linuxcnc",
-           merges_naive_cam=True, lookahead_blocks=50)
+VMC = dict(max_rate_mm_s=(400.0, 400.0, 1000.0 / 3.0), accel_mm_s2=(3000.0, 2500.0, 2500.0), planner=LinuxCNCPlanner(),
+           lookahead_blocks=50)
 MEASURED = {"G0 X100": 0.517, "G0 X50 Y0 / G2 X50 Y0 I-50 J0 F12000": 2.150, "square 20 mm F6000 twice": 1.505,
             "100 rapid/feed stops": 3.716, "G0 X10 / M6 / G0 X20": 0.655, "sine relief F6000": 1.365,
             # `steps` programs (at speed-up 5): 2000 feeds of 0.5 µm along X at F60; 2000 zigzag feeds
@@ -416,7 +440,8 @@ def test_block_lengths_are_the_merged_chains():
 
     merged = lengths(steps("G64 P0.01 Q0.01", 250, 0.0005, 60), lcnc())
     np.testing.assert_allclose(merged, [101 * 0.0005] * 202 + [48 * 0.0005] * 48, rtol=1e-9)
-    for text, model in ((steps("G64 P0.01 Q0.01", 250, 0.0005, 60), lcnc(merges_naive_cam=False)),
+    unmerging = lcnc(planner=LinuxCNCPlanner(merges_naive_cam=False))
+    for text, model in ((steps("G64 P0.01 Q0.01", 250, 0.0005, 60), unmerging),
                         (steps("G64 P0.01 Q0", 250, 0.0005, 60), lcnc())):
         np.testing.assert_allclose(lengths(text, model), 0.0005, rtol=1e-9)
     # a zigzag's chain is its chord: 101 steps of 5 µm along X, ending at Y 5 µm
@@ -451,7 +476,7 @@ def test_blend_arc_of_merged_lines_carries_the_fast_feed_into_the_slow_one():
         assert ex.time_s == pytest.approx(MEASURED[f"slot into ramp F{slow}"], rel=0.005)
         a, b, top = ex.blends[0]
         assert a == pytest.approx(5.0 - 1.0, abs=0.01) and b == pytest.approx(5.0 + 1.0, abs=0.01) and top == 50.0
-        unmerged = execute_program(program, lcnc(merges_naive_cam=False))
+        unmerged = execute_program(program, lcnc(planner=LinuxCNCPlanner(merges_naive_cam=False)))
         assert unmerged.time_s > 1.35 * ex.time_s and (np.diff(unmerged.blends[:, :2], axis=1) < 0.08).all()
 
 

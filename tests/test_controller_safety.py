@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import millpost.optimize as optimize_module
-from millpost.controller import ControllerModel, Execution, execute_program, path_modes
+from millpost.controller import ControllerModel, Execution, LinuxCNCPlanner, execute_program, path_modes
 from millpost.emit import emitted_positions
 from millpost.gcode import read_text
 from millpost.limits import build_limits
@@ -34,7 +34,7 @@ def replayed(job, eng, result, programmed_text: str) -> dict[str, float]:
     program = read_text(result.text, "emitted.nc")
     smp = result.samples
     model = ControllerModel.from_machine(job.machine)
-    assert model.planner == "linuxcnc"
+    assert isinstance(model.planner, LinuxCNCPlanner)
     programmed = read_text(programmed_text, "programmed.nc")
     original = programmed.toolpath
     v = execute_program(program, model).speed_at(*emitted_positions(original, program.toolpath, smp.move,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from test_schedule import AMAX, VMAX, make_toolpath, pocket_toolpath
 
-from millpost.controller import ControllerModel, execute
+from millpost.controller import ControllerModel, GrblPlanner, execute
 from millpost.emit import SNAP_TO_PROGRAMMED, FeedPlan
 from millpost.gcode import read_text
 from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, schedule_samples
@@ -135,7 +135,7 @@ def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
     assert np.all(lim[np.isfinite(lim)] >= ps.feed_mm_s[np.isfinite(lim)] - 1e-9)
     frs = piecewise_feeds(smp, lim, min_fragment_mm=1.0, max_changes_per_mm=0.5)
     sp = split_toolpath(tp, frs)
-    ctl = ControllerModel(VMAX, AMAX, junction_deviation_mm=0.01, lookahead_blocks=32)
+    ctl = ControllerModel(VMAX, AMAX, junction_deviation_mm=0.01, lookahead_blocks=32, planner=GrblPlanner())
     ex = execute(sp, ctl)
     v = ex.speed_at_samples(sp.resample(0.05))
     # same sampling of the same geometry: compare loads at the controller's actual speed

@@ -106,7 +106,8 @@ def test_time_base_integrates_ds_over_v():
     """time_at from the trapezoids equals ∫ ds / v of the executed speed (fine numerical quadrature)."""
     prog = read_text("G21 G90 G94\nG0 X0 Y0 Z0\nG1 X30 F900\nG1 Y20 F1500\nG2 X40 Y30 I10 J0 F600\nG1 X41 F3000\n"
                      "G4 P1.5\nG1 X60 F2000\nM30\n")
-    model = controller.ControllerModel((100.0, 100.0, 50.0), (800.0, 600.0, 400.0), junction_deviation_mm=0.02)
+    model = controller.ControllerModel((100.0, 100.0, 50.0), (800.0, 600.0, 400.0), junction_deviation_mm=0.02,
+                                       planner=controller.GrblPlanner())
     ex = controller.execute(prog.toolpath, model)
     samples = prog.toolpath.resample(0.002)
     v = ex.speed_at_samples(samples)

@@ -205,7 +205,7 @@ def _corners(model: ControllerModel, samples: Samples, toolpath: Toolpath, modes
     """The corner rule of the machine's own planner `model`: grbl's junction deviation, or the speeds a
     blending planner passes corners at (`controller.corner_speeds` in the path modes `modes`), on the
     last sample before each corner."""
-    if model.planner == "grbl":
+    if not model.planner.blends_corners:
         return Junction(model.accel_mm_s2, model.junction_deviation_mm)
     corner = corner_speeds(toolpath, model, modes)
     cap = np.full(len(samples), np.inf)
@@ -265,7 +265,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               # LinuxCNC's planner (`controller`) runs an arc as one segment clamped at √(a_n·r) by itself;
               # grbl runs it as chords whose F word it keeps, so the F word carries the cap there
-              Limit(Centripetal(amax), HARD, "inertia", controller=True, f_word=planner.planner == "grbl"),
+              Limit(Centripetal(amax), HARD, "inertia", controller=True, f_word=not planner.planner.runs_arcs_whole),
               Limit(_corners(planner, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,

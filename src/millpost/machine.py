@@ -179,10 +179,12 @@ class Spindle:
 
 @dataclass(frozen=True)
 class Controller:
-    """Motion controller: kind, junction deviation (mm, grbl's cornering rule), block rate (blocks/s),
-    corner blending tolerance (mm, LinuxCNC's G64 P; 0: none, the planner's own bound), and the time
-    (s) the machine stands still for a tool change, a spindle start (to speed), coolant and any other
-    command that waits for the motion to end (spindle stop or speed, tool length...)."""
+    """Motion controller: kind (which sets the planner model, `controller.Planner.of_kind`: grbl's for
+    grbl, LinuxCNC's for the others, and only LinuxCNC's canon merges naive-CAM feeds), junction
+    deviation (mm, grbl's cornering rule), block rate (blocks/s), corner blending tolerance (mm,
+    LinuxCNC's G64 P; 0: none, the planner's own bound), and the time (s) the machine stands still for
+    a tool change, a spindle start (to speed), coolant and any other command that waits for the motion
+    to end (spindle stop or speed, tool length...)."""
 
     kind: str
     junction_deviation_mm: float
@@ -192,19 +194,6 @@ class Controller:
     spindle_start_s: float = 0.0
     coolant_s: float = 0.0
     command_s: float = 0.0
-
-    @property
-    def planner(self) -> str:
-        """The trajectory planner model (`millpost.controller`): grbl's for grbl, LinuxCNC's (a
-        look-ahead planner blending corners within a tolerance) for the others."""
-        return "grbl" if self.kind == "grbl" else "linuxcnc"
-
-    @property
-    def merges_naive_cam(self) -> bool:
-        """Whether the controller sends consecutive straight feeds within the naive-CAM tolerance (G64
-        Q, or P) to its planner as one line: LinuxCNC's canon layer does (`controller.naive_cam_chains`);
-        Mach3's and Fanuc's look-ahead blends the programmed moves as they are."""
-        return self.kind == "linuxcnc"
 
 
 @dataclass(frozen=True)
