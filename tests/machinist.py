@@ -33,7 +33,7 @@ def axis_rates(tp: Toolpath, vmax_mm_min: np.ndarray) -> np.ndarray:
     for i in np.flatnonzero((tp.kind != RAPID) & (lengths > 0)):
         u = np.linspace(0.0, 1.0, 65) if tp.kind[i] >= ARC_CW else np.array([0.5])
         _, t, _ = tp.points(np.full(len(u), i), u, derivatives=True)
-        t = np.abs(t)
+        t = np.abs(t) / np.linalg.norm(t, axis=1, keepdims=True)  # a spiral arc's d/ds is not unit
         with np.errstate(divide="ignore"):
             out[i] = float(np.min(np.where(t > 1e-12, vmax_mm_min / np.maximum(t, 1e-12), np.inf)))
     return out

@@ -60,9 +60,10 @@ def test_full_circle_helix_inch_and_turns():
 
 
 def test_units_switch_mid_program_and_incremental():
+    # LinuxCNC sets F10 before the block's G20 (rs274: SET_FEED_RATE(10) in mm, then inches): 10 mm/min
     tp = moves("G21 G90\nG0 X10 Y0 Z0\nG20 G91 G1 X1 F10\nG21 G90 G1 X0\nM2\n")
     np.testing.assert_allclose(tp.end[:, 0], [10, 35.4, 0])
-    np.testing.assert_allclose(tp.feed_mm_min[1:], [254.0, 254.0])
+    np.testing.assert_allclose(tp.feed_mm_min[1:], [10.0, 10.0])
 
 
 def test_g92_g52_offsets_and_work_offsets():

@@ -216,6 +216,15 @@ def _fmt(value: float, decimals: int, trailing_point: bool) -> str:
 
 _SPACED = r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]"  # a word, blanks, the next word
 _UNSPACED = r"[0-9.\]>][A-Za-z]"  # a word's value, the next word
+_UNITS = re.compile(r"[Gg]\s*0*2[01](?![\d.])")  # G20 or G21 (a comment's text may match: the lexer decides)
+
+
+def _units_of(block: Block, default: float | None) -> float | None:
+    """mm per program unit a block's G20/G21 sets, else `default`."""
+    for w in block.words:
+        if w.letter == "G" and round(w.value * 10) in (200, 210):
+            return INCH if round(w.value * 10) == 200 else 1.0
+    return default
 
 
 class _LineWriter:
@@ -282,8 +291,10 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     # the style of a line too short to show its own: the program's (comments aside)
     code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
     spaced = len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))  # the program's usual way
-    modal_f: float | None = None  # F in force in the output (program units)
-    in_f: float | None = None  # F in force in the program (program units)
+    modal_f: float | None = None  # F in force in the output (in F units of `f_units` mm each)
+    in_f: float | None = None  # F in force in the program (the same units)
+    units, f_units = 1.0, 1.0  # mm per program unit in force (G20/G21 as the lines go); of modal_f and in_f
+    before_units = dialects.get(program.dialect).feed_before_units  # F on a G20/G21 line: the units before
     # With O-word control flow a line may run several times, with other parameters and after other
     # lines than the text shows: every line that feeds gets its own F (the lowest any run of it
     # wants), no F is kept for its value, and parameters only locate the words.
@@ -305,7 +316,8 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         if moves is None:
             if re.sub(r"\([^)]*\)|;.*", "", body).strip():
                 f_line = None
-            if "#" in body or "f" in body.lower():  # parameters to carry, or an F that sets the modal feed
+            # parameters to carry, an F that sets the modal feed, or a change of length units
+            if "#" in body or "f" in body.lower() or _UNITS.search(body):
                 try:
                     block = lex_line(body, n, program.path, params)
                 except MillpostError:  # a line the interpreter never ran (after M2, block delete, ...)
@@ -313,23 +325,30 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
                     continue
                 params.update(block.assigns)
                 f = next((w for w in block.words if w.letter == "F"), None)
+                now = _units_of(block, units)
                 if f is not None:
                     modal_f = in_f = f.value
+                    f_units = units if before_units else now
                     if not flow and len(block.words) == 1 and not block.assigns:
                         f_line = (len(out), body, block, ending)
+                units = now
             out.append(raw)
             continue
         standalone_f, f_line = f_line, None
         block = lex_line(body, n, program.path, params)
         params.update(block.assigns)
-        inch = bool(program.move_inch[moves[0]])
+        line_units = INCH if program.move_inch[moves[0]] else 1.0
+        scale = units if before_units and _units_of(block, None) is not None else line_units  # of its F word
+        inch = scale == INCH
+        if modal_f is not None and f_units != scale:  # the F in force, in this line's F units
+            modal_f, in_f = modal_f * f_units / scale, (None if in_f is None else in_f * f_units / scale)
+        f_units, units = scale, line_units
         trailing_point = _trailing_point(block, default_trailing)
         writer = _LineWriter(body, block, spaced)
         f_word = next((w for w in block.words if w.letter == "F"), None)
 
         def f_value(i: int, feed_mm_min: float, length_mm: float) -> float:
             mode = program.feed_mode[i]
-            scale = INCH if inch else 1.0
             if mode == 930 and program.compensated[i]:  # timed by the programmed length, not the offset path
                 value = f_word.value * feed_mm_min / tp.feed_mm_min[i]
             elif mode == 930:
