@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from millpost.errors import SafetyError
+
 from millpost import stock
 from millpost.engagement import Engagement, simulate
 from millpost.forces.endcut import EndCut, chisel_factor, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
@@ -318,6 +320,9 @@ def test_absurd_drilling_feed_is_lowered_to_the_drill_strength(tmp_path):
         '[tools.1]\ndiameter_mm = 5\nflutes = 2\nshape = "drill"\nmaterial = "hss"\nflute_length_mm = 52\n'
         'stickout_mm = 62\n')
     job = load_job(tmp_path / "job.toml")
+    with pytest.raises(SafetyError, match="T1 thrust up to"):  # 4.4x the programmed time: refused by default
+        optimize(job, progress=False)
+    job.allow = frozenset({"slower"})
     result = optimize(job, progress=False)
     assert result.summary["status"] == "slower"  # solved, and slower than the program: a hard limit lowered it
     assert not [k for k, v in result.summary["held"].items() if v["kind"] == "hard"]
