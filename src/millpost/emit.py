@@ -68,21 +68,26 @@ class FeedPlan:
     # whose one F, the lowest any run allows, slows a run that could go faster (`from_fragments`)
     kept_lines: tuple[int, ...] = ()
     shared_lines: tuple[int, ...] = ()
+    # the machine's axis rates (mm/min, X Y Z): a piece of a split line takes no F above what its axes run
+    # in the direction its rounded split points give it (None: no such cap)
+    axis_vmax_mm_min: tuple[float, float, float] | None = None
 
     @classmethod
     def programmed(cls, program: Program) -> "FeedPlan":
         return cls(program.toolpath.feed_mm_min.copy(), {})
 
     @classmethod
-    def from_fragments(cls, program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray) -> "FeedPlan":
+    def from_fragments(cls, program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray,
+                       axis_vmax_mm_min: tuple[float, float, float] | None = None) -> "FeedPlan":
         """The plan from the schedule's fragments (`schedule.feeds.Fragment`). With control flow a line that runs several times gets
         one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
         ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
         (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
         (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
-        keeps the program's F (each run at its programmed feed). hard_cap_mm_min: per move, the lowest speed
+        keeps the program's F (each run at its programmed feed). axis_vmax_mm_min: the machine's axis rates
+        (`_split_move`). hard_cap_mm_min: per move, the lowest speed
         cap of the hard limits over its samples (a run is forced slower where it is under the programmed feed)."""
-        plan = replace(cls.programmed(program), step=step)
+        plan = replace(cls.programmed(program), step=step, axis_vmax_mm_min=axis_vmax_mm_min)
         by_move: dict[int, list] = {}
         for f in fragments:
             by_move.setdefault(f.move, []).append(f)
@@ -412,7 +417,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             pieces = distinct(i, plan.fragments[i])
             if len(pieces) > 1:
                 new_lines, modal_f = _split_move(program, i, pieces, block, writer, ending, trailing_point,
-                                                 feed_text, lengths[i], modal_f, repeats)
+                                                 feed_text, lengths[i], modal_f, repeats, plan.axis_vmax_mm_min)
                 out.extend(new_lines)
                 continue
             one_feed = pieces[0][1]
@@ -473,9 +478,19 @@ def split_decimals(block: Block, inch: bool) -> int:
     return max(_decimals(block, 0) + 1, needed)
 
 
+def _axis_rate(delta_mm: np.ndarray, vmax_mm_min) -> float:
+    """The highest feed (mm/min) at which no axis exceeds its rate on a straight move of `delta_mm`
+    (min over the axes of vmax_i·L/|Δ_i|); inf without rates."""
+    length = float(np.linalg.norm(delta_mm))
+    if vmax_mm_min is None or length <= 0:
+        return math.inf
+    share = np.abs(delta_mm) / length
+    return float(np.min(np.where(share > 1e-12, np.asarray(vmax_mm_min) / np.maximum(share, 1e-12), np.inf)))
+
+
 def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
                 trailing_point: bool, feed_text, length_mm: float, modal_f: float | None,
-                repeats: bool = False) -> tuple[list[str], float]:
+                repeats: bool = False, vmax_mm_min=None) -> tuple[list[str], float]:
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
     words changed; later pieces are new lines in the style of the original (its motion word as written
     or none when it had none, its word order, letter case and spacing; a word it lacks where `_slot`
@@ -483,7 +498,9 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     in that axis is the line's own text. A piece writes no F where the F in force (modal_f,
     program units, before the line) already holds, except in inverse time (G93: F on every block) and
     on the first piece of a line whose own F repeats the program's F in force (`repeats`: its style).
-    Split points take `split_decimals`. Returns the lines and the F in force after them."""
+    Split points take `split_decimals`; a straight piece's F is at most the axis rate of its direction as
+    written (`vmax_mm_min`: its rounded ends turn it by up to ~1e-4 rad). Returns the lines and the F in
+    force after them."""
     tp = program.toolpath
     inch = bool(program.move_inch[i])
     scale = INCH if inch else 1.0
@@ -503,6 +520,7 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
     as_written = {} if incremental else {w.letter: w.text[1:].strip() for w in block.words if w.letter in _AXIS_LETTERS}
     out = []
     modal = modal_f
+    start_written = points[0]  # the piece's start as written (mm): the line's start, then each split point
     for k, (u_end, feed) in enumerate(fragments):
         start, end = points[k], points[k + 1]
         seg_len = length_mm * (u_end - us[k])
@@ -525,6 +543,11 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
                     written = round(start[ax] / scale, decimals) * scale
                     c = tp.center[i, ax] if program.arc_absolute[i] else tp.center[i, ax] - written
                     words[_ARC_LETTERS[ax]] = _fmt(c / scale, decimals, trailing_point)
+        if not (arc or incremental):  # no faster than the axes run the piece as written (rounded)
+            end_written = np.array([float(words[L]) * scale if L in words else end[ax]
+                                    for ax, L in enumerate(_AXIS_LETTERS)])
+            feed = min(feed, _axis_rate(end_written - start_written, vmax_mm_min))
+            start_written = end_written
         f = feed_text(i, feed, seg_len, modal)
         if (modal is None or not _same(modal, float(f)) or program.feed_mode[i] == 930
                 or (k == 0 and has_f and repeats)):

@@ -260,7 +260,8 @@ def _emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nd
     for passes in range(1, BLEND_PASSES + 2):
         progress("emission", 2, 4)
         fragments = whole_moves(program, piecewise_feeds(samples, feeds_mm_s, step=step, accel_mm_s2=accel))
-        plan = FeedPlan.from_fragments(program, fragments, step, hard_cap)
+        plan = FeedPlan.from_fragments(program, fragments, step, hard_cap,
+                                       tuple(job.machine.axes[a].vmax_mm_min for a in "xyz"))
         text = write_feeds(program, plan)
         progress("emission", 3, 4)
         emitted = read_text(text, str(job.program), job.reader_options())  # what will run
