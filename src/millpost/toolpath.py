@@ -86,15 +86,17 @@ class Toolpath:
         """(N, 3) per move the largest share |t_i| of each axis in its unit tangent anywhere along it: a
         line's |Δ_i| / L; on an arc the in-plane share s = √(1 − (Δn/L)²) times the largest |sin θ| (first
         plane axis) or |cos θ| (second) over the swept angles θ of the radius (1 where the sweep passes the
-        point where the tangent lies along that axis), and the normal travel |Δn| / L (a helix). The
+        point where the tangent lies along that axis), plus a spiral's |dr/ds| (an end radius a little off
+        the start's turns the tangent), and the normal travel |Δn| / L (a helix). The
         controller runs a move at most at min_i vmax_i / share_i."""
         L = self.lengths()
         with np.errstate(divide="ignore", invalid="ignore"):
             out = np.where(L[:, None] > 0, np.abs(self.end - self.start) / L[:, None], 0.0)
         arc = np.flatnonzero((self.kind >= ARC_CW) & (L > 0))
         if len(arc):
-            _, _, a0, sweep, dn, ax = self.subset(arc)._arc_params()
+            r0, r1, a0, sweep, dn, ax = self.subset(arc)._arc_params()
             normal = np.abs(dn) / L[arc]
+            radial = np.abs(r1 - r0) / L[arc]  # a spiral's (end radius a little off the start's): dr/ds
             s = np.sqrt(np.maximum(1.0 - normal**2, 0.0))
             lo, hi = np.minimum(a0, a0 + sweep), np.maximum(a0, a0 + sweep)
 
@@ -104,8 +106,9 @@ class Toolpath:
 
             rows = np.arange(len(arc))
             share = np.zeros((len(arc), 3))
-            share[rows, ax[:, 0]] = s * largest(np.sin, np.pi / 2)  # the tangent is ∝ (−sin θ, cos θ)
-            share[rows, ax[:, 1]] = s * largest(np.cos, 0.0)
+            # the tangent is ∝ (−sin θ, cos θ), turned by a spiral's dr/ds (bounded by adding it)
+            share[rows, ax[:, 0]] = np.minimum(s * largest(np.sin, np.pi / 2) + radial, 1.0)
+            share[rows, ax[:, 1]] = np.minimum(s * largest(np.cos, 0.0) + radial, 1.0)
             share[rows, ax[:, 2]] = normal
             out[arc] = share
         return out
