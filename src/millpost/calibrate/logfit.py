@@ -88,14 +88,21 @@ class Observations:
 
 
 def observations(log: Log, alignment: Alignment, signals: Signals, job: Job, use: np.ndarray,
-                 idle_W=None) -> Observations:
+                 idle_W=None, tol: float = 0.02) -> Observations:
     """Mean logged force and power over each steady cut: the used samples grouped by source line (a cut
     is a line of the plan), averaged over all the log rows nearest to them. Means over whole cuts are what
     the average-force method fits; samples within a cut share its disturbances (runout, material), so
     they are not independent observations. idle_W(rpm) → no-load power (W) to subtract (default: the job
     machine's)."""
-    j = alignment.nearest_samples(log.t_s, signals)
+    j = alignment.samples(signals)
     keep = (j >= 0) & use[np.maximum(j, 0)]
+    fz_log = np.full(len(log), np.nan)
+    if np.isfinite(alignment.speed_mm_s).any():   # the feed per tooth the machine ran: the log's own speed
+        flutes = np.array([job.tools[int(t)].flutes if int(t) in job.tools else 1 for t in signals.tool])
+        jj = np.maximum(j, 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fz_log = alignment.speed_mm_s * 60.0 / (flutes[jj] * signals.rpm[jj])
+        keep &= _steady(fz_log, signals.line[jj], keep, tol)
     lines = np.unique(signals.line[use])
     group = np.full(len(signals), -1)
     group[use] = np.searchsorted(lines, signals.line[use])
@@ -108,13 +115,16 @@ def observations(log: Log, alignment: Alignment, signals: Signals, job: Job, use
     # the sample standing for each cut: the middle of its steady samples
     index = np.array([np.flatnonzero(group == k)[len(np.flatnonzero(group == k)) // 2] for k in found])
 
-    def mean(column: str) -> np.ndarray:
-        v = log[column][keep]
+    def mean_of(values: np.ndarray) -> np.ndarray:
+        v = values[keep]
         ok = np.isfinite(v)
         s = np.bincount(g[ok], weights=v[ok], minlength=len(lines))
         c = np.bincount(g[ok], minlength=len(lines))
         with np.errstate(invalid="ignore", divide="ignore"):
             return (s / c)[found]
+
+    def mean(column: str) -> np.ndarray:
+        return mean_of(log[column])
 
     force = None
     if all(log.has(c) for c in ("fx_N", "fy_N", "fz_N")):
@@ -127,8 +137,23 @@ def observations(log: Log, alignment: Alignment, signals: Signals, job: Job, use
     if force is None and power is None:
         raise MillpostError(f"{log.path}: no force (fx_N, fy_N, fz_N) or spindle_power_W columns to fit")
     tools = [job.tools[int(t)] for t in signals.tool[index]]
-    meas = Measurements(fz_mm=signals.fz_mm[index], rpm=signals.rpm[index], force_N=force, power_W=power)
+    fz = signals.fz_mm[index]
+    if np.isfinite(fz_log[keep]).any():
+        fz = np.where(np.isfinite(mean_of(fz_log)), mean_of(fz_log), fz)
+    meas = Measurements(fz_mm=fz, rpm=signals.rpm[index], force_N=force, power_W=power)
     return Observations(index, meas, tools, counts[found])
+
+
+def _steady(fz_mm: np.ndarray, line: np.ndarray, keep: np.ndarray, tol: float) -> np.ndarray:
+    """Rows whose logged feed per tooth is within `tol` of the median of their line's kept rows (the
+    machine's own steady stretch: its accelerations, holds and override, not the model's)."""
+    out = np.zeros(len(fz_mm), bool)
+    for value in np.unique(line[keep]):
+        on = keep & (line == value) & np.isfinite(fz_mm)
+        if on.any():
+            mid = float(np.median(fz_mm[on]))
+            out |= on & (np.abs(fz_mm - mid) <= tol * mid)
+    return out
 
 
 def idle_windows(signals: Signals, program: Program, moves: list[PlannedMove]) -> list[tuple[float, float, float]]:
@@ -147,7 +172,7 @@ def idle_windows(signals: Signals, program: Program, moves: list[PlannedMove]) -
 
 def fit_idle(log: Log, alignment: Alignment, windows) -> dict:
     """No-load power points (idle_rpm, idle_power_W) from the idle dwells."""
-    tau = alignment.program_time(log.t_s)
+    tau = alignment.tau_s
     rpm = np.full(len(log), np.nan)
     for n, a, b in windows:
         rpm[(tau >= a) & (tau <= b)] = n
@@ -163,7 +188,7 @@ def fit_axes(log: Log, alignment: Alignment, signals: Signals, moves: list[Plann
              terms=("inertia", "coulomb", "viscous")) -> dict[str, AxisDrive]:
     """Per axis with a logged current (ix_A, iy_A, iz_A): the drive model fitted on the axis-test strokes
     of that axis, kinematics from the controller model at the rows' program times."""
-    j = alignment.nearest_samples(log.t_s, signals)
+    j = alignment.samples(signals)
     out = {}
     for k, axis in enumerate("xyz"):
         col = f"i{axis}_A"
@@ -173,7 +198,7 @@ def fit_axes(log: Log, alignment: Alignment, signals: Signals, moves: list[Plann
         on = (j >= 0) & np.isin(signals.line[np.maximum(j, 0)], list(lines))
         if on.sum() < 10:
             continue
-        tau = alignment.program_time(log.t_s[on])
+        tau = alignment.tau_s[on]
         vs = signals.axis_velocity_mm_s[:, k]
         v = np.interp(tau, signals.t_s, vs)
         a = np.interp(tau, signals.t_s, signals.axis_accel_mm_s2[:, k])
@@ -223,7 +248,7 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
         notes.append("no idle dwells in the plan: the machine file's no-load power is subtracted")
     if log.has("spindle_current_A") and log.has("spindle_power_W"):
         # shaft torque P/ω against current wherever the spindle turns (idle and cutting)
-        j = alignment.nearest_samples(log.t_s, signals)
+        j = alignment.samples(signals)
         rpm = np.where(j >= 0, signals.rpm[np.maximum(j, 0)], 0.0)
         on = rpm > 0
         if on.sum() >= 3:

@@ -116,13 +116,13 @@ class Rows:
 
 def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows:
     """The rows of `log` inside the program (by the alignment), each with its nearest path sample."""
-    j_all = alignment.nearest_samples(log.t_s, signals)
+    j_all = alignment.samples(signals)
     inside = np.flatnonzero(j_all >= 0)
     if len(inside) < 50:
         raise MillpostError(f"{log.path}: only {len(inside)} log rows fall inside the program after alignment "
-                            f"(offset {alignment.offset_s:.3f} s)")
+                            f"({alignment.method}, offset {alignment.offset_s:.3f} s)")
     j = j_all[inside]
-    tau = alignment.program_time(log.t_s[inside])
+    tau = alignment.tau_s[inside]
     ka, kb, w = engaged_between(signals, tau)
     # the axis kinematics at each row's instant, linear in time between the path samples around it (the
     # nearest sample would move a rapid's acceleration step by up to half a sample interval)

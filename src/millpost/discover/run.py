@@ -80,7 +80,9 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
     rows = from_log(log, alignment, signals, job)
     nominal = job.material.force_model("mechanistic").coefficients
     sel = select(rows, nominal, candidates(effects), max_effects=max_effects)
-    notes = [f"aligned by {alignment.method} (correlation {alignment.correlation:.3f}); "
+    how = (f"correlation {alignment.correlation:.3f}" if alignment.method == "xcorr" else
+           f"position RMS {alignment.position_rms_mm:.3f} mm")
+    notes = [f"aligned by {alignment.method} ({how}); "
              f"{len(rows)} of {len(log)} log rows inside the program; {int((sel.block >= 0).sum())} held out "
              f"in {int(sel.block.max()) + 1} time blocks"]
     if rows.use is not None and not rows.use.all():
