@@ -26,8 +26,9 @@ from ..gcode import read_program
 from ..gcode.interpret import Program
 from ..job import Job, load_job
 from ..measure import Alignment, Log, align
+from ..measure.alignment import TOLERANCE_MM
 from ..signals import Signals, simulate
-from .cuts import Fit, fit_models
+from .coefficients import PRIOR_SPREAD, Fit, fit_models
 from .machine_fit import AxisDrive, fit_idle_power, fit_spindle_current
 from .plan import PlannedMove, read_plan
 
@@ -222,12 +223,13 @@ class LogFit:
 
 
 def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "viscous"),
-            progress=None) -> LogFit:
+            progress=None, prior_spread: float = PRIOR_SPREAD, tolerance_mm: float = TOLERANCE_MM) -> LogFit:
     """Align `log` to a job's program and fit what the log holds: cutting coefficients (forces and/or
     spindle power), spindle no-load power and current, axis drives. target: the folder `calibrate plan`
     wrote (job.toml and plan.csv: the planned cuts, idle dwells and axis strokes are used), or any job
     (folder or .toml: its steady stretches of cut, see `steady_job_samples`; cutting coefficients only).
-    base: the material to start from (default: the job's). progress: as `millpost.optimize`'s (the
+    base: the material to start from, the prior (default: the job's; prior_spread its relative 1σ);
+    tolerance_mm: the alignment's (a log off the program's path is refused, `MisalignedLog`). progress: as `millpost.optimize`'s (the
     engagement run reports through it)."""
     target = Path(target)
     job = load_job(target)
@@ -235,8 +237,8 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     moves = read_plan(plan_file) if plan_file.exists() else []
     program = read_program(job.program, job.reader_options())
     signals = simulate(job, program=program, progress=progress)
-    alignment = align(log, signals)
-    notes: list[str] = []
+    alignment = align(log, signals, tolerance_mm=tolerance_mm)
+    notes: list[str] = list(alignment.notes)
     idle: dict = {}
     windows = idle_windows(signals, program, moves)
     if windows and log.has("spindle_power_W"):
@@ -262,6 +264,6 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     if steady.any() and (log.has("spindle_power_W") or log.has("fx_N")):
         obs = observations(log, alignment, signals, job, steady, idle_fn)
         cutting = fit_models(signals.engagement.select(obs.index), obs.measurements, obs.tools,
-                             base or job.material, source=log.path)
+                             base or job.material, source=log.path, prior_spread=prior_spread)
     axes = fit_axes(log, alignment, signals, moves, axis_terms)
     return LogFit(alignment, cutting, idle, axes, notes)
