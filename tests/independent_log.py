@@ -280,8 +280,9 @@ def generate(text: str, box, mill: Mill, *, rate_hz: float = 250.0, epoch_s: flo
             travelled += seg.length
         if seg.rpm <= 0 or not len(rows):
             continue
-        # the logger's boxcar: sub-samples over the sample interval before each row
-        tt = (t[rows, None] - seg.t0 - dt * (np.arange(S) + 0.5)[None, :] / S).ravel()
+        # the logger's boxcar over the sample interval before each row, by sub-samples at random instants
+        # (evenly spaced ones would alias with the tooth passing)
+        tt = (t[rows, None] - seg.t0 - dt * rng.uniform(0, 1, (len(rows), S))).ravel()
         ss, vv, _ = seg.state(tt)
         centre = seg.p0 + ss[:, None] * direction
         omega = 2 * np.pi * seg.rpm / 60

@@ -10,7 +10,9 @@ those are the identified combinations of coefficients, their number the rank, λ
 condition. A coefficient whose posterior spread is more than half its prior spread is left at the prior:
 it gets no standard error of its own. σ is estimated from the residuals when the data have at least
 `MIN_DOF` degrees of freedom beyond the identified combinations, and taken as `NOISE_REL` of the
-measured values' RMS otherwise (one cut: three means, six coefficients).
+measured values' RMS otherwise (one cut: three means, six coefficients); rows from different sensors
+(force components, power) get a σ each, so that one biased channel (a power with a wrong no-load
+baseline) does not drown the others.
 """
 
 from __future__ import annotations
@@ -31,14 +33,14 @@ IDENTIFIED = 0.5    # posterior spread / prior spread below this: the data ident
 class Identifiability:
     """rank: combinations the data know better than the prior; condition: λ_max/λ_min over them;
     ratio: per coefficient, posterior over prior spread; combinations: the identified ones as
-    {name: weight} (largest weight 1); noise: σ used and whether it was estimated."""
+    {name: weight} (largest weight 1); noise: σ used per group of rows and whether it was estimated."""
 
     names: tuple[str, ...]
     rank: int
     condition: float
     ratio: np.ndarray
     combinations: list[dict[str, float]]
-    noise: float
+    noise: dict[str, float]
     noise_estimated: bool
     dof: float
 
@@ -77,11 +79,14 @@ class LinearPosterior:
     cov_: np.ndarray = field(init=False)
     identifiability_: Identifiability = field(init=False)
 
-    def fit(self, X: np.ndarray, y: np.ndarray, noise: float | None = None) -> "LinearPosterior":
-        """X (n, p), y (n,): the data; noise: σ (y's units), None to estimate it (see the docstring)."""
+    def fit(self, X: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "LinearPosterior":
+        """X (n, p), y (n,): the data; groups: a label per row (default one group), each group with its own
+        noise σ (a sensor of its own: force components, power), estimated as the docstring says."""
         X, y = np.asarray(X, float), np.asarray(y, float)
         if len(y) == 0:
             raise MillpostError("no measured values to fit")
+        groups = np.zeros(len(y), int) if groups is None else np.asarray(groups)
+        labels = np.unique(groups)
         mu0 = np.asarray(self.prior_mean, float)
         s0 = np.asarray(self.prior_sd, float)
         flat = ~np.isfinite(s0)                       # no prior: the data alone (scaled by the columns)
@@ -89,22 +94,32 @@ class LinearPosterior:
         mu0 = np.where(flat, 0.0, mu0)
         Xz = X * scale
         r0 = y - X @ mu0
-        sigma = noise if noise is not None else NOISE_REL * float(np.sqrt(np.mean(y * y)) or 1.0)
+        sigma = np.ones(len(y))
+        for g in labels:
+            on = groups == g
+            sigma[on] = NOISE_REL * float(np.sqrt(np.mean(y[on] ** 2)) or 1.0)
         estimated = False
-        for _ in range(3):
-            lam, V, mean_z, cov_z = _solve(Xz, r0, sigma, flat)
-            dof = len(y) - float(np.sum(lam / (1.0 + lam)) if not flat.any() else np.sum(lam > 0))
-            if noise is not None or dof < MIN_DOF:
+        for step in range(5):
+            lam, V, mean_z, cov_z = _solve(Xz / sigma[:, None], r0 / sigma, flat)
+            used = float(np.sum(lam / (1.0 + lam)) if not flat.any() else np.sum(lam > 0))
+            dof = len(y) - used
+            if dof < MIN_DOF or step == 4:
                 break
             resid = r0 - Xz @ mean_z
-            sigma, estimated = max(float(np.sqrt(resid @ resid / dof)), 1e-12 * sigma), True
+            for g in labels:     # each group's share of the degrees of freedom, by its number of rows
+                on = groups == g
+                dof_g = on.sum() * dof / len(y)
+                if dof_g >= 1:
+                    sigma[on] = max(float(np.sqrt(resid[on] @ resid[on] / dof_g)), 1e-9 * sigma[on][0])
+            estimated = True
         if flat.any() and np.sum(lam > 1e-9 * max(lam.max(), 1e-300)) < len(lam):
             raise MillpostError("the measurements do not determine every coefficient and no prior was given "
                                 "(start from a material: --material)")
         self.mean_ = mu0 + scale * mean_z
         self.cov_ = cov_z * np.outer(scale, scale)
         ratio = np.where(flat, 0.0, np.sqrt(np.maximum(np.diag(cov_z), 0.0)))
-        self.identifiability_ = identifiability(self.names, lam, V, scale, ratio, sigma, estimated, dof)
+        noise = {str(g): float(sigma[groups == g][0]) for g in labels}
+        self.identifiability_ = identifiability(self.names, lam, V, scale, ratio, noise, estimated, dof)
         return self
 
     def sd(self) -> np.ndarray:
@@ -113,15 +128,14 @@ class LinearPosterior:
         return np.where(self.identifiability_.ratio < IDENTIFIED, sd, np.nan)
 
 
-def _solve(Xz: np.ndarray, r: np.ndarray, sigma: float, flat: np.ndarray):
-    """Eigenvalues (ascending) and vectors of the whitened information, posterior mean and covariance of z."""
-    A = Xz.T @ Xz / sigma ** 2
+def _solve(Xw: np.ndarray, rw: np.ndarray, flat: np.ndarray):
+    """For the noise-whitened problem (Xw, rw) in prior-whitened coordinates: eigenvalues (ascending) and
+    vectors of the information, posterior mean and covariance of z."""
+    A = Xw.T @ Xw
     lam, V = np.linalg.eigh(A)
     lam = np.maximum(lam, 0.0)
-    prior_prec = np.where(flat, 0.0, 1.0)
-    P = A + np.diag(prior_prec)
-    cov = np.linalg.pinv(P, hermitian=True)
-    return lam, V, cov @ (Xz.T @ r) / sigma ** 2, cov
+    cov = np.linalg.pinv(A + np.diag(np.where(flat, 0.0, 1.0)), hermitian=True)
+    return lam, V, cov @ (Xw.T @ rw), cov
 
 
 def map_fit(residuals, theta0: np.ndarray, prior_sd: np.ndarray, names: tuple[str, ...], n_data: int,
@@ -151,12 +165,12 @@ def map_fit(residuals, theta0: np.ndarray, prior_sd: np.ndarray, names: tuple[st
     lam, V = np.linalg.eigh(A)
     lam = np.maximum(lam, 0.0)
     cov_z = np.linalg.inv(A + np.eye(len(s0)))
-    ident = identifiability(names, lam, V, s0, np.sqrt(np.diag(cov_z)), sigma, estimated, dof)
+    ident = identifiability(names, lam, V, s0, np.sqrt(np.diag(cov_z)), {"log": sigma}, estimated, dof)
     return res.x, cov_z * np.outer(s0, s0), ident
 
 
-def identifiability(names, lam: np.ndarray, V: np.ndarray, scale: np.ndarray, ratio: np.ndarray, sigma: float,
-                    estimated: bool, dof: float) -> Identifiability:
+def identifiability(names, lam: np.ndarray, V: np.ndarray, scale: np.ndarray, ratio: np.ndarray,
+                    sigma: dict[str, float], estimated: bool, dof: float) -> Identifiability:
     """From the whitened information's eigenvalues lam (ascending) and vectors V, whitening scale per
     coefficient: the identified combinations (λ > 1, the functional vᵀz in the coefficients, largest weight
     1) and their condition."""

@@ -118,8 +118,8 @@ def fit_models(eng: Engagement, meas: Measurements, tools: list[Tool], base: Mat
         check_signs(prior_m, eng, meas, tools)
     mu0 = prior_m.coef_.astype(float) if prior_m is not None else np.zeros(6)
     sd0 = prior_sd(mu0, prior_spread) if prior_m is not None else np.full(6, np.inf)
-    X, y = design(eng, meas, tools)
-    post = LinearPosterior(COEF_NAMES, mu0, sd0).fit(X, y)
+    X, y, kind = design(eng, meas, tools)
+    post = LinearPosterior(COEF_NAMES, mu0, sd0).fit(X, y, np.array(["fx", "fy", "fz", "power"])[kind])
     fit.mechanistic = Mechanistic.from_coefficients(*post.mean_)
     fit.mechanistic.coef_cov_ = post.cov_
     fit.identifiability["mechanistic"] = post.identifiability_

@@ -38,16 +38,17 @@ SPIN_UP_S = 1.0    # idle dwell rows this long after the speed change are left o
 def steady_samples(signals: Signals, moves: list[PlannedMove], *, kinds=("slot", "step"), tol: float = 0.02,
                    erode: int = 2) -> np.ndarray:
     """Samples on the planned lines of `kinds` whose predicted engagement (ap, ae) and speed are the
-    planned ones within `tol`, keeping only runs of such samples shrunk by `erode` at both ends."""
+    planned ones and whose predicted force is the line's median within `tol`, keeping only runs of such
+    samples shrunk by `erode` at both ends."""
     ok = np.zeros(len(signals), bool)
     for m in moves:
         if m.kind not in kinds:
             continue
         on = signals.line == m.line
         ae_plan = min(m.ae_mm, m.diameter_mm)
-        ok |= (on & (np.abs(signals.ap_mm - m.ap_mm) <= tol * m.ap_mm)
-               & (np.abs(signals.ae_mm - ae_plan) <= tol * ae_plan)
-               & (np.abs(signals.speed_mm_s * 60.0 - m.feed_mm_min) <= tol * m.feed_mm_min))
+        ok |= _steady_load(signals, on & (np.abs(signals.ap_mm - m.ap_mm) <= tol * m.ap_mm)
+                           & (np.abs(signals.ae_mm - ae_plan) <= tol * ae_plan)
+                           & (np.abs(signals.speed_mm_s * 60.0 - m.feed_mm_min) <= tol * m.feed_mm_min), tol)
     for _ in range(erode):
         ok[1:-1] &= ok[:-2] & ok[2:]
         ok[[0, -1]] = False
@@ -55,8 +56,8 @@ def steady_samples(signals: Signals, moves: list[PlannedMove], *, kinds=("slot",
 
 
 def steady_job_samples(signals: Signals, *, tol: float = 0.02, erode: int = 2, minimum: int = 10) -> np.ndarray:
-    """In any program: per source line, the cutting samples whose ap, ae and speed are the line's median
-    ones within `tol` (the steady stretch of the line's cut), runs shrunk by `erode` at both ends, lines
+    """In any program: per source line, the cutting samples whose ap, ae, speed and predicted force are the
+    line's median ones within `tol` (the steady stretch of the line's cut), runs shrunk by `erode` at both ends, lines
     with at least `minimum` such samples."""
     ok = np.zeros(len(signals), bool)
     cutting = signals.ap_mm > 0
@@ -66,7 +67,7 @@ def steady_job_samples(signals: Signals, *, tol: float = 0.02, erode: int = 2, m
         for q in (signals.ap_mm, signals.ae_mm, signals.speed_mm_s):
             mid = float(np.median(q[on]))
             near &= np.abs(q - mid) <= tol * mid
-        ok |= near
+        ok |= _steady_load(signals, near, tol)
     for _ in range(erode):
         ok[1:-1] &= ok[:-2] & ok[2:]
         ok[[0, -1]] = False
@@ -74,6 +75,23 @@ def steady_job_samples(signals: Signals, *, tol: float = 0.02, erode: int = 2, m
         if np.count_nonzero(ok & (signals.line == line)) < minimum:
             ok &= signals.line != line
     return ok
+
+
+def _steady_load(signals: Signals, on: np.ndarray, tol: float) -> np.ndarray:
+    """The samples of `on` (one line) whose predicted force on the tool is within `tol` of their median and
+    that lie at least a tool diameter along the path from where the line's cut starts and ends: entering
+    and leaving the stock, the width across the feed is already (or still) the full one, but the engaged
+    arcs are not."""
+    if not on.any():
+        return on
+    mag = np.linalg.norm(signals.force_tool_N, axis=1)
+    mid = float(np.median(mag[on]))
+    line = signals.line[np.flatnonzero(on)[0]]
+    cut = np.flatnonzero((signals.line == line) & (signals.ap_mm > 0))
+    diameter = 2.0 * float(np.max(signals.engagement.r_mm[cut])) if signals.engagement is not None else 0.0
+    s = signals.s_mm
+    inner = (s >= s[cut[0]] + diameter) & (s <= s[cut[-1]] - diameter)
+    return on & inner & (np.abs(mag - mid) <= tol * mid)
 
 
 @dataclass
@@ -172,14 +190,15 @@ def idle_windows(signals: Signals, program: Program, moves: list[PlannedMove]) -
 
 
 def fit_idle(log: Log, alignment: Alignment, windows) -> dict:
-    """No-load power points (idle_rpm, idle_power_W) from the idle dwells."""
+    """No-load power points (idle_rpm, idle_power_W) from the idle dwells ({} when the log has no spindle
+    power inside them)."""
     tau = alignment.tau_s
     rpm = np.full(len(log), np.nan)
     for n, a, b in windows:
         rpm[(tau >= a) & (tau <= b)] = n
-    inside = np.isfinite(rpm)
-    if not inside.any() or not log.has("spindle_power_W"):
-        raise MillpostError(f"{log.path}: no spindle power inside the idle dwells of the plan")
+    inside = np.isfinite(rpm) & np.isfinite(log["spindle_power_W"])
+    if not inside.any():
+        return {}
     speeds, power = fit_idle_power(rpm[inside], log["spindle_power_W"][inside])
     out = {"idle_rpm": speeds, "idle_power_W": power}
     return out
@@ -247,7 +266,8 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     if idle:
         idle_fn = lambda rpm: np.interp(rpm, idle["idle_rpm"], idle["idle_power_W"])  # noqa: E731
     elif log.has("spindle_power_W"):
-        notes.append("no idle dwells in the plan: the machine file's no-load power is subtracted")
+        notes.append("no idle dwells in the plan" + (" covered by the log" if windows else "") +
+                     ": the machine file's no-load power is subtracted")
     if log.has("spindle_current_A") and log.has("spindle_power_W"):
         # shaft torque P/ω against current wherever the spindle turns (idle and cutting)
         j = alignment.samples(signals)

@@ -83,7 +83,8 @@ def align(log: Log, signals: Signals, *, tolerance_mm: float = TOLERANCE_MM, cha
     are off the path (`MisalignedLog`). channels, max_offset_s: for the cross-correlation without
     positions (restrict the channels; search |offset| ≤ this)."""
     pred = signals.log_columns()
-    use = [c for c in (channels or CHANNELS) if log.has(c) and c in pred and np.nanstd(pred[c]) > 0]
+    use = [c for c in (channels or CHANNELS) if log.has(c) and c in pred and np.isfinite(pred[c]).sum() > 1
+           and np.nanstd(pred[c]) > 0]
     if len(log) < 4:
         raise MillpostError(f"{log.path}: too few samples to align ({len(log)})")
     if all(log.has(c) for c in POSITIONS):

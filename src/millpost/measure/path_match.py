@@ -25,6 +25,7 @@ from scipy.spatial import cKDTree
 CANDIDATES = 12          # nearest path samples tried per row
 JUMP_COST_PER_MM = 1.0   # cost of each mm the path would advance beyond what the machine can move
 ADVANCE_COST_PER_MM = 1e-3   # of every mm advanced: among places equally near, the earliest is taken
+FOLLOW = 4               # the best places of the row before that the next row may stay at or follow on from
 AHEAD_SAMPLES = 256      # the continuation of the previous place is sought this many samples ahead
 
 
@@ -82,59 +83,92 @@ def _s_at(s, f):
 @numba.njit(cache=True)
 def _dp(xyz, t, path, s, cand, v_max, slack, jump_cost):
     n, k = cand.shape
-    m = k + 2                       # slot k: stay at the previous row's best place (a stationary tool);
-    #                                 slot k + 1: the nearest place ahead of it within reach (one pass of a
-    #                                 path that retraces itself, whose other passes crowd the candidates)
+    # slots: k nearest places; then, for each of the FOLLOW best places of the row before, the same place
+    # (a tool standing still, or noise just behind it) and the nearest place ahead of it within reach (one
+    # pass of a path that retraces itself, whose other passes crowd the nearest places)
+    m = k + 2 * FOLLOW
     places = np.empty((n, m))       # candidate places (fractional path index) per row
     back = np.zeros((n, m), np.int16)
     prev_cost, prev_s = np.full(m, 1e300), np.empty(m)
     cost, cur_s, cur_d = np.empty(m), np.empty(m), np.empty(m)
+    best = np.empty(FOLLOW, np.int64)
     for i in range(n):
         for c in range(k):
             places[i, c], cur_d[c] = _foot(xyz[i], path, cand[i, c])
             cur_s[c] = _s_at(s, places[i, c])
-        bp, bc = 0, 1e300
-        for q in range(m):
-            if prev_cost[q] < bc:
-                bp, bc = q, prev_cost[q]
-        places[i, k] = places[i - 1, bp] if i > 0 else places[i, 0]
-        cur_s[k] = _s_at(s, places[i, k])
-        cur_d[k] = _distance(xyz[i], path, places[i, k])
+        if i > 0:
+            _smallest(prev_cost, places[i - 1], best)
+        else:
+            best[:] = 0
         reach = v_max * max(t[i] - t[i - 1], 0.0) + slack if i > 0 else 0.0
-        places[i, k + 1], cur_d[k + 1] = _ahead(xyz[i], path, s, places[i, k], reach)
-        cur_s[k + 1] = _s_at(s, places[i, k + 1])
+        for r in range(FOLLOW):
+            q = best[r]
+            here = places[i - 1, q] if i > 0 else places[i, 0]
+            places[i, k + 2 * r] = here
+            cur_d[k + 2 * r] = _distance(xyz[i], path, here)
+            places[i, k + 2 * r + 1], cur_d[k + 2 * r + 1] = _ahead(xyz[i], path, s, here, reach)
+            for c in (k + 2 * r, k + 2 * r + 1):
+                cur_s[c] = _s_at(s, places[i, c])
         if i == 0:
             for c in range(m):
                 cost[c] = cur_d[c] if c < k else 1e300
         else:
             for c in range(k):
-                best, arg = 1e300, -1
+                lowest, arg = 1e300, -1
                 for q in range(m):
                     if prev_cost[q] >= 1e299 or places[i - 1, q] > places[i, c] + 1e-9:
                         continue
                     excess = cur_s[c] - prev_s[q] - reach
                     v = prev_cost[q] + ADVANCE_COST_PER_MM * (cur_s[c] - prev_s[q]) + (
                         jump_cost * excess if excess > 0 else 0.0)
-                    if v < best:
-                        best, arg = v, q
-                cost[c] = best + cur_d[c] if arg >= 0 else 1e300
+                    if v < lowest:
+                        lowest, arg = v, q
+                cost[c] = lowest + cur_d[c] if arg >= 0 else 1e300
                 back[i, c] = max(arg, 0)
-            cost[k] = bc + cur_d[k]
-            back[i, k] = bp
-            cost[k + 1], back[i, k + 1] = bc + cur_d[k + 1] + ADVANCE_COST_PER_MM * (cur_s[k + 1] - prev_s[bp]), bp
+            for r in range(FOLLOW):
+                q = best[r]
+                for c in (k + 2 * r, k + 2 * r + 1):
+                    cost[c] = (prev_cost[q] + cur_d[c] + ADVANCE_COST_PER_MM * (cur_s[c] - prev_s[q])
+                               if prev_cost[q] < 1e299 else 1e300)
+                    back[i, c] = q
         for c in range(m):
             prev_cost[c], prev_s[c] = cost[c], cur_s[c]
     out_f = np.empty(n)
     out_d = np.empty(n)
-    c, bc = 0, 1e300
+    c, lowest = 0, 1e300
     for q in range(m):
-        if prev_cost[q] < bc:
-            c, bc = q, prev_cost[q]
+        if prev_cost[q] < lowest:
+            c, lowest = q, prev_cost[q]
     for i in range(n - 1, -1, -1):
         out_f[i] = places[i, c]
         out_d[i] = _distance(xyz[i], path, out_f[i])
         c = back[i, c]
     return out_f, out_d
+
+
+@numba.njit(cache=True)
+def _smallest(values, places, out):
+    """Indices of the len(out) smallest finite values at places at least a sample apart (ascending;
+    repeats of the last where there are fewer)."""
+    taken = np.zeros(len(values), np.bool_)
+    found = 0
+    for r in range(len(out)):
+        j, v = -1, 1e299
+        for q in range(len(values)):
+            if taken[q] or values[q] >= v:
+                continue
+            seen = False
+            for u in range(found):
+                if abs(places[q] - places[out[u]]) < 1.0:
+                    seen = True
+            if not seen:
+                j, v = q, values[q]
+        if j < 0:
+            out[r] = out[r - 1] if r > 0 else 0
+        else:
+            taken[j] = True
+            out[r] = j
+            found += 1
 
 
 @numba.njit(cache=True)
