@@ -142,7 +142,8 @@ def main() -> None:
     log = phase("generate")["log"]
     result = phase("ours", log)
     baseline = phase("nearest", log)
-    result.update({"log": log, "nearest": baseline, "ratio_vs_nearest": round(result["align_s"] / baseline["align_s"], 2),
+    result.update({"log": log, "nearest": baseline,
+                   "ratio_vs_nearest": round(result["align_s"] / baseline["align_s"], 2),
                    "goal": "align_s <= 30, peak_rss_mb <= 1024"})
     json.dump(result, sys.stdout, indent=1)
     print()

@@ -29,6 +29,7 @@ import numpy as np
 
 HIDDEN = ("none", "tool_wear", "size_effect", "deflection", "inertia", "sensor_lag", "spindle_no_load",
           "sensor_drift")
+H_REF_MM = 0.05     # reference chip thickness of the size effect (mm)
 
 
 @dataclass(frozen=True)
@@ -93,11 +94,12 @@ class Mill:
     idle_W: tuple[float, float] = (60.0, 0.025)                     # a + b·n (W, W/rpm)
     kt_Nm_per_A: float = 0.7
     idle_current_A: float = 1.5
-    drive: tuple[float, float, float, float] = (0.002, 0.35, 0.004, 0.004)   # k_a A/(mm/s²), k_c A, k_v A/(mm/s), k_f A/N
+    # k_a A/(mm/s²), k_c A, k_v A/(mm/s), k_f A/N
+    drive: tuple[float, float, float, float] = (0.002, 0.35, 0.004, 0.004)
     gravity_z_A: float = 0.0
     slices: int = 12
     slice_mm: float = 0.1
-    sub_samples: int = 8
+    sub_samples: int = 16
 
 
 @dataclass
@@ -197,9 +199,13 @@ class Stock:
 
 
 def tool_loads(mill: Mill, stock: Stock, before: int, centre: np.ndarray, feed_dir: np.ndarray, fz: np.ndarray,
-               angle: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               angle: np.ndarray, K: np.ndarray, size_m: float = 0.0, bend: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """Force on the tool (M, 3) N and torque (M,) N·m at tool tips `centre` (M, 3), feed unit `feed_dir`
-    (3,), feed per tooth fz (M,), rotation angle `angle` (M,) of flute 0 at the tip; K (M, 6) coefficients."""
+    (3,), feed per tooth fz (M,), rotation angle `angle` (M,) of flute 0 at the tip; K (M, 6) coefficients.
+    size_m: the shearing coefficients × (h/H_REF_MM)^(−size_m) per edge element (a Kienzle material);
+    bend: (M, 2) the tool's lateral displacement (mm): its edge cuts where the bent tool is (the chip
+    thickness stays the feed's)."""
     R = mill.diameter_mm / 2
     M = len(centre)
     # slices over the flutes up to the stock's top (an exact depth where the top bounds the cut)
@@ -213,6 +219,8 @@ def tool_loads(mill: Mill, stock: Stock, before: int, centre: np.ndarray, feed_d
     u = np.stack([np.cos(psi), np.sin(psi), np.zeros_like(psi)], -1)
     vel = np.stack([np.sin(psi), -np.cos(psi), np.zeros_like(psi)], -1)             # clockwise from above
     q = centre[:, None, None, :] + R * u
+    if bend is not None:
+        q[..., :2] += bend[:, None, None, :]
     q[..., 2] = centre[:, None, None, 2] + z[None, None, :]
     f_h = np.array([feed_dir[0], feed_dir[1], 0.0])
     norm = np.linalg.norm(f_h)
@@ -221,9 +229,10 @@ def tool_loads(mill: Mill, stock: Stock, before: int, centre: np.ndarray, feed_d
     cut = (h > 0) & stock.material(q, R, before)
     h = np.where(cut, h, 0.0)
     k = K[:, None, None, :]
-    Ft = np.where(cut, k[..., 0] * h + k[..., 3], 0.0) * dz
-    Fr = np.where(cut, k[..., 1] * h + k[..., 4], 0.0) * dz
-    Fa = np.where(cut, k[..., 2] * h + k[..., 5], 0.0) * dz
+    hs = h * (np.maximum(h, 1e-6) / H_REF_MM) ** (-size_m) if size_m else h
+    Ft = np.where(cut, k[..., 0] * hs + k[..., 3], 0.0) * dz
+    Fr = np.where(cut, k[..., 1] * hs + k[..., 4], 0.0) * dz
+    Fa = np.where(cut, k[..., 2] * hs + k[..., 5], 0.0) * dz
     F = -Ft[..., None] * vel - Fr[..., None] * u
     F[..., 2] += Fa
     return F.reshape(M, -1, 3).sum(1), Ft.reshape(M, -1).sum(1) * R / 1000.0
@@ -236,17 +245,42 @@ class Generated:
     segments: list[Segment]
 
 
+def _strength(hidden: str, mill: Mill, rng: np.random.Generator) -> dict:
+    """The hidden effect's physical size, drawn: wear +30–50 % by the end; m_c 0.15–0.35 (published for
+    common materials); a tool bent by 5–10 % of its diameter at a typical load; a 40–100 kg table; a
+    0.08–0.3 s sensor lag; 4–8 W per krpm² of drag."""
+    if hidden == "tool_wear":
+        return {"rise": rng.uniform(0.3, 0.5)}
+    if hidden == "size_effect":
+        return {"m": rng.uniform(0.15, 0.35)}
+    if hidden == "deflection":   # at the force of a slot 0.5 D deep at f_z 0.05 mm
+        Ktc, Krc, _, Kte, Kre, _ = mill.K
+        ap, fz, N = 0.5 * mill.diameter_mm, 0.05, mill.flutes
+        typical = np.hypot(N * ap * Ktc * fz / 4 + N * ap * Kte / np.pi, N * ap * Krc * fz / 4 + N * ap * Kre / np.pi)
+        return {"compliance_mm_per_N": rng.uniform(0.05, 0.1) * mill.diameter_mm / typical}
+    if hidden == "inertia":
+        return {"mass_kg": rng.uniform(40, 100)}
+    if hidden == "sensor_lag":
+        return {"tau_s": rng.uniform(0.08, 0.3)}
+    if hidden == "spindle_no_load":
+        return {"c2_W_per_krpm2": rng.uniform(4, 8)}
+    return {}
+
+
 def generate(text: str, box, mill: Mill, *, rate_hz: float = 250.0, epoch_s: float = 1234.5, jitter: float = 0.1,
              drop: float = 0.0, holds: dict[int, tuple[float, float]] | None = None, feeding_only: bool = False,
-             lines: tuple[int, int] | None = None, noise: float = 0.02, noise_N: float = 1.0,
-             position_noise_mm: float = 0.002, hidden: str = "none", strength: float = 1.0, seed: int = 0,
+             lines: tuple[int, int] | None = None, noise: float = 0.02, noise_N: float = 1.0, noise_rms: float = 0.0,
+             position_noise_mm: float = 0.002, hidden: str = "none", seed: int = 0,
              channels: tuple[str, ...] = ("x_mm", "y_mm", "z_mm", "fx_N", "fy_N", "fz_N", "spindle_power_W",
                                           "spindle_current_A", "ix_A", "iy_A", "iz_A")) -> Generated:
     """A log of the program `text` run on `mill` in a stock `box` (see the module docstring). lines:
-    (first, last) program lines the log covers (a partial log); hidden: one of HIDDEN, at `strength`."""
+    (first, last) program lines the log covers (a partial log); hidden: one of HIDDEN (its size drawn,
+    `_strength`; in .truth). Noise: each row × (1 + noise·N(0, 1)) + N(0, σ), σ = noise_N for forces and
+    noise × the channel's RMS for the others, plus noise_rms × the channel's RMS for all."""
     if hidden not in HIDDEN:
         raise ValueError(hidden)
     rng = np.random.default_rng(seed)
+    truth: dict = {"hidden": hidden, **_strength(hidden, mill, rng)}
     moves = read_moves(text)
     segs = timeline(moves, mill, holds)
     stock = Stock(box, [(s.p0, s.p1) for s in segs if s.kind != "dwell"])
@@ -262,8 +296,6 @@ def generate(text: str, box, mill: Mill, *, rate_hz: float = 250.0, epoch_s: flo
     xyz, speed, acc3, vel3 = np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3))
     force, torque, rpm = np.zeros((n, 3)), np.zeros(n), np.zeros(n)
     K0 = np.array(mill.K, float)
-    cut_len = np.zeros(n)
-    travelled = 0.0
     S = mill.sub_samples
     for k, seg in enumerate(segs):
         rows = np.flatnonzero(which == k)
@@ -275,58 +307,63 @@ def generate(text: str, box, mill: Mill, *, rate_hz: float = 250.0, epoch_s: flo
         s, v, a = seg.state(t[rows] - seg.t0)
         xyz[rows] = seg.p0 + s[:, None] * direction
         speed[rows], vel3[rows], acc3[rows] = v, v[:, None] * direction, a[:, None] * direction
-        cut_len[rows] = travelled + s
-        if seg.kind == "feed":
-            travelled += seg.length
         if seg.rpm <= 0 or not len(rows):
             continue
-        # the logger's boxcar over the sample interval before each row, by sub-samples at random instants
-        # (evenly spaced ones would alias with the tooth passing)
-        tt = (t[rows, None] - seg.t0 - dt * rng.uniform(0, 1, (len(rows), S))).ravel()
+        # the logger's boxcar over the sample interval before each row, by one sub-sample at a random
+        # instant in each of S equal parts of it (evenly spaced ones would alias with the tooth passing)
+        tt = (t[rows, None] - seg.t0 - dt * (np.arange(S) + rng.uniform(0, 1, (len(rows), S))) / S).ravel()
         ss, vv, _ = seg.state(tt)
         centre = seg.p0 + ss[:, None] * direction
         omega = 2 * np.pi * seg.rpm / 60
         fz = vv * 60 / (mill.flutes * seg.rpm)
         K = np.tile(K0, (len(tt), 1))
-        if hidden == "tool_wear":    # edge forces grow with the cut length (flank wear land)
-            K[:, 3:] *= 1 + strength * 1.5 * np.repeat(cut_len[rows], S) / 1000.0
-        if hidden == "size_effect":  # specific cutting force rises at thin chips: K_c ∝ (h/0.05)^(−0.3)
-            mean_h = np.maximum(fz * 2 / np.pi, 1e-4)
-            K[:, :3] *= (mean_h / 0.05)[:, None] ** (-0.3 * strength)
+        size_m = 0.0
+        if hidden == "size_effect":   # a Kienzle material: no edge force, k(h) = k(h_ref)·(h/h_ref)^(−m)
+            size_m = truth["m"]
+            K[:, :3] += K[:, 3:] / H_REF_MM
+            K[:, 3:] = 0.0
         lo, hi = np.array(box[0]) - mill.diameter_mm, np.array(box[1]) + mill.diameter_mm
-        near = np.all((centre >= lo) & (centre <= hi + [0, 0, 0]), axis=1) & (centre[:, 2] < box[1][2])
+        near = np.all((centre >= lo) & (centre <= hi), axis=1) & (centre[:, 2] < box[1][2])
         F = np.zeros((len(tt), 3))
         T = np.zeros(len(tt))
         if near.any():
-            F[near], T[near] = tool_loads(mill, stock, int(sweep_index[k]), centre[near], direction, fz[near],
-                                          -omega * tt[near] + rng.uniform(0, 2 * np.pi), K[near])
-        if hidden == "deflection":   # the tool bends away: the radial width it removes shrinks with load
-            F *= 1.0 / (1.0 + strength * 0.0006 * np.linalg.norm(F[:, :2], axis=1))[:, None]
-            T *= 1.0 / (1.0 + strength * 0.0006 * np.linalg.norm(F[:, :2], axis=1))
+            phase = -omega * tt[near] + rng.uniform(0, 2 * np.pi)
+            args = (mill, stock, int(sweep_index[k]), centre[near], direction, fz[near], phase, K[near], size_m)
+            F[near], T[near] = tool_loads(*args)
+            if hidden == "deflection":   # the tool bends along the force on it (damped fixed point)
+                bend = np.zeros((int(near.sum()), 2))
+                for _ in range(4):
+                    bend = 0.5 * (bend + truth["compliance_mm_per_N"] * F[near, :2])
+                    F[near], T[near] = tool_loads(*args, bend=bend)
         force[rows] = F.reshape(len(rows), S, 3).mean(1)
         torque[rows] = T.reshape(len(rows), S).mean(1)
     omega = 2 * np.pi * rpm / 60
+    engaged = np.linalg.norm(force, axis=1) > 1e-6
+    if hidden == "tool_wear":   # every coefficient × (1 + rise·L/L_end), L the engaged path so far
+        length = np.cumsum(speed * np.diff(t, prepend=t[0]) * engaged)
+        wear = 1 + truth["rise"] * length / max(length[-1], 1e-9)
+        force, torque = force * wear[:, None], torque * wear
     idle = np.where(rpm > 0, mill.idle_W[0] + mill.idle_W[1] * rpm, 0.0)
-    if hidden == "spindle_no_load":
-        idle = np.where(rpm > 0, idle + strength * 0.06 * rpm, 0.0)   # a bearing drag the model lacks
+    if hidden == "spindle_no_load":   # a drag the machine file lacks, growing with the square of the speed
+        idle = idle + truth["c2_W_per_krpm2"] * (rpm / 1000) ** 2
     power = torque * omega + idle
     shaft = np.where(omega > 0, power / np.where(omega > 0, omega, 1), 0.0)
     current = np.where(rpm > 0, np.sqrt(mill.idle_current_A ** 2 + (shaft / mill.kt_Nm_per_A) ** 2), 0.0)
     ka, kc, kv, kf = mill.drive
-    if hidden == "inertia":
-        ka *= 1 + 1.0 * strength
     axis_i = ka * acc3 + kc * np.sign(np.round(vel3, 9)) + kv * vel3 - kf * force
     axis_i[:, 2] += mill.gravity_z_A
     work = -force
-    if hidden == "sensor_drift":
-        work = work + strength * np.array([0.4, -0.3, 0.2])[None, :] * (t - t[0])[:, None]
-    if hidden == "sensor_lag":
-        tau_s = 0.02 * strength
-        alpha = 1 - np.exp(-np.diff(t, prepend=t[0]) / tau_s)
-        lagged = np.zeros_like(work)
-        for i in range(n):
-            lagged[i] = work[i] if i == 0 else lagged[i - 1] + alpha[i] * (work[i] - lagged[i - 1])
-        work = lagged
+    if hidden == "inertia":   # the dynamometer moves with the table and reads the workpiece's m·a too
+        work = work - truth["mass_kg"] * acc3 / 1000.0
+    if hidden == "sensor_lag":   # a first-order lag of the force sensor
+        alpha = 1 - np.exp(-np.diff(t, prepend=t[0]) / truth["tau_s"])
+        for i in range(1, n):
+            work[i] = work[i - 1] + alpha[i] * (work[i] - work[i - 1])
+    if hidden == "sensor_drift":   # the zeros of forces and power drift linearly with time
+        for c, v in (("fx_N", work[:, 0]), ("fy_N", work[:, 1]), ("fz_N", work[:, 2]), ("spindle_power_W", power)):
+            r = float(np.sqrt(np.mean(v * v)))
+            d = truth[f"drift_{c}_per_s"] = rng.choice([-1, 1]) * rng.uniform(0.2, 0.4) * r / (t[-1] - t[0])
+            v += d * (t - t[0])
     rms = lambda v: float(np.sqrt(np.mean(v * v))) if len(v) else 0.0  # noqa: E731
     clean = {"x_mm": xyz[:, 0], "y_mm": xyz[:, 1], "z_mm": xyz[:, 2], "fx_N": work[:, 0], "fy_N": work[:, 1],
              "fz_N": work[:, 2], "spindle_power_W": power, "spindle_current_A": current, "ix_A": axis_i[:, 0],
@@ -346,7 +383,7 @@ def generate(text: str, box, mill: Mill, *, rate_hz: float = 250.0, epoch_s: flo
             cols[c] = v + rng.normal(0, position_noise_mm, len(v))
         else:
             cols[c] = v * (1 + noise * rng.standard_normal(len(v))) + rng.normal(
-                0, noise_N if c.startswith("f") else noise * rms(v), len(v))
-    truth = {"K": K0, "rows": int(keep.sum()), "program_end_s": end,
-             "line": np.array([segs[w].line for w in which])[keep], "t_machine_s": t[keep]}
+                0, (noise_N if c.startswith("f") else noise * rms(v)) + noise_rms * rms(v), len(v))
+    truth.update({"K": K0, "rows": int(keep.sum()), "program_end_s": end,
+                  "line": np.array([segs[w].line for w in which])[keep], "t_machine_s": t[keep]})
     return Generated(cols, truth, segs)

@@ -15,7 +15,6 @@ import pytest
 from independent_log import Mill, generate, read_moves
 from millpost import signals
 from millpost.cli import main
-from millpost.job import load_job
 from millpost.measure import Log, align, write_log
 from millpost.measure.alignment import MisalignedLog
 

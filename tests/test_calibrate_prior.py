@@ -44,7 +44,8 @@ def slots():
 
 def _table(path, rows) -> None:
     text = "diameter_mm,flutes,helix_deg,ae_mm,ap_mm,fz_mm,rpm,fx_N,fy_N,fz_N\n"
-    text += "".join(f"{D},{FLUTES},30,{D},{ap},{FZ},{RPM},{float(f[0])!r},{float(f[1])!r},{float(f[2])!r}\n" for ap, f in rows)
+    text += "".join(f"{D},{FLUTES},30,{D},{ap},{FZ},{RPM}," + ",".join(repr(float(v)) for v in f) + "\n"
+                    for ap, f in rows)
     path.write_text(text)
 
 

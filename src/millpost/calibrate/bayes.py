@@ -4,8 +4,8 @@ Linear models (y = X θ + e, e ~ N(0, σ² I); θ ~ N(μ₀, diag(s₀²))): the
 
     Σ = (XᵀX/σ² + S₀⁻²)⁻¹,   μ = Σ (Xᵀy/σ² + S₀⁻² μ₀).
 
-In prior-whitened coordinates z = S₀⁻¹(θ − μ₀) the data's information is A = S₀XᵀXS₀/σ²; an eigen-direction
-of A with eigenvalue λ > 1 is one the data know better than the prior (its spread shrinks by √(1+λ)):
+In prior-whitened coordinates z = S₀⁻¹(θ − μ₀) the data's information is A = S₀XᵀXS₀/σ²; an
+eigen-direction of A with eigenvalue λ > 1 is one the data know better than the prior (its spread shrinks by √(1+λ)):
 those are the identified combinations of coefficients, their number the rank, λ_max/λ_min over them the
 condition. A coefficient whose posterior spread is more than half its prior spread is left at the prior:
 it gets no standard error of its own. σ is estimated from the residuals when the data have at least

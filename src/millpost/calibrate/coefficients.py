@@ -63,7 +63,8 @@ class Fit:
         sd = np.sqrt(np.maximum(np.diag(m.coef_cov_), 0.0))
         mean0, sd0 = self.prior.get(model, (np.full(len(names), np.nan), np.full(len(names), np.inf)))
         return {n: {"value": float(v), "stderr": float(s) if r < IDENTIFIED else None,
-                    "prior": None if not np.isfinite(p) else float(p), "prior_sd": None if not np.isfinite(q) else float(q),
+                    "prior": float(p) if np.isfinite(p) else None,
+                    "prior_sd": float(q) if np.isfinite(q) else None,
                     "identified": bool(r < IDENTIFIED)}
                 for n, v, s, r, p, q in zip(names, m.coef_, sd, ident.ratio, mean0, sd0)}
 

@@ -248,8 +248,8 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     wrote (job.toml and plan.csv: the planned cuts, idle dwells and axis strokes are used), or any job
     (folder or .toml: its steady stretches of cut, see `steady_job_samples`; cutting coefficients only).
     base: the material to start from, the prior (default: the job's; prior_spread its relative 1σ);
-    tolerance_mm: the alignment's (a log off the program's path is refused, `MisalignedLog`). progress: as `millpost.optimize`'s (the
-    engagement run reports through it)."""
+    tolerance_mm: the alignment's (a log off the program's path is refused, `MisalignedLog`). progress: as
+    `millpost.optimize`'s (the engagement run reports through it)."""
     target = Path(target)
     job = load_job(target)
     plan_file = job.path.parent / "plan.csv"

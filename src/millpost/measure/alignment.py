@@ -31,7 +31,7 @@ POSITIONS = ("x_mm", "y_mm", "z_mm")
 TOLERANCE_MM = 0.3          # default: a row farther than this from the path is off it
 MAX_OFF_FRACTION = 0.01     # more off-path rows than this (between the first and last on it): refused
 STILL_MM_S = 0.5            # below this log path speed the tool stands still
-SPEED_WINDOW_S = 0.02       # half-width of the window of the log's path speed
+SPEED_WINDOW_S = 0.01       # half-width of the window of the log's path speed (≥ 1 row)
 
 
 class MisalignedLog(MillpostError):
@@ -55,6 +55,7 @@ class Alignment:
     correlation: float
     channels: list[str]
     tolerance_mm: float = TOLERANCE_MM
+    place: np.ndarray | None = None     # per row, the fractional path-sample index matched (by position)
     residual_rms: dict[str, float] = field(default_factory=dict)
     position_rms_mm: float = float("nan")
     notes: list[str] = field(default_factory=list)
@@ -123,7 +124,7 @@ def _by_position(log: Log, signals: Signals, tolerance_mm: float) -> Alignment:
     on = np.flatnonzero(near)
     result = Alignment("position", np.where(near, tau, np.nan), near, dist, speed,
                        float(np.median(t[near] - tau[near])) if len(on) else float("nan"), float("nan"), [],
-                       tolerance_mm)
+                       tolerance_mm, np.where(near, f, np.nan))
     span = np.zeros(len(t), bool)
     if len(on):
         span[on[0]:on[-1] + 1] = True
@@ -141,6 +142,12 @@ def _by_position(log: Log, signals: Signals, tolerance_mm: float) -> Alignment:
 
 def _speed(t: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Path speed (mm/s) per row: the matched arc length's slope over ±SPEED_WINDOW_S of the log's clock."""
+    return rate(t, s)
+
+
+def rate(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per row, (y(i + w) − y(i − w)) / (t(i + w) − t(i − w)): the rate of y over the log's own clock, w
+    rows ≈ SPEED_WINDOW_S (at least 1; clipped at the ends)."""
     n = len(t)
     if n < 2:
         return np.zeros(n)
@@ -149,7 +156,7 @@ def _speed(t: np.ndarray, s: np.ndarray) -> np.ndarray:
     i = np.arange(n)
     a, b = np.maximum(i - w, 0), np.minimum(i + w, n - 1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(t[b] > t[a], (s[b] - s[a]) / (t[b] - t[a]), 0.0)
+        return np.where(t[b] > t[a], (y[b] - y[a]) / (t[b] - t[a]), 0.0)
 
 
 def _refusal(log: Log, signals: Signals, f: np.ndarray, dist: np.ndarray, span: np.ndarray, tol: float) -> str:
