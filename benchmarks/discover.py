@@ -39,7 +39,9 @@ def tile(rows, copies: int):
     feats = {k: cat(v) for k, v in rows.features.items()}
     L = rows.features["cut_length_m"]
     feats["cut_length_m"] = np.concatenate([L + k * L.max() for k in range(copies)])
-    cuts = dataclasses.replace(rows.cuts, sample=cat(rows.cuts.sample), weight=cat(rows.cuts.weight))   # visited again
+    fz_scale = None if rows.cuts.fz_scale is None else cat(rows.cuts.fz_scale)
+    cuts = dataclasses.replace(rows.cuts, sample=cat(rows.cuts.sample), weight=cat(rows.cuts.weight),   # visited again
+                               fz_scale=fz_scale)
     return Rows(t, {c: cat(v) for c, v in rows.measured.items()}, {c: cat(v) for c, v in rows.cut.items()},
                 {c: {k: cat(v) for k, v in d.items()} for c, d in rows.columns.items()},
                 {c: cat(v) for c, v in rows.fixed.items()}, feats, None, cat(rows.use), cuts)
