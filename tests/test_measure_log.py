@@ -110,3 +110,14 @@ def test_alignment_within_one_sample(predicted, seed, positions, coarse_points, 
     else:
         assert abs(a.offset_s - (offset + epoch)) < 1.0 / rate, (a.offset_s, offset + epoch, a.method)
         assert a.correlation > 0.8
+
+
+def test_empty_position_columns_fall_back_to_the_time_offset(predicted):
+    """Position columns that hold no value (a logger that declared but never filled them) are no positions:
+    the offset comes from cross-correlation, not a refusal."""
+    log = synthetic_log(predicted, rate_hz=250.0, offset_s=1.3, noise=0.03, columns=("fx_N", "fy_N"), lead_s=0.5,
+                        tail_s=0.5, seed=3)
+    for c in ("x_mm", "y_mm", "z_mm"):
+        log.columns[c] = np.full(len(log), np.nan)
+    a = align(log, predicted)
+    assert a.method == "xcorr" and abs(a.offset_s - 1.3) < 1.0 / 250.0

@@ -88,7 +88,7 @@ def align(log: Log, signals: Signals, *, tolerance_mm: float = TOLERANCE_MM, cha
            and np.nanstd(pred[c]) > 0]
     if len(log) < 4:
         raise MillpostError(f"{log.path}: too few samples to align ({len(log)})")
-    if all(log.has(c) for c in POSITIONS):
+    if all(log.has(c) for c in POSITIONS) and np.isfinite(np.column_stack([log[c] for c in POSITIONS])).all(1).any():
         result = _by_position(log, signals, tolerance_mm)
         result.channels = use
     else:
