@@ -18,7 +18,7 @@ from millpost.measure import Log
 CHANNELS = ("x_mm", "y_mm", "z_mm", "fx_N", "fy_N", "fz_N", "spindle_power_W")
 
 
-def make_run(folder: Path, seed: int, effect: str) -> Run:
+def make_run(folder: Path, seed: int, effect: str, channels: tuple[str, ...] = CHANNELS) -> Run:
     job_path, _, (diameter, flutes), _ = write_job(folder, seed)
     rng = np.random.default_rng(2000 + seed)
     mill = Mill(diameter_mm=diameter, flutes=flutes, helix_deg=35, flute_length_mm=2.5 * diameter,
@@ -27,5 +27,5 @@ def make_run(folder: Path, seed: int, effect: str) -> Run:
                 slice_mm=0.25)
     g = generate((folder / "program.nc").read_text(), ((0.0, 0.0, -BOX[2]), (BOX[0], BOX[1], 0.0)), mill,
                  rate_hz=100.0, epoch_s=float(rng.uniform(-100, 100)), noise=0.0, noise_N=0.0,
-                 noise_rms=float(rng.uniform(0.01, 0.05)), hidden=effect, seed=seed, channels=CHANNELS)
+                 noise_rms=float(rng.uniform(0.01, 0.05)), hidden=effect, seed=seed, channels=channels)
     return Run(job_path, Log(g.columns, path=str(folder / "log.csv")), effect, g.truth)

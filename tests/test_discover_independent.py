@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from independent_runs import make_run
+from independent_runs import CHANNELS, make_run
 from millpost.discover.run import discover
 from millpost.discover.search import disagreement
 from millpost.job import load_job
@@ -90,3 +90,18 @@ def test_rivals_the_data_cannot_tell_apart_are_ambiguous():
     assert same["p"] >= 0.01
     told = disagreement(rows, block, before, {"fx_N": truth}, {"fx_N": 0.5 * t}, ["fx_N"], MEAN_S)
     assert told["p"] < 1e-3 and told["better"] > 0.9
+
+
+def test_spindle_current_the_machine_file_lacks(tmp_path):
+    """Spindle current logged on a machine whose file has no K_t for its spindle (the model predicts no
+    current): discover names spindle_current, current rising with cutting torque, its slope between 0 and
+    the generator's 1/K_t (the no-load current I₀ bends √(I₀² + (T/K_t)²) below that slope), and the
+    current's held-out gap shrinks."""
+    for seed in SEEDS:
+        r = make_run(tmp_path / f"cur{seed}", seed, "none", channels=CHANNELS + ("spindle_current_A",))
+        d = discover(load_job(r.job_path), r.log)
+        s, pred = d.summary(), d.predictions()
+        assert [e["name"] for e in s["effects"]][:1] == ["spindle_current"], d.notes
+        slope = s["effects"][0]["params"]["per_Nm_A"]
+        assert 0 < slope < 1 / 0.7, slope   # the generator's K_t = 0.7 N·m/A
+        assert gap(pred, "spindle_current_A", "after") < 0.75 * gap(pred, "spindle_current_A", "before")
