@@ -1,8 +1,8 @@
-"""discover's search on a 1-hour 100 Hz log (360 k rows) with 10 candidate effects.
+"""discover's search on a 1-hour 100 Hz log (360 k rows) with 11 candidate effects.
 
 The rows come from one seeded measured run of tests/discover_runs.py (straight passes in a box, hidden sensor
 lag, 3 % noise; aligned and mapped to the forward model once), repeated end to end in time to an
-hour. The 10 candidates are the nine built-ins plus a tenth registered here (sensor drift under another
+hour. The 11 candidates are the ten built-ins plus one registered here (sensor drift under another
 name), so the search fits each, scores it on the held-out blocks and runs a second greedy round.
 
 Prints one JSON object: rows, candidates, base_fit_s (the refitted base model alone, the baseline
@@ -39,7 +39,9 @@ def tile(rows, copies: int):
     feats = {k: cat(v) for k, v in rows.features.items()}
     L = rows.features["cut_length_m"]
     feats["cut_length_m"] = np.concatenate([L + k * L.max() for k in range(copies)])
-    cuts = dataclasses.replace(rows.cuts, sample=cat(rows.cuts.sample), weight=cat(rows.cuts.weight))   # visited again
+    fz_scale = None if rows.cuts.fz_scale is None else cat(rows.cuts.fz_scale)
+    cuts = dataclasses.replace(rows.cuts, sample=cat(rows.cuts.sample), weight=cat(rows.cuts.weight),   # visited again
+                               fz_scale=fz_scale)
     return Rows(t, {c: cat(v) for c, v in rows.measured.items()}, {c: cat(v) for c, v in rows.cut.items()},
                 {c: {k: cat(v) for k, v in d.items()} for c, d in rows.columns.items()},
                 {c: cat(v) for c, v in rows.fixed.items()}, feats, None, cat(rows.use), cuts)
@@ -66,10 +68,10 @@ def main() -> None:
     copies = max(1, int(round(args.minutes * 60 / (rows.t_s[-1] - rows.t_s[0]))))
     big = tile(rows, copies)
 
-    class Tenth(SensorDrift):
+    class Copy(SensorDrift):
         name = "sensor_drift_copy"
 
-    effects = candidates() | {"sensor_drift_copy": Tenth}
+    effects = candidates() | {"sensor_drift_copy": Copy}
     nominal = job.material.force_model("mechanistic").coefficients
     t0, c0 = time.perf_counter(), time.process_time()
     train, _ = split(big.t_s, big.use)

@@ -67,7 +67,7 @@ def generate(work: Path, minutes: float, rate: float) -> dict:
 def ours(work: Path, log_path: str) -> dict:
     import numpy as np
 
-    from millpost.calibrate.cuts import fit_models
+    from millpost.calibrate.coefficients import fit_models
     from millpost.calibrate.logfit import observations, steady_samples
     from millpost.calibrate.plan import read_plan
     from millpost.job import load_job

@@ -153,10 +153,11 @@ def test_cli_end_to_end_reviewer_format(tmp_path, capsys):
     assert main(["discover", str(r.job_path), "--log", str(log_path), "--json", str(out), "--predictions",
                  str(pred), "--report", str(html), "--write-model", str(tmp_path / "model")]) == 0
     s = json.loads(out.read_text())
-    assert set(s) == {"effects", "rms_before", "rms_after", "offset_s", "notes"}
+    assert set(s) == {"effects", "ambiguous", "rms_before", "rms_after", "offset_s", "alignment", "notes"}
     assert [e["name"] for e in s["effects"]][:1] == ["inertia"]
     e = s["effects"][0]
-    assert {"name", "params", "stderr", "channels", "rms_before", "rms_after"} <= set(e)
+    assert {"name", "params", "stderr", "channels", "rms_before", "rms_after", "ambiguous_with"} <= set(e)
+    assert s["alignment"] == "position" and s["ambiguous"] == [] and e["ambiguous_with"] == []
     assert e["params"]["mass_kg"] == pytest.approx(r.truth["mass_kg"], rel=0.1)
     with open(pred, newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -191,6 +192,8 @@ def test_umich_axis_friction_from_inertia_only():
         rows = from_axis_arrays(np.arange(len(data)) * 0.1, v, a, currents)
         sel = select(rows, {}, candidates())
         assert [e.name for e in sel.effects][:1] == ["axis_friction"], (exp, sel.scores)
+        friction = sel.effects[0].params_
+        assert all(v > 0 for v in friction.values()), (exp, friction)   # friction opposes the motion
         held = sel.block >= 0
         pred = sel.predict_after()
         for k, c in enumerate(currents):

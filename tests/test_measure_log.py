@@ -87,8 +87,8 @@ def test_writer_keeps_rows_and_gaps(tmp_path):
 @pytest.mark.parametrize("coarse_points, fine_points", [(1 << 18, 1 << 18), (1 << 10, 1 << 14)])
 def test_alignment_within_one_sample(predicted, seed, positions, coarse_points, fine_points, monkeypatch):
     # (one FFT pass over the whole log; or a coarse pass, then the log's interval on a window)
-    monkeypatch.setattr("millpost.measure.alignment.COARSE_POINTS", coarse_points)
-    monkeypatch.setattr("millpost.measure.alignment.FINE_POINTS", fine_points)
+    monkeypatch.setattr("millpost.measure.xcorr.COARSE_POINTS", coarse_points)
+    monkeypatch.setattr("millpost.measure.xcorr.FINE_POINTS", fine_points)
     rng = np.random.default_rng(100 + seed)
     offset = float(rng.uniform(0.1, 3.0))
     rate = float(rng.choice([100.0, 250.0, 1000.0]))
@@ -99,8 +99,25 @@ def test_alignment_within_one_sample(predicted, seed, positions, coarse_points, 
     epoch = float(rng.uniform(-50, 50))
     log.columns["t_s"] = log.columns["t_s"] + epoch
     a = align(log, predicted)
-    assert abs(a.offset_s - (offset + epoch)) < 1.0 / rate, (a.offset_s, offset + epoch, a.method)
-    assert a.method == ("xcorr+position" if positions else "xcorr")
-    assert a.correlation > 0.8
-    if positions:
+    truth = log.t_s - (offset + epoch)
+    inside = (truth > predicted.t_s[0]) & (truth < predicted.t_s[-1])
+    assert a.method == ("position" if positions else "xcorr")
+    if positions:   # every row's program time: where the tool moves, to its sample interval
+        moving = inside & (np.interp(truth, predicted.t_s, predicted.speed_mm_s) > 1.0)
+        err = np.abs(a.tau_s[moving] - truth[moving])
+        assert np.median(err) < 0.5 / rate and np.quantile(err, 0.99) < 2.0 / rate, (np.median(err), err.max())
         assert a.position_rms_mm < 0.05
+    else:
+        assert abs(a.offset_s - (offset + epoch)) < 1.0 / rate, (a.offset_s, offset + epoch, a.method)
+        assert a.correlation > 0.8
+
+
+def test_empty_position_columns_fall_back_to_the_time_offset(predicted):
+    """Position columns that hold no value (a logger that declared but never filled them) are no positions:
+    the offset comes from cross-correlation, not a refusal."""
+    log = synthetic_log(predicted, rate_hz=250.0, offset_s=1.3, noise=0.03, columns=("fx_N", "fy_N"), lead_s=0.5,
+                        tail_s=0.5, seed=3)
+    for c in ("x_mm", "y_mm", "z_mm"):
+        log.columns[c] = np.full(len(log), np.nan)
+    a = align(log, predicted)
+    assert a.method == "xcorr" and abs(a.offset_s - 1.3) < 1.0 / 250.0

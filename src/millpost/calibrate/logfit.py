@@ -26,8 +26,9 @@ from ..gcode import read_program
 from ..gcode.interpret import Program
 from ..job import Job, load_job
 from ..measure import Alignment, Log, align
+from ..measure.alignment import TOLERANCE_MM
 from ..signals import Signals, simulate
-from .cuts import Fit, fit_models
+from .coefficients import PRIOR_SPREAD, Fit, fit_models
 from .machine_fit import AxisDrive, fit_idle_power, fit_spindle_current
 from .plan import PlannedMove, read_plan
 
@@ -37,16 +38,17 @@ SPIN_UP_S = 1.0    # idle dwell rows this long after the speed change are left o
 def steady_samples(signals: Signals, moves: list[PlannedMove], *, kinds=("slot", "step"), tol: float = 0.02,
                    erode: int = 2) -> np.ndarray:
     """Samples on the planned lines of `kinds` whose predicted engagement (ap, ae) and speed are the
-    planned ones within `tol`, keeping only runs of such samples shrunk by `erode` at both ends."""
+    planned ones and whose predicted force is the line's median within `tol`, keeping only runs of such
+    samples shrunk by `erode` at both ends."""
     ok = np.zeros(len(signals), bool)
     for m in moves:
         if m.kind not in kinds:
             continue
         on = signals.line == m.line
         ae_plan = min(m.ae_mm, m.diameter_mm)
-        ok |= (on & (np.abs(signals.ap_mm - m.ap_mm) <= tol * m.ap_mm)
-               & (np.abs(signals.ae_mm - ae_plan) <= tol * ae_plan)
-               & (np.abs(signals.speed_mm_s * 60.0 - m.feed_mm_min) <= tol * m.feed_mm_min))
+        ok |= _steady_load(signals, on & (np.abs(signals.ap_mm - m.ap_mm) <= tol * m.ap_mm)
+                           & (np.abs(signals.ae_mm - ae_plan) <= tol * ae_plan)
+                           & (np.abs(signals.speed_mm_s * 60.0 - m.feed_mm_min) <= tol * m.feed_mm_min), tol)
     for _ in range(erode):
         ok[1:-1] &= ok[:-2] & ok[2:]
         ok[[0, -1]] = False
@@ -54,8 +56,8 @@ def steady_samples(signals: Signals, moves: list[PlannedMove], *, kinds=("slot",
 
 
 def steady_job_samples(signals: Signals, *, tol: float = 0.02, erode: int = 2, minimum: int = 10) -> np.ndarray:
-    """In any program: per source line, the cutting samples whose ap, ae and speed are the line's median
-    ones within `tol` (the steady stretch of the line's cut), runs shrunk by `erode` at both ends, lines
+    """In any program: per source line, the cutting samples whose ap, ae, speed and predicted force are the
+    line's median ones within `tol` (the steady stretch of the line's cut), runs shrunk by `erode` at both ends, lines
     with at least `minimum` such samples."""
     ok = np.zeros(len(signals), bool)
     cutting = signals.ap_mm > 0
@@ -65,7 +67,7 @@ def steady_job_samples(signals: Signals, *, tol: float = 0.02, erode: int = 2, m
         for q in (signals.ap_mm, signals.ae_mm, signals.speed_mm_s):
             mid = float(np.median(q[on]))
             near &= np.abs(q - mid) <= tol * mid
-        ok |= near
+        ok |= _steady_load(signals, near, tol)
     for _ in range(erode):
         ok[1:-1] &= ok[:-2] & ok[2:]
         ok[[0, -1]] = False
@@ -73,6 +75,23 @@ def steady_job_samples(signals: Signals, *, tol: float = 0.02, erode: int = 2, m
         if np.count_nonzero(ok & (signals.line == line)) < minimum:
             ok &= signals.line != line
     return ok
+
+
+def _steady_load(signals: Signals, on: np.ndarray, tol: float) -> np.ndarray:
+    """The samples of `on` (one line) whose predicted force on the tool is within `tol` of their median and
+    that lie at least a tool diameter along the path from where the line's cut starts and ends: entering
+    and leaving the stock, the width across the feed is already (or still) the full one, but the engaged
+    arcs are not."""
+    if not on.any():
+        return on
+    mag = np.linalg.norm(signals.force_tool_N, axis=1)
+    mid = float(np.median(mag[on]))
+    line = signals.line[np.flatnonzero(on)[0]]
+    cut = np.flatnonzero((signals.line == line) & (signals.ap_mm > 0))
+    diameter = 2.0 * float(np.max(signals.engagement.r_mm[cut])) if signals.engagement is not None else 0.0
+    s = signals.s_mm
+    inner = (s >= s[cut[0]] + diameter) & (s <= s[cut[-1]] - diameter)
+    return on & inner & (np.abs(mag - mid) <= tol * mid)
 
 
 @dataclass
@@ -88,14 +107,21 @@ class Observations:
 
 
 def observations(log: Log, alignment: Alignment, signals: Signals, job: Job, use: np.ndarray,
-                 idle_W=None) -> Observations:
+                 idle_W=None, tol: float = 0.02) -> Observations:
     """Mean logged force and power over each steady cut: the used samples grouped by source line (a cut
     is a line of the plan), averaged over all the log rows nearest to them. Means over whole cuts are what
     the average-force method fits; samples within a cut share its disturbances (runout, material), so
     they are not independent observations. idle_W(rpm) → no-load power (W) to subtract (default: the job
     machine's)."""
-    j = alignment.nearest_samples(log.t_s, signals)
+    j = alignment.samples(signals)
     keep = (j >= 0) & use[np.maximum(j, 0)]
+    fz_log = np.full(len(log), np.nan)
+    if np.isfinite(alignment.speed_mm_s).any():   # the feed per tooth the machine ran: the log's own speed
+        flutes = np.array([job.tools[int(t)].flutes if int(t) in job.tools else 1 for t in signals.tool])
+        jj = np.maximum(j, 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fz_log = alignment.speed_mm_s * 60.0 / (flutes[jj] * signals.rpm[jj])
+        keep &= _steady(fz_log, signals.line[jj], keep, tol)
     lines = np.unique(signals.line[use])
     group = np.full(len(signals), -1)
     group[use] = np.searchsorted(lines, signals.line[use])
@@ -108,13 +134,16 @@ def observations(log: Log, alignment: Alignment, signals: Signals, job: Job, use
     # the sample standing for each cut: the middle of its steady samples
     index = np.array([np.flatnonzero(group == k)[len(np.flatnonzero(group == k)) // 2] for k in found])
 
-    def mean(column: str) -> np.ndarray:
-        v = log[column][keep]
+    def mean_of(values: np.ndarray) -> np.ndarray:
+        v = values[keep]
         ok = np.isfinite(v)
         s = np.bincount(g[ok], weights=v[ok], minlength=len(lines))
         c = np.bincount(g[ok], minlength=len(lines))
         with np.errstate(invalid="ignore", divide="ignore"):
             return (s / c)[found]
+
+    def mean(column: str) -> np.ndarray:
+        return mean_of(log[column])
 
     force = None
     if all(log.has(c) for c in ("fx_N", "fy_N", "fz_N")):
@@ -127,8 +156,23 @@ def observations(log: Log, alignment: Alignment, signals: Signals, job: Job, use
     if force is None and power is None:
         raise MillpostError(f"{log.path}: no force (fx_N, fy_N, fz_N) or spindle_power_W columns to fit")
     tools = [job.tools[int(t)] for t in signals.tool[index]]
-    meas = Measurements(fz_mm=signals.fz_mm[index], rpm=signals.rpm[index], force_N=force, power_W=power)
+    fz = signals.fz_mm[index]
+    if np.isfinite(fz_log[keep]).any():
+        fz = np.where(np.isfinite(mean_of(fz_log)), mean_of(fz_log), fz)
+    meas = Measurements(fz_mm=fz, rpm=signals.rpm[index], force_N=force, power_W=power)
     return Observations(index, meas, tools, counts[found])
+
+
+def _steady(fz_mm: np.ndarray, line: np.ndarray, keep: np.ndarray, tol: float) -> np.ndarray:
+    """Rows whose logged feed per tooth is within `tol` of the median of their line's kept rows (the
+    machine's own steady stretch: its accelerations, holds and override, not the model's)."""
+    out = np.zeros(len(fz_mm), bool)
+    for value in np.unique(line[keep]):
+        on = keep & (line == value) & np.isfinite(fz_mm)
+        if on.any():
+            mid = float(np.median(fz_mm[on]))
+            out |= on & (np.abs(fz_mm - mid) <= tol * mid)
+    return out
 
 
 def idle_windows(signals: Signals, program: Program, moves: list[PlannedMove]) -> list[tuple[float, float, float]]:
@@ -146,14 +190,15 @@ def idle_windows(signals: Signals, program: Program, moves: list[PlannedMove]) -
 
 
 def fit_idle(log: Log, alignment: Alignment, windows) -> dict:
-    """No-load power points (idle_rpm, idle_power_W) from the idle dwells."""
-    tau = alignment.program_time(log.t_s)
+    """No-load power points (idle_rpm, idle_power_W) from the idle dwells ({} when the log has no spindle
+    power inside them)."""
+    tau = alignment.tau_s
     rpm = np.full(len(log), np.nan)
     for n, a, b in windows:
         rpm[(tau >= a) & (tau <= b)] = n
-    inside = np.isfinite(rpm)
-    if not inside.any() or not log.has("spindle_power_W"):
-        raise MillpostError(f"{log.path}: no spindle power inside the idle dwells of the plan")
+    inside = np.isfinite(rpm) & np.isfinite(log["spindle_power_W"])
+    if not inside.any():
+        return {}
     speeds, power = fit_idle_power(rpm[inside], log["spindle_power_W"][inside])
     out = {"idle_rpm": speeds, "idle_power_W": power}
     return out
@@ -163,7 +208,7 @@ def fit_axes(log: Log, alignment: Alignment, signals: Signals, moves: list[Plann
              terms=("inertia", "coulomb", "viscous")) -> dict[str, AxisDrive]:
     """Per axis with a logged current (ix_A, iy_A, iz_A): the drive model fitted on the axis-test strokes
     of that axis, kinematics from the controller model at the rows' program times."""
-    j = alignment.nearest_samples(log.t_s, signals)
+    j = alignment.samples(signals)
     out = {}
     for k, axis in enumerate("xyz"):
         col = f"i{axis}_A"
@@ -173,7 +218,7 @@ def fit_axes(log: Log, alignment: Alignment, signals: Signals, moves: list[Plann
         on = (j >= 0) & np.isin(signals.line[np.maximum(j, 0)], list(lines))
         if on.sum() < 10:
             continue
-        tau = alignment.program_time(log.t_s[on])
+        tau = alignment.tau_s[on]
         vs = signals.axis_velocity_mm_s[:, k]
         v = np.interp(tau, signals.t_s, vs)
         a = np.interp(tau, signals.t_s, signals.axis_accel_mm_s2[:, k])
@@ -197,21 +242,22 @@ class LogFit:
 
 
 def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "viscous"),
-            progress=None) -> LogFit:
+            progress=None, prior_spread: float = PRIOR_SPREAD, tolerance_mm: float = TOLERANCE_MM) -> LogFit:
     """Align `log` to a job's program and fit what the log holds: cutting coefficients (forces and/or
     spindle power), spindle no-load power and current, axis drives. target: the folder `calibrate plan`
     wrote (job.toml and plan.csv: the planned cuts, idle dwells and axis strokes are used), or any job
     (folder or .toml: its steady stretches of cut, see `steady_job_samples`; cutting coefficients only).
-    base: the material to start from (default: the job's). progress: as `millpost.optimize`'s (the
-    engagement run reports through it)."""
+    base: the material to start from, the prior (default: the job's; prior_spread its relative 1σ);
+    tolerance_mm: the alignment's (a log off the program's path is refused, `MisalignedLog`). progress: as
+    `millpost.optimize`'s (the engagement run reports through it)."""
     target = Path(target)
     job = load_job(target)
     plan_file = job.path.parent / "plan.csv"
     moves = read_plan(plan_file) if plan_file.exists() else []
     program = read_program(job.program, job.reader_options())
     signals = simulate(job, program=program, progress=progress)
-    alignment = align(log, signals)
-    notes: list[str] = []
+    alignment = align(log, signals, tolerance_mm=tolerance_mm)
+    notes: list[str] = list(alignment.notes)
     idle: dict = {}
     windows = idle_windows(signals, program, moves)
     if windows and log.has("spindle_power_W"):
@@ -220,10 +266,11 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     if idle:
         idle_fn = lambda rpm: np.interp(rpm, idle["idle_rpm"], idle["idle_power_W"])  # noqa: E731
     elif log.has("spindle_power_W"):
-        notes.append("no idle dwells in the plan: the machine file's no-load power is subtracted")
+        notes.append("no idle dwells in the plan" + (" covered by the log" if windows else "") +
+                     ": the machine file's no-load power is subtracted")
     if log.has("spindle_current_A") and log.has("spindle_power_W"):
         # shaft torque P/ω against current wherever the spindle turns (idle and cutting)
-        j = alignment.nearest_samples(log.t_s, signals)
+        j = alignment.samples(signals)
         rpm = np.where(j >= 0, signals.rpm[np.maximum(j, 0)], 0.0)
         on = rpm > 0
         if on.sum() >= 3:
@@ -237,6 +284,6 @@ def fit_log(target, log: Log, base=None, *, axis_terms=("inertia", "coulomb", "v
     if steady.any() and (log.has("spindle_power_W") or log.has("fx_N")):
         obs = observations(log, alignment, signals, job, steady, idle_fn)
         cutting = fit_models(signals.engagement.select(obs.index), obs.measurements, obs.tools,
-                             base or job.material, source=log.path)
+                             base or job.material, source=log.path, prior_spread=prior_spread)
     axes = fit_axes(log, alignment, signals, moves, axis_terms)
     return LogFit(alignment, cutting, idle, axes, notes)

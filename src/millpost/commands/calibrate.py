@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibrate.cuts import fit_cuts, material_dict, read_cuts
+from ..calibrate.coefficients import PRIOR_SPREAD, fit_cuts, material_dict
+from ..calibrate.cuts import read_cuts
 from ..calibrate.logfit import fit_log
 from ..calibrate.machine_fit import fit_stiffness
 from ..calibrate.plan import PlanRequest, make_plan
@@ -23,6 +24,7 @@ from ..job import load_job
 from ..machine import Machine
 from ..materials import Material
 from ..measure import read_log
+from ..measure.alignment import TOLERANCE_MM
 from .calc import add_tool_arguments, tool_from_args
 
 EXAMPLE_PLAN = ("millpost calibrate plan --diameter 6 --flutes 3 --material al6061 --machine vmc-small "
@@ -82,6 +84,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     fit.add_argument("--axis", choices=("x", "y", "z"), help="axis of the push test")
     fit.add_argument("--material", metavar="NAME|FILE", help="base material (default: the plan's job's)")
     fit.add_argument("--machine", metavar="NAME|FILE", help="base machine (default: the plan's job's)")
+    fit.add_argument("--prior-spread", type=float, default=PRIOR_SPREAD, metavar="FRACTION",
+                     help=f"relative 1σ of the base material's coefficients, the prior the measurements update "
+                          f"(default {PRIOR_SPREAD}; inf: no prior, the data alone must determine every coefficient)")
+    fit.add_argument("--position-tolerance", type=float, default=TOLERANCE_MM, metavar="MM",
+                     help=f"log rows farther than this from the program's path are off it; a log with more than "
+                          f"1 %% of such rows is refused (default {TOLERANCE_MM} mm)")
     fit.add_argument("--json", metavar="OUT", help="write the results as JSON ('-' for stdout)")
     fit.add_argument("-o", "--output", metavar="MATERIAL.toml", help="write the fitted material")
     fit.add_argument("--machine-out", metavar="MACHINE.toml", help="write the fitted machine")
@@ -135,7 +143,7 @@ def run_fit(args: argparse.Namespace) -> int:
         return _fit_stiffness(args, stamp)
     if args.cuts:
         base = Material.load(args.material) if args.material else None
-        fit = fit_cuts(read_cuts(args.cuts), base)
+        fit = fit_cuts(read_cuts(args.cuts), base, prior_spread=args.prior_spread)
         source = args.cuts
         machine_updates: dict = {}
     else:
@@ -143,7 +151,8 @@ def run_fit(args: argparse.Namespace) -> int:
             raise MillpostError("--log needs --plan DIR|JOB (the folder `calibrate plan` wrote, or a job)")
         job = load_job(args.plan)
         base = Material.load(args.material) if args.material else job.material
-        lf = fit_log(args.plan, read_log(args.log), base)
+        lf = fit_log(args.plan, read_log(args.log), base, prior_spread=args.prior_spread,
+                     tolerance_mm=args.position_tolerance)
         fit, source = lf.cutting, args.log
         result["alignment"] = lf.alignment.summary()
         result["notes"] = lf.notes

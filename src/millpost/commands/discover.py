@@ -62,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     if args.write_model:
         for path in write_model(d, args.job, args.write_model):
             print(f"millpost: wrote {path}", file=sys.stderr)
-    names = ", ".join(e["name"] for e in summary["effects"]) or "none"
+    names = ", ".join(e["name"] if not e["ambiguous_with"] else "ambiguous: " + " or ".join(
+        [e["name"]] + e["ambiguous_with"]) for e in summary["effects"]) or "none"
     shrink = {c: 1 - summary["rms_after"][c] / summary["rms_before"][c] for c in summary["rms_before"]
               if summary["rms_before"][c]}
     print(f"millpost discover: effects {names}; held-out RMS " + ", ".join(

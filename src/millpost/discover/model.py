@@ -4,7 +4,8 @@ newtons and watts are comparable), with the parameter covariance.
 
 A term is a column of one channel under a parameter name; a name that appears in several channels is one
 parameter shared by them (the cutting coefficients; an effect's physical constant). The cutting
-coefficients are bounded below by 0 (`nonnegative`). An effect may also
+coefficients, and effect parameters physics bounds (a drag, a friction), are bounded below by 0
+(`nonnegative`). An effect may also
 filter a channel's whole prediction (a sensor lag): a linear filter of a linear model is the same model
 on filtered columns, so it stays linear.
 """
@@ -29,11 +30,14 @@ class Design:
     names: list[str]
     X: dict[str, np.ndarray]        # channel → (n, P)
     fixed: dict[str, np.ndarray]    # channel → (n,) term with no parameter
+    lower: frozenset[str] = frozenset()   # parameters besides the cutting coefficients bounded below by 0
 
 
-def design(rows: Rows, terms: list[Terms] = (), filters: dict[str, Filter] | None = None) -> Design:
+def design(rows: Rows, terms: list[Terms] = (), filters: dict[str, Filter] | None = None,
+           lower: frozenset[str] = frozenset()) -> Design:
     """The stacked design: base columns, then each effect's (cutting coefficients with no column in the
-    measured channels are left out: the log says nothing about them)."""
+    measured channels are left out: the log says nothing about them); `lower`: effect parameters that
+    physics bounds below by 0 (a drag, a friction)."""
     filters = filters or {}
     cols: dict[str, dict[str, np.ndarray]] = {c: {} for c in rows.channels}
     fixed = {c: rows.fixed.get(c, np.zeros(len(rows))).astype(float) for c in rows.channels}
@@ -63,7 +67,7 @@ def design(rows: Rows, terms: list[Terms] = (), filters: dict[str, Filter] | Non
             m = filters[c](m)
             fixed[c] = filters[c](fixed[c][:, None])[:, 0]
         X[c] = m
-    return Design(names, X, fixed)
+    return Design(names, X, fixed, frozenset(lower))
 
 
 @dataclass
@@ -110,7 +114,7 @@ def solve(d: Design, rows: Rows, train: np.ndarray, sigma: dict[str, float]) -> 
     As, bs = A / np.outer(scale, scale), b / scale
     free = np.ones(P, bool)
     x = np.linalg.pinv(As, rcond=1e-10) @ bs
-    coef = np.array([n in COEFS for n in d.names])
+    coef = np.array([n in COEFS or n in d.lower for n in d.names])
     if (x[coef] < 0).any():
         x = nonnegative(As, bs, coef)
         free = ~coef | (x > 0)

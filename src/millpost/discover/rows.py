@@ -28,12 +28,15 @@ from ..forces.base import to_machine
 from ..forces.mechanistic import COEF_NAMES, regressors
 from ..job import Job
 from ..measure import Alignment, Log
+from ..measure.alignment import STILL_MM_S, rate
 from ..signals import Signals
 
 FORCE = ("fx_N", "fy_N", "fz_N")
 CUTTING = FORCE + ("spindle_power_W",)
 CURRENTS = ("ix_A", "iy_A", "iz_A")
 CHANNELS = CUTTING + ("spindle_current_A",) + CURRENTS
+AGREE = 0.05                # the log's path speed within this of the model's (+ 2 STILL_MM_S): the model's timing holds
+OPEN_ROWS = 2               # ... and where it does not, only in runs of 2·OPEN_ROWS + 1 rows or more
 GAP_RAD = np.deg2rad(0.5)   # an engaged arc with a gap wider than this is two arcs (see `exit_zone`)
 
 
@@ -45,7 +48,8 @@ class Cuts:
     sample: (n, 2) per log row, the two cutting samples around the tool's engagement (indices into the
     arrays below, −1 where that sample does not cut) and weight (n,) the second's share (the row is
     interpolated between them); engagement, flutes, fz_mm (feed per tooth, mm) and omega_rad_s (spindle speed) of the cutting
-    samples."""
+    samples; fz_scale: per row, the feed per tooth the machine ran (from the log's own path speed) over the
+    model's there (None: the model's)."""
 
     sample: np.ndarray
     weight: np.ndarray
@@ -53,6 +57,7 @@ class Cuts:
     flutes: np.ndarray
     fz_mm: np.ndarray
     omega_rad_s: np.ndarray
+    fz_scale: np.ndarray | None = None   # per row: the feed per tooth the log shows over the model's
 
     def regressors(self, engagement: Engagement | None = None) -> tuple[np.ndarray, np.ndarray]:
         """G, E (m, 4, 3) of the cutting law per cutting sample (feed frame, force on the tool and torque;
@@ -75,7 +80,11 @@ class Cuts:
             per["spindle_power_W"][:m, 3 + k] = E[:, 3, k] / 1000.0 * self.omega_rad_s
         at = np.where(self.sample >= 0, self.sample, m)
         w = self.weight[:, None]
-        return {c: (1 - w) * v[at[:, 0]] + w * v[at[:, 1]] for c, v in per.items()}
+        out = {c: (1 - w) * v[at[:, 0]] + w * v[at[:, 1]] for c, v in per.items()}
+        if self.fz_scale is not None:   # the shearing share is proportional to the feed per tooth
+            for v in out.values():
+                v[:, :3] *= self.fz_scale[:, None]
+        return out
 
 
 @dataclass
@@ -116,19 +125,43 @@ class Rows:
 
 def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows:
     """The rows of `log` inside the program (by the alignment), each with its nearest path sample."""
-    j_all = alignment.nearest_samples(log.t_s, signals)
+    j_all = alignment.samples(signals)
     inside = np.flatnonzero(j_all >= 0)
     if len(inside) < 50:
         raise MillpostError(f"{log.path}: only {len(inside)} log rows fall inside the program after alignment "
-                            f"(offset {alignment.offset_s:.3f} s)")
+                            f"({alignment.method}, offset {alignment.offset_s:.3f} s)")
     j = j_all[inside]
-    tau = alignment.program_time(log.t_s[inside])
+    tau = alignment.tau_s[inside]
     ka, kb, w = engaged_between(signals, tau)
     # the axis kinematics at each row's instant, linear in time between the path samples around it (the
     # nearest sample would move a rapid's acceleration step by up to half a sample interval)
     velocity, accel = (np.column_stack([np.interp(tau, signals.t_s, v[:, k]) for k in range(3)])
                        for v in (signals.axis_velocity_mm_s, signals.axis_accel_mm_s2))
     je = np.where(w < 0.5, ka, kb)
+    fz_scale = None
+    if alignment.method == "position":
+        # where the machine ran at another speed than the model (its own accelerations, a hold, an override),
+        # the feed per tooth and axis kinematics the log's own speed gives; elsewhere the model's
+        speed = alignment.speed_mm_s[inside]
+        model_speed = np.interp(tau, signals.t_s, signals.speed_mm_s)
+        other = ~(np.abs(speed - model_speed) <= AGREE * model_speed + 2 * STILL_MM_S)
+        # runs of at least 2·OPEN_ROWS + 1 rows: not a few rows at a corner, where a derivative of the log's
+        # positions smears the speed's step
+        core = other.copy()
+        for k in range(1, OPEN_ROWS + 1):
+            core &= np.roll(other, k) & np.roll(other, -k)
+        other = core.copy()
+        for k in range(1, OPEN_ROWS + 1):
+            other |= np.roll(core, k) | np.roll(core, -k)
+        if other.any():   # there the axes move along the path's tangent at the log's speed
+            a = np.clip(np.floor(alignment.place[inside]).astype(int), 0, len(signals) - 2)
+            step = signals.xyz_mm[a + 1] - signals.xyz_mm[a]
+            tangent = step / np.maximum(np.linalg.norm(step, axis=1), 1e-12)[:, None]
+            velocity = np.where(other[:, None], tangent * speed[:, None], velocity)
+            accel = np.where(other[:, None], tangent * rate(log.t_s[inside], speed)[:, None], accel)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fz_scale = np.where(other & (model_speed > 0), speed / np.where(model_speed > 0, model_speed, 1.0), 1.0)
+        fz_scale = np.clip(np.nan_to_num(fz_scale, nan=1.0), 0.0, 3.0)
     measured = {c: np.asarray(log[c][inside], float) for c in CHANNELS if log.has(c)}
     if not measured:
         raise MillpostError(f"{log.path}: no channel discover can use (has {', '.join(log.columns)}; "
@@ -145,7 +178,7 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
     position = np.full(n_s, -1)
     position[idx] = np.arange(len(idx))
     cuts = Cuts(np.column_stack([position[ka], position[kb]]), w, signals.engagement.select(idx), flutes[idx],
-                signals.fz_mm[idx], 2 * np.pi * signals.rpm[idx] / 60.0)
+                signals.fz_mm[idx], 2 * np.pi * signals.rpm[idx] / 60.0, fz_scale)
     cut = cuts.channels(*cuts.regressors())
     # engaged path length so far per tool (m): wear grows with it
     ds = np.diff(signals.s_mm, prepend=signals.s_mm[0]) * cutting
@@ -169,7 +202,8 @@ def from_log(log: Log, alignment: Alignment, signals: Signals, job: Job) -> Rows
             for name, col in zip(COEF_NAMES, cut[FORCE[k]].T):   # k_f·K per coefficient: A per (N/mm², N/mm)
                 columns[c][f"cut_{name}"] = col
     exiting = exit_zone(signals, diameter)
-    features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[je], "ae_mm": signals.ae_mm[je],
+    features = {"rpm": signals.rpm[j], "fz_mm": signals.fz_mm[je] * (1.0 if fz_scale is None else fz_scale),
+                "ae_mm": signals.ae_mm[je],
                 "ap_mm": signals.ap_mm[je], "diameter_mm": diameter[je], "cut_length_m": length[je],
                 "velocity_mm_s": velocity, "accel_mm_s2": accel}
     use = ~exiting[je] & ~entry_zone(signals)[j] & (cutting[j] == cutting[ka]) & (cutting[j] == cutting[kb])

@@ -44,11 +44,13 @@ class Discovery:
         for e, (before, after) in zip(s.effects, s.steps):
             rb = held_out_rms(self.rows, {c: before[c] for c in e.channels_}, held)
             ra = held_out_rms(self.rows, {c: after[c] for c in e.channels_}, held)
+            rivals = [a["effects"][1] for a in s.ambiguous if a["effects"][0] == e.name]
             effects.append({"name": e.name, "params": _clean(e.params_), "stderr": _clean(e.stderr_),
                             "channels": e.channels_, "rms_before": _clean(rb), "rms_after": _clean(ra),
-                            "meaning": e.meaning})
-        return {"effects": effects, "rms_before": _clean(self.rms(False)), "rms_after": _clean(self.rms(True)),
-                "offset_s": round(self.alignment.offset_s, 6), "notes": self.notes}
+                            "meaning": e.meaning, "ambiguous_with": rivals})
+        return {"effects": effects, "ambiguous": s.ambiguous, "rms_before": _clean(self.rms(False)),
+                "rms_after": _clean(self.rms(True)), "offset_s": round(self.alignment.offset_s, 6),
+                "alignment": self.alignment.method, "notes": self.notes}
 
     def predictions(self) -> dict[str, np.ndarray]:
         """One row per log row: t_s, held_out (1 on the held-out rows the JSON's RMS are taken on) and per
@@ -80,7 +82,9 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
     rows = from_log(log, alignment, signals, job)
     nominal = job.material.force_model("mechanistic").coefficients
     sel = select(rows, nominal, candidates(effects), max_effects=max_effects)
-    notes = [f"aligned by {alignment.method} (correlation {alignment.correlation:.3f}); "
+    how = (f"correlation {alignment.correlation:.3f}" if alignment.method == "xcorr" else
+           f"position RMS {alignment.position_rms_mm:.3f} mm")
+    notes = [f"aligned by {alignment.method} ({how}); "
              f"{len(rows)} of {len(log)} log rows inside the program; {int((sel.block >= 0).sum())} held out "
              f"in {int(sel.block.max()) + 1} time blocks"]
     if rows.use is not None and not rows.use.all():
@@ -98,9 +102,17 @@ def discover(job: Job, log: Log, *, signals: Signals | None = None, effects: lis
         ranked = sorted(((n, r) for n, r in rs.items() if r.get("applicable")), key=lambda x: -x[1]["gain"])
         notes.append(f"round {k + 1}: " + "; ".join(f"{n} gain {100 * r['gain']:.1f} % p {r['p']:.2g}"
                                                      + ("" if r["physical"] else " (unphysical sign)")
+                                                     + "".join(f" (worsens {c} by {100 * w:.0f} %)"
+                                                               for c, w in r["worsens"].items())
                                                      for n, r in ranked[:5])
                      + "".join(f"; {n} not applicable" + (f" ({r['reason']})" if r.get("reason") else "")
                                for n, r in rs.items() if not r.get("applicable")))
+    for a in sel.ambiguous:
+        first, second = a["effects"]
+        notes.append(f"ambiguous: {first} or {second}: both explain the held-out gap; on the {a['blocks']} held-out "
+                     f"blocks where they differ most, {first} fits better in {100 * a['better']:.0f} % (Wilcoxon "
+                     f"p {a['p']:.2g}): the log cannot tell them apart (cut a part where they disagree: air "
+                     "moves, a load that falls with time)")
     if not sel.effects:
         notes.append("no effect is significant: the refitted base model explains the held-out data")
     return Discovery(alignment, rows, sel, nominal, notes, len(log), log.path)

@@ -61,6 +61,38 @@ def power_law_coefficients(engagement: Engagement, flutes, mc: float, radial_rat
     return (w[..., None] * Q).sum(1)
 
 
+def log_problem(engagement: Engagement, measured: Measurements, tool: Tool | Sequence[Tool], radial_ratio: float,
+                axial_ratio: float):
+    """(y, model_log): the logs of the measured cutting power (W) and |F̄_xy| (N), and the function
+    θ = (log k_c1.1, m_c) → the model's logs of the same (`Kienzle.fit`); non-positive values left out."""
+    n = len(engagement)
+    fz = np.broadcast_to(np.asarray(measured.fz_mm, float), (n,)).astype(float)
+    omega = 2 * np.pi * rpm_array(measured.rpm, n) / 60.0
+    flutes, _ = tool_arrays(tool, n)
+    targets = []
+    if measured.power_W is not None:
+        targets.append(("power", np.broadcast_to(np.asarray(measured.power_W, float), (n,))))
+    if measured.force_N is not None:
+        f = np.asarray(measured.force_N, float).reshape(n, 3)
+        targets.append(("fxy", np.hypot(f[:, 0], f[:, 1])))
+    if not targets:
+        raise MillpostError("fit needs measured forces or power")
+    masks = [np.isfinite(v) & (v > 0) & (fz > 0) for _, v in targets]
+    y = np.concatenate([np.log(v[m]) for (_, v), m in zip(targets, masks)])
+
+    def model_log(theta):
+        log_kc, mc = theta
+        Q = power_law_coefficients(engagement, flutes, mc, radial_ratio, axial_ratio)
+        base = np.log(fz) * (1 - mc) + log_kc
+        out = []
+        for (kind, _), m in zip(targets, masks):
+            mag = Q[:, 3] / 1000 * omega if kind == "power" else np.hypot(Q[:, 0], Q[:, 1])
+            out.append(base[m] + np.log(np.maximum(mag[m], 1e-300)))
+        return np.concatenate(out)
+
+    return y, model_log
+
+
 class Kienzle:
     """Kienzle model. Settings: radial_ratio = F_r/F_t, axial_ratio = F_a/F_t, steps_per_rev (peaks).
     Learned: coef_ = (k_c1.1 [N/mm²], m_c), coef_cov_ (2×2). Known values via `from_coefficients`."""
@@ -146,33 +178,9 @@ class Kienzle:
         (Gauss–Newton from m_c = 0.25). Covariance s²(JᵀJ)⁻¹ (relative noise is constant in log space),
         mapped to k_c1.1 by the delta method.
         """
-        n = len(engagement)
-        fz = np.broadcast_to(np.asarray(measured.fz_mm, float), (n,)).astype(float)
-        omega = 2 * np.pi * rpm_array(measured.rpm, n) / 60.0
-        flutes, _ = tool_arrays(tool, n)
-        targets = []
-        if measured.power_W is not None:
-            targets.append(("power", np.broadcast_to(np.asarray(measured.power_W, float), (n,))))
-        if measured.force_N is not None:
-            f = np.asarray(measured.force_N, float).reshape(n, 3)
-            targets.append(("fxy", np.hypot(f[:, 0], f[:, 1])))
-        if not targets:
-            raise MillpostError("fit needs measured forces or power")
-        masks = [np.isfinite(v) & (v > 0) & (fz > 0) for _, v in targets]
-        y = np.concatenate([np.log(v[m]) for (_, v), m in zip(targets, masks)])
+        y, model_log = log_problem(engagement, measured, tool, self.radial_ratio, self.axial_ratio)
         if len(y) <= 2:
             raise MillpostError(f"fit needs more than 2 positive measured values, got {len(y)}")
-
-        def model_log(theta):
-            log_kc, mc = theta
-            Q = power_law_coefficients(engagement, flutes, mc, self.radial_ratio, self.axial_ratio)
-            base = np.log(fz) * (1 - mc) + log_kc
-            out = []
-            for (kind, _), m in zip(targets, masks):
-                mag = Q[:, 3] / 1000 * omega if kind == "power" else np.hypot(Q[:, 0], Q[:, 1])
-                out.append(base[m] + np.log(np.maximum(mag[m], 1e-300)))
-            return np.concatenate(out)
-
         start = np.array([np.log(1000.0), 0.25])
         start[0] += np.mean(y - model_log(start))
         res = least_squares(lambda t: model_log(t) - y, start, bounds=([-np.inf, 0.0], [np.inf, 0.95]),

@@ -62,6 +62,35 @@ def regressors(engagement: Engagement, flutes) -> tuple[np.ndarray, np.ndarray]:
     return G, E
 
 
+def design(engagement: Engagement, measured: Measurements, tool: Tool | Sequence[Tool]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The linear problem y = X·(K_tc, K_rc, K_ac, K_te, K_re, K_ae) of measured means (`Mechanistic.fit`):
+    rows are the measured feed-frame force components (N) and the power as an equivalent tangential
+    force P/(ω R) (N), in that order; rows whose measurement is nan are left out. Third: each row's kind
+    (0, 1, 2: feed-frame x, y, z force; 3: power)."""
+    n = len(engagement)
+    fz = np.broadcast_to(np.asarray(measured.fz_mm, float), (n,)).astype(float)
+    omega = 2 * np.pi * rpm_array(measured.rpm, n) / 60.0
+    flutes, radius = tool_arrays(tool, n)
+    G, E = regressors(engagement, flutes)
+    X_all = np.concatenate([fz[:, None, None] * G, E], axis=2)  # (N, 4, 6)
+    rows, ys, kinds = [], [], []
+    if measured.force_N is not None:
+        f_feed = to_feed(engagement.feed_dir, np.asarray(measured.force_N, float).reshape(n, 3))
+        for q in range(3):
+            ok = np.isfinite(f_feed[:, q])
+            rows.append(X_all[ok, q]), ys.append(f_feed[ok, q]), kinds.append(np.full(ok.sum(), q))
+    if measured.power_W is not None:
+        p = np.broadcast_to(np.asarray(measured.power_W, float), (n,))
+        ok = np.isfinite(p)
+        rows.append(X_all[ok, 3] / radius[ok, None])                 # T̄/R (N)
+        ys.append(p[ok] * 1000.0 / (omega[ok] * radius[ok]))          # P/(ω R) (N)
+        kinds.append(np.full(ok.sum(), 3))
+    if not rows or sum(len(y) for y in ys) == 0:
+        raise MillpostError("fit needs measured forces or power")
+    return np.concatenate(rows), np.concatenate(ys), np.concatenate(kinds)
+
+
 class Mechanistic:
     """Linear edge-force model.
 
@@ -165,26 +194,7 @@ class Mechanistic:
         Columns with no information (K_r*, K_a* from power alone) keep the model's current values and
         get zero variance; a model without coefficients then refuses.
         """
-        n = len(engagement)
-        fz = np.broadcast_to(np.asarray(measured.fz_mm, float), (n,)).astype(float)
-        omega = 2 * np.pi * rpm_array(measured.rpm, n) / 60.0
-        flutes, radius = tool_arrays(tool, n)
-        G, E = regressors(engagement, flutes)
-        X_all = np.concatenate([fz[:, None, None] * G, E], axis=2)  # (N, 4, 6)
-        rows, ys = [], []
-        if measured.force_N is not None:
-            f_feed = to_feed(engagement.feed_dir, np.asarray(measured.force_N, float).reshape(n, 3))
-            for q in range(3):
-                ok = np.isfinite(f_feed[:, q])
-                rows.append(X_all[ok, q]), ys.append(f_feed[ok, q])
-        if measured.power_W is not None:
-            p = np.broadcast_to(np.asarray(measured.power_W, float), (n,))
-            ok = np.isfinite(p)
-            rows.append(X_all[ok, 3] / radius[ok, None])                 # T̄/R (N)
-            ys.append(p[ok] * 1000.0 / (omega[ok] * radius[ok]))          # P/(ω R) (N)
-        if not rows or sum(len(y) for y in ys) == 0:
-            raise MillpostError("fit needs measured forces or power")
-        X, y = np.concatenate(rows), np.concatenate(ys)
+        X, y, _ = design(engagement, measured, tool)
         informative = np.linalg.norm(X, axis=0) > 1e-12 * np.linalg.norm(X)
         coef = np.full(6, np.nan) if not hasattr(self, "coef_") else self.coef_.astype(float).copy()
         if not informative.all() and not np.isfinite(coef[~informative]).all():

@@ -1,19 +1,18 @@
-"""Alignment of a measurement log to the program it recorded: the time offset between the log's clock
-and the controller model's time base (`millpost.signals`), never trusting timestamps alone.
+"""Alignment of a measurement log to the program it recorded: for every log row, the program time τ (the
+forward model's time base, `millpost.signals`) at which the tool was where the row says.
 
-1. Cross-correlation: every channel the log shares with the prediction (forces, spindle power/current,
-   axis currents, positions) is put on a uniform grid (the mean of the rows nearest each grid point),
-   standardised (zero mean, unit variance; lost intervals count as the mean), and the correlations with
-   the prediction are summed; the lag of the peak, refined by a parabola through it, gives the offset
-   o with  log(t) ≈ predicted(t − o). A long log is correlated first on a coarse grid (at most 2¹⁸
-   points, FFT over all lags), then at its own sample interval over the lags near the coarse peak.
-2. Position projection (when the log has x_mm, y_mm, z_mm): each logged point is projected onto the
-   predicted path near the time the first estimate expects it (nearest neighbour in (x, y, z, λ·t),
-   then onto the segment to the next sample), which gives the program time at which the tool was
-   there; the median of logged time − program time over moving samples is the refined offset.
+- With logged positions (x_mm, y_mm, z_mm): by place (`path_match`): each row is matched to a place on the
+  predicted path, monotone along it; τ is the model's time at that place. Where the tool stands still (a
+  dwell, a feed hold, a pause), τ runs linearly in log time between the places before and after. The
+  log's own path speed (ds/dt of the matched arc length over its own clock) comes with it, so a feed
+  override or another planner's accelerations are seen, not assumed. Every row's distance from its place
+  is a residual: rows farther than `tolerance_mm` are not used, and a log with more than
+  `MAX_OFF_FRACTION` of such rows between its first and last matched row is refused (`MisalignedLog`,
+  naming the worst rows): it is not the log of this program in this frame.
+- Without positions: one time offset by cross-correlation (`xcorr`), τ = t − offset.
 
-The residuals say how well the prediction matches after alignment: the RMS of logged − predicted for
-each channel, and the RMS distance of logged positions from the predicted ones.
+The residuals say how well the prediction matches after alignment: the RMS of logged − predicted for each
+channel, and the RMS distance of logged positions from the path.
 """
 
 from __future__ import annotations
@@ -21,211 +20,167 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import correlate
 
 from ..errors import MillpostError
 from ..signals import Signals
+from . import path_match, xcorr
 from .log import Log
 
-CHANNELS = ("fx_N", "fy_N", "fz_N", "spindle_power_W", "spindle_current_A", "ix_A", "iy_A", "iz_A",
-            "x_mm", "y_mm", "z_mm")
-POSITION_TIME_SCALE_MM_PER_S = 1.0  # λ: 1 s apart in program time weighs like 1 mm apart in space
-COARSE_POINTS = 1 << 18             # the first correlation runs on at most this many grid points
-FINE_POINTS = 1 << 18               # the second on a window of the program this long (at the log's interval)
-POSITION_ROWS = 200_000             # logged positions projected for the refinement (evenly spread)
+CHANNELS = ("fx_N", "fy_N", "fz_N", "spindle_power_W", "spindle_current_A", "ix_A", "iy_A", "iz_A")
+POSITIONS = ("x_mm", "y_mm", "z_mm")
+TOLERANCE_MM = 0.3          # default: a row farther than this from the path is off it
+MAX_OFF_FRACTION = 0.01     # more off-path rows than this (between the first and last on it): refused
+STILL_MM_S = 0.5            # below this log path speed the tool stands still
+SPEED_WINDOW_S = 0.01       # half-width of the window of the log's path speed (≥ 1 row)
+
+
+class MisalignedLog(MillpostError):
+    """The log's positions do not lie on the program's path: nothing may be fitted from it."""
 
 
 @dataclass
 class Alignment:
-    """offset_s: log time = program time + offset. residual_rms: per channel, logged − predicted after
-    alignment (channel units); position_rms_mm: logged vs predicted position (nan without positions);
-    method: "xcorr" or "xcorr+position"; correlation: normalised peak of the summed correlation (1 = the
-    log is the prediction up to scale)."""
+    """Per log row: tau_s, the program time (s, nan outside the program); residual_mm, the distance of the
+    logged position from the path there (nan without positions); speed_mm_s, the path speed the log
+    shows (nan without positions); on_path, rows inside the program within the tolerance. method:
+    "position" or "xcorr"; offset_s: median log time − program time; correlation: xcorr's normalised
+    peak (nan by position)."""
 
-    offset_s: float
     method: str
+    tau_s: np.ndarray
+    on_path: np.ndarray
+    residual_mm: np.ndarray
+    speed_mm_s: np.ndarray
+    offset_s: float
     correlation: float
     channels: list[str]
+    tolerance_mm: float = TOLERANCE_MM
+    place: np.ndarray | None = None     # per row, the fractional path-sample index matched (by position)
     residual_rms: dict[str, float] = field(default_factory=dict)
     position_rms_mm: float = float("nan")
-    xcorr_offset_s: float = float("nan")
+    notes: list[str] = field(default_factory=list)
 
-    def program_time(self, t_log_s) -> np.ndarray:
-        """Program time (s, the signals' time base) of log times."""
-        return np.asarray(t_log_s, float) - self.offset_s
-
-    def nearest_samples(self, t_log_s, signals: Signals) -> np.ndarray:
-        """For log times, the index of the path sample nearest in program time (−1 outside the program)."""
-        tau = self.program_time(t_log_s)
+    def samples(self, signals: Signals) -> np.ndarray:
+        """Per log row, the index of the path sample nearest in program time (−1 off the path)."""
+        tau = np.where(self.on_path, self.tau_s, signals.t_s[0])
         j = np.clip(np.searchsorted(signals.t_s, tau), 1, len(signals) - 1)
         j = np.where(np.abs(signals.t_s[j - 1] - tau) < np.abs(signals.t_s[j] - tau), j - 1, j)
-        return np.where((tau >= signals.t_s[0]) & (tau <= signals.t_s[-1]), j, -1)
+        return np.where(self.on_path, j, -1)
 
     def summary(self) -> dict:
-        return {"offset_s": round(self.offset_s, 6), "method": self.method, "correlation": round(self.correlation, 4),
-                "channels": self.channels, "position_rms_mm": None if np.isnan(self.position_rms_mm) else
-                round(self.position_rms_mm, 4), "residual_rms": {k: round(v, 4) for k, v in self.residual_rms.items()}}
+        r = self.residual_mm[np.isfinite(self.residual_mm)]
+        return {"method": self.method, "offset_s": round(self.offset_s, 6),
+                "correlation": None if np.isnan(self.correlation) else round(self.correlation, 4),
+                "rows_on_path": int(self.on_path.sum()), "rows": len(self.tau_s), "channels": self.channels,
+                "tolerance_mm": self.tolerance_mm,
+                "position_rms_mm": None if np.isnan(self.position_rms_mm) else round(self.position_rms_mm, 4),
+                "position_max_mm": round(float(r.max()), 4) if len(r) else None,
+                "residual_rms": {k: round(v, 4) for k, v in self.residual_rms.items()}, "notes": self.notes}
 
 
-def align(log: Log, signals: Signals, *, channels: tuple[str, ...] | None = None,
+def align(log: Log, signals: Signals, *, tolerance_mm: float = TOLERANCE_MM, channels: tuple[str, ...] | None = None,
           max_offset_s: float | None = None) -> Alignment:
-    """Find the offset of `log` against the prediction `signals` (see the module's docstring).
-    channels: restrict the cross-correlation to these columns; max_offset_s: search |offset| ≤ this."""
+    """Align `log` to the prediction `signals` (see the module's docstring); refuses a log whose positions
+    are off the path (`MisalignedLog`). channels, max_offset_s: for the cross-correlation without
+    positions (restrict the channels; search |offset| ≤ this)."""
     pred = signals.log_columns()
-    wanted = channels or CHANNELS
-    use = [c for c in wanted if log.has(c) and c in pred and np.nanstd(pred[c]) > 0]
-    if not use:
-        raise MillpostError(f"{log.path}: the log shares no varying channel with the prediction "
-                            f"(has {', '.join(log.columns)}; usable: {', '.join(CHANNELS)})")
-    t = log.t_s
-    if len(t) < 4:
-        raise MillpostError(f"{log.path}: too few samples to align ({len(t)})")
-    dt = float(np.median(np.diff(t)))
-    if not dt > 0:
-        raise MillpostError(f"{log.path}: t_s does not advance")
-    # coarse: block means on a grid of at most COARSE_POINTS, FFT correlation over all lags
-    factor = max(1, int(np.ceil((t[-1] - t[0]) / dt / COARSE_POINTS)))
-    coarse = _correlate(log, signals, pred, use, dt * factor, max_offset_s)
-    offset_c, score_c, energy = coarse
-    offset, score = offset_c, score_c
-    if factor > 1:   # fine: the log's own interval, lags within two coarse steps of the coarse peak
-        offset, score, energy = _correlate(log, signals, pred, use, dt, max_offset_s,
-                                           around=(offset_c, 2 * factor))
-    result = Alignment(offset, "xcorr", score / energy if energy > 0 else 0.0, use, xcorr_offset_s=offset)
-    if all(log.has(c) for c in ("x_mm", "y_mm", "z_mm")):
-        refined = _project(log, signals, offset)
-        if refined is not None:
-            result.offset_s, result.method = refined, "xcorr+position"
+    use = [c for c in (channels or CHANNELS) if log.has(c) and c in pred and np.isfinite(pred[c]).sum() > 1
+           and np.nanstd(pred[c]) > 0]
+    if len(log) < 4:
+        raise MillpostError(f"{log.path}: too few samples to align ({len(log)})")
+    if all(log.has(c) for c in POSITIONS) and np.isfinite(np.column_stack([log[c] for c in POSITIONS])).all(1).any():
+        result = _by_position(log, signals, tolerance_mm)
+        result.channels = use
+    else:
+        if not use:
+            raise MillpostError(f"{log.path}: the log has neither positions (x_mm, y_mm, z_mm) nor a varying channel "
+                                f"shared with the prediction (has {', '.join(log.columns)}; usable: "
+                                f"{', '.join(CHANNELS)})")
+        off, corr = xcorr.offset(log, signals, pred, use, max_offset_s)
+        tau = log.t_s - off
+        inside = (tau >= signals.t_s[0]) & (tau <= signals.t_s[-1])
+        nan = np.full(len(log), np.nan)
+        result = Alignment("xcorr", np.where(inside, tau, np.nan), inside, nan, nan.copy(), off, corr, use)
     _residuals(result, log, signals, pred)
     return result
 
 
-def _correlate(log: Log, signals: Signals, pred: dict, use: list[str], dt: float, max_offset_s: float | None,
-               around: tuple[float, int] | None = None) -> tuple[float, float, float]:
-    """(offset, peak score, normalising energy) of the summed correlation of standardised channels on a
-    grid of step dt (block means of the log, the prediction interpolated). around = (offset, k): only
-    the lags within k steps of that offset, by direct dot products; otherwise all lags by FFT."""
+def _by_position(log: Log, signals: Signals, tolerance_mm: float) -> Alignment:
     t = log.t_s
-    t0 = float(t[0])
-    n_log = int(np.floor((t[-1] - t0) / dt)) + 1
-    n_pred = int(np.floor(signals.t_s[-1] / dt)) + 1
-    grid_pred = dt * np.arange(n_pred)
-    cell = np.minimum(np.rint((t - t0) / dt).astype(np.int64), n_log - 1)   # the grid point nearest each row
-    lost = _in_gaps(t0 + dt * np.arange(n_log), log)
-    count = np.bincount(cell, minlength=n_log)
-    lost |= count == 0
-    if around is None:
-        lags = np.arange(-(n_pred - 1), n_log)
-    else:
-        centre = (around[0] - t0) / dt
-        lags = np.arange(int(np.floor(centre)) - around[1], int(np.ceil(centre)) + around[1] + 1)
-    predicted = lambda c: _standardise(np.interp(grid_pred, signals.t_s, pred[c]), None)  # noqa: E731
-    j0, j1 = 0, n_pred
-    if around is not None and n_pred > FINE_POINTS:
-        # the window of the program whose prediction changes most (edges fix the time best)
-        g = np.zeros(n_pred - 1)
-        for c in use:
-            g += np.diff(predicted(c)) ** 2
-        sums = np.concatenate([[0.0], np.cumsum(g)])
-        j0 = int(np.argmax(sums[FINE_POINTS - 1:] - sums[:len(sums) - FINE_POINTS + 1]))
-        j1 = j0 + FINE_POINTS
-    score = np.zeros(len(lags))
-    energy = 0.0
-    for c in use:
-        a = _standardise(np.bincount(cell, weights=_fill(log[c]), minlength=n_log) / np.maximum(count, 1), lost)
-        b = predicted(c)
-        if around is None:
-            score += correlate(a, b, mode="full", method="fft")
-            energy += float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
-            continue
-        for i, lag in enumerate(lags):   # Σ_j a[j + lag] b[j] over the window's overlap
-            lo, hi = max(j0, -lag), min(j1, n_log - lag)
-            if hi > lo:
-                score[i] += float(np.dot(a[lo + lag:hi + lag], b[lo:hi]))
-        lo, hi = max(j0, -lags[0]), min(j1, n_log - lags[-1])
-        energy += float(np.sqrt(np.sum(a[lo:hi] ** 2) * np.sum(b[lo:hi] ** 2))) if hi > lo else 0.0
-    offsets = t0 + lags * dt
-    if max_offset_s is not None:
-        score = np.where(np.abs(offsets) <= max_offset_s, score, -np.inf)
-    k = int(np.argmax(score))
-    frac = 0.0
-    if 0 < k < len(score) - 1 and np.isfinite(score[k - 1]) and np.isfinite(score[k + 1]):
-        y0, y1, y2 = score[k - 1], score[k], score[k + 1]
-        den = y0 - 2 * y1 + y2
-        frac = 0.5 * (y0 - y2) / den if den < 0 else 0.0
-    return float(offsets[k] + frac * dt), float(score[k]), energy
+    xyz = np.column_stack([log[c] for c in POSITIONS])
+    v_max = 2.0 * float(np.max(signals.speed_mm_s)) + 1.0   # a feed override up to 200 %
+    f, dist = path_match.match(xyz, t, signals.xyz_mm, signals.s_mm, v_max, 2.0 + 3.0 * tolerance_mm)
+    k = np.arange(len(signals))
+    matched = np.isfinite(f)
+    s = np.interp(f, k, signals.s_mm)
+    tau = np.interp(f, k, signals.t_s)
+    speed = _speed(t, s)
+    still = matched & ~(speed > STILL_MM_S)
+    moving = np.flatnonzero(matched & ~still)
+    if len(moving) >= 2:   # standing still: program time runs between the places before and after
+        inner = still & (np.arange(len(t)) > moving[0]) & (np.arange(len(t)) < moving[-1])
+        tau[inner] = np.interp(t[inner], t[moving], tau[moving])
+    near = matched & (dist <= tolerance_mm)
+    on = np.flatnonzero(near)
+    result = Alignment("position", np.where(near, tau, np.nan), near, dist, speed,
+                       float(np.median(t[near] - tau[near])) if len(on) else float("nan"), float("nan"), [],
+                       tolerance_mm, np.where(near, f, np.nan))
+    span = np.zeros(len(t), bool)
+    if len(on):
+        span[on[0]:on[-1] + 1] = True
+    off = span & ~near
+    if len(on) < 10 or off.sum() > MAX_OFF_FRACTION * max(span.sum(), 1):
+        raise MisalignedLog(_refusal(log, signals, f, dist, span, tolerance_mm))
+    outside = matched & ~span
+    if outside.any():
+        result.notes.append(f"{int(outside.sum())} rows before or after the program's path (farther than "
+                            f"{tolerance_mm:g} mm from it) are left out")
+    if off.any():
+        result.notes.append(f"{int(off.sum())} rows farther than {tolerance_mm:g} mm from the path are left out")
+    return result
 
 
-def _fill(v: np.ndarray) -> np.ndarray:
-    """nan → the column's mean (missing values carry no correlation)."""
-    ok = np.isfinite(v)
-    return v if ok.all() else np.where(ok, v, np.mean(v[ok]) if ok.any() else 0.0)
+def _speed(t: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Path speed (mm/s) per row: the matched arc length's slope over ±SPEED_WINDOW_S of the log's clock."""
+    return rate(t, s)
 
 
-def _standardise(v: np.ndarray, lost: np.ndarray | None) -> np.ndarray:
-    v = v - (v[~lost].mean() if lost is not None and (~lost).any() else v.mean())
-    if lost is not None:
-        v[lost] = 0.0
-    s = v.std()
-    return v / s if s > 0 else v
+def rate(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per row, (y(i + w) − y(i − w)) / (t(i + w) − t(i − w)): the rate of y over the log's own clock, w
+    rows ≈ SPEED_WINDOW_S (at least 1; clipped at the ends)."""
+    n = len(t)
+    if n < 2:
+        return np.zeros(n)
+    dt = float(np.median(np.diff(t)))
+    w = max(1, int(round(SPEED_WINDOW_S / dt))) if dt > 0 else 1
+    i = np.arange(n)
+    a, b = np.maximum(i - w, 0), np.minimum(i + w, n - 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(t[b] > t[a], (y[b] - y[a]) / (t[b] - t[a]), 0.0)
 
 
-def _in_gaps(grid: np.ndarray, log: Log) -> np.ndarray:
-    lost = np.zeros(len(grid), bool)
-    for g in log.gaps:
-        lost[np.searchsorted(grid, g.t_start_s):np.searchsorted(grid, g.t_end_s, side="right")] = True
-    return lost
-
-
-def _project(log: Log, signals: Signals, offset: float) -> float | None:
-    """Refined offset from logged positions projected on the predicted path near the expected time."""
-    from scipy.spatial import cKDTree
-
-    lam = POSITION_TIME_SCALE_MM_PER_S
-    moving = signals.speed_mm_s > 0.05 * max(float(np.max(signals.speed_mm_s)), 1e-9)
-    if moving.sum() < 2:
-        return None
-    pts = np.column_stack([signals.xyz_mm, lam * signals.t_s])
-    tree = cKDTree(pts)
-    pick = np.unique(np.linspace(0, len(log) - 1, min(len(log), POSITION_ROWS)).astype(np.int64))
-    xyz = np.column_stack([log["x_mm"][pick], log["y_mm"][pick], log["z_mm"][pick]])
-    t_log = log.t_s[pick]
-    tau_guess = t_log - offset
-    inside = (tau_guess >= signals.t_s[0]) & (tau_guess <= signals.t_s[-1]) & np.isfinite(xyz).all(1)
-    if inside.sum() < 2:
-        return None
-    q = np.column_stack([xyz[inside], lam * tau_guess[inside]])
-    _, j = tree.query(q, workers=-1)
-    # onto the segment from j to its neighbour (the side the point lies on)
-    n = len(signals)
-    j = np.clip(j, 0, n - 2)
-    p0, p1 = signals.xyz_mm[j], signals.xyz_mm[j + 1]
-    seg = p1 - p0
-    L2 = np.einsum("ij,ij->i", seg, seg)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = np.where(L2 > 0, np.einsum("ij,ij->i", xyz[inside] - p0, seg) / L2, 0.0)
-    back = (u < 0) & (j > 0)
-    jb = np.where(back, j - 1, j)
-    p0, p1 = signals.xyz_mm[jb], signals.xyz_mm[jb + 1]
-    seg = p1 - p0
-    L2 = np.einsum("ij,ij->i", seg, seg)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = np.clip(np.where(L2 > 0, np.einsum("ij,ij->i", xyz[inside] - p0, seg) / L2, 0.0), 0.0, 1.0)
-    tau = signals.t_s[jb] + u * (signals.t_s[jb + 1] - signals.t_s[jb])
-    ok = moving[jb] & moving[jb + 1] & (L2 > 0)
-    if ok.sum() < 2:
-        return None
-    return float(np.median(t_log[inside][ok] - tau[ok]))
+def _refusal(log: Log, signals: Signals, f: np.ndarray, dist: np.ndarray, span: np.ndarray, tol: float) -> str:
+    worst = np.argsort(np.where(np.isfinite(dist), -dist, 0.0))[:5]
+    k = np.clip(np.rint(np.nan_to_num(f)).astype(int), 0, len(signals) - 1)
+    rows = "; ".join(
+        f"row {i + 1} (t_s {log.t_s[i]:.3f}): logged ({log['x_mm'][i]:.3f}, {log['y_mm'][i]:.3f}, "
+        f"{log['z_mm'][i]:.3f}) is {dist[i]:.3f} mm from the path (nearest: line {int(signals.line[k[i]])} at "
+        f"({signals.xyz_mm[k[i], 0]:.3f}, {signals.xyz_mm[k[i], 1]:.3f}, {signals.xyz_mm[k[i], 2]:.3f}))"
+        for i in worst)
+    n_off = int(np.sum(dist > tol))
+    return (f"{log.path}: the logged positions do not lie on the program's path: {n_off} of {len(dist)} rows are "
+            f"farther than {tol:g} mm from it (median {float(np.nanmedian(dist)):.3f} mm). Is it the log of this "
+            f"program, in its frame (x_mm, y_mm, z_mm in program coordinates: work offset and tool length applied, "
+            f"mm)? Worst rows: {rows}. Nothing is fitted from a log that does not fit its program")
 
 
 def _residuals(result: Alignment, log: Log, signals: Signals, pred: dict[str, np.ndarray]) -> None:
-    tau = result.program_time(log.t_s)
-    inside = (tau >= signals.t_s[0]) & (tau <= signals.t_s[-1])
+    tau = result.tau_s[result.on_path]
     for c in result.channels:
-        d = log[c][inside] - np.interp(tau[inside], signals.t_s, pred[c])
+        d = log[c][result.on_path] - np.interp(tau, signals.t_s, pred[c])
         d = d[np.isfinite(d)]
         result.residual_rms[c] = float(np.sqrt(np.mean(d * d))) if len(d) else float("nan")
-    if all(log.has(c) for c in ("x_mm", "y_mm", "z_mm")) and inside.any():
-        d2 = sum((log[c][inside] - np.interp(tau[inside], signals.t_s, pred[c])) ** 2 for c in ("x_mm", "y_mm", "z_mm"))
-        d2 = d2[np.isfinite(d2)]
-        result.position_rms_mm = float(np.sqrt(np.mean(d2))) if len(d2) else float("nan")
+    r = result.residual_mm[result.on_path]
+    r = r[np.isfinite(r)]
+    if len(r):
+        result.position_rms_mm = float(np.sqrt(np.mean(r * r)))

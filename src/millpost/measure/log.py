@@ -4,11 +4,11 @@ CSV (UTF-8, comma separated, one header row) or NPZ (one array per column). Colu
 
 | column | meaning |
 |---|---|
-| `t_s` (required) | time of the sample (s), non-decreasing; any origin (alignment finds the offset) |
-| `x_mm, y_mm, z_mm` | tool position, program frame (mm) |
+| `t_s` (required) | time of the sample (s), non-decreasing; any origin, any rate |
+| `x_mm, y_mm, z_mm` | tool tip position, program frame (mm: work offset and tool length applied); with them every row is placed on the program's path by where the tool was |
 | `line` | the program line the controller reports |
 | `spindle_rpm` | spindle speed (rpm) |
-| `fx_N, fy_N, fz_N` | force on the **workpiece** along machine X, Y, Z (what a table dynamometer reads) |
+| `fx_N, fy_N, fz_N` | force on the **workpiece** along machine +X, +Y, +Z (what a table dynamometer reads: −the force on the tool; a fit checks each channel's sign against the model and refuses one that runs against it) |
 | `spindle_power_W` | spindle (VFD output) power (W) |
 | `spindle_current_A` | spindle (VFD output) current (A) |
 | `ix_A, iy_A, iz_A` | axis motor currents (A, signed: positive pushes the axis towards +) |

@@ -60,6 +60,7 @@ class Effect:
     channels: ClassVar[tuple[str, ...]]
     meaning: ClassVar[str] = ""
     positive: ClassVar[tuple[str, ...]] = ()   # parameters that physics requires > 0
+    bounded: ClassVar[tuple[str, ...]] = ()    # parameter name prefixes that physics bounds below by 0 in the fit
     slow: ClassVar[bool] = True   # the effect changes the signal over many rows (see search.compare)
 
     @property
@@ -92,7 +93,10 @@ class Effect:
         """The design of the base, the kept effects and variant v."""
         terms = [e.variant_.terms for e in ctx.kept] + [v.terms]
         filters = {k: f for e in ctx.kept for k, f in e.variant_.filters.items()} | v.filters
-        return design(ctx.rows, terms, filters)
+        lower = {name for e in [*ctx.kept, self] for t in ([e.variant_.terms] if e is not self else [v.terms])
+                 for cols in t.values() for name in cols
+                 if any(name.startswith(e.param(b)) for b in e.bounded)}
+        return design(ctx.rows, terms, filters, frozenset(lower))
 
     def evaluate(self, ctx: Context, v: Variant) -> tuple[float, Variant, Fit]:
         """(training χ², variant, joint fit) of one variant refitted with the base and the kept effects
