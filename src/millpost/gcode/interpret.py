@@ -20,6 +20,7 @@ from ..errors import ParseError
 from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
 from .cutter_comp import LEFT, RIGHT, CompensationError, CutterComp
 from .dialects import Dialect
+from .feed_mode import FeedMode
 from .flow import MAX_REPEATED_LINES, Flow, Source, control_of
 from .lexer import LENGTH_LIMIT, NUMBER_LIMIT, Block, Word, lex_line
 from .tool_table import read_tool_table
@@ -33,7 +34,7 @@ BORING_CYCLES = (760, 850, 860, 870, 880, 890)  # the feed sets the finish of th
 _MODAL_GROUPS = {
     **{g: "motion" for g in _MOTION | {800}},
     170: "plane", 180: "plane", 190: "plane", 200: "units", 210: "units", 900: "distance", 910: "distance",
-    901: "arc distance", 911: "arc distance", 930: "feed mode", 940: "feed mode", 950: "feed mode",
+    901: "arc distance", 911: "arc distance", **dict.fromkeys(map(int, FeedMode), "feed mode"),
     **{g: "cutter comp" for g in (400, 410, 420, 411, 421)}, 430: "tool length", 431: "tool length",
     432: "tool length", 490: "tool length", 980: "retract", 990: "retract",
     **{g: "coordinate system" for g in (540, 550, 560, 570, 580, 590, 591, 592, 593)},
@@ -74,6 +75,8 @@ _NO_CENTRE = (math.nan, math.nan, math.nan)
 _FAST = re.compile(r"[ \t]*(?:[Gg]0?([01])(?![0-9.])[ \t]*)?((?:[XYZFxyzf][ \t]*[-+]?(?:\d+\.?\d*|\.\d+)[ \t]*)+)")
 _FAST_WORD = re.compile(r"([XYZFxyzf])[ \t]*([-+]?(?:\d+\.?\d*|\.\d+))")
 _ROTARY = "ABCUVW"
+_FEED_MODES = tuple(FeedMode)
+_PER_MINUTE = FeedMode.PER_MINUTE  # the fast path's test, once a line: no enum attribute lookup
 
 
 @dataclass
@@ -145,9 +148,10 @@ class Program:
     """An interpreted program. Moves in mm in the program frame; `text` is the source, untouched.
 
     units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
-    when it ran (for writing it back): move_inch (G20), feed_mode (93/94/95), incremental (G91),
-    arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool centre, not the programmed path),
-    cycle (the canned cycle that ran it, its G code × 10: 810 for G81, 840 for G84; 0 for other moves).
+    when it ran (for writing it back): move_inch (G20), feed_mode (a `FeedMode` value, 930/940/950 for
+    G93/G94/G95), incremental (G91), arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool
+    centre, not the programmed path), cycle (the canned cycle that ran it, its G code × 10: 810 for G81,
+    840 for G84; 0 for other moves).
     notes: assumptions made (unknown home, rotary axes at zero, ...), each naming its line.
     """
 
@@ -240,7 +244,7 @@ class Interpreter:
         self.plane = 0
         self.motion: int | None = None
         self.basic_motion: int | None = None  # last G0-G3 (Fanuc returns to it after G80)
-        self.feed_mode = 940
+        self.feed_mode = FeedMode.PER_MINUTE
         self.f = 0.0  # mm per minute (G94) or per rev (G95), as set; G93 uses the block's own F
         self.s = 0.0
         self.spindle_on = False
@@ -325,14 +329,14 @@ class Interpreter:
 
     def feed_rate(self, block: Block, length_mm: float) -> float:
         """Programmed feed of a move in mm/min from the modal F and feed mode."""
-        if self.feed_mode == 930:
+        if self.feed_mode == FeedMode.INVERSE_TIME:
             if self._f_this_block is None:
                 raise self.err("inverse-time feed mode (G93) needs an F word on every feed move", block, None,
                                "an F word on this line")
             return length_mm * self._f_this_block
         if self.f <= 0:
             raise self.err("feed move with no feed rate set", block, None, "an F word before or on this line")
-        if self.feed_mode == 950:
+        if self.feed_mode == FeedMode.PER_REV:
             if self.s <= 0:
                 raise self.err("feed per revolution (G95) with no spindle speed", block, None, "an S word")
             return self.f * self.s
@@ -431,7 +435,7 @@ class Interpreter:
         """The common block of CAM output — an optional G0/G1 then X/Y/Z/F words — without building
         words or touching numpy. Returns False (the general path runs) for anything else."""
         m = _FAST.fullmatch(raw)
-        if m is None or self.feed_mode != 940 or self.comp.active:
+        if m is None or self.feed_mode != _PER_MINUTE or self.comp.active:
             return False
         g, body = m.groups()
         motion = self.motion if g is None else (0 if g == "0" else 10)
@@ -550,9 +554,9 @@ class Interpreter:
         gset = {c for c, _ in g}
         self.check_words(b, val, gset, mcodes)
         # 1. feed mode, F, S
-        for code in (930, 940, 950):
-            if code in gset:
-                self.feed_mode = code
+        for mode in _FEED_MODES:
+            if mode in gset:
+                self.feed_mode = mode
         self._f_this_block = val["F"].value if "F" in val else None
         if "F" in val:
             if val["F"].value < 0:
@@ -560,12 +564,12 @@ class Interpreter:
             # held in mm (per min or per rev) as set: a later G20/G21 does not change the machine's feed. LinuxCNC
             # sets F before the block's G20/G21 (its order of execution), so F is in the units before them
             scale = self.scale if self.dialect.feed_before_units else self.pending_scale(b)
-            if scale != self.pending_scale(b) and self.feed_mode != 930:
+            if scale != self.pending_scale(b) and self.feed_mode != FeedMode.INVERSE_TIME:
                 was, new = ("mm", "inch") if scale == 1.0 else ("inch", "mm")
                 self.notes.append(f"warning: line {b.line}: F{val['F'].value:g} shares its line with the change to {new}: read "
                                   f"in {was} per minute, the units before it, as {self.dialect.name} does; write F on a "
                                   f"line after the G{20 if new == 'inch' else 21} if {new} per minute was meant")
-            self.f = val["F"].value * (1.0 if self.feed_mode == 930 else scale)
+            self.f = val["F"].value * (1.0 if self.feed_mode == FeedMode.INVERSE_TIME else scale)
         if "S" in val:
             if val["S"].value < 0:
                 raise self.err("negative spindle speed", b, val["S"], "S >= 0")
