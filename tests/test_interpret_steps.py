@@ -7,7 +7,7 @@ import pytest
 
 from millpost.errors import ParseError
 from millpost.gcode import FeedMode, ReaderOptions, dialects
-from millpost.gcode.interpret import INCH, Interpreter
+from millpost.gcode.interpret import _MODAL_GROUPS, INCH, Interpreter
 from millpost.gcode.lexer import lex_line
 
 # LinuxCNC G-code overview, "order of execution": the item each step belongs to (1 O words and 2 comments
@@ -90,3 +90,16 @@ def test_stop_step_ends_the_program():
     interp = interpreter()
     run_step(interp, "stop", "M30")
     assert interp.ended and interp.events[-1].kind == "end"
+
+
+def test_every_non_modal_code_has_its_handler():
+    codes = {c for c, group in _MODAL_GROUPS.items() if group == "non-modal"} - {40, 530}  # G4, G53: steps
+    assert set(Interpreter.NON_MODAL) == codes
+
+
+def test_g92_step_alone():
+    interp = interpreter()
+    interp.pos = interp.pos + [3.0, 0.0, 0.0]
+    codes = run_step(interp, "read_axis_words", "G92 X0")
+    Interpreter.offsets_and_homes(interp, codes)
+    assert codes.consumed_axes and interp.pos.tolist() == [0.0, 0.0, 0.0] and interp.g92.tolist() == [3.0, 0.0, 0.0]

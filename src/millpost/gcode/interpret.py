@@ -994,84 +994,101 @@ class Interpreter:
         return t
 
     def non_modal(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
-        """G10, G28/G28.1, G30/G30.1, G52, G92 family. Returns True if the axis words were used."""
-        if code == 100:
-            L = val.get("L")
-            if L is None:
-                raise self.err("G10 without an L word", b, None, "G10 L1/L10/L11 (tool table) or L2/L20 (offsets)")
-            lv = int(L.value)
-            if lv in (1, 10, 11):
-                self.event(b.line, "tool_table", lv)
-                return True
-            if lv in (2, 20):
-                p = int(val["P"].value) if "P" in val else 0
-                idx = self.cs if p == 0 else p
-                if not 1 <= idx <= 9:
-                    raise self.err("G10 P must select a coordinate system 0..9", b, val.get("P"), "P0..P9")
-                self.comp.check_offsets(idx, self.cs)
-                if "R" in val and val["R"].value != 0:
-                    raise self.err("coordinate system rotation (G10 R) is not supported", b, val["R"], "R0 or no R")
+        """G10, G28/G28.1, G30/G30.1, G52, G92 family (`NON_MODAL`). Returns True if the axis words were used."""
+        return self.NON_MODAL[code](self, code, b, val, axis_words)
 
-                def change() -> None:
-                    cur = self.g5x.get(idx, np.zeros(3)).copy()
-                    for Lt, w in axis_words.items():
-                        i = _AXES.index(Lt)
-                        if lv == 2:
-                            cur[i] = w.value * self.scale
-                        else:  # L20: set so the current point has the given coordinate
-                            machine = self.pos[i] + self.offset()[i]
-                            cur[i] = machine - self.g92[i] - w.value * self.scale
-                    self.g5x[idx] = cur
-                self.set_offsets(change)
-                return True
-            raise self.err(f"G10 L{lv} is not supported", b, L, "G10 L1, L2, L10, L11 or L20")
-        if code in (280, 300):
-            home_opt = self.opt.home_g28_mm if code == 280 else self.opt.home_g30_mm
-            if axis_words:
-                mid = self.target(axis_words)
-                self.emit(RAPID, mid, b)
-            axes = [_AXES.index(L) for L in axis_words] or [0, 1, 2]
-            end = self.pos.copy()
-            if home_opt is not None:
-                home = np.array(home_opt, float) - self.offset()
-                end[axes] = home[axes]
-            else:
-                if 2 in axes:
-                    end[2] = math.nan
-                    self.safe_z_pending = True
-                self.notes.append(f"line {b.line}: G{code // 10} home position unknown: Z retracts to the safe "
-                                  "height (highest Z of the program), X/Y stay (assumed)")
-            self.emit(RAPID, end, b)
+    def set_data(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G10: L1/L10/L11 (tool table: an event) or L2/L20 (a coordinate system's offsets)."""
+        L = val.get("L")
+        if L is None:
+            raise self.err("G10 without an L word", b, None, "G10 L1/L10/L11 (tool table) or L2/L20 (offsets)")
+        lv = int(L.value)
+        if lv in (1, 10, 11):
+            self.event(b.line, "tool_table", lv)
             return True
-        if code in (281, 301):
-            return False
-        if code in (920, 520):
-            if not axis_words:
-                if code == 520:
-                    return True
-                raise self.err("G92 without axis words", b, None, "G92 with at least one of X, Y, Z")
+        if lv in (2, 20):
+            p = int(val["P"].value) if "P" in val else 0
+            idx = self.cs if p == 0 else p
+            if not 1 <= idx <= 9:
+                raise self.err("G10 P must select a coordinate system 0..9", b, val.get("P"), "P0..P9")
+            self.comp.check_offsets(idx, self.cs)
+            if "R" in val and val["R"].value != 0:
+                raise self.err("coordinate system rotation (G10 R) is not supported", b, val["R"], "R0 or no R")
 
             def change() -> None:
-                for L, w in axis_words.items():
-                    i = _AXES.index(L)
-                    if code == 920:  # current point gets the given coordinate
+                cur = self.g5x.get(idx, np.zeros(3)).copy()
+                for Lt, w in axis_words.items():
+                    i = _AXES.index(Lt)
+                    if lv == 2:
+                        cur[i] = w.value * self.scale
+                    else:  # L20: set so the current point has the given coordinate
                         machine = self.pos[i] + self.offset()[i]
-                        self.g92[i] = machine - self.g5x.get(self.cs, np.zeros(3))[i] - w.value * self.scale
-                    else:  # G52: local offset = the value
-                        self.g92[i] = w.value * self.scale
+                        cur[i] = machine - self.g92[i] - w.value * self.scale
+                self.g5x[idx] = cur
             self.set_offsets(change)
             return True
-        if code == 921 or code == 922:
-            def clear() -> None:
-                if code == 922:
-                    self.g92_saved = self.g92.copy()
-                self.g92 = np.zeros(3)
-            self.set_offsets(clear)
-            return False
-        if code == 923:
-            self.set_offsets(lambda: setattr(self, "g92", self.g92_saved.copy()))
-            return False
+        raise self.err(f"G10 L{lv} is not supported", b, L, "G10 L1, L2, L10, L11 or L20")
+
+    def go_home(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G28, G30: a rapid through the axis words' point (if any) to the home of those axes (all without
+        axis words); an unknown home retracts Z to the safe height and leaves X/Y (noted)."""
+        home_opt = self.opt.home_g28_mm if code == 280 else self.opt.home_g30_mm
+        if axis_words:
+            mid = self.target(axis_words)
+            self.emit(RAPID, mid, b)
+        axes = [_AXES.index(L) for L in axis_words] or [0, 1, 2]
+        end = self.pos.copy()
+        if home_opt is not None:
+            home = np.array(home_opt, float) - self.offset()
+            end[axes] = home[axes]
+        else:
+            if 2 in axes:
+                end[2] = math.nan
+                self.safe_z_pending = True
+            self.notes.append(f"line {b.line}: G{code // 10} home position unknown: Z retracts to the safe "
+                              "height (highest Z of the program), X/Y stay (assumed)")
+        self.emit(RAPID, end, b)
+        return True
+
+    def set_home(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G28.1, G30.1: store the current point as home (the machine's business: nothing to model)."""
         return False
+
+    def set_axis_offsets(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G92 (the current point gets the given coordinates), G52 (a local offset of the given values)."""
+        if not axis_words:
+            if code == 520:
+                return True
+            raise self.err("G92 without axis words", b, None, "G92 with at least one of X, Y, Z")
+
+        def change() -> None:
+            for L, w in axis_words.items():
+                i = _AXES.index(L)
+                if code == 920:  # current point gets the given coordinate
+                    machine = self.pos[i] + self.offset()[i]
+                    self.g92[i] = machine - self.g5x.get(self.cs, np.zeros(3))[i] - w.value * self.scale
+                else:  # G52: local offset = the value
+                    self.g92[i] = w.value * self.scale
+        self.set_offsets(change)
+        return True
+
+    def clear_axis_offsets(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G92.1, G92.2: the G92/G52 offsets to zero (G92.2 keeps them for G92.3)."""
+        def clear() -> None:
+            if code == 922:
+                self.g92_saved = self.g92.copy()
+            self.g92 = np.zeros(3)
+        self.set_offsets(clear)
+        return False
+
+    def restore_axis_offsets(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G92.3: the offsets G92.2 kept."""
+        self.set_offsets(lambda: setattr(self, "g92", self.g92_saved.copy()))
+        return False
+
+    # the non-modal codes of LinuxCNC's order of execution item 23 (G4 and G53 are steps of their own)
+    NON_MODAL = {100: set_data, 280: go_home, 300: go_home, 281: set_home, 301: set_home, 920: set_axis_offsets,
+                 520: set_axis_offsets, 921: clear_axis_offsets, 922: clear_axis_offsets, 923: restore_axis_offsets}
 
     def straight(self, b: Block, val: dict, axis_words: dict, g53: bool) -> None:
         if g53:
