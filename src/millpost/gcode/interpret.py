@@ -252,6 +252,59 @@ class _Codes:
         self.motion_code: int | None = None
 
 
+class _StepTable:
+    """The steps of a block in order, each with what wakes it: G codes ("G93", "G59.1"), M codes ("M6"),
+    word letters ("S"), any G or any M code ("G*", "M*") or every block ("*"). A block runs the steps its
+    codes and words wake, in table order (`woken_by`); the others would do nothing. Iterating the table
+    gives all its steps."""
+
+    def __init__(self, *entries: tuple) -> None:
+        self.steps = tuple(step for step, _ in entries)
+        self.wakes = {step.__name__: wake.split() for step, wake in entries}
+        self.g: dict[int, int] = {}  # G code (× 10) -> bit mask of the steps it wakes
+        self.m: dict[int, int] = {}  # M code -> bit mask
+        self.words: dict[str, int] = {}  # word letter -> bit mask
+        self.every = self.any_g = self.any_m = 0
+        for i, (_, wake) in enumerate(entries):
+            bit = 1 << i
+            for token in wake.split():
+                if token == "*":
+                    self.every |= bit
+                elif token == "G*":
+                    self.any_g |= bit
+                elif token == "M*":
+                    self.any_m |= bit
+                elif token[0] == "G":
+                    code = round(float(token[1:]) * 10)
+                    self.g[code] = self.g.get(code, 0) | bit
+                elif token[0] == "M":
+                    self.m[int(token[1:])] = self.m.get(int(token[1:]), 0) | bit
+                else:
+                    self.words[token] = self.words.get(token, 0) | bit
+        self.plans: dict[int, tuple] = {}  # bit mask -> its steps, in order
+
+    def __iter__(self):
+        return iter(self.steps)
+
+    def woken_by(self, k: _Codes) -> tuple:
+        """The steps the block's codes and words wake, in table order."""
+        mask = self.every
+        if k.gset:
+            mask |= self.any_g
+            for code in k.gset:
+                mask |= self.g.get(code, 0)
+        if k.mset:
+            mask |= self.any_m
+            for code in k.mset:
+                mask |= self.m.get(code, 0)
+        for L in k.val:
+            mask |= self.words.get(L, 0)
+        plan = self.plans.get(mask)
+        if plan is None:
+            plan = self.plans[mask] = tuple(step for i, step in enumerate(self.steps) if mask >> i & 1)
+        return plan
+
+
 class Interpreter:
     """Runs blocks through the modal state. Use `read_program` / `read_text` rather than this directly."""
 
@@ -528,11 +581,12 @@ class Interpreter:
 
     def execute(self, b: Block) -> None:
         """Run one block as LinuxCNC does: its words sorted and checked (`block_codes`, `check_words`),
-        then each step of `STEPS` in turn, in the order of execution of the LinuxCNC G-code overview
-        ("G-code overview: order of execution"; O words and comments are `run`'s)."""
+        then the steps of `STEPS` in turn, in the order of execution of the LinuxCNC G-code overview
+        ("G-code overview: order of execution"; O words and comments are `run`'s). A step the block's
+        codes and words do not wake would do nothing and is not called (`_StepTable.woken_by`)."""
         k = self.block_codes(b)
         self.check_words(b, k.val, k.gset, k.mcodes)
-        for step in self.STEPS:
+        for step in self.STEPS.woken_by(k):
             step(self, k)
 
     def block_codes(self, b: Block) -> _Codes:
@@ -819,13 +873,33 @@ class Interpreter:
                 self.event(k.block.line, "end", code)
                 self.ended = True
 
-    # LinuxCNC G-code overview, "order of execution": the steps of a block, each run on every block in
-    # this order (O words and comments, items 1 and 2, are `run`'s; M codes that move nothing stand
-    # where LinuxCNC runs its HAL pin I/O, before the tool change)
-    STEPS = (set_feed_mode, set_feed_rate, set_spindle_speed, select_tool, other_m_codes, change_tool,
-             switch_spindle, switch_coolant, dwell, set_plane, set_units, radius_compensation,
-             length_compensation, select_coordinate_system, set_path_mode, set_distance_modes, set_retract_mode,
-             read_axis_words, offsets_and_homes, set_motion_mode, move, stop)
+    # LinuxCNC G-code overview, "order of execution": a block's steps in that order (items 1 and 2, O words
+    # and comments, are `run`'s; M codes that move nothing stand at item 7, HAL pin I/O), each with the
+    # codes and words that wake it ("*": every block; "G*", "M*": any G or M code)
+    STEPS = _StepTable(
+        (set_feed_mode, "G93 G94 G95"),
+        (set_feed_rate, "*"),  # also forgets the last block's F (inverse time needs one on every move)
+        (set_spindle_speed, "S"),
+        (select_tool, "T"),
+        (other_m_codes, "M*"),
+        (change_tool, "M6"),
+        (switch_spindle, "M3 M4 M5 S"),
+        (switch_coolant, "M7 M8 M9"),
+        (dwell, "G4"),
+        (set_plane, "G17 G18 G19"),
+        (set_units, "G20 G21"),
+        (radius_compensation, "G*"),  # G40-G42, then every G code checked against compensation on
+        (length_compensation, "G43 G43.1 G43.2 G49"),
+        (select_coordinate_system, "G54 G55 G56 G57 G58 G59 G59.1 G59.2 G59.3"),
+        (set_path_mode, "G61 G61.1 G64"),
+        (set_distance_modes, "G90 G91 G90.1 G91.1"),
+        (set_retract_mode, "G98 G99"),
+        (read_axis_words, "*"),
+        (offsets_and_homes, "G10 G28 G28.1 G30 G30.1 G52 G92 G92.1 G92.2 G92.3"),
+        (set_motion_mode, "G0 G1 G2 G3 G73 G74 G76 G80 G81 G82 G83 G84 G85 G86 G87 G88 G89"),
+        (move, "*"),  # the motion mode in effect moves on axis words
+        (stop, "M0 M1 M2 M30 M60"),
+    )
 
     def check_words(self, b: Block, val: dict, gset: set, mcodes: list) -> None:
         """Refuse a word that nothing in its block uses, as LinuxCNC 2.9 does (its check_other_codes):
