@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from millpost.cli import main
 from millpost.errors import ParseError
-from millpost.gcode import ReaderOptions, read_text
+from millpost.gcode import FeedMode, ReaderOptions, read_text
 from millpost.gcode.summary import summary
 
 
@@ -82,6 +82,12 @@ def test_inverse_time_and_per_rev_feeds():
     tp = moves("G21 G90\nG0 X0 Y0 Z0\nG93 G1 X10 F6\nG94 S1000 M3\nG95 G1 X20 F0.1\nM2\n")
     assert tp.feed_mm_min[1] == pytest.approx(60.0)  # 10 mm in 1/6 min
     assert tp.feed_mm_min[2] == pytest.approx(100.0)  # 0.1 mm/rev at 1000 rpm
+
+
+def test_feed_mode_per_move():
+    program = read_text("G21 G90\nG0 X0 Y0 Z0\nG93 G1 X10 F6\nG94 S1000 M3\nG95 G1 X20 F0.1\nM2\n", "t.nc")
+    assert program.feed_mode.tolist() == [FeedMode.PER_MINUTE, FeedMode.INVERSE_TIME, FeedMode.PER_REV]
+    assert [int(m) for m in FeedMode] == [930, 940, 950]  # G93, G94, G95 as the interpreter's G codes (× 10)
 
 
 @pytest.mark.parametrize("text,line,word,what", [

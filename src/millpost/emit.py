@@ -26,6 +26,7 @@ import numpy as np
 
 from .errors import MillpostError
 from .gcode import dialects
+from .gcode.feed_mode import FeedMode
 from .gcode.flow import control_of
 from .gcode.interpret import BORING_CYCLES, INCH, TAPPING_CYCLES, Program
 from .gcode.lexer import Block, lex_line, source_lines
@@ -353,12 +354,12 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         f_word = next((w for w in block.words if w.letter == "F"), None)
 
         def f_value(i: int, feed_mm_min: float, length_mm: float) -> float:
-            mode = program.feed_mode[i]
-            if mode == 930 and program.compensated[i]:  # timed by the programmed length, not the offset path
+            mode = int(program.feed_mode[i])  # an int: a numpy integer compares slowly with an enum
+            if mode == FeedMode.INVERSE_TIME and program.compensated[i]:  # timed by the programmed length
                 value = f_word.value * feed_mm_min / tp.feed_mm_min[i]
-            elif mode == 930:
+            elif mode == FeedMode.INVERSE_TIME:
                 value = feed_mm_min / max(length_mm, 1e-12)  # inverse time: 1/min
-            elif mode == 950:
+            elif mode == FeedMode.PER_REV:
                 value = feed_mm_min / scale / max(tp.rpm[i], 1e-12)  # per revolution
             else:
                 value = feed_mm_min / scale
@@ -382,7 +383,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             smaller than the plan's step made none or a full step, under the move's programmed F only
             where a limit asks for it (`_stepped`; not in inverse time)."""
             text = f_text(f_value(i, feed_mm_min, length_mm))
-            if flow or modal is None or program.feed_mode[i] == 930:
+            if flow or modal is None or int(program.feed_mode[i]) == FeedMode.INVERSE_TIME:
                 return text
             keep = float(f_text(f_value(i, tp.feed_mm_min[i], length_mm))) if np.isfinite(tp.feed_mm_min[i]) else 0.0
             # the F in force is one a limit held under the programmed F of the move it was written for
@@ -397,7 +398,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             saved, pieces, u_prev, modal = dict(written), [], 0.0, modal_f
             for u_end, feed in fragments:
                 text = feed_text(i, feed, lengths[i] * (u_end - u_prev), modal)
-                if pieces and text == pieces[-1][2] and program.feed_mode[i] != 930:
+                if pieces and text == pieces[-1][2] and int(program.feed_mode[i]) != FeedMode.INVERSE_TIME:
                     pieces[-1] = (u_end, pieces[-1][1], text)
                 else:
                     pieces.append((u_end, feed, text))
@@ -421,7 +422,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
                 out.extend(new_lines)
                 continue
             one_feed = pieces[0][1]
-        if not flow and all(lengths[i] <= 0.0 and program.feed_mode[i] != 930 for i in moves):
+        if not flow and all(lengths[i] <= 0.0 and int(program.feed_mode[i]) != FeedMode.INVERSE_TIME for i in moves):
             # a move to where the tool is takes no time: no F of its own, the F in force holds (or the one it
             # has, which then holds after it as in the program)
             modal_f = f_word.value if f_word is not None else modal_f
@@ -437,7 +438,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         k = min(timed, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
         feed_k = plan.feed_mm_min[k] if one_feed is None else one_feed
         value = f_value(k, feed_k, lengths[k])
-        if program.feed_mode[k] == 930 and len(moves) > 1 and not program.compensated[moves].all():
+        if int(program.feed_mode[k]) == FeedMode.INVERSE_TIME and len(moves) > 1 and not program.compensated[moves].all():
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
         if flow:  # its own F, evaluated as it runs, still right on every run: keep it; else write one
             if f_word is not None and all(plan.feed_mm_min[i] == tp.feed_mm_min[i] for i in moves):
@@ -447,11 +448,11 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             continue
         if f_word is not None and _same(f_word.value, value):
             out.append(raw)  # the program's own F still holds: keep its bytes
-        elif (f_word is None and modal_f is not None and program.feed_mode[k] != 930
+        elif (f_word is None and modal_f is not None and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME
               and (_same(modal_f, value) or _same(modal_f, float(feed_text(k, feed_k, lengths[k], modal_f))))):
             out.append(raw)
             value = modal_f  # the F in force stays the one written
-        elif standalone_f is not None and f_word is None and program.feed_mode[k] != 930:
+        elif standalone_f is not None and f_word is None and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
             text = feed_text(k, feed_k, lengths[k], modal_f)
             out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": text}) + f_ending
@@ -460,7 +461,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
         else:
             text = feed_text(k, feed_k, lengths[k], modal_f)
             if (modal_f is not None and _same(float(text), modal_f) and not repeats
-                    and program.feed_mode[k] != 930):  # the F in force holds: no F word repeating it
+                    and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME):  # the F in force holds: no F word repeating it
                 out.append(writer.replace({}, drop={"F"}) + ending)
             else:
                 out.append(writer.replace({"F": text}) + ending)
@@ -549,7 +550,7 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
             feed = min(feed, _axis_rate(end_written - start_written, vmax_mm_min))
             start_written = end_written
         f = feed_text(i, feed, seg_len, modal)
-        if (modal is None or not _same(modal, float(f)) or program.feed_mode[i] == 930
+        if (modal is None or not _same(modal, float(f)) or int(program.feed_mode[i]) == FeedMode.INVERSE_TIME
                 or (k == 0 and has_f and repeats)):
             words["F"] = f
         if k == 0:

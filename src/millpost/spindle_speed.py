@@ -30,6 +30,7 @@ import numpy as np
 from .controller import PathModes
 from .emit import replace_numbers
 from .errors import MillpostError
+from .gcode.feed_mode import FeedMode
 from .gcode.interpret import Program
 from .gcode.lexer import lex_line
 from .heuristics import rpm_range
@@ -95,7 +96,7 @@ def speed_blocks(job: Job, program: Program) -> list[SpeedBlock]:
             blk.kept = fixed[line]
         elif np.any(tp.rpm[moves] != blk.rpm):
             blk.kept = "its moves do not all run at its S"
-        elif np.any(program.feed_mode[moves] == 950):
+        elif np.any(program.feed_mode[moves] == FeedMode.PER_REV):
             blk.kept = "it feeds per revolution (G95): its feeds change with S"
         elif not tools:
             blk.kept = "no described tool cuts at it"

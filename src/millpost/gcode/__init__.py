@@ -10,9 +10,10 @@ from pathlib import Path
 
 from ..errors import ParseError
 from . import dialects
+from .feed_mode import FeedMode
 from .interpret import Event, Interpreter, Program, ReaderOptions
 
-__all__ = ["Event", "Program", "ReaderOptions", "read_program", "read_text"]
+__all__ = ["Event", "FeedMode", "Program", "ReaderOptions", "read_program", "read_text"]
 
 # The largest program file read: ~10 M blocks, for which the reader holds ~1.3 GB of moves (124 bytes
 # each) beside the text, and reads for ~2 minutes; a larger file is refused before it is read.

@@ -20,6 +20,7 @@ from ..errors import ParseError
 from ..toolpath import ARC_CCW, ARC_CW, FEED, PLANE_AXES, RAPID, Toolpath
 from .cutter_comp import LEFT, RIGHT, CompensationError, CutterComp
 from .dialects import Dialect
+from .feed_mode import FeedMode
 from .flow import MAX_REPEATED_LINES, Flow, Source, control_of
 from .lexer import LENGTH_LIMIT, NUMBER_LIMIT, Block, Word, lex_line
 from .tool_table import read_tool_table
@@ -33,7 +34,7 @@ BORING_CYCLES = (760, 850, 860, 870, 880, 890)  # the feed sets the finish of th
 _MODAL_GROUPS = {
     **{g: "motion" for g in _MOTION | {800}},
     170: "plane", 180: "plane", 190: "plane", 200: "units", 210: "units", 900: "distance", 910: "distance",
-    901: "arc distance", 911: "arc distance", 930: "feed mode", 940: "feed mode", 950: "feed mode",
+    901: "arc distance", 911: "arc distance", **dict.fromkeys(map(int, FeedMode), "feed mode"),
     **{g: "cutter comp" for g in (400, 410, 420, 411, 421)}, 430: "tool length", 431: "tool length",
     432: "tool length", 490: "tool length", 980: "retract", 990: "retract",
     **{g: "coordinate system" for g in (540, 550, 560, 570, 580, 590, 591, 592, 593)},
@@ -60,6 +61,10 @@ _TAKE_AXES = {100, 280, 300, 520, 920}  # non-modal codes whose axis words are n
 _M_GROUPS = {**dict.fromkeys((0, 1, 2, 30, 60), "stopping"), 6: "tool change", 61: "tool change",
              **dict.fromkeys((3, 4, 5, 19), "spindle"), **dict.fromkeys((7, 8, 9), "coolant"),
              **dict.fromkeys((48, 49, 50, 51, 52, 53), "override")}
+# M codes this reader knows (stops, tool change, spindle, coolant, overrides, I/O, modal state, ...): an
+# M code outside them and outside M100-M199 (user commands) is passed through with a note
+_M_KNOWN = frozenset((0, 1, 2, 30, 3, 4, 5, 6, 7, 8, 9, 29, 19, 48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65, 66, 67,
+                      68, 70, 71, 72, 73))
 _CHECKED = frozenset("DEHIJKLPQR")  # words a block may only carry when one of its codes reads them
 _WORD_USERS = {
     "D": "D only with G41/G42 (cutter radius compensation)", "E": "E only with M66/M67/M68",
@@ -74,6 +79,8 @@ _NO_CENTRE = (math.nan, math.nan, math.nan)
 _FAST = re.compile(r"[ \t]*(?:[Gg]0?([01])(?![0-9.])[ \t]*)?((?:[XYZFxyzf][ \t]*[-+]?(?:\d+\.?\d*|\.\d+)[ \t]*)+)")
 _FAST_WORD = re.compile(r"([XYZFxyzf])[ \t]*([-+]?(?:\d+\.?\d*|\.\d+))")
 _ROTARY = "ABCUVW"
+_FEED_MODES = tuple(FeedMode)
+_PER_MINUTE = FeedMode.PER_MINUTE  # the fast path's test, once a line: no enum attribute lookup
 
 
 @dataclass
@@ -145,9 +152,10 @@ class Program:
     """An interpreted program. Moves in mm in the program frame; `text` is the source, untouched.
 
     units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
-    when it ran (for writing it back): move_inch (G20), feed_mode (93/94/95), incremental (G91),
-    arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool centre, not the programmed path),
-    cycle (the canned cycle that ran it, its G code × 10: 810 for G81, 840 for G84; 0 for other moves).
+    when it ran (for writing it back): move_inch (G20), feed_mode (a `FeedMode` value, 930/940/950 for
+    G93/G94/G95), incremental (G91), arc_absolute (G90.1), compensated (G41/G42: the toolpath is the tool
+    centre, not the programmed path), cycle (the canned cycle that ran it, its G code × 10: 810 for G81,
+    840 for G84; 0 for other moves).
     notes: assumptions made (unknown home, rotary axes at zero, ...), each naming its line.
     """
 
@@ -222,6 +230,81 @@ class _Moves:
         return tp, i
 
 
+class _Codes:
+    """One block's codes and words as its steps read them (`Interpreter.execute`): the G codes (code × 10,
+    word) and their set, the M codes and their set, the other words by letter, the G word of each modal
+    group; then the axis words (after polar coordinates), whether a non-modal code used them, and the
+    block's motion code (G80 included), set by the steps that find them."""
+
+    __slots__ = ("block", "g", "gset", "mcodes", "mset", "val", "groups", "axis_words", "consumed_axes",
+                 "motion_code")
+
+    def __init__(self, block: Block) -> None:
+        self.block = block
+        self.g: list[tuple[int, Word]] = []
+        self.gset: set[int] = set()
+        self.mcodes: list[tuple[int, Word]] = []
+        self.mset: set[int] = set()
+        self.val: dict[str, Word] = {}
+        self.groups: dict[str, Word] = {}
+        self.axis_words: dict[str, Word] = {}
+        self.consumed_axes = False
+        self.motion_code: int | None = None
+
+
+class _StepTable:
+    """The steps of a block in order, each with what wakes it: G codes ("G93", "G59.1"), M codes ("M6"),
+    word letters ("S"), any G or any M code ("G*", "M*") or every block ("*"). A block runs the steps its
+    codes and words wake, in table order (`woken_by`); the others would do nothing. Iterating the table
+    gives all its steps."""
+
+    def __init__(self, *entries: tuple) -> None:
+        self.steps = tuple(step for step, _ in entries)
+        self.wakes = {step.__name__: wake.split() for step, wake in entries}
+        self.g: dict[int, int] = {}  # G code (× 10) -> bit mask of the steps it wakes
+        self.m: dict[int, int] = {}  # M code -> bit mask
+        self.words: dict[str, int] = {}  # word letter -> bit mask
+        self.every = self.any_g = self.any_m = 0
+        for i, (_, wake) in enumerate(entries):
+            bit = 1 << i
+            for token in wake.split():
+                if token == "*":
+                    self.every |= bit
+                elif token == "G*":
+                    self.any_g |= bit
+                elif token == "M*":
+                    self.any_m |= bit
+                elif token[0] == "G":
+                    code = round(float(token[1:]) * 10)
+                    self.g[code] = self.g.get(code, 0) | bit
+                elif token[0] == "M":
+                    self.m[int(token[1:])] = self.m.get(int(token[1:]), 0) | bit
+                else:
+                    self.words[token] = self.words.get(token, 0) | bit
+        self.plans: dict[int, tuple] = {}  # bit mask -> its steps, in order
+
+    def __iter__(self):
+        return iter(self.steps)
+
+    def woken_by(self, k: _Codes) -> tuple:
+        """The steps the block's codes and words wake, in table order."""
+        mask = self.every
+        if k.gset:
+            mask |= self.any_g
+            for code in k.gset:
+                mask |= self.g.get(code, 0)
+        if k.mset:
+            mask |= self.any_m
+            for code in k.mset:
+                mask |= self.m.get(code, 0)
+        for L in k.val:
+            mask |= self.words.get(L, 0)
+        plan = self.plans.get(mask)
+        if plan is None:
+            plan = self.plans[mask] = tuple(step for i, step in enumerate(self.steps) if mask >> i & 1)
+        return plan
+
+
 class Interpreter:
     """Runs blocks through the modal state. Use `read_program` / `read_text` rather than this directly."""
 
@@ -240,7 +323,7 @@ class Interpreter:
         self.plane = 0
         self.motion: int | None = None
         self.basic_motion: int | None = None  # last G0-G3 (Fanuc returns to it after G80)
-        self.feed_mode = 940
+        self.feed_mode = FeedMode.PER_MINUTE
         self.f = 0.0  # mm per minute (G94) or per rev (G95), as set; G93 uses the block's own F
         self.s = 0.0
         self.spindle_on = False
@@ -325,14 +408,14 @@ class Interpreter:
 
     def feed_rate(self, block: Block, length_mm: float) -> float:
         """Programmed feed of a move in mm/min from the modal F and feed mode."""
-        if self.feed_mode == 930:
+        if self.feed_mode == FeedMode.INVERSE_TIME:
             if self._f_this_block is None:
                 raise self.err("inverse-time feed mode (G93) needs an F word on every feed move", block, None,
                                "an F word on this line")
             return length_mm * self._f_this_block
         if self.f <= 0:
             raise self.err("feed move with no feed rate set", block, None, "an F word before or on this line")
-        if self.feed_mode == 950:
+        if self.feed_mode == FeedMode.PER_REV:
             if self.s <= 0:
                 raise self.err("feed per revolution (G95) with no spindle speed", block, None, "an S word")
             return self.f * self.s
@@ -431,7 +514,7 @@ class Interpreter:
         """The common block of CAM output — an optional G0/G1 then X/Y/Z/F words — without building
         words or touching numpy. Returns False (the general path runs) for anything else."""
         m = _FAST.fullmatch(raw)
-        if m is None or self.feed_mode != 940 or self.comp.active:
+        if m is None or self.feed_mode != _PER_MINUTE or self.comp.active:
             return False
         g, body = m.groups()
         motion = self.motion if g is None else (0 if g == "0" else 10)
@@ -497,91 +580,131 @@ class Interpreter:
         self._pos, self._xyz = value, None
 
     def execute(self, b: Block) -> None:
-        g: list[tuple[int, Word]] = []
-        mcodes: list[tuple[int, Word]] = []
-        val: dict[str, Word] = {}
-        groups: dict[str, Word] = {}
+        """Run one block as LinuxCNC does: its words sorted and checked (`block_codes`, `check_words`),
+        then the steps of `STEPS` in turn, in the order of execution of the LinuxCNC G-code overview
+        ("G-code overview: order of execution"; O words and comments are `run`'s). A step the block's
+        codes and words do not wake would do nothing and is not called (`_StepTable.woken_by`)."""
+        k = self.block_codes(b)
+        self.check_words(b, k.val, k.gset, k.mcodes)
+        for step in self.STEPS.woken_by(k):
+            step(self, k)
+
+    def block_codes(self, b: Block) -> _Codes:
+        """The block's words sorted: G codes, M codes and the other words by letter, each refused where
+        LinuxCNC refuses it (an unknown or unsupported G code, two codes of one modal group, a letter twice)."""
+        k = _Codes(b)
         for w in b.words:
             L = w.letter
             if L == "G":
-                code = int(round(w.value * 10))
-                if abs(w.value * 10 - code) > 1e-6:
-                    raise self.err(f"G{w.value:g} is not a G code", b, w, "a G code such as G1 or G90.1")
-                grp = _MODAL_GROUPS.get(code)
-                if code == 760 and self.dialect.g76_lathe:
-                    raise self.err(f"{_LATHE_G76} is not supported", b, w, "milling canned cycles (G73, G81-G89)")
-                if grp is None:
-                    if code in _UNSUPPORTED_G:
-                        what = _UNSUPPORTED_G[code]
-                        raise self.err(f"{what} is not supported", b, w,
-                                       "3-axis milling motion (G0-G3, canned cycles); this feature is out of scope")
-                    if code == 690:  # cancel rotation / tilted plane: nothing to cancel
-                        continue
-                    if code == 970:  # rpm mode (the only one supported)
-                        continue
-                    raise self.err(f"unknown G code G{w.value:g}", b, w, "a G code of RS-274 milling")
-                if grp == "motion" and "motion" in groups and 800 in (code, int(round(groups[grp].value * 10))):
-                    # LinuxCNC accepts G80 beside another motion code (as in "G00 G17 G40 G80"): the other wins
-                    if code == 800:
-                        continue
-                    g = [(c, x) for c, x in g if c != 800]
-                elif grp in groups and grp != "non-modal":
-                    raise self.err(f"two G codes from the {grp} group in one block", b, w,
-                                   f"at most one of the {grp} group (first was {groups[grp].text})")
-                if grp == "non-modal" and "non-modal" in groups and code not in (530,):
-                    if groups["non-modal"].value * 10 != 530:
-                        raise self.err("two non-modal G codes in one block", b, w, "one of G4, G10, G28, G30, G52, G92")
-                groups[grp if code != 530 else "g53"] = w
-                g.append((code, w))
+                self.add_g_code(k, w)
             elif L == "M":
-                if w.value < 0 or w.value != int(w.value):
-                    raise self.err("M code must be a non-negative integer", b, w, "M0 ... M199")
-                code = int(w.value)
-                grp = _M_GROUPS.get(code)
-                for other, x in mcodes:
-                    if grp is not None and _M_GROUPS.get(other) == grp:
-                        raise self.err(f"two M codes from the {grp} group in one block", b, w,
-                                       f"at most one of the {grp} group (first was {x.text.strip()})")
-                mcodes.append((code, w))
+                self.add_m_code(k, w)
             else:
-                if L in val:
+                if L in k.val:
                     raise self.err(f"word {L} appears twice in one block", b, w, f"one {L} word per block")
-                val[L] = w
-        gset = {c for c, _ in g}
-        self.check_words(b, val, gset, mcodes)
-        # 1. feed mode, F, S
-        for code in (930, 940, 950):
-            if code in gset:
-                self.feed_mode = code
+                k.val[L] = w
+        k.gset = {c for c, _ in k.g}
+        k.mset = {c for c, _ in k.mcodes}
+        return k
+
+    def add_g_code(self, k: _Codes, w: Word) -> None:
+        """A G word of the block: its code (× 10) checked and added to `k.g`, with its modal group's word."""
+        b, g, groups = k.block, k.g, k.groups
+        code = int(round(w.value * 10))
+        if abs(w.value * 10 - code) > 1e-6:
+            raise self.err(f"G{w.value:g} is not a G code", b, w, "a G code such as G1 or G90.1")
+        grp = _MODAL_GROUPS.get(code)
+        if code == 760 and self.dialect.g76_lathe:
+            raise self.err(f"{_LATHE_G76} is not supported", b, w, "milling canned cycles (G73, G81-G89)")
+        if grp is None:
+            if code in _UNSUPPORTED_G:
+                what = _UNSUPPORTED_G[code]
+                raise self.err(f"{what} is not supported", b, w,
+                               "3-axis milling motion (G0-G3, canned cycles); this feature is out of scope")
+            if code == 690:  # cancel rotation / tilted plane: nothing to cancel
+                return
+            if code == 970:  # rpm mode (the only one supported)
+                return
+            raise self.err(f"unknown G code G{w.value:g}", b, w, "a G code of RS-274 milling")
+        if grp == "motion" and "motion" in groups and 800 in (code, int(round(groups[grp].value * 10))):
+            # LinuxCNC accepts G80 beside another motion code (as in "G00 G17 G40 G80"): the other wins
+            if code == 800:
+                return
+            g[:] = [(c, x) for c, x in g if c != 800]
+        elif grp in groups and grp != "non-modal":
+            raise self.err(f"two G codes from the {grp} group in one block", b, w,
+                           f"at most one of the {grp} group (first was {groups[grp].text})")
+        if grp == "non-modal" and "non-modal" in groups and code not in (530,):
+            if groups["non-modal"].value * 10 != 530:
+                raise self.err("two non-modal G codes in one block", b, w, "one of G4, G10, G28, G30, G52, G92")
+        groups[grp if code != 530 else "g53"] = w
+        g.append((code, w))
+
+    def add_m_code(self, k: _Codes, w: Word) -> None:
+        """An M word of the block: a non-negative integer, at most one of each M group."""
+        if w.value < 0 or w.value != int(w.value):
+            raise self.err("M code must be a non-negative integer", k.block, w, "M0 ... M199")
+        code = int(w.value)
+        grp = _M_GROUPS.get(code)
+        for other, x in k.mcodes:
+            if grp is not None and _M_GROUPS.get(other) == grp:
+                raise self.err(f"two M codes from the {grp} group in one block", k.block, w,
+                               f"at most one of the {grp} group (first was {x.text.strip()})")
+        k.mcodes.append((code, w))
+
+    # --- the steps of a block (`STEPS`), in LinuxCNC's order of execution ----------------------
+    def set_feed_mode(self, k: _Codes) -> None:
+        """G93, G94, G95."""
+        for mode in _FEED_MODES:
+            if mode in k.gset:
+                self.feed_mode = mode
+
+    def set_feed_rate(self, k: _Codes) -> None:
+        """F, held in mm (per minute or per revolution) as set: a later G20/G21 does not change the
+        machine's feed. F on a line with G20/G21 is in the units before them where the dialect says so
+        (`Dialect.feed_before_units`: LinuxCNC sets F before the block's G20/G21, its order of execution),
+        else in the block's units."""
+        b, val = k.block, k.val
         self._f_this_block = val["F"].value if "F" in val else None
-        if "F" in val:
-            if val["F"].value < 0:
-                raise self.err("negative feed rate", b, val["F"], "F >= 0")
-            # held in mm (per min or per rev) as set: a later G20/G21 does not change the machine's feed. LinuxCNC
-            # sets F before the block's G20/G21 (its order of execution), so F is in the units before them
-            scale = self.scale if self.dialect.feed_before_units else self.pending_scale(b)
-            if scale != self.pending_scale(b) and self.feed_mode != 930:
-                was, new = ("mm", "inch") if scale == 1.0 else ("inch", "mm")
-                self.notes.append(f"warning: line {b.line}: F{val['F'].value:g} shares its line with the change to {new}: read "
-                                  f"in {was} per minute, the units before it, as {self.dialect.name} does; write F on a "
-                                  f"line after the G{20 if new == 'inch' else 21} if {new} per minute was meant")
-            self.f = val["F"].value * (1.0 if self.feed_mode == 930 else scale)
-        if "S" in val:
-            if val["S"].value < 0:
-                raise self.err("negative spindle speed", b, val["S"], "S >= 0")
-            self.s = val["S"].value
-            self.event(b.line, "s_word", self.s)  # the speed set, spindle on or off (a hand-switched one)
-        # T select, M6 change, spindle, coolant
-        if "T" in val:
-            if val["T"].value < 0 or val["T"].value != int(val["T"].value):
-                raise self.err("tool number must be a non-negative integer", b, val["T"], "T followed by an integer")
-            self.selected = int(val["T"].value)
+        if "F" not in val:
+            return
+        if val["F"].value < 0:
+            raise self.err("negative feed rate", b, val["F"], "F >= 0")
+        scale = self.scale if self.dialect.feed_before_units else self.pending_scale(b)
+        if scale != self.pending_scale(b) and self.feed_mode != FeedMode.INVERSE_TIME:
+            was, new = ("mm", "inch") if scale == 1.0 else ("inch", "mm")
+            self.notes.append(f"warning: line {b.line}: F{val['F'].value:g} shares its line with the change to {new}: read "
+                              f"in {was} per minute, the units before it, as {self.dialect.name} does; write F on a "
+                              f"line after the G{20 if new == 'inch' else 21} if {new} per minute was meant")
+        self.f = val["F"].value * (1.0 if self.feed_mode == FeedMode.INVERSE_TIME else scale)
+
+    def set_spindle_speed(self, k: _Codes) -> None:
+        """S: the speed set, spindle on or off (an event: a hand-switched spindle takes it too)."""
+        if "S" in k.val:
+            s = k.val["S"]
+            if s.value < 0:
+                raise self.err("negative spindle speed", k.block, s, "S >= 0")
+            self.s = s.value
+            self.event(k.block.line, "s_word", self.s)
+
+    def select_tool(self, k: _Codes) -> None:
+        """T: the tool selected (M6 changes it in); it replaces a tool that was only assumed loaded."""
+        if "T" in k.val:
+            t = k.val["T"]
+            if t.value < 0 or t.value != int(t.value):
+                raise self.err("tool number must be a non-negative integer", k.block, t, "T followed by an integer")
+            self.selected = int(t.value)
             if self.assumed_tool:  # the job's tool was only assumed: the program's own choice replaces it
                 self.drop_assumed_tool()
-        mset = {c for c, _ in mcodes}
-        self.comp.check("M", mset)
-        for code, w in mcodes:
-            if code == 98:  # Fanuc-style subprogram call, run after the rest of the block
+
+    def other_m_codes(self, k: _Codes) -> None:
+        """The block's M codes checked against cutter compensation; M98 (a Fanuc-style subprogram call)
+        and M99 held to run after the rest of the block (`run`); M codes that move nothing and millpost
+        does not model passed through (an event and a note)."""
+        b, val = k.block, k.val
+        self.comp.check("M", k.mset)
+        for code, w in k.mcodes:
+            if code == 98:
                 p = val.get("P")
                 if p is None or p.value < 0 or p.value != int(p.value):
                     raise self.err("M98 needs the subprogram number", b, w, "M98 P<number> [L<repeats>]")
@@ -591,81 +714,124 @@ class Interpreter:
                 self.subprogram = ("call", str(int(p.value)), 1 if reps is None else int(reps.value))
             elif code == 99:
                 self.subprogram = ("return", "", 0)
-            elif code not in (0, 1, 2, 30, 3, 4, 5, 6, 7, 8, 9, 29, 19, 48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65,
-                              66, 67, 68, 70, 71, 72, 73) and not 100 <= code <= 199:
+            elif code not in _M_KNOWN and not 100 <= code <= 199:
                 self.event(b.line, "m_code", code)
                 self.notes.append(f"line {b.line}: M{code} passed through (no motion)")
-        if 6 in mset:
-            tool = self.selected if self.selected >= 0 else (int(val["T"].value) if "T" in val else -1)
+
+    def change_tool(self, k: _Codes) -> None:
+        """M6: the selected tool (or the block's T) goes into the spindle."""
+        if 6 in k.mset:
+            tool = self.selected if self.selected >= 0 else (int(k.val["T"].value) if "T" in k.val else -1)
             self.tool, self.assumed_tool = tool, False
-            self.event(b.line, "tool_change", tool)
+            self.event(k.block.line, "tool_change", tool)
+
+    def switch_spindle(self, k: _Codes) -> None:
+        """M3, M4, M5; an S word alone changes the speed of a running spindle."""
+        mset = k.mset
         for code in (3, 4, 5):
             if code in mset:
                 self.spindle_on = code != 5
-                self.event(b.line, "spindle", ("cw" if code == 3 else "ccw" if code == 4 else "off",
-                                                              self.s if code != 5 else 0.0))
-        if "S" in val and self.spindle_on and not mset & {3, 4, 5}:
-            self.event(b.line, "spindle", ("speed", self.s))
+                self.event(k.block.line, "spindle", ("cw" if code == 3 else "ccw" if code == 4 else "off",
+                                                     self.s if code != 5 else 0.0))
+        if "S" in k.val and self.spindle_on and not mset & {3, 4, 5}:
+            self.event(k.block.line, "spindle", ("speed", self.s))
+
+    def switch_coolant(self, k: _Codes) -> None:
+        """M7, M8, M9."""
         for code in (7, 8, 9):
-            if code in mset:
-                self.event(b.line, "coolant", {7: "mist", 8: "flood", 9: "off"}[code])
-        # dwell
-        if 40 in gset:
+            if code in k.mset:
+                self.event(k.block.line, "coolant", {7: "mist", 8: "flood", 9: "off"}[code])
+
+    def dwell(self, k: _Codes) -> None:
+        """G4 P (seconds, or milliseconds in a Fanuc dialect; X or U on some controls)."""
+        if 40 in k.gset:
+            b, val = k.block, k.val
             p = val.get("P") or val.get("X") or val.get("U")
             if p is None or p.value < 0:
                 raise self.err("dwell G4 needs a non-negative P (seconds; Fanuc: milliseconds)", b,
-                               groups.get("non-modal"), "G4 P<time>")
+                               k.groups.get("non-modal"), "G4 P<time>")
             secs = self.dialect.dwell_s(p.value, decimal_point="." in p.text) if p.letter == "P" else p.value
             self.dwell_s += secs
             self.event(b.line, "dwell", secs)
-        # plane, units
+
+    def set_plane(self, k: _Codes) -> None:
+        """G17, G18, G19."""
         for code, plane in ((170, 0), (180, 1), (190, 2)):
-            if code in gset:
+            if code in k.gset:
                 self.comp.check_plane(plane)
                 self.plane = plane
+
+    def set_units(self, k: _Codes) -> None:
+        """G20, G21."""
         for code, scale, name in ((200, INCH, "inch"), (210, 1.0, "mm")):
-            if code in gset:
+            if code in k.gset:
                 self.scale = scale
                 if name not in self.units_seen:
                     self.units_seen.append(name)
-        if gset & {400, 410, 420, 411, 421}:
-            self.cutter_comp(gset, b, val)
-        self.comp.check("G", gset)
-        if gset & {430, 431, 432, 490}:
-            self.tool_length(gset, b, val)
-        # coordinate system
+
+    def radius_compensation(self, k: _Codes) -> None:
+        """G40, G41, G42 (and .1); then the block's G codes checked against the compensation in effect."""
+        if k.gset & {400, 410, 420, 411, 421}:
+            self.cutter_comp(k.gset, k.block, k.val)
+        self.comp.check("G", k.gset)
+
+    def length_compensation(self, k: _Codes) -> None:
+        """G43, G43.1, G43.2, G49."""
+        if k.gset & {430, 431, 432, 490}:
+            self.tool_length(k.gset, k.block, k.val)
+
+    def select_coordinate_system(self, k: _Codes) -> None:
+        """G54 ... G59.3."""
         for code, idx in ((540, 1), (550, 2), (560, 3), (570, 4), (580, 5), (590, 6), (591, 7), (592, 8), (593, 9)):
-            if code in gset:
+            if code in k.gset:
                 self.set_offsets(lambda: setattr(self, "cs", idx))
-                self.event(b.line, "work_offset", idx)
+                self.event(k.block.line, "work_offset", idx)
+
+    def set_path_mode(self, k: _Codes) -> None:
+        """G61, G61.1, G64 (P and Q, its tolerances): an event for the controller model."""
+        for code, name in ((610, "exact path"), (611, "exact stop"), (640, "blend")):
+            if code in k.gset:
+                p, q = ((k.val[L].value if L in k.val and code == 640 else None) for L in "PQ")
+                self.event(k.block.line, "path_mode", (name, p, q))
+
+    def set_distance_modes(self, k: _Codes) -> None:
+        """G90, G91 (axes) and G90.1, G91.1 (arc centres)."""
         for code in (900, 910):
-            if code in gset:
+            if code in k.gset:
                 self.absolute = code == 900
         for code in (901, 911):
-            if code in gset:
+            if code in k.gset:
                 self.arc_absolute = code == 901
+
+    def set_retract_mode(self, k: _Codes) -> None:
+        """G98, G99 (canned cycles)."""
         for code in (980, 990):
-            if code in gset:
+            if code in k.gset:
                 self.retract_old_z = code == 980
-        for code, name in ((610, "exact path"), (611, "exact stop"), (640, "blend")):
-            if code in gset:
-                p, q = ((val[L].value if L in val and code == 640 else None) for L in "PQ")
-                self.event(b.line, "path_mode", (name, p, q))
+
+    def read_axis_words(self, k: _Codes) -> None:
+        """The block's X/Y/Z words, polar coordinates (@ ^) first turned into X/Y; rotary and extra axis
+        words checked (kept at zero)."""
+        b, val = k.block, k.val
         if "@" in val or "^" in val:
-            block_motion = next((c for c in gset if c in _MOTION), self.motion)
+            block_motion = next((c for c in k.gset if c in _MOTION), self.motion)
             self.polar_words(b, val, block_motion in _CYCLES)
-        axis_words = {L: val[L] for L in _AXES if L in val}
+        k.axis_words = {L: val[L] for L in _AXES if L in val}
         self.check_rotary(b, val)
-        # non-modal: G10, G28/30, G52, G92, G53
-        nonmodal = [c for c in gset if _MODAL_GROUPS.get(c) == "non-modal" and c not in (40, 530)]
-        consumed_axes = False
+
+    def offsets_and_homes(self, k: _Codes) -> None:
+        """G10, G28/G30 (and .1), G52, G92 (and .1-.3): the block's non-modal codes but G4 and G53, noting
+        whether one used the axis words (then they are not a move)."""
+        nonmodal = [c for c in k.gset if _MODAL_GROUPS.get(c) == "non-modal" and c not in (40, 530)]
         for code in nonmodal:
-            consumed_axes = self.non_modal(code, b, val, axis_words) or consumed_axes
-        # motion
-        motion_code = next((c for c in gset if c in _MOTION or c == 800), None)
+            k.consumed_axes = self.non_modal(code, k.block, k.val, k.axis_words) or k.consumed_axes
+
+    def set_motion_mode(self, k: _Codes) -> None:
+        """G80 (cancel), G0-G3, canned cycles: the motion mode the block's axis words run in."""
+        k.motion_code = motion_code = next((c for c in k.gset if c in _MOTION or c == 800), None)
         if motion_code == 800:
-            if axis_words and not consumed_axes:
-                raise self.err("axis words with G80", b, next(iter(axis_words.values())),
+            if k.axis_words and not k.consumed_axes:
+                raise self.err("axis words with G80", k.block, next(iter(k.axis_words.values())),
                                "no axis words on a G80 line, or a G0/G1 word to move")
             self.motion = self.basic_motion if self.dialect.g80_keeps_motion else None
             self.cycle_il = None
@@ -676,29 +842,64 @@ class Interpreter:
                 self.cycle_il = None
                 self.basic_motion = motion_code
             self.motion = motion_code
-        # LinuxCNC moves (zero length) on a bare G0/G1 too, so the trace has a move for every motion word
-        if not consumed_axes and (axis_words or motion_code in (0, 10, 20, 30) or motion_code in _CYCLES):
-            if self.motion is None:
-                raise self.err("axis words with no motion mode in effect", b, next(iter(axis_words.values())),
-                               "a G0, G1, G2 or G3 word (after G80, the motion mode must be given again)")
-            g53 = 530 in gset
-            if self.motion in _CYCLES:
-                first = len(self.m)
-                self.canned_cycle(b, val, axis_words)
-                self.cycle_runs.append((first, len(self.m), self.motion))
-            elif self.motion in (20, 30):
-                self.arc(b, val, axis_words)
-            else:
-                self.straight(b, val, axis_words, g53)
-        # stops
-        for code, w in mcodes:
+
+    def move(self, k: _Codes) -> None:
+        """The motion of the block, as modified by G53: a straight move, an arc or a canned cycle. LinuxCNC
+        moves (zero length) on a bare G0/G1 too, so the trace has a move for every motion word."""
+        motion_code = k.motion_code
+        if k.consumed_axes or not (k.axis_words or motion_code in (0, 10, 20, 30) or motion_code in _CYCLES):
+            return
+        b, val, axis_words = k.block, k.val, k.axis_words
+        if self.motion is None:
+            raise self.err("axis words with no motion mode in effect", b, next(iter(axis_words.values())),
+                           "a G0, G1, G2 or G3 word (after G80, the motion mode must be given again)")
+        if self.motion in _CYCLES:
+            first = len(self.m)
+            self.canned_cycle(b, val, axis_words)
+            self.cycle_runs.append((first, len(self.m), self.motion))
+        elif self.motion in (20, 30):
+            self.arc(b, val, axis_words)
+        else:
+            self.straight(b, val, axis_words, 530 in k.gset)
+
+    def stop(self, k: _Codes) -> None:
+        """M0, M1, M60 (pause) and M2, M30 (end): cutter compensation ends its held move first."""
+        for code, _ in k.mcodes:
             if code in (0, 1, 60):
                 self.comp.stop(end_program=False)
-                self.event(b.line, "stop", code)
+                self.event(k.block.line, "stop", code)
             elif code in (2, 30):
                 self.comp.stop(end_program=True)
-                self.event(b.line, "end", code)
+                self.event(k.block.line, "end", code)
                 self.ended = True
+
+    # LinuxCNC G-code overview, "order of execution": a block's steps in that order (items 1 and 2, O words
+    # and comments, are `run`'s; M codes that move nothing stand at item 7, HAL pin I/O), each with the
+    # codes and words that wake it ("*": every block; "G*", "M*": any G or M code)
+    STEPS = _StepTable(
+        (set_feed_mode, "G93 G94 G95"),
+        (set_feed_rate, "*"),  # also forgets the last block's F (inverse time needs one on every move)
+        (set_spindle_speed, "S"),
+        (select_tool, "T"),
+        (other_m_codes, "M*"),
+        (change_tool, "M6"),
+        (switch_spindle, "M3 M4 M5 S"),
+        (switch_coolant, "M7 M8 M9"),
+        (dwell, "G4"),
+        (set_plane, "G17 G18 G19"),
+        (set_units, "G20 G21"),
+        (radius_compensation, "G*"),  # G40-G42, then every G code checked against compensation on
+        (length_compensation, "G43 G43.1 G43.2 G49"),
+        (select_coordinate_system, "G54 G55 G56 G57 G58 G59 G59.1 G59.2 G59.3"),
+        (set_path_mode, "G61 G61.1 G64"),
+        (set_distance_modes, "G90 G91 G90.1 G91.1"),
+        (set_retract_mode, "G98 G99"),
+        (read_axis_words, "*"),
+        (offsets_and_homes, "G10 G28 G28.1 G30 G30.1 G52 G92 G92.1 G92.2 G92.3"),
+        (set_motion_mode, "G0 G1 G2 G3 G73 G74 G76 G80 G81 G82 G83 G84 G85 G86 G87 G88 G89"),
+        (move, "*"),  # the motion mode in effect moves on axis words
+        (stop, "M0 M1 M2 M30 M60"),
+    )
 
     def check_words(self, b: Block, val: dict, gset: set, mcodes: list) -> None:
         """Refuse a word that nothing in its block uses, as LinuxCNC 2.9 does (its check_other_codes):
@@ -867,84 +1068,101 @@ class Interpreter:
         return t
 
     def non_modal(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
-        """G10, G28/G28.1, G30/G30.1, G52, G92 family. Returns True if the axis words were used."""
-        if code == 100:
-            L = val.get("L")
-            if L is None:
-                raise self.err("G10 without an L word", b, None, "G10 L1/L10/L11 (tool table) or L2/L20 (offsets)")
-            lv = int(L.value)
-            if lv in (1, 10, 11):
-                self.event(b.line, "tool_table", lv)
-                return True
-            if lv in (2, 20):
-                p = int(val["P"].value) if "P" in val else 0
-                idx = self.cs if p == 0 else p
-                if not 1 <= idx <= 9:
-                    raise self.err("G10 P must select a coordinate system 0..9", b, val.get("P"), "P0..P9")
-                self.comp.check_offsets(idx, self.cs)
-                if "R" in val and val["R"].value != 0:
-                    raise self.err("coordinate system rotation (G10 R) is not supported", b, val["R"], "R0 or no R")
+        """G10, G28/G28.1, G30/G30.1, G52, G92 family (`NON_MODAL`). Returns True if the axis words were used."""
+        return self.NON_MODAL[code](self, code, b, val, axis_words)
 
-                def change() -> None:
-                    cur = self.g5x.get(idx, np.zeros(3)).copy()
-                    for Lt, w in axis_words.items():
-                        i = _AXES.index(Lt)
-                        if lv == 2:
-                            cur[i] = w.value * self.scale
-                        else:  # L20: set so the current point has the given coordinate
-                            machine = self.pos[i] + self.offset()[i]
-                            cur[i] = machine - self.g92[i] - w.value * self.scale
-                    self.g5x[idx] = cur
-                self.set_offsets(change)
-                return True
-            raise self.err(f"G10 L{lv} is not supported", b, L, "G10 L1, L2, L10, L11 or L20")
-        if code in (280, 300):
-            home_opt = self.opt.home_g28_mm if code == 280 else self.opt.home_g30_mm
-            if axis_words:
-                mid = self.target(axis_words)
-                self.emit(RAPID, mid, b)
-            axes = [_AXES.index(L) for L in axis_words] or [0, 1, 2]
-            end = self.pos.copy()
-            if home_opt is not None:
-                home = np.array(home_opt, float) - self.offset()
-                end[axes] = home[axes]
-            else:
-                if 2 in axes:
-                    end[2] = math.nan
-                    self.safe_z_pending = True
-                self.notes.append(f"line {b.line}: G{code // 10} home position unknown: Z retracts to the safe "
-                                  "height (highest Z of the program), X/Y stay (assumed)")
-            self.emit(RAPID, end, b)
+    def set_data(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G10: L1/L10/L11 (tool table: an event) or L2/L20 (a coordinate system's offsets)."""
+        L = val.get("L")
+        if L is None:
+            raise self.err("G10 without an L word", b, None, "G10 L1/L10/L11 (tool table) or L2/L20 (offsets)")
+        lv = int(L.value)
+        if lv in (1, 10, 11):
+            self.event(b.line, "tool_table", lv)
             return True
-        if code in (281, 301):
-            return False
-        if code in (920, 520):
-            if not axis_words:
-                if code == 520:
-                    return True
-                raise self.err("G92 without axis words", b, None, "G92 with at least one of X, Y, Z")
+        if lv in (2, 20):
+            p = int(val["P"].value) if "P" in val else 0
+            idx = self.cs if p == 0 else p
+            if not 1 <= idx <= 9:
+                raise self.err("G10 P must select a coordinate system 0..9", b, val.get("P"), "P0..P9")
+            self.comp.check_offsets(idx, self.cs)
+            if "R" in val and val["R"].value != 0:
+                raise self.err("coordinate system rotation (G10 R) is not supported", b, val["R"], "R0 or no R")
 
             def change() -> None:
-                for L, w in axis_words.items():
-                    i = _AXES.index(L)
-                    if code == 920:  # current point gets the given coordinate
+                cur = self.g5x.get(idx, np.zeros(3)).copy()
+                for Lt, w in axis_words.items():
+                    i = _AXES.index(Lt)
+                    if lv == 2:
+                        cur[i] = w.value * self.scale
+                    else:  # L20: set so the current point has the given coordinate
                         machine = self.pos[i] + self.offset()[i]
-                        self.g92[i] = machine - self.g5x.get(self.cs, np.zeros(3))[i] - w.value * self.scale
-                    else:  # G52: local offset = the value
-                        self.g92[i] = w.value * self.scale
+                        cur[i] = machine - self.g92[i] - w.value * self.scale
+                self.g5x[idx] = cur
             self.set_offsets(change)
             return True
-        if code == 921 or code == 922:
-            def clear() -> None:
-                if code == 922:
-                    self.g92_saved = self.g92.copy()
-                self.g92 = np.zeros(3)
-            self.set_offsets(clear)
-            return False
-        if code == 923:
-            self.set_offsets(lambda: setattr(self, "g92", self.g92_saved.copy()))
-            return False
+        raise self.err(f"G10 L{lv} is not supported", b, L, "G10 L1, L2, L10, L11 or L20")
+
+    def go_home(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G28, G30: a rapid through the axis words' point (if any) to the home of those axes (all without
+        axis words); an unknown home retracts Z to the safe height and leaves X/Y (noted)."""
+        home_opt = self.opt.home_g28_mm if code == 280 else self.opt.home_g30_mm
+        if axis_words:
+            mid = self.target(axis_words)
+            self.emit(RAPID, mid, b)
+        axes = [_AXES.index(L) for L in axis_words] or [0, 1, 2]
+        end = self.pos.copy()
+        if home_opt is not None:
+            home = np.array(home_opt, float) - self.offset()
+            end[axes] = home[axes]
+        else:
+            if 2 in axes:
+                end[2] = math.nan
+                self.safe_z_pending = True
+            self.notes.append(f"line {b.line}: G{code // 10} home position unknown: Z retracts to the safe "
+                              "height (highest Z of the program), X/Y stay (assumed)")
+        self.emit(RAPID, end, b)
+        return True
+
+    def set_home(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G28.1, G30.1: store the current point as home (the machine's business: nothing to model)."""
         return False
+
+    def set_axis_offsets(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G92 (the current point gets the given coordinates), G52 (a local offset of the given values)."""
+        if not axis_words:
+            if code == 520:
+                return True
+            raise self.err("G92 without axis words", b, None, "G92 with at least one of X, Y, Z")
+
+        def change() -> None:
+            for L, w in axis_words.items():
+                i = _AXES.index(L)
+                if code == 920:  # current point gets the given coordinate
+                    machine = self.pos[i] + self.offset()[i]
+                    self.g92[i] = machine - self.g5x.get(self.cs, np.zeros(3))[i] - w.value * self.scale
+                else:  # G52: local offset = the value
+                    self.g92[i] = w.value * self.scale
+        self.set_offsets(change)
+        return True
+
+    def clear_axis_offsets(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G92.1, G92.2: the G92/G52 offsets to zero (G92.2 keeps them for G92.3)."""
+        def clear() -> None:
+            if code == 922:
+                self.g92_saved = self.g92.copy()
+            self.g92 = np.zeros(3)
+        self.set_offsets(clear)
+        return False
+
+    def restore_axis_offsets(self, code: int, b: Block, val: dict, axis_words: dict) -> bool:
+        """G92.3: the offsets G92.2 kept."""
+        self.set_offsets(lambda: setattr(self, "g92", self.g92_saved.copy()))
+        return False
+
+    # the non-modal codes of LinuxCNC's order of execution item 23 (G4 and G53 are steps of their own)
+    NON_MODAL = {100: set_data, 280: go_home, 300: go_home, 281: set_home, 301: set_home, 920: set_axis_offsets,
+                 520: set_axis_offsets, 921: clear_axis_offsets, 922: clear_axis_offsets, 923: restore_axis_offsets}
 
     def straight(self, b: Block, val: dict, axis_words: dict, g53: bool) -> None:
         if g53:
