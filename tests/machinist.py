@@ -6,8 +6,8 @@
 - `descent_excess`: feed moves going down whose end lies below the stock's top with an F above
   `raise_max` × their programmed F (a restart from a later line, a skipped operation or a broken tool
   makes any of them a plunge into solid material);
-- `approach_excess`: feed moves going down that end within the clearance above the stock's top (the
-  entry from a CAM's feed height) with an F above the programmed one.
+- `approach_excess`: pieces of feed moves going down through the clearance above the stock's top (the
+  entry from a CAM's feed height, the air part of a plunge) with an F above the programmed one.
 
 Each returns "line N: ..." strings, empty when all is well. Moves are matched between the programs by
 `emit.pieces_of_moves` (a split move's pieces belong to their original move)."""
@@ -73,9 +73,10 @@ def approach_excess(original: Toolpath, emitted: Toolpath, top_mm: float, cleara
     out = []
     for i in np.flatnonzero(_descending(original)):
         for k in range(first[i], first[i + 1]):
-            z, xy = emitted.end[k, 2], emitted.end[k, :2]
+            z, z0, xy = emitted.end[k, 2], emitted.start[k, 2], emitted.end[k, :2]
             over = bool(np.all(xy >= xy_box[0]) and np.all(xy <= xy_box[1]))
-            if over and emitted.end[k, 2] < emitted.start[k, 2] - 1e-6 and top_mm - 1e-6 <= z < top_mm + clearance_mm:
+            # a piece going down through any of the zone (an entry from the feed height into the cut too)
+            if over and z < z0 - 1e-6 and z < top_mm + clearance_mm and z0 > top_mm + 1e-6:
                 if emitted.feed_mm_min[k] > original.feed_mm_min[i] + _rounding(inch):
                     out.append(f"line {original.line[i]}: an approach to Z{z:.3f} within {clearance_mm:g} mm over "
                                f"the top at F{emitted.feed_mm_min[k]:.1f}, programmed F{original.feed_mm_min[i]:.1f}")

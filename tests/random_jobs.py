@@ -129,7 +129,7 @@ def random_job(rng: np.random.Generator) -> tuple[Job, str]:
               material=_builtin(Material, str(rng.choice(MATERIALS))),
               machine=_builtin(Machine, str(rng.choice(MACHINES))), tools={1: random_tool(rng)},
               stock_box=((-50.0, -50.0, -10.0), (50.0, 50.0, 0.0)), limits=limits,
-              allow=frozenset({"slower"}))  # random cuts are often too heavy: the schedule, not the refusal, is tested
+              allow=frozenset({"slower", "overload"}))  # random cuts are often too heavy: the schedule, not the refusal, is tested
     return job, random_program(rng)
 
 

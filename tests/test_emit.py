@@ -452,3 +452,12 @@ def test_a_one_word_line_takes_the_programs_usual_spacing():
     plan = FeedPlan.programmed(prog)
     plan.feed_mm_min[int(np.flatnonzero(prog.toolpath.line == 6)[0])] = 1200.0
     assert write_feeds(prog, plan).splitlines()[5] == "Y98.4F1200"
+
+
+def test_a_lines_own_f_that_the_new_f_before_it_already_set_is_not_repeated():
+    """Newfangled's circular pocket plunges `G01 Z-1 F50` then cuts `G2 ... F100`: the plunge raised to
+    F100 makes the arc's own F100 a repeat of the F in force: it goes, the arc's bytes otherwise kept."""
+    prog = read_text("G21 G90 G17\nG0 X0 Y0 Z2\nG01 Z-1 F50\nG02 X10 Y0 I5 J0 F100\nM2\n")
+    plan = FeedPlan.programmed(prog)
+    plan.feed_mm_min[int(np.flatnonzero(prog.toolpath.line == 3)[0])] = 100.0
+    assert write_feeds(prog, plan).splitlines()[2:4] == ["G01 Z-1 F100", "G02 X10 Y0 I5 J0"]

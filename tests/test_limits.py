@@ -34,7 +34,7 @@ def _job(lower: str, material: str = "al6061", **extra) -> tuple[Job, str]:
     job = Job(path=Path("t/job.toml"), program=Path("t/p.nc"), output=Path("t/o.nc"),
               material=Material.load(material), machine=Machine.load("vmc-small"), tools={1: tool},
               stock_box=((-5.0, -5.0, -20.0), (80.0, 5.0, 0.0)), limits=limits,
-              allow=frozenset({"slower"}))  # deliberately heavy cuts: the policy, not the refusal, is tested
+              allow=frozenset({"slower", "overload"}))  # deliberately heavy cuts: the policy, not the refusal, is tested
     lines = ["G21 G90 G94", "T1 M6", "S8000 M3", "G0 X0 Y0 Z1", f"G1 Z0 F{PROGRAMMED:g}"]
     lines += [f"X{10 * (k + 1)}" for k in range(len(DEPTHS))] + ["G0 Z5", "M30"]
     return job, "\n".join(lines) + "\n"

@@ -112,5 +112,8 @@ def test_a_spindle_too_weak_is_refused_and_nothing_written(tmp_path, capsys):
     err = capsys.readouterr().err
     assert not out.exists()
     assert "slower_max" in err and "T1 power up to" in err and "--allow slower" in err
-    assert main(["optimize", str(folder), "-o", str(out), "--quiet", "--allow", "slower"]) == 0
+    # within its power the cuts are still over it at the lowest feed written (2.04x): refused again
+    assert main(["optimize", str(folder), "-o", str(out), "--quiet", "--allow", "slower"]) == 2
+    assert "even at the lowest feed" in capsys.readouterr().err and not out.exists()
+    assert main(["optimize", str(folder), "-o", str(out), "--quiet", "--allow", "slower", "--allow", "overload"]) == 0
     assert out.exists()

@@ -68,7 +68,7 @@ def run(request):
     job.machine = Machine.load(name)
     if kind:
         job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
-    job.allow = job.allow | {"slower"}  # the refusal is checked from its warning (the other checks need the output)
+    job.allow = job.allow | {"slower", "overload"}  # refusals are checked from their warnings (the other checks need the output)
     try:
         result = optimize(job, progress=False)
     except MillpostError as exc:  # a feature the reader does not support yet, or a cutter-compensation
@@ -101,6 +101,8 @@ def test_solved_and_not_slower_without_cause(run):
     loads = ("cutting_force", "power", "torque", "thrust", "tool_torque", "cutting_current")
     over_load = any(s["limits_programmed"].get(k, 0.0) > 1.0 for k in loads)
     assert any(n.startswith("warning (slower, allowed)") for n in s["notes"]) == (slow and over_load), name
+    # a cut over a hard limit even at the lowest feed written: refused too (gate overload)
+    assert any(n.startswith("warning (overload, allowed)") for n in s["notes"]) == bool(s["hard_limits_exceeded"])
 
 
 def test_what_a_machinist_checks_descents_approaches_and_axis_rates(run):

@@ -190,8 +190,8 @@ def _program_trailing_point(program: Program) -> bool:
 
 def _f_decimals(program: Program) -> int | None:
     """The program's own way of writing F (comments aside): a fixed count of decimals where every F word
-    has that many and some end in a zero (FreeCAD's F400.000: padded), else None (as many as the value
-    needs, 0.1 mm/min or 0.01 in/min)."""
+    has that many and some end in a zero (FreeCAD's F400.000, a post's F5.0: padded), else None (as many
+    as the value needs, 0.1 mm/min or 0.01 in/min; whole-number programs too: F2082.8 is not F2082)."""
     found = re.findall(r"[Ff]\s*[-+]?\d*(?:\.(\d*))?(?![\d#\[])", re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text))
     counts = {len(frac) for frac in found}
     if len(counts) != 1 or not any(frac.endswith("0") for frac in found):
@@ -446,7 +446,10 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
             else:
                 out.append(writer.replace({"F": f_text(value)}) + ending)
             continue
-        if f_word is not None and _same(f_word.value, value):
+        if (f_word is not None and _same(f_word.value, value) and modal_f is not None and _same(modal_f, value)
+                and not repeats and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME):
+            out.append(writer.replace({}, drop={"F"}) + ending)  # its own F is now the F in force: no repeat
+        elif f_word is not None and _same(f_word.value, value):
             out.append(raw)  # the program's own F still holds: keep its bytes
         elif (f_word is None and modal_f is not None and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME
               and (_same(modal_f, value) or _same(modal_f, float(feed_text(k, feed_k, lengths[k], modal_f))))):

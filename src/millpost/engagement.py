@@ -56,8 +56,9 @@ class Engagement:
     tops' range per block of ~0.5 mm: it errs towards near, by up to a block's diagonal.
     below_top (N,) bool: a feed sample whose tool tip is below the top of the stock as loaded within the
     tool's radius (from the original tops' highest per block of ~0.5 mm: errs towards below by up to a
-    block's width beside the stock): where a move there cuts nothing, it is in space the program cut
-    before, which a restart from a later line, a skipped operation or a broken tool leaves uncut.
+    block's width beside the stock), or that goes down below the stock's highest top anywhere: where a
+    move there cuts nothing, it is in space the program cut before (or beside the stock as modelled),
+    which a restart from a later line, a skipped operation or a broken tool leaves uncut.
     edge_ratio (N,): the feed at the cutting edge over the feed of the tool centre (1 on straight moves;
     `edge_feed_ratio`): the flank's chip and loads are those of the centre's feed per tooth times it.
     swept_air (N,) bool: a near_stock sample that is known air all the same: its step, and the next
@@ -146,6 +147,7 @@ class Engagement:
 
 _PER_SLICE = ("phi_st", "phi_ex", "dz_mm", "z_mm", "r_mm", "kappa")
 END_BINS = 8  # radial bins of the tool's end (Engagement.end_engaged)
+EDGE_RATIO_MAX = 5.0  # the edge's feed over the centre's at most: (ρ + R)/ρ at ρ = R/4 (`edge_feed_ratio`)
 KAPPA_ROWS = 4096  # samples per chunk of the κ computation (its temporaries: ~0.5 MB each at K = 8)
 
 
@@ -242,7 +244,10 @@ def edge_feed_ratio(phi_st: np.ndarray, phi_ex: np.ndarray, r_mm: np.ndarray, ta
     from φ = π/2, where the edge meets the wall; on a slot the farther of the two from O), in the feed
     frame of Altintas (x the feed, y to its left, φ clockwise from +y: p = r(sin φ, cos φ)); O lies at
     y_O = ±ρ (left on a left turn), ρ the `path_radius` (an arc in a vertical plane does not curve the
-    horizontal feed: 1). The largest ratio over the slices; 1 where nothing cuts."""
+    horizontal feed: 1). The largest ratio over the slices; 1 where nothing cuts. On an orbit tighter
+    than a quarter of the tool's radius (a helical bore barely larger than the tool) the rule grows
+    without bound (r_e/ρ → ∞ as ρ → 0) while a tooth's chip stays bounded (the rigid tool moves f_z per
+    tooth): the ratio is taken at ρ = R/4 there, `EDGE_RATIO_MAX`."""
     signed = path_radius(tangent, curvature)
     out = np.ones(len(signed))
     rows = np.flatnonzero(np.isfinite(signed))
@@ -258,7 +263,7 @@ def edge_feed_ratio(phi_st: np.ndarray, phi_ex: np.ndarray, r_mm: np.ndarray, ta
     c_st, c_ex = np.abs(np.cos(st)), np.abs(np.cos(ex))
     r_e = np.where(c_st > c_ex + 1e-9, r_st, np.where(c_ex > c_st + 1e-9, r_ex, np.maximum(r_st, r_ex)))
     ratio = np.where(cuts, r_e / rho[:, None], 0.0).max(axis=1, initial=0.0)
-    out[rows] = np.where(cuts.any(axis=1), ratio, 1.0)
+    out[rows] = np.where(cuts.any(axis=1), np.minimum(ratio, EDGE_RATIO_MAX), 1.0)
     return out
 
 
@@ -350,7 +355,9 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                 bad += a
                 raise CrashError(int(samples.line[bad]), xyz[bad] + origin)
             report("engagement", c1, n)
-    below = _below_original(xyz, ~rapid, runs, omax, B, stock)
+    # under the tool's footprint, or going down below the stock's highest top anywhere (beside it too: a
+    # blank larger than modelled, a restart that left a neighbouring cut undone)
+    below = _below_original(xyz, ~rapid, runs, omax, B, stock) | (out["desc"] & ~rapid & (xyz[:, 2] < zmax - 1e-6))
     kappa = np.full((n, K), np.pi / 2)
     for a, b, t in runs:
         for c0 in range(a, b, KAPPA_ROWS):  # in chunks: the profile's temporaries stay small

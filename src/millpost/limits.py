@@ -29,7 +29,8 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
 The feed policy (`[limits] lower`): millpost raises feeds freely under every limit. With
 lower = "hard" (the default) it lowers a feed below the programmed one only where a hard limit
 would be exceeded, and only as far as that limit needs; a quality limit that the programmed feed
-already exceeds is held at the programmed feed's load and reported. With lower = "all" quality
+already exceeds is held at the programmed feed's load (or, in a corner, at the speed the program's
+own blend arc passes it, the faster of its two feeds) and reported. With lower = "all" quality
 limits may lower the feed too. Either way no limit lowers a feed below the minimum-chip feed
 f_min = z·n·h_min / max(sin φ·sin κ) (below it the edge rubs and wood burns) or the programmed
 feed if that is lower: where a limit would need less, its bound is held at the load of that feed
@@ -371,8 +372,11 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
     v_prog = np.where(cutting, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
+    # the speed the programmed program's own blend arcs pass each sample at (a bound set from the
+    # programmed feeds never reads the programmed program over it: it runs that fast there)
+    carried = programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None else zones)
     keep_hard = np.minimum(floor, v_prog)
-    keep_quality = v_prog if lower == HARD else keep_hard
+    keep_quality = np.maximum(v_prog, carried) if lower == HARD else keep_hard
     held, forced = {}, {}
 
     def load_limit(name: str, kind: str, effect: str, a, b, bound, signal, default: str = "") -> None:
@@ -407,9 +411,6 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
     raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
     # (the program itself runs a blended corner at the faster of its two feeds, into the plunge's end)
-    # the speed the programmed program's own blend arcs pass each sample at (a cap set from the programmed
-    # feeds never reads the programmed program over it)
-    carried = programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None else zones)
     raised = np.maximum(np.where(v_prog > 0, raise_max * v_prog, np.inf), carried)
     plunge_cap = np.minimum(plunge_cap, raised)
     limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed",
@@ -447,10 +448,11 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                         HARD, "current"))
     if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
         near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
+        down = samples.tangent[:, 2] < -DESCENDING
         known = near & eng.swept_air
         if not job.limits["trust_cut_space"]:  # a descent, whatever was swept: the tool enters what it meets
-            known &= ~(samples.tangent[:, 2] < -DESCENDING)
-        cap = np.maximum(_air_clearance(near, known, engaged, samples, v_prog, v_cap), carried)
+            known &= ~down
+        cap = np.maximum(_air_clearance(near, known, engaged, samples, v_prog, v_cap, down), carried)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     if job.limits["air_feed_max_mm_min"] and eng.below_top is not None:  # the user's cap on air in cut space
         air = cutting & ~engaged & eng.below_top
@@ -472,14 +474,16 @@ def restart_descents(job: Job, samples: Samples, eng) -> np.ndarray | None:
 
 
 def _air_clearance(near: np.ndarray, known: np.ndarray, engaged: np.ndarray, samples: Samples, v_prog: np.ndarray,
-                   v_cap: np.ndarray) -> np.ndarray:
+                   v_cap: np.ndarray, descending: np.ndarray) -> np.ndarray:
     """The air clearance's speed cap per sample (mm/s). near: feed samples that cut nothing within the
     clearance; known: those of them in space the tool swept before (`Engagement.swept_air`: not capped);
     engaged: samples that cut; blocks are source lines (one move, or a canned cycle's moves at one
     hole); v_prog: the programmed speed; v_cap: the other limits' speed caps. In a block that cuts
     nothing (an approach, a plunge or lead-in beside the stock, a link over it) the cap is the
     programmed feed; in the air part of a block that cuts, the programmed feed or, if higher, the lowest
-    cap of its cut: the tool reaches material no faster than the cut it enters is allowed. The point
+    cap of its cut: the tool reaches material no faster than the cut it enters is allowed; but a sample
+    going down (`descending`: an approach to the top, the air part of a plunge) keeps the programmed
+    feed whatever the block cuts below it. The point
     where one move hands over to the next takes the higher of their caps (the programmed program passes
     it at the faster of the two feeds: a blending planner's blend); a known sample hands over its capped
     value (it is released after), so that nothing beside it that the tool has not swept is released
@@ -488,7 +492,7 @@ def _air_clearance(near: np.ndarray, known: np.ndarray, engaged: np.ndarray, sam
     v_cut = np.full(int(line.max(initial=0)) + 1, np.inf)
     np.minimum.at(v_cut, line[engaged], v_cap[engaged])
     entry = np.where(np.isinf(v_cut), 0.0, v_cut)[line]
-    cap = np.where(near, np.maximum(v_prog, entry), np.inf)
+    cap = np.where(near, np.where(descending, v_prog, np.maximum(v_prog, entry)), np.inf)
     handover = np.flatnonzero((samples.move[1:] != samples.move[:-1]) & ~np.asarray(samples.segment_start[1:], bool))
     both = np.maximum(cap[handover], cap[handover + 1])
     for k in (handover - 1, handover, handover + 1):  # within a step of it

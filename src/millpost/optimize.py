@@ -217,6 +217,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     if (after.time_s > before.time_s * slower_max or slow) and any(as_programmed.get(k, 0.0) > 1.0 for k in loads):
         safety.refuse_or_note("slower", _too_heavy(job, samples, limits, before.time_s, after.time_s, slow), job.allow,
                               summary["notes"])
+    if summary["hard_limits_exceeded"]:
+        safety.refuse_or_note("overload", _overloaded(job, summary), job.allow, summary["notes"])
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
              "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
@@ -440,6 +442,19 @@ def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, a
             f"against {before_s:.1f} s programmed ({after_s / before_s:.2f}x{'; ' + tools if tools else ''}: more "
             f"than slower_max {float(job.limits['slower_max']):g}x); the cuts need to be lighter by those factors, "
             "or another tool or a stronger machine")
+
+
+def _overloaded(job: Job, summary: dict) -> str:
+    """Which cuts exceed a hard load limit even at the lowest feed written: per limit, how far over its
+    bound and the lines (`held`)."""
+    parts = []
+    for name, over in summary["hard_limits_exceeded"].items():
+        held = summary["held"].get(name, {"lines": [], "line_count": 0})
+        more = f" and {held['line_count'] - len(held['lines'])} more" if held["line_count"] > len(held["lines"]) else ""
+        parts.append(f"{name} {over:.2f}x its bound on lines {', '.join(map(str, held['lines']))}{more}")
+    return (f"{job.program}: cuts too heavy for this tool on this machine even at the lowest feed millpost writes "
+            f"(the minimum-chip feed): {'; '.join(parts)}; they need a lighter cut, another tool or a stronger "
+            "machine")
 
 
 def _rpm_notes(job: Job, samples: Samples) -> list[str]:

@@ -30,6 +30,10 @@ a rapid into material is a crash whatever the user says, and an output must neve
   planned; the refusal lists per tool the lines, the limit and how far over it the programmed feed is
   (a lighter cut, another tool or a stronger spindle). Checked after the schedule, before anything is
   written.
+- ``overload``: a cut exceeds a hard load limit (the tool's breaking force, buckling or torsion, the
+  spindle's power or torque, a drive's current) even at the lowest feed millpost writes (the
+  minimum-chip feed, or the programmed one if lower): no feed makes it safe, whatever the time; the
+  refusal lists per limit how far over it is and the lines.
 """
 
 from __future__ import annotations
@@ -78,6 +82,7 @@ GATES = {g.name: g for g in (
     Gate("clobber", False, "an output would replace an input or another output"),
     Gate("slower", True, "the programmed cuts exceed hard limits so far that the optimized program is more "
                          "than slower_max × the programmed time"),
+    Gate("overload", True, "a cut exceeds a hard limit even at the lowest feed millpost writes"),
 )}
 
 

@@ -43,7 +43,8 @@ class Dialect:
     an arc's centre offset along the plane's normal (K in G17, J in G18, I in G19) is an error
     (LinuxCNC: "K word given for arc in xy plane"), not ignored. feed_before_units: F in a block with
     G20/G21 is in the units before the change (LinuxCNC sets the feed rate before the length units;
-    grbl converts it with the block's). Dwell units: `dwell_s`.
+    grbl converts it with the block's). feed_mode_resets_f: every G93/G94/G95 sets the feed rate to 0
+    (LinuxCNC), not only a change of mode. Dwell units: `dwell_s`.
     What the writer needs to know: g43_without_h: G43 with no H takes the loaded tool's length
     (LinuxCNC); path_modes: the controller has G61/G61.1/G64 path control modes (grbl has not).
     """
@@ -73,6 +74,7 @@ class Dialect:
     path_modes: bool = True
     off_plane_arc_offset_refused: bool = False
     feed_before_units: bool = False
+    feed_mode_resets_f: bool = False
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""
@@ -106,6 +108,7 @@ GRBL = Dialect("grbl", canned_cycles=False, end_code="M30", tool_length_codes=fr
                markers=(r"^\s*\$[A-Z0-9]", r"grbl", r"^G90 G94$", r"^\(When using Fusion 360 for Personal Use"))
 LINUXCNC = Dialect("linuxcnc", starts_g98=False, g76_lathe=True, zero_repeats_refused=True, g43_without_h=True,
                    off_plane_arc_offset_refused=True, feed_before_units=True,
+                   feed_mode_resets_f=True,
                    markers=(r"#<", r"^\s*o<?\w+>?\s+(sub|call|if|while|repeat)", r"G64\s*P", r"linuxcnc",
                             r"emc2?\b", r"G90\.1|G91\.1", r"^M2\s*$", r"\bG61\b"))
 FANUC = Dialect("fanuc", trailing_point=True, line_numbers=5, dwell_ms=True,

@@ -654,9 +654,14 @@ class Interpreter:
 
     # --- the steps of a block (`STEPS`), in LinuxCNC's order of execution ----------------------
     def set_feed_mode(self, k: _Codes) -> None:
-        """G93, G94, G95."""
+        """G93, G94, G95. LinuxCNC sets the feed rate to 0 on every one of them (rs274: SET_FEED_RATE(0)
+        after SET_FEED_MODE, then "Cannot do g1 with zero feed rate" until an F): an F in force in one mode
+        is not a feed in another (F100 in mm/min read per revolution at S1000 is 100 m/min). Other
+        dialects reset it where the mode changes."""
         for mode in _FEED_MODES:
             if mode in k.gset:
+                if self.dialect.feed_mode_resets_f or mode != self.feed_mode:
+                    self.f = 0.0
                 self.feed_mode = mode
 
     def set_feed_rate(self, k: _Codes) -> None:
