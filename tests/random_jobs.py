@@ -140,4 +140,4 @@ def run_job(seed: int) -> tuple[Job, Engagement, Result]:
     program = read_text(text, "random.nc")
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     eng = random_engagement(rng, samples, job.tools[1])
-    return job, eng, schedule_program(job, program, samples, eng)
+    return job, eng, schedule_program(job, program, samples, eng, trace=True)

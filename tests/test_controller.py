@@ -335,7 +335,7 @@ def test_blend_zones_bound_the_blend_arc_at_any_feed():
 
 def test_blend_limit_lowers_both_sides_of_a_fast_corner():
     from millpost.controller import PathModes, blend_zones
-    from millpost.schedule.feeds import blend_excess, blend_limit
+    from millpost.emit import blend_excess, blend_limit
 
     tp = feed_tp([("line", (10, 0, 0)), ("line", (10, 10, 0))], 600)
     smp = tp.resample(0.1)
@@ -357,7 +357,7 @@ def test_blend_limit_lowers_both_sides_of_a_fast_corner():
 
 
 def test_run_limit_lowers_the_whole_run_a_zone_lies_on():
-    from millpost.schedule.feeds import run_limit
+    from millpost.emit import run_limit
 
     tp = feed_tp([("line", (10, 0, 0)), ("line", (20, 0, 0)), ("line", (30, 0, 0))], 600)
     smp = tp.resample(0.5)

@@ -2,7 +2,7 @@
 that runs it exceeds no limit. LinuxCNC (and the look-ahead controllers modelled by its planner) rounds
 a corner with a blend arc run at the faster of the two moves' feeds, so the slower move's first
 millimetres see the faster feed; optimize lowers both F words around such a corner to the lowest limit
-of the arc's reach (`controller.blend_zones`, `schedule.feeds.blend_limit`), and checks the arcs of the
+of the arc's reach (`controller.blend_zones`, `emit.blend_limit`), and checks the arcs of the
 program as emitted (`Execution.blends`: LinuxCNC merges naive-CAM feeds into lines at the F words
 written, whose arcs reach much further), writing it again until none runs faster than its limits.
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import millpost.optimize as optimize_module
+import millpost.emit.blends as blends_module
 from millpost.controller import ControllerModel, Execution, LinuxCNCPlanner, execute_program, path_modes
 from millpost.emit import emitted_positions
 from millpost.gcode import read_text
@@ -59,8 +59,8 @@ def test_optimized_program_exceeds_no_limit_on_linuxcnc_planner(seed):
 
 def test_without_blend_limits_the_corners_overrun(monkeypatch):
     # the check can fail: the same job with F words that ignore the blend arcs exceeds its limits
-    monkeypatch.setattr(optimize_module, "blend_limit", lambda samples, limit, *_: limit)
-    monkeypatch.setattr(optimize_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
+    monkeypatch.setattr(blends_module, "blend_limit", lambda samples, limit, *_: limit)
+    monkeypatch.setattr(blends_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
     job, eng, result, text = _run(822)
     ratios = replayed(job, eng, result, text)
     assert ratios["deflection"] > 1.5
@@ -147,7 +147,7 @@ def test_blend_arcs_of_merged_chains_keep_the_plunge_cap(tmp_path, monkeypatch):
     assert result.summary["blend_passes"]["over"] == 0
     # the check can fail: the F words of the first emission, from the zones of the programmed moves
     # alone, let the merged lines' arc run the slot's feed into the ramp
-    monkeypatch.setattr(optimize_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
+    monkeypatch.setattr(blends_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
     unchecked = optimize(job, progress=False)
     assert _chain_ratio(job, unchecked) > 1.5
 
@@ -160,7 +160,7 @@ def test_merged_chains_run_no_slower_than_the_baseline(tmp_path):
     from millpost.optimize import optimize
 
     job = _chain_job(tmp_path)
-    result = optimize(job, progress=False)
+    result = optimize(job, progress=False, trace=True)
     s, tr = result.summary, result.trace
     assert s["cycle_time_after_s"] <= s["cycle_time_baseline_s"] * (1 + 1e-3)
     assert s["limits"]["plunge_feed"] <= 1 + TOL
@@ -200,9 +200,9 @@ def test_baseline_blend_arcs_keep_the_plunge_cap(tmp_path, monkeypatch):
     from millpost.optimize import optimize
 
     job = _chain_job(tmp_path)
-    result = optimize(job, progress=False)
+    result = optimize(job, progress=False, trace=True)
     assert _baseline_ratio(job, result) <= 1 + TOL
-    monkeypatch.setattr(optimize_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
-    unchecked = optimize(job, progress=False)
+    monkeypatch.setattr(blends_module, "blend_excess", lambda samples, limit, arcs, *_: arcs[:0])
+    unchecked = optimize(job, progress=False, trace=True)
     assert _baseline_ratio(job, unchecked) > 1.5
     assert result.summary["cycle_time_baseline_s"] > unchecked.summary["cycle_time_baseline_s"]

@@ -21,7 +21,7 @@ from millpost.errors import MillpostError, ParseError
 from millpost.gcode import ReaderOptions, dialects, read_text
 from millpost.gcode.convert import convert
 from millpost.gcode.tool_table import read_tool_table
-from millpost.schedule.feeds import Fragment
+from millpost.emit import Fragment
 from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID
 from millpost.tools import Tool
 

@@ -10,7 +10,8 @@ import pytest
 
 import rs274_oracle
 from conftest import SHARED_DATA
-from millpost.emit import FeedPlan, _Unknown, computed, write_feeds
+from millpost.emit import FeedPlan, computed, write_feeds
+from millpost.emit.write import _Unknown
 from millpost.files import write_atomic
 from millpost.errors import ParseError
 from millpost.gcode import ReaderOptions, read_program, read_text
@@ -218,7 +219,7 @@ def test_a_line_that_computes_a_word_is_never_split_only_its_f_changes():
     line, the lowest its fragments want (`whole_moves`), and every other byte of the line as written:
     the parameters stay parameters (a split would write them as numbers)."""
     from millpost.emit import whole_moves
-    from millpost.schedule.feeds import Fragment
+    from millpost.emit import Fragment
 
     p = read_text(PARAMETRIC, "p.ngc", ReaderOptions())
     tp = p.toolpath
@@ -328,7 +329,7 @@ def test_a_feed_held_at_the_hard_cap_is_the_cap():
     twice the programmed feed (508 mm/min) came out 507.568 and was written F19.98; within
     SNAP_TO_PROGRAMMED under the move's hard cap the plan takes the cap (F20), further under it keeps
     the schedule's feed; never above the cap."""
-    from millpost.schedule.feeds import Fragment
+    from millpost.emit import Fragment
 
     prog = read_text("G20 G90\nG0 X0 Y0 Z0.5\nG1 Z-0.05 F10\nG1 X1 F10\nG1 X2\nM2\n")
     cap = np.array([np.inf, 508.0, 3000.0, 3000.0])
@@ -344,7 +345,7 @@ def test_every_written_f_change_is_at_least_the_step_of_the_f_it_leaves():
     higher one were written (73.62 → 69.94, 40.13 → 38.17). With the plan's step, a fall smaller than
     the step of the F in force falls a full step (rounded down on the written grid: never faster), a
     rise smaller than the step keeps the F in force; changes of a step or more are written as planned."""
-    from millpost.schedule.feeds import Fragment
+    from millpost.emit import Fragment
 
     moves = "G1 X1 F10\n" + "".join(f"G1 X{k}\n" for k in range(2, 8))
     prog = read_text(f"G20 G90\nG0 X0 Y0 Z-0.1\n{moves}M2\n")
@@ -366,7 +367,7 @@ def test_the_feed_step_never_takes_a_feed_below_the_programmed_one():
     F399; a move programmed F400 wanting F405 after F390 (a rise of 3.8 %) would keep F390. Where the
     wanted F is the programmed one or more, the written F is too (a change smaller than the step);
     under it (a limit), the step rule holds."""
-    from millpost.schedule.feeds import Fragment
+    from millpost.emit import Fragment
 
     prog = read_text("G21 G90\nG0 X0 Y0 Z-1\nG1 X10 F400\nG1 X20\nG1 X30\nG1 X40\nG1 X50 F390\n"
                      "G1 X60 F400\nM2\n")
@@ -405,7 +406,7 @@ def test_a_run_held_at_a_cap_is_the_cap_on_every_move_the_caps_allow():
     """Letter A: a run of plunges (cap 2 × F5 = 10 in/min) and climbs (no plunge cap) settled to 9.9974
     in/min: the plunges lifted to the cap alone gave F10 → F9.5 → F10 churn; the run takes the cap on
     every move whose hard cap allows it, and keeps its feed where the cap is lower."""
-    from millpost.schedule.feeds import Fragment
+    from millpost.emit import Fragment
 
     prog = read_text("G20 G90\nG0 X0 Y0 Z0\nG1 X1 Z-0.3 F5\nG1 X2 Z0\nG1 X3 Z-0.3\nG1 X4 Z-0.2\nM2\n")
     run = 9.9974 * 25.4

@@ -297,7 +297,7 @@ def test_drill_and_mill_cycles(tmp_path):
     raised only to the lip chip load (h = f_z·sin 59° ≤ 0.09 mm: F ≤ 0.09/sin 59°·2·3000 = 630), the
     heavier cycle is never faster than the lighter one, and thrust/torque stay under the drill's."""
     job = load_job(JOBS / "drill_and_mill")
-    result = optimize(job, progress=False)
+    result = optimize(job, progress=False, trace=True)
     feeds = {ln.split()[1]: float(ln.split("F")[1]) for ln in result.text.splitlines() if ln.startswith("G98 G8")}
     bound = 0.09 / math.sin(math.radians(59)) * 2 * 3000
     assert 200 <= feeds["G81"] <= bound + 1 and 150 <= feeds["G83"] <= bound + 1
@@ -349,7 +349,7 @@ def test_cycles_are_written_whole_and_taps_and_bores_keep_their_feed(tmp_path):
         'stickout_mm = 50\n[tools.2]\ndiameter_mm = 8\nflutes = 3\nshape = "flat"\nflute_length_mm = 20\n'
         'stickout_mm = 40\n')
     job = load_job(tmp_path / "job.toml")
-    result = optimize(job, progress=False)
+    result = optimize(job, progress=False, trace=True)
     out = result.text.splitlines()
     assert [ln for ln in out if "G81" in ln][0].startswith("G99 G81 X0 Y0 Z-12 R2 F")
     assert "G99 G84 X0 Y0 Z-10 R2 F625" in out and sum(("G81" in ln) + ("G84" in ln) for ln in out) == 2
@@ -375,7 +375,7 @@ def _subroutine_job(tmp_path, main: str, body: str, x_min: float):
         f'program = "p.ngc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\n'
         f'box = [[{x_min}, -10, -10], [{x_min + 30}, 10, 0]]\ncell_mm = 0.05\n[tools.1]\ndiameter_mm = 6\n'
         'flutes = 3\nshape = "flat"\nflute_length_mm = 16\nstickout_mm = 24\n')
-    return optimize(load_job(tmp_path / "job.toml"), progress=False)
+    return optimize(load_job(tmp_path / "job.toml"), progress=False, trace=True)
 
 
 def test_subroutine_feed_kept_where_one_f_would_slow_a_run(tmp_path):

@@ -55,7 +55,7 @@ def _run(lower: str, material: str = "al6061", **extra):
     air = depth == 0
     eng.dz_mm[air], eng.ap_mm[air], eng.ae_mm[air], eng.area_mm2[air] = 0.0, 0.0, 0.0, 0.0
     eng.feed_dir = np.tile([1.0, 0.0, 0.0], (len(st), 1))
-    result = schedule_program(job, program, samples, eng)
+    result = schedule_program(job, program, samples, eng, trace=True)
     emitted = read_text(result.text, "o.nc").toolpath
     slot_feeds = [float(emitted.feed_mm_min[(emitted.line == 6 + k) & (emitted.kind != RAPID)].min())
                   for k in range(len(DEPTHS))]
@@ -168,7 +168,7 @@ def test_binding_shares_are_shares_of_the_time_the_program_runs(tmp_path):
     (tmp_path / "p.nc").write_text("G21 G90 G94\nT1 M6\nS9000 M3\nG0 X-4 Y0 Z1\nG1 Z-1 F300\n"
                                    "G1 X105 F1500\nG0 Z5\nM30\n")
     job = load_job(tmp_path)
-    result = optimize(job, progress=False)
+    result = optimize(job, progress=False, trace=True)
     tr = result.trace
     slot = (tr["line"] == 6) & (tr["ae_mm"] > 5.9)
     v = float(np.median(tr["feed_executed_mm_min"][slot])) / 60.0

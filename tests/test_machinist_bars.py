@@ -34,7 +34,7 @@ def pocket(request, tmp_path_factory):
     job = load_job(folder)
     if kind:
         job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
-    result = optimize(job, progress=False)
+    result = optimize(job, progress=False, trace=True)
     assert result.summary["status"] == "solved", result.summary["message"]
     original = read_program(job.program).toolpath
     emitted = read_text(result.text, "out.nc").toolpath

@@ -138,6 +138,22 @@ def test_cli_writes_program_and_summary(tmp_path):
     assert out.read_text().startswith("(slots and contour")
 
 
+
+def test_trace_is_built_only_when_asked(tmp_path, slotting_result):
+    """The per-sample trace (~30 columns a sample: ~180 MB at 100 k blocks) is built for --trace and
+    --report only; without it the program and the summary are the same."""
+    job, traced = slotting_result  # optimize(..., trace=True)
+    plain = optimize(job, progress=False)
+    assert plain.trace == {} and plain.text == traced.text
+    timing = ("stage_s", "solver_s", "total_s")
+    assert ({k: v for k, v in plain.summary.items() if k not in timing}
+            == {k: v for k, v in traced.summary.items() if k not in timing})
+    assert {"feed_schedule_mm_min", "feed_executed_mm_min", "peak_force_N", "current_ratio"} <= set(traced.trace)
+    assert all(len(column) == traced.summary["samples"] for column in traced.trace.values())
+    csv = tmp_path / "trace.csv"
+    assert main(["optimize", str(JOBS / "slotting"), "-o", str(tmp_path / "out.nc"), "--trace", str(csv), "-q"]) == 0
+    assert "feed_executed_mm_min" in csv.read_text().splitlines()[0]
+
 @pytest.mark.parametrize("text,field", [
     ('program = "program.nc"\nmaterial = "al6061"\nmachine = "vmc-small"\n[stock]\nbox = [[0,0,0],[1,1,-1]]\n'
      '[tools.1]\ndiameter_mm = 6\n', "stock.box"),
@@ -215,7 +231,7 @@ def test_moves_between_stops_are_scheduled(tmp_path, machine):
         f'program = "p.nc"\nmaterial = "plywood"\nmachine = "{machine}"\n[stock]\n'
         'box = [[0, 0, -12], [70, 10, 0]]\ncell_mm = 0.1\n[tools.1]\ndiameter_mm = 6.35\nflutes = 2\n'
         'shape = "flat"\nflute_length_mm = 22\nstickout_mm = 30\n')
-    result = optimize(load_job(tmp_path / "job.toml"), progress=False)
+    result = optimize(load_job(tmp_path / "job.toml"), progress=False, trace=True)
     s = result.summary
     assert s["status"] == "solved", s["message"]
     # every sample interval of the cuts is traversed in finite time: a speed above zero at one end at least

@@ -70,7 +70,7 @@ def run(request):
         job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
     job.allow = job.allow | {"slower", "overload"}  # refusals are checked from their warnings (the other checks need the output)
     try:
-        result = optimize(job, progress=False)
+        result = optimize(job, progress=False, trace=True)
     except MillpostError as exc:  # a feature the reader does not support yet, or a cutter-compensation
         # entry LinuxCNC would refuse with the guessed tool, named with file:line:column
         if "not supported" not in str(exc) and "cutter compensation entry move" not in str(exc):
@@ -161,7 +161,7 @@ def _runs_below(job, result, need: np.ndarray) -> tuple[np.ndarray, list[str]]:
     limit of the samples it touches, so the run's samples include the one before it and the one after
     it) under `need`, or one needs less than the chip floor there (a cut too heavy at any feed: the
     policy holds the floor); and the F is at that cap or floor but for one feed step down (the F
-    words quantise down: `emit._stepped` makes a fall smaller than the step a whole step)."""
+    words quantise down: `emit.write._stepped` makes a fall smaller than the step a whole step)."""
     emitted = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
     program = read_program(job.program, job.reader_options())
     feed = feed_at_samples(program.toolpath, emitted, result.samples)

@@ -35,7 +35,7 @@ def drill_and_mill():
     samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                     progress=False)
     limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
-    executed = optimize(job, progress=False).trace["feed_executed_mm_min"] / 60.0
+    executed = optimize(job, progress=False, trace=True).trace["feed_executed_mm_min"] / 60.0
     return job, samples, eng, limits, executed
 
 

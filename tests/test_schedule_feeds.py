@@ -11,7 +11,7 @@ from millpost.controller import ControllerModel, GrblPlanner, execute
 from millpost.emit import SNAP_TO_PROGRAMMED, FeedPlan
 from millpost.gcode import read_text
 from millpost.schedule import AxisAcceleration, AxisVelocity, FeedLimit, Junction, SpeedLoad, schedule_samples
-from millpost.schedule.feeds import Fragment, emission_limit, piecewise_feeds
+from millpost.emit import Fragment, emission_limit, piecewise_feeds
 from millpost.schedule.rows import PathGrid
 from millpost.toolpath import ARC_CW, PLANE_AXES, Toolpath
 
@@ -150,7 +150,7 @@ def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
 
 
 def test_settle_and_cluster_never_raise_and_space_the_feeds():
-    from millpost.schedule.feeds import cluster, settle
+    from millpost.emit import cluster, settle
     rng = np.random.default_rng(1)
     f = 1000 * np.exp(np.cumsum(rng.normal(0, 0.03, 3000)))
     for out, consecutive in ((settle(f, 0.05), True), (cluster(f, 0.05), False)):
@@ -167,7 +167,7 @@ def test_settle_lowers_a_feed_below_its_programmed_one_only_for_a_limit():
     """CAMotics' wave programs F392.055 then F410.849 (+4.8 %): one run would write F392.055 over moves
     programmed F410.849 with no limit asking for it. A feed a limit holds under its programmed one
     still pulls its run down (one F for a run a limit slows in part)."""
-    from millpost.schedule.feeds import settle
+    from millpost.emit import settle
     f = np.array([392.055, 410.849])
     np.testing.assert_array_equal(settle(f, 0.05), [392.055, 392.055])
     np.testing.assert_array_equal(settle(f, 0.05, f), f)
@@ -188,7 +188,7 @@ def test_settle_lowers_a_feed_below_its_programmed_one_only_for_a_limit():
 
 
 def test_reachable_joins_short_peaks_only():
-    from millpost.schedule.feeds import reachable
+    from millpost.emit import reachable
     joined = np.array([False, True, True, True])
     f = np.array([600.0, 660.0, 600.0, 6000.0])  # mm/min; 0.1 mm pieces at 3000 mm/s²
     out = reachable(f, np.full(4, 0.1), np.full(4, 3000.0), joined, 0.05)

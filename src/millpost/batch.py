@@ -36,7 +36,7 @@ def run_one(job_path: str, out_dir: str) -> dict:
         output = out / job.output.name
         check_outputs({"output": output, "summary": out / "summary.json", "report": out / "report.html"},
                       job.inputs)
-        result = optimize(job, progress=False)
+        result = optimize(job, progress=False, trace=True)  # the report plots the trace
         result.summary["output"] = str(output)
         summary = json_text(result.summary)
         write_atomic(output, result.text)

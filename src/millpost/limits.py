@@ -18,7 +18,7 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
   for the axis rates over a whole move, "axis_rate", which the controller clamps too, but an F word
   above what its move runs at reads as a typo);
 - `clamp`: the controller holds its speed cap as a steady clamp (the axis rates, the block rate): an
-  F word above it runs at it, so the F word need only reach it (`millpost.schedule.feeds.hold_runs`);
+  F word above it runs at it, so the F word need only reach it (`millpost.emit.policy.hold_runs`);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
   limit binds);
 - for a load limit, `signal(signals, at)`: the load it bounds, from the forward model's signals of the
@@ -97,13 +97,12 @@ import numpy as np
 from .errors import MillpostError
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
-from .controller import ControllerModel, PathModes, block_lengths, blend_zones, corner_speeds
+from .controller import ControllerModel, PathModes, block_lengths, blend_zones, corner_speeds, programmed_arcs
 from .progress import Progress, silent
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
-from .schedule.feeds import programmed_arcs
 from .safety import spindle_off_message
 from .signals import running_rpm
 from .engagement import path_radius

@@ -87,7 +87,8 @@ class Replay:
     bound before the policy), of the row with the highest ratio where several rows share the name;
     current_ratio: per sample the largest axis motor current over its drive's limit; cut_loads: per
     sample the forward model's peak in-plane force (N), cutting power (W), thrust on the tool (N, +Z)
-    and cutting torque (N·m), 0 off the cut; cut: the cutting samples."""
+    and cutting torque (N·m), 0 off the cut; cut: the cutting samples. (loads, current_ratio and
+    cut_loads are empty where `replay` was asked for the ratios only.)"""
 
     ratios: dict[str, float]
     physical: dict[str, float]
@@ -116,13 +117,16 @@ def _sample_range(samples: Samples, lo: int, hi: int) -> Samples:
     return Samples(**{f.name: getattr(samples, f.name)[lo:hi] for f in fields(samples)})
 
 
-def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_s: np.ndarray) -> Replay:
+def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_s: np.ndarray,
+           columns: bool = True) -> Replay:
     """The signals at the executed speeds (mm/s per sample) from the forward model (`signals.predict`
     with the schedule's affine loads), every limit's value there against its bound, and the drives'
     motor currents against their limits (off the samples where the policy held the cutting current).
     In chunks of LOAD_CHUNK samples (memory: the signals of the whole program are never held at once),
     each predicted with one neighbour on either side so the path acceleration (central differences of
-    v² over s) is the whole program's."""
+    v² over s) is the whole program's. columns: keep the per-sample values (`Replay.loads`,
+    `cut_loads`, `current_ratio`: the trace's); without them those are empty and only the ratios are
+    computed."""
     n = len(samples)
     v_mm_s = np.asarray(v_mm_s, float)
     grid = PathGrid.from_samples(samples)
@@ -132,11 +136,12 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     loads = [lim for lim in limits if isinstance(lim.constraint, SpeedLoad)]
     caps = limits.f_word_caps()
     rows_of = Counter(lim.name for lim in loads)
-    value = {name: np.zeros(n) for name in rows_of}
+    m = n if columns else 0  # per-sample columns: kept only when asked for
+    value = {name: np.zeros(m) for name in rows_of}
     # a name of one row keeps that row's bound (no copy); of several, the bound of the highest per sample
-    bound = {lim.name: lim.bound if rows_of[lim.name] == 1 else np.zeros(n) for lim in loads}
-    cut_loads = {key: np.zeros(n) for key in ("peak_force_N", "power_W", "thrust_N", "torque_Nm")}
-    current, ratios, physical = np.zeros(n), {}, {}
+    bound = {lim.name: lim.bound if rows_of[lim.name] == 1 and columns else np.zeros(m) for lim in loads}
+    cut_loads = {key: np.zeros(m) for key in ("peak_force_N", "power_W", "thrust_N", "torque_Nm")}
+    current, ratios, physical, current_max = np.zeros(m), {}, {}, 0.0
     for lo in range(0, n, LOAD_CHUNK):
         hi = min(lo + LOAD_CHUNK, n)
         a, b = max(lo - 1, 0), min(hi + 1, n)
@@ -152,6 +157,8 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
                 raw = np.where(on, val / lim_bound, 0.0)
             ratios[lim.name] = max(ratios.get(lim.name, 0.0), float(np.nanmax(ratio, initial=0)))
             physical[lim.name] = max(physical.get(lim.name, 0.0), float(np.nanmax(raw, initial=0)))
+            if not columns:
+                continue
             if lim.name in raw_best:  # several rows of one name (per axis): the highest per sample
                 higher = raw > raw_best[lim.name]
                 value[lim.name][at] = np.where(higher, val, value[lim.name][at])
@@ -166,11 +173,15 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
             with np.errstate(divide="ignore", invalid="ignore"):
                 r = np.where(on & (blk.b_hi > 0), sig.speed_mm_s / np.sqrt(blk.b_hi), 0.0)
             ratios[blk.name] = max(ratios.get(blk.name, 0.0), float(np.nanmax(r, initial=0.0)))
-        current[at] = np.max(np.abs(sig.axis_current_A) / limit_A, axis=1)
+        chunk_current = np.max(np.abs(sig.axis_current_A) / limit_A, axis=1)
+        current_max = max(current_max, float(np.max(chunk_current[keep_current[at]], initial=0.0)))
+        if not columns:
+            continue
+        current[at] = chunk_current
         for key, x in (("peak_force_N", sig.peak_force_xy_N), ("power_W", sig.cutting_power_W),
                        ("thrust_N", sig.force_tool_N[:, 2]), ("torque_Nm", sig.torque_Nm)):
             cut_loads[key][at] = np.where(on, x, 0.0)
-    ratios["current"] = float(np.max(current[keep_current], initial=0.0))
+    ratios["current"] = current_max
     return Replay(ratios, physical, {name: (value[name], bound[name]) for name in rows_of}, current, cut_loads, cut)
 
 

@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
                   job.inputs)
     options = ScheduleOptions.from_choices(solver=args.solver or job.limits["solver"], jobs=args.jobs)
     with Bars(enabled=False if args.quiet else None) as bars:
-        result = optimize(job, progress=bars, options=options)
+        result = optimize(job, progress=bars, options=options, trace=bool(args.trace or args.report))
         result.summary["output"] = str(output)
         text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
         write_atomic(output, result.text)

@@ -12,7 +12,8 @@ modules, one job each:
 - `grbl`, `linuxcnc`: the two planners (`GrblPlanner`, `LinuxCNCPlanner`), each registering the kinds it runs;
 - `run`: `execute`, `execute_program`, `program_time`; `execution`: the result (`Execution`);
 - `paths`: the path modes a program sets (G61, G61.1, G64 P Q), LinuxCNC's naive-CAM chains, `block_lengths`;
-- `segments`, `blends`: LinuxCNC's segments and how it passes corners (`corner_speeds`, `blend_zones`);
+- `segments`, `blends`: LinuxCNC's segments and how it passes corners (`corner_speeds`, `blend_zones`;
+  over a program's samples `zone_samples`, `programmed_arcs`);
 - `pauses`: commands between moves, which stop the motion and take time;
 - `profile`: the look-ahead passes and the trapezoidal profile.
 
@@ -21,7 +22,7 @@ most `block_rate_hz` blocks per second cannot finish a block of length L faster 
 (speed ≤ L·rate). Times count from the first motion to the end of the last one.
 """
 
-from .blends import blend_zones, corner_speeds
+from .blends import blend_zones, corner_speeds, programmed_arcs, zone_samples
 from .execution import Execution
 from .grbl import Blocks, GrblPlanner, to_blocks
 from .linuxcnc import LinuxCNCPlanner
@@ -33,4 +34,4 @@ from .run import execute, execute_program, program_time
 __all__ = ["EXACT_PATH", "EXACT_STOP", "PAUSE_KINDS", "Blocks", "ControllerModel", "Execution",
            "GrblPlanner", "LinuxCNCPlanner", "PathModes", "Planner", "Queue", "block_lengths", "blend_zones",
            "corner_speeds", "execute", "execute_program", "naive_cam_chains", "path_modes", "pauses_s",
-           "program_time", "to_blocks"]
+           "program_time", "programmed_arcs", "to_blocks", "zone_samples"]

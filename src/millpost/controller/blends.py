@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from ..toolpath import FEED, Toolpath
+from ..toolpath import FEED, Samples, Toolpath
 from .model import EXACT_PATH, EXACT_STOP, ControllerModel, PathModes
 from .segments import (ANGLE_EPS, KINK_RATIO, NORMAL_SHARE, SHARP_CORNER_COS, TANGENTIAL_SHARE, Segment, arc_maxvel,
                        build_segments, dot, inscribed)
@@ -178,3 +178,29 @@ def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes) -> np.nd
         _, _, binormal, d_geom, r_geom = geometry
         out.append((end[prev.move] - d_geom, end[prev.move] + d_geom, _arc_top_speed(binormal, r_geom, model)))
     return np.asarray(out, float).reshape(-1, 3)
+
+
+def zone_samples(samples: Samples, zones: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per zone (start, end (mm of the samples' arc length), top speed): the samples it covers (those
+    within it and the next one on each side: a speed is linear between samples), as (sample index,
+    zone index) pairs."""
+    s = samples.s_mm
+    lo = np.maximum(np.searchsorted(s, zones[:, 0], side="left") - 1, 0)
+    hi = np.minimum(np.searchsorted(s, zones[:, 1], side="right") + 1, len(s))
+    count = np.maximum(hi - lo, 0)
+    owner = np.repeat(np.arange(len(zones)), count)
+    idx = np.repeat(lo - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
+    return idx, owner
+
+
+def programmed_arcs(samples: Samples, v_prog_mm_s: np.ndarray, zones: np.ndarray) -> np.ndarray:
+    """Per sample the speed (mm/s) the programmed program's blend arcs pass it at: over each zone (see
+    `blend_limit`) the faster programmed feed it covers, at most the arc's top speed (0 off the zones).
+    A cap set relative to the programmed feeds is never below it: the program runs that fast there."""
+    zones = np.asarray(zones, float).reshape(-1, 3)
+    idx, owner = zone_samples(samples, zones)
+    top = np.zeros(len(zones))
+    np.maximum.at(top, owner, np.nan_to_num(np.asarray(v_prog_mm_s, float)[idx], nan=0.0))
+    out = np.zeros(len(samples))
+    np.maximum.at(out, idx, np.minimum(top, zones[:, 2])[owner])
+    return out

@@ -1,4 +1,9 @@
-"""From a per-sample feed limit to piecewise-constant feeds a controller can follow.
+"""The F-word policy: from the schedule's solution to piecewise-constant feeds a controller can follow.
+
+`emission_limit` turns the schedule's v(s) into the per-sample F-word limit (the controller's own
+dynamics left to it, runs of moves one F where one fits, `hold_runs`); `piecewise_feeds` cuts it into
+fragments per move, settled into runs (`settle`), short peaks the controller cannot reach joined to
+their neighbours (`reachable`); `cluster` gives lines that run several times one F each.
 
 Each cutting move is cut into fragments of at least `min_fragment_mm` (shorter only when the move
 is), at most `1 + floor(L·max_changes_per_mm)` per move, each with the smallest limit over the
@@ -18,11 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from millpost.schedule.assemble import merged_bounds
-from millpost.schedule.constraints import window_blocks
-from millpost.schedule.rows import PathGrid
-from millpost.schedule.solve import ProgramSchedule
-from millpost.toolpath import RAPID, Samples
+from ..schedule.assemble import merged_bounds
+from ..schedule.constraints import window_blocks
+from ..schedule.rows import PathGrid
+from ..schedule.solve import ProgramSchedule
+from ..toolpath import RAPID, Samples
 
 
 @dataclass(frozen=True)
@@ -277,95 +282,4 @@ def hold_runs(samples: Samples, limit_mm_s: np.ndarray, need_mm_s: np.ndarray) -
                 carry = last[k]
     held = np.repeat(free, counts)
     out[held] = np.repeat(value, counts)[held]
-    return out
-
-
-ARC_SLACK = 1e-6  # relative: an arc's top speed over a limit by less is float rounding (an F word read back)
-
-
-def _zone_samples(samples: Samples, zones: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per zone (start, end (mm of the samples' arc length), top speed): the samples it covers (those
-    within it and the next one on each side: a speed is linear between samples), as (sample index,
-    zone index) pairs."""
-    s = samples.s_mm
-    lo = np.maximum(np.searchsorted(s, zones[:, 0], side="left") - 1, 0)
-    hi = np.minimum(np.searchsorted(s, zones[:, 1], side="right") + 1, len(s))
-    count = np.maximum(hi - lo, 0)
-    owner = np.repeat(np.arange(len(zones)), count)
-    idx = np.repeat(lo - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
-    return idx, owner
-
-
-def programmed_arcs(samples: Samples, v_prog_mm_s: np.ndarray, zones: np.ndarray) -> np.ndarray:
-    """Per sample the speed (mm/s) the programmed program's blend arcs pass it at: over each zone (see
-    `blend_limit`) the faster programmed feed it covers, at most the arc's top speed (0 off the zones).
-    A cap set relative to the programmed feeds is never below it: the program runs that fast there."""
-    zones = np.asarray(zones, float).reshape(-1, 3)
-    idx, owner = _zone_samples(samples, zones)
-    top = np.zeros(len(zones))
-    np.maximum.at(top, owner, np.nan_to_num(np.asarray(v_prog_mm_s, float)[idx], nan=0.0))
-    out = np.zeros(len(samples))
-    np.maximum.at(out, idx, np.minimum(top, zones[:, 2])[owner])
-    return out
-
-
-def _zone_minima(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per zone (start, end (mm of the samples' arc length), top speed): the samples it covers
-    (`_zone_samples`), as (sample index, zone index) pairs, and each zone's lowest finite limit there
-    (mm/s; inf: none)."""
-    zones = np.asarray(zones, float).reshape(-1, 3)
-    idx, owner = _zone_samples(samples, zones)
-    vals = np.where(np.isfinite(limit_mm_s[idx]), limit_mm_s[idx], np.inf)
-    zone_min = np.full(len(zones), np.inf)
-    np.minimum.at(zone_min, owner, vals)
-    return idx, owner, zone_min
-
-
-def blend_excess(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, slack: float = ARC_SLACK) -> np.ndarray:
-    """The zones (rows of `zones`, see `blend_limit`) whose top speed exceeds the lowest limit they cover
-    by more than `slack` (relative)."""
-    zones = np.asarray(zones, float).reshape(-1, 3)
-    _, _, zone_min = _zone_minima(samples, np.asarray(limit_mm_s, float), zones)
-    return zones[zones[:, 2] > zone_min * (1 + slack)]
-
-
-def blend_limit(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, widen: float = 0.0,
-                within: np.ndarray | None = None) -> np.ndarray:
-    """The feed limit (mm/s) with the controller's blend arcs: a controller that rounds a corner with an
-    arc run at the faster of the two moves' feeds carries that feed into the slower move. zones (k, 3):
-    where an arc may start and end (mm, the samples' arc length) and its top speed (mm/s)
-    (`controller.blend_zones`, `controller.Execution.blends`), first widened by `widen` times its length
-    on either side. Where the top speed exceeds the lowest limit over the zone (the samples within it,
-    and the next one on each side) of `within` (the limit the arcs must keep; default `limit_mm_s`
-    itself), the zone's samples take at most that lowest limit, so that every F word the arc's feeds
-    come from fits it."""
-    zones = np.asarray(zones, float).reshape(-1, 3).copy()
-    grow = widen * (zones[:, 1] - zones[:, 0])
-    zones[:, 0] -= grow
-    zones[:, 1] += grow
-    out = np.asarray(limit_mm_s, float).copy()
-    idx, owner, zone_min = _zone_minima(samples, out if within is None else np.asarray(within, float), zones)
-    lower = (zones[owner, 2] > zone_min[owner] * (1 + ARC_SLACK)) & np.isfinite(out[idx])
-    np.minimum.at(out, idx[lower], zone_min[owner][lower])
-    return out
-
-
-def run_limit(samples: Samples, limit_mm_s: np.ndarray, zones: np.ndarray, within: np.ndarray) -> np.ndarray:
-    """The feed limit (mm/s) with every run that a zone (rows as in `blend_limit`) touches lowered to the
-    run's lowest limit of `within` (the limit the arcs must keep). A run: consecutive samples of
-    positive finite limit, between rest points (0: the controller stops there, so no blend arc crosses)
-    and rapids (nan). One feed over a whole run leaves no blend arc in it faster than the run's lowest
-    limit, however the controller merges its moves."""
-    out = np.asarray(limit_mm_s, float).copy()
-    within = np.asarray(within, float)
-    moving = np.isfinite(out) & (out > 0)
-    run = np.cumsum(~moving)  # one id per run (and per rest point or rapid sample between runs)
-    run_min = np.full(int(run[-1]) + 1 if len(run) else 0, np.inf)
-    np.minimum.at(run_min, run[moving], np.where(np.isnan(within[moving]), np.inf, within[moving]))
-    idx, _, _ = _zone_minima(samples, out, zones)
-    touched = np.zeros(len(run_min), bool)
-    touched[run[idx[moving[idx]]]] = True
-    on = moving & touched[run]
-    out[on] = np.minimum(out[on], run_min[run[on]])
     return out

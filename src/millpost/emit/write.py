@@ -24,14 +24,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .errors import MillpostError
-from .gcode import dialects
-from .gcode.feed_mode import FeedMode
-from .gcode.flow import control_of
-from .gcode.interpret import BORING_CYCLES, INCH, TAPPING_CYCLES, Program
-from .gcode.lexer import Block, lex_line, source_lines
-from .schedule.feeds import cluster
-from .toolpath import ARC_CW, PLANE_AXES, RAPID, Toolpath
+from ..errors import MillpostError
+from ..gcode import dialects
+from ..gcode.feed_mode import FeedMode
+from ..gcode.flow import control_of
+from ..gcode.interpret import BORING_CYCLES, INCH, TAPPING_CYCLES, Program
+from ..gcode.lexer import Block, lex_line, source_lines
+from ..toolpath import ARC_CW, PLANE_AXES, RAPID
+from .policy import cluster
 
 SPLIT_TOLERANCE_MM = 1e-4  # a split point lies this close to the original path at most
 # relative: a planned feed this close under a value of the written grid is that value (float round-off of
@@ -80,7 +80,7 @@ class FeedPlan:
     @classmethod
     def from_fragments(cls, program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray,
                        axis_vmax_mm_min: tuple[float, float, float] | None = None) -> "FeedPlan":
-        """The plan from the schedule's fragments (`schedule.feeds.Fragment`). With control flow a line that runs several times gets
+        """The plan from the schedule's fragments (`emit.policy.Fragment`). With control flow a line that runs several times gets
         one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
         ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
         (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
@@ -599,7 +599,7 @@ def _computed_line(text: str, n: int, path: str) -> bool:
 
 
 def whole_moves(program: Program, fragments: list) -> list:
-    """Fragments (`schedule.feeds.Fragment`) with those of each compensated move, of each move a canned
+    """Fragments (`emit.policy.Fragment`) with those of each compensated move, of each move a canned
     cycle runs (its block's words are the cycle's, not a move's end point), and of each move whose line
     computes a word (`computed`), merged into one over the whole move at their lowest feed (such moves
     are written with one F, see the module docstring)."""
@@ -639,51 +639,6 @@ def _same(a: float, b: float) -> bool:
 def _sweep(tp, i: int) -> float:
     sub = tp.subset(np.array([i]))
     return float(sub._arc_params()[3][0])
-
-
-def pieces_of_moves(original: Toolpath, emitted: Toolpath, tol_mm: float = 1e-4) -> np.ndarray:
-    """The map back of `write_feeds`'s splitting: per move of the original toolpath the index of its
-    first piece in the emitted program's toolpath (len(original) + 1 entries, the last one
-    len(emitted)). Moves keep their order and end points (a split move's last piece ends where the
-    move did), so pieces are matched in order by their end points (within tol_mm)."""
-    out = np.empty(len(original) + 1, np.int64)
-    ends, e_ends = original.end.tolist(), emitted.end.tolist()
-    k = 0
-    for i, p in enumerate(ends):
-        out[i] = k
-        while k < len(e_ends) and max(abs(e_ends[k][0] - p[0]), abs(e_ends[k][1] - p[1]),
-                                      abs(e_ends[k][2] - p[2])) > tol_mm:
-            k += 1
-        if k == len(e_ends):
-            raise MillpostError(f"the emitted program does not pass through the end of move {i} (line "
-                                f"{int(original.line[i])}) at {p}")
-        k += 1
-    out[-1] = k
-    if k != len(e_ends):
-        raise MillpostError(f"the emitted program has {len(e_ends) - k} moves after the original program's end")
-    return out
-
-
-def emitted_positions(original: Toolpath, emitted: Toolpath, move: np.ndarray, u: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Where fraction u of original move `move` lies on the emitted program: (emitted move, fraction of
-    it), by arc length along the move's pieces (`pieces_of_moves`)."""
-    first = pieces_of_moves(original, emitted)
-    length = emitted.lengths()
-    before = np.r_[0.0, np.cumsum(length)]
-    lo, hi = first[move], first[np.asarray(move) + 1] - 1
-    s = before[lo] + np.clip(u, 0.0, 1.0) * (before[hi + 1] - before[lo])
-    k = np.clip(np.searchsorted(before[1:], s - 1e-12, side="left"), lo, hi)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        frac = np.where(length[k] > 0, (s - before[k]) / length[k], 1.0)
-    return k, np.clip(frac, 0.0, 1.0)
-
-
-def original_arc_length(original: Toolpath, emitted: Toolpath, s_mm: np.ndarray) -> np.ndarray:
-    """The original program's arc length (mm) at arc length s_mm of the emitted one: along each original
-    move's pieces (`pieces_of_moves`) in proportion (they are its path within the written precision)."""
-    first = pieces_of_moves(original, emitted)
-    return np.interp(s_mm, np.r_[0.0, np.cumsum(emitted.lengths())][first], np.r_[0.0, np.cumsum(original.lengths())])
 
 
 def replace_numbers(program: Program, words: dict[int, dict[str, float]]) -> str:
