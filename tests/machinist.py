@@ -1,8 +1,9 @@
 """What a machinist checks in an optimized program before running it, computed from the programs' text
 (read back) and the job alone, not from millpost's schedule or limits:
 
-- `axis_rate_excess`: feed moves whose F is above what the machine's axes run in that direction,
-  min over the axes of vmax_i / |t_i| over the move's tangents t (an arc: over its whole sweep);
+- `axis_rate_excess`: feed moves with an F millpost wrote above what the machine's axes run in that
+  direction, min over the axes of vmax_i / |t_i| over the move's tangents t (an arc: over its whole
+  sweep);
 - `descent_excess`: feed moves going down whose end lies below the stock's top with an F above
   `raise_max` × their programmed F (a restart from a later line, a skipped operation or a broken tool
   makes any of them a plunge into solid material);
@@ -39,10 +40,16 @@ def axis_rates(tp: Toolpath, vmax_mm_min: np.ndarray) -> np.ndarray:
     return out
 
 
-def axis_rate_excess(emitted: Toolpath, vmax_mm_min, inch: bool = False) -> list[str]:
+def axis_rate_excess(original: Toolpath, emitted: Toolpath, vmax_mm_min, inch: bool = False) -> list[str]:
+    """F words millpost wrote above the axis rates of their move (the program's own F on a move is the
+    programmer's: not counted)."""
     rate = axis_rates(emitted, np.asarray(vmax_mm_min, float))
     f = emitted.feed_mm_min
-    bad = np.flatnonzero(np.isfinite(rate) & (f > rate * (1 + 1e-5) + _rounding(inch)))
+    first = pieces_of_moves(original, emitted)
+    own = np.zeros(len(emitted), bool)
+    for i in range(len(original)):
+        own[first[i]:first[i + 1]] = np.isclose(f[first[i]:first[i + 1]], original.feed_mm_min[i], rtol=1e-9)
+    bad = np.flatnonzero(np.isfinite(rate) & ~own & (f > rate * (1 + 1e-5) + _rounding(inch)))
     return [f"line {emitted.line[i]}: F{f[i]:.1f} mm/min above the axis rate {rate[i]:.1f} of its direction"
             for i in bad]
 

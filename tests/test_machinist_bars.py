@@ -71,7 +71,7 @@ def test_descents_approaches_and_axis_rates(pocket):
     assert machinist.descent_excess(original, emitted, top, float(job.limits["plunge_raise_max"])) == []
     assert machinist.approach_excess(original, emitted, top, c, box) == []
     vmax = [job.machine.axes[a].vmax_mm_min for a in "xyz"]
-    assert machinist.axis_rate_excess(emitted, vmax) == []
+    assert machinist.axis_rate_excess(original, emitted, vmax) == []
     # the level changes go down through the pocket already cut: the program's F300 there is raised at most 2x
     level = [k for k in range(len(original)) if original.kind[k] != RAPID and original.end[k, 2] in (-2.0, -4.0)
              and original.start[k, 2] in (-1.0, -3.0)]

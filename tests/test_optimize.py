@@ -228,19 +228,21 @@ def test_moves_between_stops_are_scheduled(tmp_path, machine):
 
 
 def test_feed_above_the_axis_rates_is_written_at_the_rates_of_each_direction(tmp_path):
-    """A light 3D finish posted at F6000 on hobby-router (X, Y 3000, Z 2000 mm/min): the controller
-    clamps each axis to its own rate, so a 45° XY move runs 3000·√2 = 4243 mm/min and an X move 3000.
-    An F word above what its move runs at reads as a typo (F39395 on an X axis of 24000): each move's
-    F is at most the rate of its direction, min over the axes of vmax_i / |u_i| (u the unit direction),
-    and the program is exactly as fast as the programmed one (the controller ran those speeds already;
-    nothing else binds in a 0.2 mm skim of MDF)."""
+    """A light 3D finish posted at F6000 on hobby-router (X, Y 3000, Z 2000 mm/min; no direction runs
+    faster than √(3000² + 3000² + 2000²) = 4690), then air moves programmed at F500 far from the stock.
+    An F word millpost writes above what its move runs at reads as a typo (F39395 on an X axis of 24000):
+    every F it writes is at most the rate of its move's direction, min over the axes of vmax_i / |u_i|
+    (u the unit direction: 3000 on X, 3000·√2 = 4243 on a 45° XY move). The programmed F6000 is over the
+    machine's maximum feed, which the summary says (limits_programmed: the programmed F words against
+    the caps they must hold)."""
     rows = []
     for k in range(6):
         y = 2.0 + 4.0 * k
         rows += [f"G1 X10 Y{y:.1f} Z-0.2", "G1 X25 Z-0.25", "G1 X40 Z-0.2", f"G1 X44 Y{y + 4.0:.1f}",
                  "G1 X10"] if k % 2 == 0 else [f"G1 X6 Y{y + 4.0:.1f}"]
+    air = ["G1 Z20 F500", "G1 X-40 Y-40", "G1 X-80", "G1 X-80 Y-80", "G1 X-40 Y-40 Z30"]
     (tmp_path / "p.nc").write_text("G21 G90 G17\nT1 M6\nS18000 M3\nG0 X10 Y2 Z5\nG1 Z-0.2 F6000\n"
-                                   + "\n".join(rows) + "\nG0 Z5\nM5\nM30\n")
+                                   + "\n".join(rows + air) + "\nG0 Z35\nM5\nM30\n")
     (tmp_path / "job.toml").write_text(
         'program = "p.nc"\nmaterial = "mdf"\nmachine = "hobby-router"\n[stock]\nbox = [[0, 0, -12], [50, 30, 0]]\n'
         'cell_mm = 0.1\n[tools.1]\ndiameter_mm = 3.175\nflutes = 2\nshape = "ball"\nflute_length_mm = 12\n'
@@ -248,14 +250,15 @@ def test_feed_above_the_axis_rates_is_written_at_the_rates_of_each_direction(tmp
     job = load_job(tmp_path / "job.toml")
     result = optimize(job, progress=False)
     s = result.summary
-    assert s["status"] == "solved", s["message"]
-    assert s["cycle_time_after_s"] == pytest.approx(s["cycle_time_before_s"], rel=1e-3)
+    assert s["status"] in ("solved", "slower"), s["message"]
+    assert s["limits_programmed"]["feed"] == pytest.approx(6000 / job.machine.feed_cap_mm_min, rel=1e-3)
     tp = read_text(result.text).toolpath
     feed = (tp.kind != 0) & (tp.lengths() > 0)
     u = np.abs(tp.end - tp.start)[feed] / tp.lengths()[feed, None]
     vmax = np.array([job.machine.axes[a].vmax_mm_min for a in "xyz"])
     with np.errstate(divide="ignore"):
         rate = np.min(np.where(u > 1e-12, vmax / u, np.inf), axis=1)
-    assert np.all(tp.feed_mm_min[feed] <= rate * (1 + 1e-9))
-    diagonal = (u[:, 0] > 0.5) & (u[:, 1] > 0.5)
-    assert tp.feed_mm_min[feed][diagonal] == pytest.approx(3000 * np.sqrt(2), rel=1e-3)
+    f = tp.feed_mm_min[feed]
+    assert np.all(f <= rate * (1 + 1e-9))
+    assert f[u[:, 0] > 0.999] == pytest.approx(3000.0, rel=1e-3)  # the raster's and the air's X moves
+    assert (f > 500.0 * (1 + 1e-9))[tp.line[feed] >= 6 + len(rows)].sum() >= 3  # the air moves, raised

@@ -123,7 +123,7 @@ def test_what_a_machinist_checks_descents_approaches_and_axis_rates(run):
     assert machinist.descent_excess(original.toolpath, emitted, top, raise_max, inch) == [], name
     assert machinist.approach_excess(original.toolpath, emitted, top, c, box, inch) == [], name
     vmax = [job.machine.axes[a].vmax_mm_min for a in "xyz"]
-    assert machinist.axis_rate_excess(emitted, vmax, inch) == [], name
+    assert machinist.axis_rate_excess(original.toolpath, emitted, vmax, inch) == [], name
 
 
 def test_executed_speed_within_every_f_word_cap(run):

@@ -154,13 +154,21 @@ class FeedPlan:
 
 
 def cycle_feeds(program: Program, feed_mm_min: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-move feeds (mm/min) with the canned cycles whose feed is not free: a tapping cycle feeds at
-    the tap's pitch times the spindle speed (synchronised), so its F is never changed; a boring cycle's
-    feed sets the finish of the bore, so it is never raised (a hard limit may lower it). Returns the
-    feeds and the indices of those cycles' moves."""
-    held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
-    programmed = program.toolpath.feed_mm_min[held]
+    """Per-move feeds (mm/min) as a canned cycle's block can carry them: one F for all the feed moves of
+    a block (its pecks, its approach from R), the lowest any of them of nonzero length wants; a tapping
+    cycle feeds at the tap's pitch times the spindle speed (synchronised), so its F is never changed; a
+    boring cycle's feed sets the finish of the bore, so it is never raised (a hard limit may lower it).
+    Returns the feeds and the indices of the tapping and boring cycles' moves."""
+    tp = program.toolpath
     out = np.array(feed_mm_min, float, copy=True)
+    cyc = np.flatnonzero((program.cycle != 0) & (tp.kind != RAPID) & (tp.lengths() > 0))
+    if len(cyc):
+        lines, inverse = np.unique(tp.line[cyc], return_inverse=True)
+        lowest = np.full(len(lines), np.inf)
+        np.fmin.at(lowest, inverse, out[cyc])
+        out[cyc] = np.where(np.isfinite(lowest[inverse]), lowest[inverse], out[cyc])
+    held = np.flatnonzero(np.isin(program.cycle, TAPPING_CYCLES + BORING_CYCLES))
+    programmed = tp.feed_mm_min[held]
     out[held] = np.where(np.isin(program.cycle[held], TAPPING_CYCLES), programmed, np.fmin(out[held], programmed))
     return out, held
 

@@ -225,6 +225,17 @@ def axis_rates(toolpath: Toolpath, samples: Samples, axes) -> np.ndarray:
     return np.where(samples.kind != RAPID, rate[samples.move], np.inf)
 
 
+def axis_rate_caps(toolpath: Toolpath, samples: Samples, axes, feed_max_mm_s: float) -> np.ndarray:
+    """The F-word cap of the axis rates per sample (mm/s): the controller clamps an F above them by itself,
+    but an F word millpost writes above what its move runs at reads as a typo (F39395 on an X axis of
+    24000), so it is `axis_rates`; except that the program's own F above them stays where it is within the
+    maximum feed (LinuxCNC blends a corner up to the faster requested F: lowered to the rates, a raster
+    programmed at F4000 on 3000 mm/min axes would run slower)."""
+    v_prog = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0
+    rate = axis_rates(toolpath, samples, axes)
+    return np.where(v_prog <= feed_max_mm_s, np.maximum(rate, v_prog), rate)
+
+
 def feed_cap_mm_min(job: Job) -> float:
     """The highest F word (mm/min): the machine's (`Machine.feed_cap_mm_min`, the fastest any direction
     runs; the axis rates of each move's direction are a limit of their own) and the user's
@@ -259,10 +270,9 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
               Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False, clamp=True),
               Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
                     f_word=False, clamp=True),
-              # the same rates over each whole move (an arc's every direction): the controller clamps an F
-              # above them by itself, but an F word above what its move runs at reads as a typo
-              Limit(FeedLimit(axis_rates(toolpath, samples, ax), name="axis_rate"), HARD, "inertia", controller=True,
-                    clamp=True),
+              # the same rates over each whole move (an arc's every direction)
+              Limit(FeedLimit(axis_rate_caps(toolpath, samples, ax, feed_max / 60.0), name="axis_rate"),
+                    HARD, "inertia", controller=True, clamp=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               # LinuxCNC's planner (`controller`) runs an arc as one segment clamped at √(a_n·r) by itself;
               # grbl runs it as chords whose F word it keeps, so the F word carries the cap there
@@ -448,10 +458,13 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                         HARD, "current"))
     if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
         near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
-        down = samples.tangent[:, 2] < -DESCENDING
+        # going down: an approach, the air part of a plunge (a canned cycle's block, which one F runs whole
+        # from its R plane, keeps its cut's rule: R is where the program starts the cycle's feed)
+        moves_of_block = np.bincount(toolpath.block)[toolpath.block]
+        down = (samples.tangent[:, 2] < -DESCENDING) & (moves_of_block[samples.move] <= 1)
         known = near & eng.swept_air
         if not job.limits["trust_cut_space"]:  # a descent, whatever was swept: the tool enters what it meets
-            known &= ~down
+            known &= ~(samples.tangent[:, 2] < -DESCENDING)
         cap = np.maximum(_air_clearance(near, known, engaged, samples, v_prog, v_cap, down), carried)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     if job.limits["air_feed_max_mm_min"] and eng.below_top is not None:  # the user's cap on air in cut space

@@ -28,7 +28,7 @@ from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
 from .operations import restart_points
 from .replay import baseline_feeds, binding_shares, feed_at_samples, replay
-from .schedule import PathGrid, ScheduleOptions, schedule_samples
+from .schedule import FeedLimit, PathGrid, ScheduleOptions, schedule_samples
 from .schedule.feeds import blend_excess, blend_limit, emission_limit, piecewise_feeds, run_limit
 from .signals import controller_model, running_rpm
 from .spindle_speed import choose_speeds
@@ -155,7 +155,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     # a load against its bound before the policy (the policy's held bound is the programmed feed's own load,
     # against which the programmed feeds would read 1 however far over the limit they are)
     programmed_run = replay(job, samples, eng, limits, before.speed_at_samples(samples))
-    as_programmed = programmed_run.ratios | programmed_run.physical
+    as_programmed = programmed_run.ratios | programmed_run.physical | _f_words_over_caps(samples, limits)
     del programmed_run
     progress("replay", 2, 3)
     checked = replay(job, samples, eng, limits, executed)
@@ -442,6 +442,21 @@ def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, a
             f"against {before_s:.1f} s programmed ({after_s / before_s:.2f}x{'; ' + tools if tools else ''}: more "
             f"than slower_max {float(job.limits['slower_max']):g}x); the cuts need to be lighter by those factors, "
             "or another tool or a stronger machine")
+
+
+def _f_words_over_caps(samples: Samples, limits: JobLimits) -> dict[str, float]:
+    """The programmed F words against the speed caps F words hold (`JobLimits.f_word_caps`), per cap the
+    largest programmed feed over it where a move is fed: the controller runs an F above the axis rates or
+    the maximum feed at them, so the replay of the programmed run never shows it (F6000 on 3000 mm/min
+    axes written at the rates is what makes such a program a little slower)."""
+    v_prog = np.where(samples.kind != RAPID, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
+    out = {}
+    for lim in limits.f_word_caps():
+        if isinstance(lim.constraint, FeedLimit):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.nan_to_num(v_prog / lim.constraint.max_feed_mm_s, nan=0.0, posinf=0.0)
+            out[lim.name] = float(np.max(ratio, initial=0.0))
+    return {k: v for k, v in out.items() if v > 1.0}
 
 
 def _overloaded(job: Job, summary: dict) -> str:
