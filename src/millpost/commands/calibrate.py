@@ -16,8 +16,9 @@ from ..calibrate.cuts import read_cuts
 from ..calibrate.logfit import fit_log
 from ..calibrate.machine_fit import fit_stiffness
 from ..calibrate.plan import PlanRequest, make_plan
-from ..config import dump_toml, load_description, load_toml
+from ..config import dump_toml, load_description
 from ..errors import ConfigError, MillpostError
+from ..calibrate.descriptions import job_ref, machine_dict
 from ..files import write_atomic
 from ..gcode import dialects
 from ..job import load_job
@@ -202,31 +203,6 @@ def run_fit(args: argparse.Namespace) -> int:
         write_atomic(path, text)
         print(f"millpost: wrote {path}", file=sys.stderr)
     return 0
-
-
-def job_ref(target: str, key: str) -> str:
-    """The material or machine a job (plan folder or job file) names: a built-in name, or a path relative
-    to the job."""
-    path = load_job(target).path
-    value = str(load_toml(path)[key])
-    return str(path.parent / value) if value.endswith(".toml") and not Path(value).is_absolute() else value
-
-
-def machine_dict(base: str, updates: dict, provenance: str) -> dict:
-    """The machine `base` with `updates` (section → fields; axes → axis → fields), its source naming
-    `provenance`; refused when optimize would not read it."""
-    data, _ = load_description("machines", base)
-    for section, values in updates.items():
-        if section == "axes":
-            for axis, fields in values.items():
-                data["axes"][axis].update({k: float(v) for k, v in fields.items()})
-        else:
-            data[section].update({k: list(v) if isinstance(v, tuple) else float(v) for k, v in values.items()})
-    data["source"] = f"{data.get('source', '')}; {provenance}: " + ", ".join(
-        f"{s}.{k}" for s, v in updates.items() for k in (v if s != "axes" else
-                                                         [f"{a}.{f}" for a, fs in v.items() for f in fs]))
-    Machine.from_dict(data)
-    return data
 
 
 def _fit_stiffness(args, stamp: str) -> int:

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibrate.machine_fit import AxisDrive
-from ..commands.calibrate import job_ref, machine_dict
+from ..calibrate.descriptions import job_ref, machine_dict
 from ..config import dump_toml, load_description, load_toml
 from ..files import write_atomic
 from ..materials import Material
