@@ -394,15 +394,38 @@ def test_optimize_keeps_compensation_and_rs274_reads_back_the_same_path(tmp_path
     result = optimize(load_job(tmp_path), progress=False)
     assert result.summary["status"] == "solved" and result.summary["removed_volume_mm3"] > 1000
     assert max(result.summary["limits"].values()) <= 1.005
-    out = result.text.splitlines()
-    assert len(out) == len(BOSS.splitlines())
-    for old, new in zip(BOSS.splitlines(), out):
-        assert new.split(" F")[0].split("F")[0] == old.split(" F")[0].split("F")[0]  # only F words change
+    def words(line):
+        return line.split(" F")[0].split("F")[0]
+
+    # only F words change; a line may be preceded by added pieces of its own move (the plunge beside the
+    # block is split where it enters the air clearance), each a bare G1 to a point on the way
+    out = [words(line) for line in result.text.splitlines()]
+    kept = [line for line in out if line in {words(old) for old in BOSS.splitlines()}]
+    assert kept == [words(old) for old in BOSS.splitlines()]
+    assert all(line.startswith("G1 Z") for line in out if line not in kept)
     emitted = tmp_path / "emitted.ngc"
     emitted.write_text(result.text)
     original, back = (rs274_oracle.run(p, diameters_mm={1: 6.0}) for p in (tmp_path / "program.nc", emitted))
     assert original.error is None and back.error is None
-    assert [(k, e) for k, e, _, _ in original.moves] == [(k, e) for k, e, _, _ in back.moves]
+    assert _merged(original.moves) == _merged(back.moves)
+
+
+def _merged(moves, tol=1e-4):
+    """rs274's moves as (kind, end) with a straight feed move continuing the previous one in the same
+    direction merged into it: the path, whichever points it is split at."""
+    out = []
+    start = np.zeros(3)
+    for kind, end, _, _ in moves:
+        end = np.asarray(end)
+        if out and kind == out[-1][0] == "feed":
+            a, b = out[-1][1] - out[-1][2], end - out[-1][1]
+            if np.linalg.norm(np.cross(a, b)) <= tol * max(np.linalg.norm(a), 1.0) and a @ b > 0:
+                out[-1] = (kind, end, out[-1][2])
+                start = end
+                continue
+        out.append((kind, end, start))
+        start = end
+    return [(k, tuple(np.round(e, 4))) for k, e, _ in out]
 
 
 def test_inverse_time_feeds_under_compensation_are_timed_by_the_programmed_move():

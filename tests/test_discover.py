@@ -77,7 +77,7 @@ def test_seeded_runs_name_the_hidden_effect(cache, effect):
         assert right >= 0.95 * runs, named   # no false alarm
         return
     assert right >= 0.9 * runs - 1e-9 or right >= runs - 1, named
-    if effect == "runout":   # 1 to 3 runs (the README's figures): the bar on their median
+    if effect == "runout":   # 1 to 3 runs (the figures of docs/discover.md): the bar on their median
         assert np.median(shrink) >= 0.6, shrink
         assert all(abs(q - 1) < 0.15 for q in rho), rho   # the axis offset ρ (3 and 4 flutes): 0.94–1.08
         return

@@ -2,7 +2,7 @@
 
 Neither FreeCAD nor Fusion runs here. The FreeCAD post's job writing, argument splitting, tool and
 stock reading and the millpost hand-off are exercised with small fake objects and fake millpost
-executables; job.toml is checked with tomllib against the keys of the job format of the README (section "Job files"). The .cps is
+executables; job.toml is checked with tomllib against the keys of the job format in docs/job-files.md. The .cps is
 syntax-checked with `node --check` and driven by a small stub of the Fusion post API over a
 synthetic toolpath; the G-code it writes is read back with millpost's reader and compared with the
 toolpath that was fed in (an independent reference: the input moves themselves).
@@ -30,7 +30,7 @@ from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID
 ROOT = Path(__file__).resolve().parents[1]
 FREECAD_POST = ROOT / "posts" / "freecad" / "millpost_post.py"
 FUSION_POST = ROOT / "posts" / "fusion" / "millpost.cps"
-JOB_FORMAT = ROOT / "README.md"  # its first toml block is the job format
+JOB_FORMAT = ROOT / "docs" / "job-files.md"  # its first toml block is the job format
 NODE = shutil.which("node")
 
 
@@ -46,7 +46,7 @@ fc = _load_freecad_post()
 
 
 def _format_keys() -> dict[str, set[str]]:
-    """Keys the README's job format allows: top level, [stock], [tools.N], [limits] (commented keys included)."""
+    """Keys the job format (docs/job-files.md) allows: top level, [stock], [tools.N], [limits] (commented keys included)."""
     if not JOB_FORMAT.is_file():
         pytest.skip(f"{JOB_FORMAT} is absent")
     block = re.search(r"```toml\n(.*?)```", JOB_FORMAT.read_text(), re.S).group(1)

@@ -200,7 +200,7 @@ def _toml_num(x: float) -> str:
 
 def job_toml(stock: tuple[Sequence[float], Sequence[float]] | str, tools: Iterable[ToolSpec], program: str,
              material: str, machine: str, output: str | None = None) -> str:
-    """The job.toml text of the job format of the README (section "Job files") (paths relative to the job file, lengths in mm).
+    """The job.toml text of the job format (docs/job-files.md) (paths relative to the job file, lengths in mm).
 
     `stock` is a box ((xmin, ymin, zmin), (xmax, ymax, zmax)) or the name of a stock file.
     """

@@ -309,7 +309,7 @@ function tomlNumber(x) {
   return (/^-?\d+$/).test(s) ? s + ".0" : s;
 }
 
-/** job.toml text (README, "Job files"): box = [[xmin,ymin,zmin],[xmax,ymax,zmax]] mm, tools in mm. */
+/** job.toml text (docs/job-files.md): box = [[xmin,ymin,zmin],[xmax,ymax,zmax]] mm, tools in mm. */
 function millpostJobToml(program, output, box, tools, material, machine) {
   var lines = [
     "# written by the millpost Fusion post",

@@ -43,7 +43,7 @@ import math
 
 import numpy as np
 
-from .commands.calc import evaluate_cut
+from .cut import evaluate_cut
 from .errors import MillpostError
 from .forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut
 from .machine import Machine

@@ -16,7 +16,7 @@ class Operation:
     name: str
     tool: int
     index: np.ndarray  # sample indices
-    line: int = 0  # where it starts: its comment's line, else its first sample's
+    line: int = 0  # where it starts: its comment's line (the first operation under it), else its first sample's
 
 
 def operations_from_lines(lines: np.ndarray, tools: np.ndarray, comments: list[tuple[int, str]]) -> list[Operation]:
@@ -28,11 +28,13 @@ def operations_from_lines(lines: np.ndarray, tools: np.ndarray, comments: list[t
     ops: dict[tuple[int, int], list[int]] = {}
     for k, key in enumerate(zip(at.tolist(), tools.astype(int).tolist())):
         ops.setdefault(key, []).append(k)
-    out = []
+    out, named = [], set()
     for (c, tool), idx in sorted(ops.items(), key=lambda kv: kv[1][0]):
         if tool < 0:
             continue
-        start = int(comment_lines[c]) if c >= 0 and comment_lines[c] <= lines[idx[0]] else int(lines[idx[0]])
+        # its comment's line, once: a second tool under the same comment starts at its own first move
+        start = int(comment_lines[c]) if c >= 0 and c not in named else int(lines[idx[0]])
+        named.add(c)
         out.append(Operation(texts[c].strip() if c >= 0 else f"T{tool}", tool, np.asarray(idx), start))
     return out
 

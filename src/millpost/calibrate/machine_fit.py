@@ -120,14 +120,15 @@ def fit_stiffness(force_N, displacement_mm) -> Stiffness:
 
 def fit_idle_power(rpm, power_W, *, resolution_rpm: float = 50.0) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """No-load spindle power (W) per speed: the mean power at each speed level (speeds within
-    resolution_rpm are one level), as the (idle_rpm, idle_power_W) points of a machine file."""
+    resolution_rpm are one level), as the (idle_rpm, idle_power_W) points of a machine file; a mean under
+    0 (a spindle with no measurable no-load loss, read through a sensor's noise) is 0."""
     n, p = np.asarray(rpm, float), np.asarray(power_W, float)
     ok = np.isfinite(n) & np.isfinite(p) & (n > 0)
     if not ok.any():
         raise MillpostError("no idle samples (spindle on, not cutting) with speed and power")
     levels = np.round(n[ok] / resolution_rpm) * resolution_rpm
     speeds = np.unique(levels)
-    return tuple(float(s) for s in speeds), tuple(float(np.mean(p[ok][levels == s])) for s in speeds)
+    return tuple(float(s) for s in speeds), tuple(max(float(np.mean(p[ok][levels == s])), 0.0) for s in speeds)
 
 
 def fit_spindle_current(torque_Nm, current_A) -> tuple[float, float]:

@@ -4,17 +4,15 @@ from __future__ import annotations
 
 import argparse
 import math
-from dataclasses import dataclass
 
 from ..files import json_text
-from ..errors import ConfigError, MillpostError
-from ..forces import (Kienzle, Mechanistic, chip_thinning_factor, given_cut, immersion, max_chip_mm,
-                      mean_chip_mm)
+from ..errors import ConfigError
+from ..cut import evaluate_cut
+from ..forces import Kienzle, Mechanistic
 from ..forces.mechanistic import COEF_NAMES
 from ..machine import Machine
 from ..materials import Material
 from ..registry import plugins
-from ..tools.beam import ToolBeam
 from ..tools.cutter import Tool
 from ..tools.library import load_tool
 
@@ -23,8 +21,8 @@ Units: lengths mm, feed per tooth mm, feed mm/min, speed rpm, forces N, torque N
 removal rate mm³/min. The cut is a straight pass along +X beside a wall, width ae (ae ≥ D is a slot),
 depth ap; --climb (default) keeps the material on the right of the travel (down milling with an M3
 spindle), --conventional on the left. Forces are those on the tool in machine X, Y, Z; F_z is the
-axial force +F_a of Altintas' convention (PHYSICS.md §1.1; which way it points depends on the helix
-hand, so take its magnitude). F_avg_N is the mean over a tooth period, F_peak_N the largest in-plane
+axial force +F_a of Altintas' convention (which way it points depends on the helix hand, so take
+its magnitude). F_avg_N is the mean over a tooth period, F_peak_N the largest in-plane
 |F| over a revolution (helix included). deflection_mm is the tool's lateral deflection under F_peak at
 mid-depth (two-segment cantilever, fluted diameter 0.8·D); break_ratio = F_peak over the tool's
 allowed lateral force (bending strength / safety factor). With --machine, machine_deflection_mm is
@@ -128,56 +126,6 @@ def model_from_args(args: argparse.Namespace) -> tuple[Mechanistic | Kienzle, Ma
         return Kienzle.from_coefficients(k["kc11"], k["mc"], **ratios), None
     material = Material.load(args.material)
     return material.force_model(args.model or "mechanistic"), material
-
-
-@dataclass(frozen=True)
-class CutResult:
-    """Loads of one cut; units in the names."""
-
-    fz_mm: float
-    feed_mm_min: float
-    rpm: float
-    vc_m_min: float
-    h_max_mm: float
-    h_mean_mm: float
-    chip_thinning_factor: float
-    F_avg_N: tuple[float, float, float]
-    F_peak_N: float
-    torque_Nm: float
-    power_W: float
-    mrr_mm3_min: float
-    deflection_mm: float
-    break_ratio: float
-    machine_deflection_mm: float | None
-    spindle_power_ratio: float | None
-
-
-def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_mm: float, rpm: float,
-                 fz_mm: float, climb: bool = True, machine: Machine | None = None,
-                 safety_factor: float | None = None) -> CutResult:
-    """All loads of one straight cut (the API under `millpost calc`, also used by `recommend`)."""
-    if rpm <= 0 or fz_mm <= 0:
-        raise MillpostError("rpm and feed per tooth must be > 0")
-    eng = given_cut(tool, ae_mm, ap_mm, climb=climb)
-    loads = model.predict(eng, fz_mm, rpm, tool)
-    ae = min(ae_mm, tool.diameter_mm)
-    feed = fz_mm * tool.flutes * rpm
-    beam = ToolBeam.of(tool, safety_factor=safety_factor)
-    f_peak = float(loads.peak_force_xy_N[0])
-    machine_defl = spindle_ratio = None
-    if machine is not None:
-        machine_defl = f_peak / min(machine.axes["x"].stiffness_N_per_mm, machine.axes["y"].stiffness_N_per_mm)
-        avail = float(machine.spindle.power_available_W(rpm))
-        spindle_ratio = float(loads.power_W[0]) / avail if avail > 0 else math.inf
-    return CutResult(
-        fz_mm=fz_mm, feed_mm_min=feed, rpm=rpm, vc_m_min=math.pi * tool.diameter_mm * rpm / 1000.0,
-        h_max_mm=max_chip_mm(fz_mm, ae, tool.diameter_mm),
-        h_mean_mm=float(mean_chip_mm(fz_mm, *immersion(ae, tool.diameter_mm))),
-        chip_thinning_factor=chip_thinning_factor(ae, tool.diameter_mm),
-        F_avg_N=tuple(float(v) for v in loads.force_N[0]), F_peak_N=f_peak, torque_Nm=float(loads.torque_Nm[0]),
-        power_W=float(loads.power_W[0]), mrr_mm3_min=float(eng.area_mm2[0]) * feed,
-        deflection_mm=beam.deflection_mm(f_peak, ap_mm), break_ratio=f_peak / beam.breaking_force_N(ap_mm),
-        machine_deflection_mm=machine_defl, spindle_power_ratio=spindle_ratio)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -16,8 +16,9 @@ from ..calibrate.cuts import read_cuts
 from ..calibrate.logfit import fit_log
 from ..calibrate.machine_fit import fit_stiffness
 from ..calibrate.plan import PlanRequest, make_plan
-from ..config import dump_toml, load_description, load_toml
+from ..config import dump_toml, load_description
 from ..errors import ConfigError, MillpostError
+from ..calibrate.descriptions import job_ref, machine_dict
 from ..files import write_atomic
 from ..gcode import dialects
 from ..job import load_job
@@ -40,7 +41,7 @@ dynamometer, `millpost log` for the VFD, the controller's axis currents), then f
 HELP_FIT = """\
 --cuts CUTS.csv: one row per steady cut, columns diameter_mm,flutes,helix_deg,ae_mm,ap_mm,fz_mm,rpm
 [,climb] and any of fx_N,fy_N,fz_N (mean force on the tool, cut along +X, as `calc` prints) and
-spindle_power_W (cutting power). --log LOG --plan DIR: a log (README: log format) of the program of
+spindle_power_W (cutting power). --log LOG --plan DIR: a log (docs/logs.md: log format) of the program of
 `calibrate plan`, aligned to it; fits what the log holds (forces and/or spindle power: cutting
 coefficients; spindle power in the idle dwells: no-load power; spindle current: its K_t; ix_A/iy_A/iz_A:
 axis mass and friction). --stiffness LOG --axis x: stiffness from force (f<axis>_N) vs displacement
@@ -181,7 +182,7 @@ def run_fit(args: argparse.Namespace) -> int:
         print("spindle: " + ", ".join(f"{k} {v}" for k, v in result["spindle"].items()))
     for note in result.get("notes", []):
         print(f"millpost: note: {note}", file=sys.stderr)
-    _write_json(args.json, result)
+    files = []  # (path, text): every output checked before any is written (a refusal writes nothing)
     if args.output:
         if fit is None:
             raise MillpostError("no cutting coefficients were fitted: nothing to write to " + args.output)
@@ -191,40 +192,17 @@ def run_fit(args: argparse.Namespace) -> int:
         data, _ = load_description("materials", base_ref)
         out = material_dict(data, fit, provenance)
         Material.from_dict(out)  # refuse to write what optimize would not read
-        write_atomic(args.output, dump_toml(out))
-        print(f"millpost: wrote {args.output}", file=sys.stderr)
+        files.append((args.output, dump_toml(out)))
     if args.machine_out:
         if not machine_updates:
             raise MillpostError("no machine constants were fitted: nothing to write to " + args.machine_out)
-        write_machine(args.machine_out, args.machine or job_ref(args.plan, "machine"), machine_updates, provenance)
-        print(f"millpost: wrote {args.machine_out}", file=sys.stderr)
+        files.append((args.machine_out, dump_toml(machine_dict(args.machine or job_ref(args.plan, "machine"),
+                                                                machine_updates, provenance))))
+    _write_json(args.json, result)
+    for path, text in files:
+        write_atomic(path, text)
+        print(f"millpost: wrote {path}", file=sys.stderr)
     return 0
-
-
-def job_ref(target: str, key: str) -> str:
-    """The material or machine a job (plan folder or job file) names: a built-in name, or a path relative
-    to the job."""
-    path = load_job(target).path
-    value = str(load_toml(path)[key])
-    return str(path.parent / value) if value.endswith(".toml") and not Path(value).is_absolute() else value
-
-
-def write_machine(path: str, base: str, updates: dict, provenance: str) -> None:
-    """The machine `base` with `updates` (section → fields; axes → axis → fields) written to `path` (atomically,
-    refused when optimize would not read it), its source naming `provenance`. Says nothing: the command that
-    writes the files says which."""
-    data, _ = load_description("machines", base)
-    for section, values in updates.items():
-        if section == "axes":
-            for axis, fields in values.items():
-                data["axes"][axis].update({k: float(v) for k, v in fields.items()})
-        else:
-            data[section].update({k: list(v) if isinstance(v, tuple) else float(v) for k, v in values.items()})
-    data["source"] = f"{data.get('source', '')}; {provenance}: " + ", ".join(
-        f"{s}.{k}" for s, v in updates.items() for k in (v if s != "axes" else
-                                                         [f"{a}.{f}" for a, fs in v.items() for f in fs]))
-    Machine.from_dict(data)
-    write_atomic(path, dump_toml(data))
 
 
 def _fit_stiffness(args, stamp: str) -> int:
@@ -244,8 +222,9 @@ def _fit_stiffness(args, stamp: str) -> int:
     if args.machine_out:
         if not args.machine:
             raise MillpostError("--machine-out needs --machine (the base machine)")
-        write_machine(args.machine_out, args.machine, {"axes": {args.axis: {"stiffness_N_per_mm": st.k_N_per_mm}}},
-                       f"fitted by millpost calibrate fit from {args.stiffness} on {stamp}")
+        updates = {"axes": {args.axis: {"stiffness_N_per_mm": st.k_N_per_mm}}}
+        provenance = f"fitted by millpost calibrate fit from {args.stiffness} on {stamp}"
+        write_atomic(args.machine_out, dump_toml(machine_dict(args.machine, updates, provenance)))
         print(f"millpost: wrote {args.machine_out}", file=sys.stderr)
     return 0
 

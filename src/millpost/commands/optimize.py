@@ -19,7 +19,7 @@ from . import add_allow_argument
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("optimize", help="rewrite a job's feeds as fast as the machine, tool and material allow",
                        epilog="example:\n  millpost optimize sample_jobs/adaptive_pocket --report pocket.html",
-                       description="Read the job (a folder with job.toml, or the .toml; format in README), simulate "
+                       description="Read the job (a folder with job.toml, or the .toml; format in docs/job-files.md), simulate "
                                    "engagement, predict loads, solve one convex feed schedule and write the same "
                                    "program with only F words changed (moves split where the feed must change).")
     p.add_argument("job", help="job folder or job.toml")

@@ -1,6 +1,6 @@
 """`millpost simulate JOB|PROGRAM`: step the tools through the stock along a G-code program and write
 the per-sample engagement trace (CSV, or NPZ with every axial slice) and optionally the final stock
-as STL. JOB is a job folder or job.toml (program, stock and tools from it, see the README); a bare
+as STL. JOB is a job folder or job.toml (program, stock and tools from it, see docs/job-files.md); a bare
 PROGRAM takes stock and tool from the flags."""
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibrate.machine_fit import AxisDrive
-from ..commands.calibrate import job_ref, write_machine
+from ..calibrate.descriptions import job_ref, machine_dict
 from ..config import dump_toml, load_description, load_toml
 from ..files import write_atomic
 from ..materials import Material
@@ -80,7 +80,7 @@ def write_model(d: Discovery, job_path: str | Path, out: str | Path) -> list[Pat
             for axis in "xy":
                 updates.setdefault("axes", {}).setdefault(axis, {})["stiffness_N_per_mm"] = 1.0 / c
     mach_path = out / "machine.toml"
-    write_machine(str(mach_path), machine_ref, updates, "millpost discover")
+    write_atomic(mach_path, dump_toml(machine_dict(machine_ref, updates, "millpost discover")))
     written.append(mach_path)
     job = load_toml(job_path)
     job["program"] = str((job_path.parent / job["program"]).resolve())
