@@ -1,10 +1,10 @@
 """The limits a job's feeds obey, each with its identity, and the feed policy that sets their bounds.
 
 A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus what it is:
-- `kind`: "hard" (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
+- `kind` (`Kind`): hard (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
   the end's thrust and torque on the tool, drive current, the machine's and the user's maxima (the
   plunge feed cap included), the controller's block rate ("block_rate": the controller holds it by
-  itself, no F word carries it)) or "quality" (exceeding it spoils the part
+  itself, no F word carries it)) or quality (exceeding it spoils the part
   or the tool's life: deflection, maximum chip load, the chip floor);
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
@@ -21,8 +21,8 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
   F word above it runs at it, so the F word need only reach it (`millpost.schedule.feeds.hold_runs`);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
   limit binds);
-- for a load limit, `signal(signals, at)`: the load it bounds, from the forward model's signals of the
-  samples `at` (a slice: `millpost.signals.Signals` of those samples → their values; the replay check
+- for a load limit, `load`: the signal it bounds (`millpost.signals.Load`), `signal(signals, at)`: that
+  load, from the forward model's signals of the samples `at` (a slice: `millpost.signals.Signals` of those samples → their values; the replay check
   evaluates it at the executed speed, in chunks),
   and `bound`: its bound per sample before the feed policy.
 
@@ -90,6 +90,7 @@ user's `deflection_mm`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
+from enum import StrEnum
 from typing import Any, Callable
 
 import numpy as np
@@ -105,12 +106,22 @@ from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
 from .schedule.feeds import programmed_arcs
 from .safety import spindle_off_message
-from .signals import running_rpm
+from .signals import Load, running_rpm
 from .engagement import path_radius
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
 
-HARD, QUALITY = "hard", "quality"
+
+
+class Kind(StrEnum):
+    """What exceeding a limit does, and so how far the feed policy lets it lower a feed (module docstring):
+    HARD breaks or stalls something, QUALITY spoils the part or the tool's life."""
+
+    HARD = "hard"
+    QUALITY = "quality"
+
+
+HARD, QUALITY = Kind.HARD, Kind.QUALITY
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
 RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
@@ -123,7 +134,7 @@ class Limit:
     """A constraint with its identity (see the module docstring)."""
 
     constraint: Any
-    kind: str
+    kind: Kind
     effect: str
     controller: bool = False
     baseline: bool = True
@@ -132,6 +143,7 @@ class Limit:
     default: str = ""
     signal: Callable[[Any, slice], np.ndarray] | None = None
     bound: np.ndarray | None = None
+    load: Load | None = None
 
     @property
     def name(self) -> str:
@@ -177,6 +189,13 @@ class JobLimits:
         """Names of the speed caps (row blocks) of `f_word_caps`, as the replay reports their ratios."""
         return tuple(sorted({blk.name for blk in window_blocks(grid, self.f_word_caps(), 0, min(len(grid), 1),
                                                                caps_only=True)}))
+
+    def held_on(self, load: Load) -> np.ndarray:
+        """Per sample: the policy held the bound of a limit on this load (any of its rows)."""
+        held = np.zeros(len(self.floor_mm_s), bool)
+        for name in {lim.name for lim in self.limits if lim.load is load}:
+            held |= self.held[name]
+        return held
 
     def names(self, **identity) -> tuple[str, ...]:
         """Names of the limits (and of their row blocks) whose identity fields have these values."""
@@ -455,8 +474,10 @@ class _Policy:
     held: dict[str, np.ndarray] = field(default_factory=dict)
     forced: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def load_limit(self, name: str, kind: str, effect: str, a, b, bound, signal, default: str = "") -> None:
-        """The load a·v + b ≤ bound (v mm/s) as a limit of this kind, its bound after the policy."""
+    def load_limit(self, name: str, kind: Kind, load: Load, effect: str, a, b, bound, signal,
+                   default: str = "") -> None:
+        """The load a·v + b ≤ bound (v mm/s) as a limit of this kind on this load, its bound after the policy;
+        `signal` is the same load in the forward model's signals of the samples `at`."""
         held, forced, n = self.held, self.forced, len(self.cutting)
         bound = np.broadcast_to(bound, a.shape)
         bound_eff, h = _policed(a, b, bound, self.keep_hard if kind == HARD else self.keep_quality)
@@ -464,7 +485,7 @@ class _Policy:
         if kind == HARD:
             forced[name] = held[name]
         self.limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
-                                 bound=bound))
+                                 bound=bound, load=load))
 
 
 def _cut_limits(policy: _Policy, job: Job, cut: _CutLoads) -> None:
@@ -472,22 +493,21 @@ def _cut_limits(policy: _Policy, job: Job, cut: _CutLoads) -> None:
     deflection, the tool's buckling (thrust) and torsion, the chip load."""
     m, loads, n, spin, rpm = job.machine, cut.loads, len(cut.rpm), cut.spin, cut.rpm
     defl_per_N, chip_a, defaults = cut.defl_per_N, cut.chip_a, cut.defaults
-    # each load is affine in the speed (the schedule's rows); `signal` is the same load in the signals of the
-    # samples `at`
-    policy.load_limit("cutting_force", HARD, "cutting force", loads["peak_a"], loads["peak_b"], cut.peak_limit,
-                      lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
-    policy.load_limit("power", HARD, "power", loads["power_a"], loads["power_b"],
+    # each load is affine in the speed (the schedule's rows)
+    policy.load_limit("cutting_force", HARD, Load.PEAK_FORCE, "cutting force", loads["peak_a"], loads["peak_b"],
+                      cut.peak_limit, lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
+    policy.load_limit("power", HARD, Load.POWER, "power", loads["power_a"], loads["power_b"],
                       np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s, at: s.cutting_power_W)
-    policy.load_limit("torque", HARD, "power", loads["torque_a"], loads["torque_b"],
+    policy.load_limit("torque", HARD, Load.TORQUE, "power", loads["torque_a"], loads["torque_b"],
                       np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s, at: s.torque_Nm)
-    policy.load_limit("deflection", QUALITY, "deflection", loads["peak_a"] * defl_per_N,
+    policy.load_limit("deflection", QUALITY, Load.DEFLECTION, "deflection", loads["peak_a"] * defl_per_N,
                       loads["peak_b"] * defl_per_N, cut.defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at],
                       defaults.get("deflection", ""))
-    policy.load_limit("thrust", HARD, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2], cut.thrust_limit,
-                      lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
-    policy.load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], cut.tool_torque_limit,
-                      lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
-    policy.load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), cut.h_max,
+    policy.load_limit("thrust", HARD, Load.THRUST, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2],
+                      cut.thrust_limit, lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
+    policy.load_limit("tool_torque", HARD, Load.TORQUE, "tool torque", loads["torque_a"], loads["torque_b"],
+                      cut.tool_torque_limit, lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
+    policy.load_limit("chip_load_max", QUALITY, Load.CHIP, "chip load", chip_a, np.zeros(n), cut.h_max,
                       lambda s, at: s.speed_mm_s * chip_a[at])  # a restart's descent has a chip where nothing cuts
 
 
@@ -532,7 +552,7 @@ def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: dict, enga
     static = np.abs(loads["force_b"]) + friction
     slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
     for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
-        policy.load_limit("cutting_current", HARD, "current", slope[:, k], static[:, k],
+        policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope[:, k], static[:, k],
                           np.where(engaged, capacity[k], np.inf),
                           lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
     stalled = policy.held["cutting_current"]

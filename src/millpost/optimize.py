@@ -26,7 +26,7 @@ from .gcode import check_program, read_program, read_text
 from .gcode.interpret import Program
 from .job import Job, check_tools
 from .progress import Progress, reporting, resolve, silent, stage
-from .limits import HARD, JobLimits, build_limits, static_caps
+from .limits import HARD, QUALITY, JobLimits, build_limits, static_caps
 from .operations import restart_points
 from .replay import baseline_feeds, binding_shares, feed_at_samples, replay
 from .schedule import FeedLimit, PathGrid, ScheduleOptions, schedule_samples
@@ -406,7 +406,7 @@ def _held_lines(samples: Samples, limits: JobLimits, physical: dict[str, float])
     for name, mask in sorted(limits.held.items()):
         if not mask.any():
             continue
-        kind = HARD if name in limits.forced else "quality"
+        kind = HARD if name in limits.forced else QUALITY
         lines = np.unique(samples.line[mask])
         out[name] = {"kind": kind, "samples": int(mask.sum()), "lines": [int(x) for x in lines[:20]],
                      "line_count": int(len(lines)), "over_bound": round(float(physical.get(name, 0.0)), 3),
