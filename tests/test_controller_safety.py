@@ -121,9 +121,9 @@ def _chain_job(tmp_path):
 
 def _chain_ratio(job, result) -> float:
     """The plunge cap's ratio where the machine's own planner runs the emitted program, re-read."""
+    from millpost.engagement import engage
     from millpost.gcode import read_program
     from millpost.limits import build_limits
-    from millpost.safety import engage
 
     program = read_program(job.program, job.reader_options())
     smp = result.samples
@@ -174,8 +174,8 @@ def test_merged_chains_run_no_slower_than_the_baseline(tmp_path):
 def _baseline_ratio(job, result) -> float:
     """The plunge cap's ratio where the machine's own planner runs the honest baseline (its feed per
     move, from the trace) on the programmed moves."""
+    from millpost.engagement import engage
     from millpost.gcode import read_program
-    from millpost.safety import engage
 
     program = read_program(job.program, job.reader_options())
     smp = result.samples

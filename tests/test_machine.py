@@ -22,23 +22,40 @@ def axis(drive="ballscrew", *, lead=5.0, radius=0.0, eta=0.9, mass=50.0, kt=0.5,
 
 def test_ball_screw_oracle_E1():
     ax = axis()
-    assert ax.motor_torque_Nm(500) == pytest.approx(0.44210, abs=1e-5)
-    assert ax.motor_torque_Nm(500) / 0.5 == pytest.approx(0.8842, abs=1e-4)
-    assert ax.thrust_N(5.0) == pytest.approx(2827.4, abs=0.1)
-    assert ax.reflected_load_inertia_kgm2 == pytest.approx(3.1663e-5, rel=1e-4)
+    rho = 0.005 / (2 * math.pi)  # m/rad
+    # at rest, an axial force F needs the motor torque F ρ / η
+    assert ax.demand(0.0, 0.0, cut_force_N=500.0).torque_Nm == pytest.approx(0.44210, abs=1e-5)
+    assert ax.demand(0.0, 0.0, cut_force_N=500.0).current_A == pytest.approx(0.8842, abs=1e-4)
+    # 5 A pushes K_t i η / ρ = 2827.4 N
+    assert ax.demand(0.0, 0.0, cut_force_N=2827.4).current_A == pytest.approx(5.0, rel=4e-5)
+    # the moving mass seen at the motor shaft, m ρ²: the torque per motor acceleration (1 m/s² = 1/ρ rad/s²)
+    # times η
+    assert ax.demand(0.0, 1000.0).torque_Nm * 0.9 * rho == pytest.approx(3.1663e-5, rel=1e-4)
 
 
 def test_belt_oracle():
     ax = axis("belt", radius=40 / math.pi / 2, eta=1.0, mass=1.0)
-    assert ax.motor_torque_Nm(100) == pytest.approx(0.6365, rel=1e-3)
-    assert ax.reflected_load_inertia_kgm2 == pytest.approx(4.0513e-5, rel=1e-3)
+    rho = 40 / math.pi / 2 / 1000  # m/rad
+    assert ax.demand(0.0, 0.0, cut_force_N=100.0).torque_Nm == pytest.approx(0.6365, rel=1e-3)
+    assert ax.demand(0.0, 1000.0).torque_Nm * rho == pytest.approx(4.0513e-5, rel=1e-3)
 
 
 def test_current_rise_limit_oracle():
+    """The fastest current rise the bus allows, (V_bus − R i − K_e ω) / L, takes the drive's voltage to the
+    bus exactly: at 2 A and ω = 0, 100, 200, 300 rad/s, 8800, 6800, 4800, 2800 A/s."""
     ax = axis(R=1.0, L=2.5e-3, ke=0.05, V=24.0)
-    np.testing.assert_allclose(ax.di_dt_max_A_s(2.0, [0, 100, 200, 300]), [8800, 6800, 4800, 2800])
-    # speed where the back-EMF eats the bus at 2 A: (24 − 2)/0.05 = 440 rad/s
-    assert ax.di_dt_max_A_s(2.0, 440.0) == pytest.approx(0.0, abs=1e-9)
+    rho = 0.005 / (2 * math.pi)
+    per_amp = 0.5 * 0.9 / rho  # N of axial force per A (K_t η / ρ)
+    for omega, rise in zip([0, 100, 200, 300], [8800, 6800, 4800, 2800]):
+        d = ax.demand(omega * rho * 1000, 0.0, cut_force_N=2.0 * per_amp, cut_force_rate_N_s=rise * per_amp)
+        assert d.current_A == pytest.approx(2.0, rel=1e-12) and d.di_dt_A_s == pytest.approx(rise, rel=1e-12)
+        assert d.voltage_V == pytest.approx(24.0, rel=1e-12)
+        assert bool(d.within_voltage)
+        faster = ax.demand(omega * rho * 1000, 0.0, cut_force_N=2.0 * per_amp,
+                           cut_force_rate_N_s=(rise + 1.0) * per_amp)
+        assert not bool(faster.within_voltage)
+    # speed where the back-EMF eats the bus at 2 A: (24 − 2)/0.05 = 440 rad/s, where no rise is left
+    assert ax.demand(440.0 * rho * 1000, 0.0, cut_force_N=2.0 * per_amp).voltage_V == pytest.approx(24.0, rel=1e-12)
 
 
 def test_drive_demand_matches_hand_calculation():

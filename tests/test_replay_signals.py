@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from millpost import safety
 from millpost.controller import path_modes
+from millpost.engagement import engage
 from millpost.gcode import read_program
 from millpost.job import load_job
 from millpost.limits import build_limits
@@ -32,8 +32,8 @@ def drill_and_mill():
     executed speed (mm/s) of the optimized program."""
     job = load_job(JOBS / "drill_and_mill")
     program = read_program(job.program, job.reader_options())
-    samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                                    progress=False)
+    samples, eng, _ = engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                             progress=False)
     limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     executed = optimize(job, progress=False, trace=True).trace["feed_executed_mm_min"] / 60.0
     return job, samples, eng, limits, executed
@@ -123,8 +123,8 @@ def test_baseline_per_programmed_feed_closed_form(tmp_path, plunge_f):
         'flute_length_mm = 16\nstickout_mm = 24\n')
     job = load_job(tmp_path / "job.toml")
     program = read_program(job.program, job.reader_options())
-    samples, eng, _ = safety.engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                                    progress=False)
+    samples, eng, _ = engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+                             progress=False)
     limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     feeds, per_tool, _ = baseline_feeds(program, samples, limits)
     h_max = job.material.chip_load_mm(6.0)[1]

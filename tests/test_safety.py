@@ -105,6 +105,7 @@ def test_open_stl_is_refused(tmp_path, capsys):
 def test_feed_through_empty_stock_bounds_is_refused(tmp_path):
     """A stock whose bounds the feed moves cross but which holds nothing there (a hollow solid)."""
     from millpost import stock
+    from millpost.engagement import engage
     from millpost.gcode import read_text
     from millpost.tools import Tool
 
@@ -112,7 +113,7 @@ def test_feed_through_empty_stock_bounds_is_refused(tmp_path):
     s.top[:, 20:180] = s.z_floor  # nothing between X2 and X18 (a pocket already cleared)
     program = read_text("G21 G90\nG0 X10 Y-5 Z5\nS9000 M3\nG1 Z-2 F300\nG1 Y25 F600\nG0 Z5\nM2\n", "hollow.nc")
     with pytest.raises(MillpostError, match=r"hollow.nc:5: the feed moves pass through the stock's bounds"):
-        safety.engage(program, s, Tool(6.0), 0.2, (), stage="simulate")
+        engage(program, s, Tool(6.0), 0.2, (), stage="simulate")
 
 
 # --- depth ------------------------------------------------------------------------------------

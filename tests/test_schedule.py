@@ -9,8 +9,8 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from millpost.schedule import (AxisAcceleration, AxisVelocity, ChipLoad, FeedLimit, Junction, MotorCurrent,
-                               PathGrid, PathJerk, ScheduleOptions, SolverOptions, SpeedLoad, SpeedLoadNorm, Status,
+from millpost.schedule import (AxisAcceleration, AxisVelocity, FeedLimit, Junction, MinSpeed, MotorCurrent,
+                               PathGrid, PathJerk, ScheduleOptions, SolverOptions, SpeedLoad, Status,
                                path_blocks, schedule_samples, solve_path)
 from millpost.schedule.assemble import build, merged_bounds
 from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID, Toolpath
@@ -279,12 +279,14 @@ def random_case(rng):
     limits = [FeedLimit(feed), AxisVelocity(vmax), AxisAcceleration(amax)]
     kw = dict(vmax=vmax, amax=amax, feed=feed)
     kind = rng.integers(0, 4)
-    if kind == 1:  # a scalar load (e.g. power) and a vector load (e.g. resultant force)
+    if kind == 1:  # a scalar load (e.g. power) and a signed force per axis, bounded as limits.py bounds the
+        # cutting current's force: |α_k·v + β_k| ≤ |α_k|·v + |β_k| ≤ L per axis k
         al, be = rng.uniform(0.5, 3.0, n), rng.uniform(0, 20, n)
         va, vb = rng.uniform(-2, 3, (n, 2)), rng.uniform(-10, 10, (n, 2))
         L1, L2 = rng.uniform(100, 300), rng.uniform(100, 300)
-        limits += [SpeedLoad(al, be, L1, "power"), SpeedLoadNorm(va, vb, L2, "force")]
-        kw["loads"] = [(al, be, L1), (va, vb, L2)]
+        limits += [SpeedLoad(al, be, L1, "power")]
+        limits += [SpeedLoad(np.abs(va[:, k]), np.abs(vb[:, k]), L2, f"force_{k}") for k in range(2)]
+        kw["loads"] = [(al, be, L1)] + [(va[:, k], vb[:, k], L2) for k in range(2)]
     elif kind == 2:  # motor current with cutting load
         cur = current_case(n, rng)
         cur["imax"] = tuple(rng.uniform(0.8, 2.0, 3))
@@ -322,8 +324,12 @@ def test_chip_load_floor_met_where_reachable_and_reported_elsewhere():
     tp = make_toolpath((0, 0, 0), [("line", (20, 0, 0))])
     smp = tp.resample(0.05)
     grid = PathGrid.from_samples(smp)
-    # 2 flutes at 6000 rpm: 0.05 mm/tooth = 10 mm/s floor, 0.2 mm/tooth = 40 mm/s cap
-    lim = [FeedLimit(100.0), AxisAcceleration((500.0, 500.0, 500.0)), ChipLoad(2, 6000.0, 0.05, 0.2)]
+    # 2 flutes at 6000 rpm: f_z = v·60/(2·6000) mm per tooth at v mm/s (as `limits.build_limits` bounds the
+    # chip): 0.05 mm/tooth = 10 mm/s floor, 0.2 mm/tooth = 40 mm/s cap
+    per_tooth = 2 * 6000.0 / 60.0  # mm/s per mm of feed per tooth
+    lim = [FeedLimit(100.0), AxisAcceleration((500.0, 500.0, 500.0)),
+           SpeedLoad(np.full(len(grid), 1.0 / per_tooth), np.zeros(len(grid)), 0.2, "chip_load_max"),
+           MinSpeed(np.full(len(grid), 0.05 * per_tooth), "chip_load_min")]
     sch = solve_path(grid, path_blocks(grid, lim))
     assert sch.status == Status.SOLVED
     v = sch.feed_mm_s

@@ -1,5 +1,7 @@
-"""Cutter engagement per path sample: what the force model needs to know about the cut, and
-`simulate`, which steps a tool through a `millpost.stock.Stock` along resampled toolpath samples.
+"""Cutter engagement per path sample: what the force model needs to know about the cut; `simulate`,
+which steps a tool through a `millpost.stock.Stock` along resampled toolpath samples; and `engage`, the
+stage that resamples a program's path, steps its tools from the first known position and applies the
+safety gates on the cut.
 
 Conventions (Altintas): x = feed direction, y = in-plane normal to the left of x, z = tool axis.
 Immersion angle φ is measured clockwise from +y (the cutter turns clockwise seen from the spindle),
@@ -10,7 +12,7 @@ slot spans [0, π]. The tool is cut into K axial slices; each slice carries its 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -18,7 +20,10 @@ import numpy as np
 from ._kernels import compiling
 from ._kernels import engage as _k
 from .errors import CrashError, MillpostError
+from .gcode.convert import SourceBlocks
+from .gcode.interpret import Program
 from .progress import Progress, reporting, resolve
+from .safety import check_cut, check_size
 from .toolpath import RAPID, Samples
 from .tools import Tool
 from .tools.cutter import CONE_SHAPES
@@ -282,7 +287,7 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     smooth_steps: σ (in samples) of the zero-phase Gaussian low-pass applied to area and ae, which
     damps the cell-quantisation noise at a bandwidth tied to the step.
     Rapids that would remove material raise CrashError naming the source line. start: the first
-    sample whose position is known (`millpost.safety.known_start`); the samples before it start
+    sample whose position is known (`known_start`); the samples before it start
     from an unknown position and are neither cut nor checked (default: the first feed move's).
     progress: a `millpost.progress` callback (stages "compile kernels" on the first run, "engagement"
     in steps), or True/False/None as `millpost.progress.resolve` reads it. clearance_mm: c of
@@ -416,3 +421,63 @@ def _swept_field(stock, radius_mm: float, clear: float) -> tuple[np.ndarray, tup
     nx = math.ceil((stock.nx * stock.cell_mm + 2.0 * margin) / w)
     ny = math.ceil((stock.ny * stock.cell_mm + 2.0 * margin) / w)
     return np.full(nx * ny, np.inf, np.float32), (nx, ny, stock.x0 - margin, stock.y0 - margin, w)
+
+
+def resample(program: Program, ds_mm: float, allow: Iterable[str], notes: list[str], *,
+             stage: str = "optimize") -> Samples:
+    """The program's path resampled every `ds_mm` (mm) after the ``large`` gate
+    (`millpost.safety.check_size`)."""
+    check_size(program, ds_mm, allow, notes, stage=stage)
+    return program.toolpath.resample(ds_mm)
+
+
+def known_start(program: Program, samples: Samples) -> int:
+    """The first sample whose position is known: the end of the first move by which every axis has
+    been named in a block (the reader assumes a start for the others), or the first feed move's
+    first sample if that comes earlier, and not before the first tool is loaded when any is."""
+    tp = program.toolpath
+    if not len(samples):
+        return 0
+    blocks = SourceBlocks(program)
+    named: set[str] = set()
+    known = len(tp)
+    for i in range(len(tp)):
+        if tp.kind[i] != RAPID:
+            break
+        block = blocks[int(tp.line[i])]
+        for w in block.words if block is not None else ():
+            if w.letter in "XYZ@^":
+                named.update("XY" if w.letter in "@^" else w.letter)
+        if named >= {"X", "Y", "Z"}:
+            known = i
+            break
+    move = np.asarray(samples.move)
+    first_feed = np.flatnonzero(np.asarray(samples.kind) != RAPID)
+    start = len(samples) if not len(first_feed) else int(first_feed[0])
+    if known < len(tp):
+        start = min(start, max(int(np.searchsorted(move, known, side="right")) - 1, 0))
+    loaded = np.flatnonzero(np.asarray(samples.tool) >= 0)
+    if len(loaded):
+        start = max(start, int(loaded[0]))
+    return start
+
+
+def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: float, allow: Iterable[str],
+           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None,
+           clearance_mm: float | None = None) -> tuple[Samples, Engagement, list[str]]:
+    """The engagement stage of a checked program (`millpost.gcode.check_program`, `millpost.job.check_tools`):
+    resample every `ds_mm` (mm; ``large`` gate), step the tools through `stock` (cut in place; ``rapid`` gate
+    from the first known position) and check the cut (``no-cut``, ``below-stock``, ``flute-length``).
+    clearance_mm: see `simulate`. Returns the samples, the engagement and the warnings/notes the gates left."""
+    notes: list[str] = []
+    bounds = stock.bounds()
+    samples = resample(program, ds_mm, allow, notes, stage=stage)
+    try:
+        eng = simulate(stock, tools, samples, slices=slices, progress=progress,
+                                  start=known_start(program, samples), clearance_mm=clearance_mm)
+    except CrashError as exc:
+        on_line = np.flatnonzero(program.toolpath.line == exc.line)
+        inch = bool(len(on_line) and program.move_inch[on_line[0]])
+        raise CrashError(exc.line, exc.xyz, file=program.path, inch=inch) from None
+    check_cut(program, bounds, tools, samples, eng, allow, notes)
+    return samples, eng, notes

@@ -1,10 +1,10 @@
 """The limits a job's feeds obey, each with its identity, and the feed policy that sets their bounds.
 
 A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus what it is:
-- `kind`: "hard" (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
+- `kind` (`Kind`): hard (exceeding it breaks or stalls something: tool breakage, spindle power and torque,
   the end's thrust and torque on the tool, drive current, the machine's and the user's maxima (the
   plunge feed cap included), the controller's block rate ("block_rate": the controller holds it by
-  itself, no F word carries it)) or "quality" (exceeding it spoils the part
+  itself, no F word carries it)) or quality (exceeding it spoils the part
   or the tool's life: deflection, maximum chip load, the chip floor);
 - `effect`: the physical effect the summary groups it under;
 - `controller`: the controller holds it by itself while it runs the program (axis rates,
@@ -21,8 +21,8 @@ A `Limit` is a constraint object of `millpost.schedule` (it produces rows) plus 
   F word above it runs at it, so the F word need only reach it (`millpost.emit.policy.hold_runs`);
 - `default`: how its bound was chosen when the job did not give one (named in the summary where the
   limit binds);
-- for a load limit, `signal(signals, at)`: the load it bounds, from the forward model's signals of the
-  samples `at` (a slice: `millpost.signals.Signals` of those samples → their values; the replay check
+- for a load limit, `load`: the signal it bounds (`millpost.signals.Load`), `signal(signals, at)`: that
+  load, from the forward model's signals of the samples `at` (a slice: `millpost.signals.Signals` of those samples → their values; the replay check
   evaluates it at the executed speed, in chunks),
   and `bound`: its bound per sample before the feed policy.
 
@@ -90,6 +90,7 @@ user's `deflection_mm`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
+from enum import StrEnum
 from typing import Any, Callable
 
 import numpy as np
@@ -104,12 +105,22 @@ from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed,
 from .schedule.assemble import merged_bounds
 from .schedule.constraints import window_blocks
 from .safety import spindle_off_message
-from .signals import running_rpm
+from .signals import Load, running_rpm
 from .engagement import path_radius
 from .toolpath import RAPID, Samples, Toolpath
 from .tools.beam import ToolBeam, default_safety_factor
 
-HARD, QUALITY = "hard", "quality"
+
+
+class Kind(StrEnum):
+    """What exceeding a limit does, and so how far the feed policy lets it lower a feed (module docstring):
+    HARD breaks or stalls something, QUALITY spoils the part or the tool's life."""
+
+    HARD = "hard"
+    QUALITY = "quality"
+
+
+HARD, QUALITY = Kind.HARD, Kind.QUALITY
 DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
 RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
@@ -122,7 +133,7 @@ class Limit:
     """A constraint with its identity (see the module docstring)."""
 
     constraint: Any
-    kind: str
+    kind: Kind
     effect: str
     controller: bool = False
     baseline: bool = True
@@ -131,6 +142,7 @@ class Limit:
     default: str = ""
     signal: Callable[[Any, slice], np.ndarray] | None = None
     bound: np.ndarray | None = None
+    load: Load | None = None
 
     @property
     def name(self) -> str:
@@ -176,6 +188,13 @@ class JobLimits:
         """Names of the speed caps (row blocks) of `f_word_caps`, as the replay reports their ratios."""
         return tuple(sorted({blk.name for blk in window_blocks(grid, self.f_word_caps(), 0, min(len(grid), 1),
                                                                caps_only=True)}))
+
+    def held_on(self, load: Load) -> np.ndarray:
+        """Per sample: the policy held the bound of a limit on this load (any of its rows)."""
+        held = np.zeros(len(self.floor_mm_s), bool)
+        for name in {lim.name for lim in self.limits if lim.load is load}:
+            held |= self.held[name]
+        return held
 
     def names(self, **identity) -> tuple[str, ...]:
         """Names of the limits (and of their row blocks) whose identity fields have these values."""
@@ -252,13 +271,41 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     program's path modes (`controller.path_modes`: where its corners blend and its straight feeds
     merge), required: the program's G61/G64 decide its corner caps. zones: the blend arcs of the
     programmed corners (`controller.blend_zones` of `toolpath` in `modes`; computed here unless given)."""
-    n = len(samples)
-    m = job.machine
     lower = str(job.limits["lower"])
+    planner = ControllerModel.from_machine(job.machine)
+    limits = _machine_limits(job, samples, toolpath, modes, planner)
+    cutting = samples.kind != RAPID
+    restart = restart_descents(job, samples, eng)
+    cut = _cut_loads(job, samples, eng, restart, progress)
+    if release_slices:  # below, only the per-sample fields are read
+        lean = eng.per_sample()
+        for f in fields(eng):
+            setattr(eng, f.name, getattr(lean, f.name))
+        del lean
+    v_prog = np.where(cutting, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
+    # the speed the programmed program's own blend arcs pass each sample at (a bound set from the
+    # programmed feeds never reads the programmed program over it: it runs that fast there)
+    carried = programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None else zones)
+    keep_hard = np.minimum(cut.floor, v_prog)
+    keep_quality = np.maximum(v_prog, carried) if lower == HARD else keep_hard
+    policy = _Policy(limits, cutting, keep_hard, keep_quality)
+    _cut_limits(policy, job, cut)
+    _plunge_limits(policy, job, cut, restart, v_prog, carried)
+    v_cap = _drive_limits(policy, job, samples, cut.loads, cut.engaged)
+    _air_limits(policy, job, samples, eng, toolpath, cut.engaged, v_prog, v_cap, carried)
+    return JobLimits(limits, cut.loads, policy.held, policy.forced, cut.floor, cut.defl_limit, lower, cut.defaults)
+
+
+def _machine_limits(job: Job, samples: Samples, toolpath: Toolpath, modes: PathModes,
+                    planner: ControllerModel) -> list[Limit]:
+    """The machine's and the user's limits on motion, whatever is cut: the maximum feed, the controller's
+    block rate, the axis rates, accelerations, the centripetal acceleration on
+    arcs, the corner rule of the machine's planner `planner` in the path modes `modes`, and the path
+    jerk when the job gives one."""
+    m = job.machine
     ax = [m.axes[a] for a in "xyz"]
     amax = tuple(a.amax_mm_s2 for a in ax)
     feed_max = feed_cap_mm_min(job)
-    planner = ControllerModel.from_machine(m)
     # the controller reads at most block_rate blocks per second: a block of length L runs at most L·rate,
     # a block being a move or the chain of straight feeds it merges them into (`block_lengths`). It slows
     # by itself there (an F word cannot make it faster or need make it slower): no F word carries this
@@ -280,6 +327,42 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     if job.limits.get("jerk_mm_s3"):
         limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
                             f_word=False))
+    return limits
+
+
+@dataclass
+class _CutLoads:
+    """Per sample, the cut's loads and their bounds before the feed policy (`_cut_loads`): loads as in
+    `JobLimits.loads`; rpm the running spindle speed (1 where it stands); peak_limit the tool's breaking
+    force (N); defl_per_N the tool's and the machine's compliance (mm/N) and defl_limit the deflection
+    bound (mm); chip_a the chip thickness per mm/s (mm·s/mm) under h_max (mm); floor the minimum-chip
+    feed (mm/s); sin_end the end's chip factor (> 0 where the end cuts); thrust_limit (N) and
+    tool_torque_limit (N·m) the tool's buckling and torsional strength; engaged: the tool meets
+    material; spin: the spindle turns; defaults: how the bounds the job did not give were chosen."""
+
+    loads: dict
+    rpm: np.ndarray
+    engaged: np.ndarray
+    spin: np.ndarray
+    peak_limit: np.ndarray
+    defl_per_N: np.ndarray
+    defl_limit: np.ndarray
+    chip_a: np.ndarray
+    h_max: np.ndarray
+    floor: np.ndarray
+    sin_end: np.ndarray
+    thrust_limit: np.ndarray
+    tool_torque_limit: np.ndarray
+    defaults: dict[str, str]
+
+
+def _cut_loads(job: Job, samples: Samples, eng, restart: np.ndarray | None, progress: Progress) -> _CutLoads:
+    """Per tool, the force models' loads affine in the speed (the flank's at its edge's feed, and the
+    end's where it descends), the chip per unit speed and the minimum-chip feed, and the tool's and the
+    machine's bounds on them (see `_CutLoads`). restart: the descents that keep the plunge rules
+    (`restart_descents`). progress: stage "forces", in samples."""
+    n = len(samples)
+    m = job.machine
     model = job.material.force_model(job.limits["model"])
     end_model = EndCut.from_material(job.material)
     cutting = samples.kind != RAPID
@@ -299,7 +382,6 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
     defaults: dict[str, str] = {}
     rough_by_tool: dict[int, float] = {}
-    restart = restart_descents(job, samples, eng)
     done = 0
     for number in np.unique(samples.tool[cutting]):
         tool = job.tools.get(int(number))
@@ -371,60 +453,91 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         with np.errstate(divide="ignore"):
             floor[cut_here] = np.where(thickest > 0, h_min / thickest * per_tooth, 0.0)
     progress("forces", n, n)
-    if release_slices:  # below, only the per-sample fields are read
-        lean = eng.per_sample()
-        for f in fields(eng):
-            setattr(eng, f.name, getattr(lean, f.name))
-        del lean
-    del sin_max  # memory: every use is above
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
-    v_prog = np.where(cutting, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
-    # the speed the programmed program's own blend arcs pass each sample at (a bound set from the
-    # programmed feeds never reads the programmed program over it: it runs that fast there)
-    carried = programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None else zones)
-    keep_hard = np.minimum(floor, v_prog)
-    keep_quality = np.maximum(v_prog, carried) if lower == HARD else keep_hard
-    held, forced = {}, {}
+    return _CutLoads(loads, rpm, engaged, spin, peak_limit, defl_per_N, defl_limit, chip_a, h_max, floor, sin_end,
+                     thrust_limit, tool_torque_limit, defaults)
 
-    def load_limit(name: str, kind: str, effect: str, a, b, bound, signal, default: str = "") -> None:
+
+@dataclass
+class _Policy:
+    """The feed policy over the limits being built: a load's bound is held at its load at keep_hard (a
+    hard limit's) or keep_quality (a quality limit's) speed, mm/s, where it would need less
+    (`_policed`); held and forced as in `JobLimits`, over the cutting samples."""
+
+    limits: list[Limit]
+    cutting: np.ndarray
+    keep_hard: np.ndarray
+    keep_quality: np.ndarray
+    held: dict[str, np.ndarray] = field(default_factory=dict)
+    forced: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def load_limit(self, name: str, kind: Kind, load: Load, effect: str, a, b, bound, signal,
+                   default: str = "") -> None:
+        """The load a·v + b ≤ bound (v mm/s) as a limit of this kind on this load, its bound after the policy;
+        `signal` is the same load in the forward model's signals of the samples `at`."""
+        held, forced, n = self.held, self.forced, len(self.cutting)
         bound = np.broadcast_to(bound, a.shape)
-        bound_eff, h = _policed(a, b, bound, keep_hard if kind == HARD else keep_quality)
-        held[name] = held.get(name, np.zeros(n, bool)) | (h & cutting)
+        bound_eff, h = _policed(a, b, bound, self.keep_hard if kind == HARD else self.keep_quality)
+        held[name] = held.get(name, np.zeros(n, bool)) | (h & self.cutting)
         if kind == HARD:
             forced[name] = held[name]
-        limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
-                            bound=bound))
+        self.limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
+                                 bound=bound, load=load))
 
-    # each load is affine in the speed (the schedule's rows); `signal` is the same load in the signals of the
-    # samples `at`
-    load_limit("cutting_force", HARD, "cutting force", loads["peak_a"], loads["peak_b"], peak_limit,
-               lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
-    load_limit("power", HARD, "power", loads["power_a"], loads["power_b"],
-               np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s, at: s.cutting_power_W)
-    load_limit("torque", HARD, "power", loads["torque_a"], loads["torque_b"],
-               np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s, at: s.torque_Nm)
-    load_limit("deflection", QUALITY, "deflection", loads["peak_a"] * defl_per_N, loads["peak_b"] * defl_per_N,
-               defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at], defaults.get("deflection", ""))
-    load_limit("thrust", HARD, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2], thrust_limit,
-               lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
-    load_limit("tool_torque", HARD, "tool torque", loads["torque_a"], loads["torque_b"], tool_torque_limit,
-               lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
-    load_limit("chip_load_max", QUALITY, "chip load", chip_a, np.zeros(n), h_max,
-               lambda s, at: s.speed_mm_s * chip_a[at])  # a restart's descent has a chip where nothing cuts
+
+def _cut_limits(policy: _Policy, job: Job, cut: _CutLoads) -> None:
+    """The cut's loads under their bounds: the tool's breaking force, the spindle's power and torque, the
+    deflection, the tool's buckling (thrust) and torsion, the chip load."""
+    m, loads, n, spin, rpm = job.machine, cut.loads, len(cut.rpm), cut.spin, cut.rpm
+    defl_per_N, chip_a, defaults = cut.defl_per_N, cut.chip_a, cut.defaults
+    # each load is affine in the speed (the schedule's rows)
+    policy.load_limit("cutting_force", HARD, Load.PEAK_FORCE, "cutting force", loads["peak_a"], loads["peak_b"],
+                      cut.peak_limit, lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
+    policy.load_limit("power", HARD, Load.POWER, "power", loads["power_a"], loads["power_b"],
+                      np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s, at: s.cutting_power_W)
+    policy.load_limit("torque", HARD, Load.TORQUE, "power", loads["torque_a"], loads["torque_b"],
+                      np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s, at: s.torque_Nm)
+    policy.load_limit("deflection", QUALITY, Load.DEFLECTION, "deflection", loads["peak_a"] * defl_per_N,
+                      loads["peak_b"] * defl_per_N, cut.defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at],
+                      defaults.get("deflection", ""))
+    policy.load_limit("thrust", HARD, Load.THRUST, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2],
+                      cut.thrust_limit, lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
+    policy.load_limit("tool_torque", HARD, Load.TORQUE, "tool torque", loads["torque_a"], loads["torque_b"],
+                      cut.tool_torque_limit, lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
+    policy.load_limit("chip_load_max", QUALITY, Load.CHIP, "chip load", chip_a, np.zeros(n), cut.h_max,
+                      lambda s, at: s.speed_mm_s * chip_a[at])  # a restart's descent has a chip where nothing cuts
+
+
+def _plunge_limits(policy: _Policy, job: Job, cut: _CutLoads, restart: np.ndarray | None, v_prog: np.ndarray,
+                   carried: np.ndarray) -> None:
+    """The plunge feed cap where the end cuts (or a restart's descent would), from the user's
+    plunge_feed_max_mm_min and plunge_raise_max × the programmed speed `v_prog` (mm/s; the speed the
+    programmed blend arcs carry into it, `carried`, at least), and the chip floor (the minimum-chip feed)."""
+    n, sin_end = len(v_prog), cut.sin_end
     plunging = (sin_end > 0) | (restart if restart is not None else False)
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
                          else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
     # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
     # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
-    raise_max = float(job.limits["plunge_raise_max"]) if end_model is not None else 1.0
+    raise_max = float(job.limits["plunge_raise_max"]) if job.material.end_cutting is not None else 1.0
     # (the program itself runs a blended corner at the faster of its two feeds, into the plunge's end)
     raised = np.maximum(np.where(v_prog > 0, raise_max * v_prog, np.inf), carried)
     plunge_cap = np.minimum(plunge_cap, raised)
-    limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed",
-                        baseline=False))
-    limits.append(Limit(MinSpeed(floor, name="chip_load_min"), QUALITY, "chip-load floor"))
+    policy.limits.append(Limit(FeedLimit(np.where(plunging, plunge_cap, np.inf), name="plunge_feed"), HARD, "feed",
+                               baseline=False))
+    policy.limits.append(Limit(MinSpeed(cut.floor, name="chip_load_min"), QUALITY, "chip-load floor"))
+
+
+def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: dict, engaged: np.ndarray) -> np.ndarray:
+    """The axis drives' current: the cut's share per axis under what the drive has left beside the
+    controller's own acceleration (where the tool is `engaged`), the motor current with the cutting force
+    at each sample's speed cap, and the current's slew. Returns that speed cap per sample (mm/s: the
+    speed-only limits' `static_caps` before the motor current)."""
+    limits, n = policy.limits, len(samples)
+    ax = [job.machine.axes[a] for a in "xyz"]
+    amax = tuple(a.amax_mm_s2 for a in ax)
     rho = np.array([a.rho_m_per_rad for a in ax])
     mass = tuple(a.moving_mass_kg + a.motor.rotor_inertia_kgm2 / r**2 for a, r in zip(ax, rho))
     kf = tuple(a.motor.kt_Nm_per_A * a.efficiency / r for a, r in zip(ax, rho))
@@ -438,9 +551,10 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     static = np.abs(loads["force_b"]) + friction
     slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
     for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
-        load_limit("cutting_current", HARD, "current", slope[:, k], static[:, k], np.where(engaged, capacity[k], np.inf),
-                   lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
-    stalled = held["cutting_current"]
+        policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope[:, k], static[:, k],
+                          np.where(engaged, capacity[k], np.inf),
+                          lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
+    stalled = policy.held["cutting_current"]
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
     v_cap = static_caps(samples, limits)
@@ -455,6 +569,16 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                                     tuple(a.motor.inductance_H for a in ax), tuple(a.motor.ke_V_s_per_rad for a in ax),
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
+    return v_cap
+
+
+def _air_limits(policy: _Policy, job: Job, samples: Samples, eng, toolpath: Toolpath, engaged: np.ndarray,
+                v_prog: np.ndarray, v_cap: np.ndarray, carried: np.ndarray) -> None:
+    """Feed moves that cut nothing (not `engaged`): the air clearance near the stock as loaded
+    (`_air_clearance`, from the programmed speed `v_prog` and the other limits' speed caps `v_cap`, mm/s;
+    at least the speed the programmed blend arcs carry, `carried`), and the user's air_feed_max_mm_min in
+    cut space below the stock's top."""
+    limits, cutting = policy.limits, policy.cutting
     if eng.near_stock is not None:  # air beside or just above the stock; a retract straight up meets nothing new
         near = eng.near_stock & cutting & ~(samples.tangent[:, 2] > RETRACT_COS)
         # going down: an approach, the air part of a plunge (a canned cycle's block, which one F runs whole
@@ -470,7 +594,6 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
         air = cutting & ~engaged & eng.below_top
         limits.append(Limit(FeedLimit(np.where(air, float(job.limits["air_feed_max_mm_min"]) / 60.0, np.inf),
                                       name="air_feed"), HARD, "feed", baseline=False))
-    return JobLimits(limits, loads, held, forced, floor, defl_limit, lower, defaults)
 
 
 def restart_descents(job: Job, samples: Samples, eng) -> np.ndarray | None:

@@ -77,19 +77,6 @@ class Axis:
         per_turn = self.lead_mm / (2 * math.pi) if self.drive == "ballscrew" else self.pulley_radius_mm
         return per_turn / self.gear_ratio / 1000.0
 
-    def motor_torque_Nm(self, force_N) -> np.ndarray:
-        """Motor torque to push an axial force (N) through the drive: F ρ / η."""
-        return np.asarray(force_N, float) * self.rho_m_per_rad / self.efficiency
-
-    def thrust_N(self, current_A) -> np.ndarray:
-        """Axial force the motor produces at a current: K_t i η / ρ."""
-        return np.asarray(current_A, float) * self.motor.kt_Nm_per_A * self.efficiency / self.rho_m_per_rad
-
-    @property
-    def reflected_load_inertia_kgm2(self) -> float:
-        """Moving mass seen at the motor shaft: m ρ² (kg·m²)."""
-        return self.moving_mass_kg * self.rho_m_per_rad ** 2
-
     def demand(self, velocity_mm_s, accel_mm_s2, *, cut_force_N=0.0, jerk_mm_s3=0.0,
                cut_force_rate_N_s=0.0) -> AxisDemand:
         """Torque, current, di/dt and voltage for a motion sample (arrays broadcast together).
@@ -112,12 +99,6 @@ class Axis:
         return AxisDemand(torque, current, di_dt, volts, omega,
                           np.abs(current) <= m.current_limit_A * (1 + 1e-12),
                           np.abs(volts) <= m.bus_voltage_V * (1 + 1e-12))
-
-    def di_dt_max_A_s(self, current_A, omega_rad_s) -> np.ndarray:
-        """Fastest current rise the bus allows: (V_bus − R i − K_e ω) / L."""
-        m = self.motor
-        return (m.bus_voltage_V - m.resistance_ohm * np.asarray(current_A, float)
-                - m.ke_V_s_per_rad * np.asarray(omega_rad_s, float)) / m.inductance_H
 
     def max_thrust_N(self, velocity_mm_s) -> np.ndarray:
         """Steady thrust available at a speed: min(K_t I_max, K_t (V − K_e ω)/R) η/ρ, less friction (N)."""

@@ -23,7 +23,7 @@ from .job import Job
 from .limits import LOAD_CHUNK, JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
 from .schedule.constraints import window_blocks
-from .signals import predict, step_times_s
+from .signals import Load, predict, step_times_s
 from .toolpath import RAPID, Samples, Toolpath
 
 
@@ -83,16 +83,18 @@ def feed_at_samples(original: Toolpath, emitted: Toolpath, samples: Samples) -> 
 class Replay:
     """A schedule checked at the executed speeds. ratios: per limit the largest value / bound over the
     cutting samples (bounds after the feed policy); physical: per load limit the largest value / its
-    bound before the policy (over 1 where the policy held a cut too heavy at any feed it may write); loads: per load limit, per sample (its value, its
-    bound before the policy), of the row with the highest ratio where several rows share the name;
-    current_ratio: per sample the largest axis motor current over its drive's limit; cut_loads: per
-    sample the forward model's peak in-plane force (N), cutting power (W), thrust on the tool (N, +Z)
-    and cutting torque (N·m), 0 off the cut; cut: the cutting samples. (loads, current_ratio and
-    cut_loads are empty where `replay` was asked for the ratios only.)"""
+    bound before the policy (over 1 where the policy held a cut too heavy at any feed it may write);
+    loads: per load limit, per sample (its value, its bound before the policy), of the row with the
+    highest ratio where several rows share the name; load_of: per load limit the signal it bounds
+    (`millpost.signals.Load`); current_ratio: per sample the largest axis motor current over its drive's
+    limit; cut_loads: per sample the forward model's peak in-plane force (N), cutting power (W), thrust
+    on the tool (N, +Z) and cutting torque (N·m), 0 off the cut; cut: the cutting samples. (loads,
+    current_ratio and cut_loads are empty where `replay` was asked for the ratios only.)"""
 
     ratios: dict[str, float]
     physical: dict[str, float]
     loads: dict[str, tuple[np.ndarray, np.ndarray]]
+    load_of: dict[str, Load]
     current_ratio: np.ndarray
     cut_loads: dict[str, np.ndarray]
     cut: np.ndarray
@@ -102,14 +104,18 @@ class Replay:
         the loads and their bounds the job report plots."""
         cut = self.cut
 
-        def bound(name):
-            b = self.loads[name][1]
+        def of(load: Load) -> tuple[np.ndarray, np.ndarray]:
+            (name,) = (name for name, bounded in self.load_of.items() if bounded is load)
+            return self.loads[name]
+
+        def bound(load: Load) -> np.ndarray:
+            b = of(load)[1]
             return np.where(cut & np.isfinite(b), b, np.nan)
 
-        return {**self.cut_loads, "peak_force_limit_N": bound("cutting_force"), "power_limit_W": bound("power"),
-                "deflection_mm": np.where(cut, self.loads["deflection"][0], 0.0),
-                "chip_mm": np.where(cut, self.loads["chip_load_max"][0], 0.0),
-                "chip_limit_mm": bound("chip_load_max"), "current_ratio": np.where(cut, self.current_ratio, 0.0)}
+        force, power, deflection, chip = Load.PEAK_FORCE, Load.POWER, Load.DEFLECTION, Load.CHIP
+        return {**self.cut_loads, force.bound_column: bound(force), power.bound_column: bound(power),
+                deflection.column: np.where(cut, of(deflection)[0], 0.0), chip.column: np.where(cut, of(chip)[0], 0.0),
+                chip.bound_column: bound(chip), Load.DRIVE_CURRENT.column: np.where(cut, self.current_ratio, 0.0)}
 
 
 def _sample_range(samples: Samples, lo: int, hi: int) -> Samples:
@@ -131,7 +137,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     v_mm_s = np.asarray(v_mm_s, float)
     grid = PathGrid.from_samples(samples)
     cut = samples.kind != RAPID
-    keep_current = cut & ~limits.held["cutting_current"]
+    keep_current = cut & ~limits.held_on(Load.DRIVE_CURRENT)
     limit_A = np.array([job.machine.axes[a].motor.current_limit_A for a in "xyz"])
     loads = [lim for lim in limits if isinstance(lim.constraint, SpeedLoad)]
     caps = limits.f_word_caps()
@@ -182,7 +188,8 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
                        ("thrust_N", sig.force_tool_N[:, 2]), ("torque_Nm", sig.torque_Nm)):
             cut_loads[key][at] = np.where(on, x, 0.0)
     ratios["current"] = current_max
-    return Replay(ratios, physical, {name: (value[name], bound[name]) for name in rows_of}, current, cut_loads, cut)
+    return Replay(ratios, physical, {name: (value[name], bound[name]) for name in rows_of},
+                  {lim.name: lim.load for lim in loads}, current, cut_loads, cut)
 
 
 def binding_shares(samples: Samples, sched, limits: JobLimits, speed_mm_s: np.ndarray

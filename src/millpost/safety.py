@@ -46,12 +46,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import engagement
-from .errors import CrashError, MillpostError, SafetyError
+from .errors import MillpostError, SafetyError
 from .files import check_writable
-from .gcode.convert import SourceBlocks
 from .gcode.interpret import Program
-from .progress import Progress
 from .toolpath import RAPID, Samples, segments_per_move
 from .tools import Tool
 
@@ -122,44 +119,7 @@ def _same_file(a: Path, b: Path) -> bool:
     return a.resolve() == b.resolve()
 
 
-# --- the program and its samples ----------------------------------------------------------------
-def check_program(program: Program) -> None:
-    """A program with no motion has nothing to simulate or optimize, and one with a non-finite
-    coordinate or feed cannot be run: say so instead of failing later."""
-    tp = program.toolpath
-    if len(tp) == 0:
-        raise MillpostError(f"{program.path}: the program has no moves (nothing to simulate or optimize)")
-    bad = ~(np.isfinite(tp.start).all(axis=1) & np.isfinite(tp.end).all(axis=1)
-            & (np.isfinite(tp.feed_mm_min) | (tp.kind == RAPID)))
-    if bad.any():
-        raise MillpostError(f"{program.path}:{int(tp.line[np.argmax(bad)])}: a coordinate or feed of this move is "
-                            "not a finite number")
-
-
-def check_tools(program: Program, tools: Tool | Mapping[int, Tool], stock_top_mm: float) -> None:
-    """Every feed move runs with a tool the job describes. A program that cuts (a feed move below the
-    stock top, Z mm) before any T word selects a tool can only run with the job's only tool
-    (`ReaderOptions.for_tools`); with several, say what to write."""
-    if isinstance(tools, Tool):
-        return
-    tp = program.toolpath
-    fed = tp.kind != RAPID
-    described = ", ".join(f"[tools.{n}]" for n in sorted(tools)) or "none"
-    unloaded = fed & (tp.tool < 0) & (np.minimum(tp.start[:, 2], tp.end[:, 2]) < stock_top_mm)
-    if unloaded.any():
-        line = int(tp.line[np.argmax(unloaded)])
-        raise MillpostError(f"{program.path}:{line}: the program cuts before any T word selects a tool; the job "
-                            f"describes {described}: write `T<n> M6` (e.g. T{min(tools, default=1)} M6) before "
-                            "this line, or describe only the tool it uses (a job with one [tools.N] table has "
-                            "that tool loaded)")
-    missing = fed & (tp.tool >= 0) & ~np.isin(tp.tool, list(tools))
-    if missing.any():
-        k = int(np.argmax(missing))
-        empty = " (T0 is the empty spindle on LinuxCNC)" if tp.tool[k] == 0 else ""
-        raise MillpostError(f"{program.path}:{int(tp.line[k])}: tool T{int(tp.tool[k])} cuts{empty} but the job "
-                            f"has no [tools.{int(tp.tool[k])}] (it describes {described})")
-
-
+# --- the samples ------------------------------------------------------------------------------
 def estimate_samples(program: Program, ds_mm: float) -> int:
     """How many samples `Toolpath.resample(ds_mm)` will make, without making them."""
     L = program.toolpath.lengths()
@@ -170,10 +130,10 @@ def estimate_samples(program: Program, ds_mm: float) -> int:
     return int(min(float(n.sum()) + 1.0, 1e18)) if np.all(np.isfinite(n)) else 10**18
 
 
-def resample(program: Program, ds_mm: float, allow: Iterable[str], notes: list[str], *,
-             stage: str = "optimize") -> Samples:
-    """The program's path resampled at `ds_mm` after the ``large`` gate: the number of samples and
-    their memory are estimated first, and refused beyond `MAX_SAMPLES` or the free memory."""
+def check_size(program: Program, ds_mm: float, allow: Iterable[str], notes: list[str], *,
+               stage: str = "optimize") -> None:
+    """The ``large`` gate before resampling at `ds_mm`: the number of samples and their memory are
+    estimated first, and refused beyond `MAX_SAMPLES` or the free memory."""
     import psutil
 
     n = estimate_samples(program, ds_mm)
@@ -183,61 +143,6 @@ def resample(program: Program, ds_mm: float, allow: Iterable[str], notes: list[s
         refuse_or_note("large", f"{program.path}: {n:,} path samples at ds_mm = {ds_mm:g} would need about "
                        f"{need / 1e9:.1f} GB ({stage}; ceiling {MAX_SAMPLES:,} samples and 80 % of the "
                        f"{room / 0.8e9:.1f} GB free): raise ds_mm, or split the program", allow, notes)
-    return program.toolpath.resample(ds_mm)
-
-
-def known_start(program: Program, samples: Samples) -> int:
-    """The first sample whose position is known: the end of the first move by which every axis has
-    been named in a block (the reader assumes a start for the others), or the first feed move's
-    first sample if that comes earlier, and not before the first tool is loaded when any is."""
-    tp = program.toolpath
-    if not len(samples):
-        return 0
-    blocks = SourceBlocks(program)
-    named: set[str] = set()
-    known = len(tp)
-    for i in range(len(tp)):
-        if tp.kind[i] != RAPID:
-            break
-        block = blocks[int(tp.line[i])]
-        for w in block.words if block is not None else ():
-            if w.letter in "XYZ@^":
-                named.update("XY" if w.letter in "@^" else w.letter)
-        if named >= {"X", "Y", "Z"}:
-            known = i
-            break
-    move = np.asarray(samples.move)
-    first_feed = np.flatnonzero(np.asarray(samples.kind) != RAPID)
-    start = len(samples) if not len(first_feed) else int(first_feed[0])
-    if known < len(tp):
-        start = min(start, max(int(np.searchsorted(move, known, side="right")) - 1, 0))
-    loaded = np.flatnonzero(np.asarray(samples.tool) >= 0)
-    if len(loaded):
-        start = max(start, int(loaded[0]))
-    return start
-
-
-def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: float, allow: Iterable[str],
-           *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None,
-           clearance_mm: float | None = None) -> tuple[Samples, "engagement.Engagement", list[str]]:
-    """Resample (``large`` gate), step the tools through `stock` (cut in place; ``rapid`` gate from the
-    first known position) and check the cut (``no-cut``, ``below-stock``, ``flute-length``).
-    clearance_mm: see `engagement.simulate`. Returns the samples, the engagement and the warnings/notes
-    the gates left."""
-    notes: list[str] = []
-    check_program(program)
-    bounds = stock.bounds()
-    check_tools(program, tools, float(bounds[1][2]))
-    samples = resample(program, ds_mm, allow, notes, stage=stage)
-    try:
-        eng = engagement.simulate(stock, tools, samples, slices=slices, progress=progress,
-                                  start=known_start(program, samples), clearance_mm=clearance_mm)
-    except CrashError as exc:
-        on_line = np.flatnonzero(program.toolpath.line == exc.line)
-        inch = bool(len(on_line) and program.move_inch[on_line[0]])
-        raise CrashError(exc.line, exc.xyz, file=program.path, inch=inch) from None
-    check_cut(program, bounds, tools, samples, eng, allow, notes)
-    return samples, eng, notes
 
 
 def spindle_off_message(path: str, line: int, block: str = "", started: int | None = None) -> str:

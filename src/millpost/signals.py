@@ -27,6 +27,7 @@ engagement and the executed speed are already at hand (optimize's replay check).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from enum import Enum
 
 import numpy as np
 
@@ -41,6 +42,39 @@ from .progress import Progress, reporting, resolve
 from .safety import check_spindle, spindle_off_message
 from .toolpath import RAPID, Samples
 from .tools.beam import ToolBeam
+
+
+class Load(Enum):
+    """The signal a load limit bounds (`millpost.limits.Limit.load`), and how the optimize trace and the job
+    report show it: (the trace column of its value, of its bound (None: the column is a ratio to it), the
+    report's label); a load the report does not plot has no columns. DEFLECTION: the tool's and the
+    machine's lateral deflection under the peak force; CHIP: the thickest chip per tooth; DRIVE_CURRENT: the
+    drives' current (the trace: the largest axis motor current over its drive's limit)."""
+
+    PEAK_FORCE = ("peak_force_N", "peak_force_limit_N", "cutting force")
+    POWER = ("power_W", "power_limit_W", "power")
+    DEFLECTION = ("deflection_mm", "deflection_limit_mm", "deflection")
+    CHIP = ("chip_mm", "chip_limit_mm", "chip load")
+    DRIVE_CURRENT = ("current_ratio", None, "drive current")
+    TORQUE = (None, None, "torque")
+    THRUST = (None, None, "thrust")
+
+    @property
+    def column(self) -> str | None:
+        return self.value[0]
+
+    @property
+    def bound_column(self) -> str | None:
+        return self.value[1]
+
+    @property
+    def label(self) -> str:
+        return self.value[2]
+
+    @classmethod
+    def plotted(cls) -> list["Load"]:
+        """The loads the trace holds, in the report's order."""
+        return [load for load in cls if load.column is not None]
 
 
 @dataclass

@@ -22,7 +22,7 @@ from .emit import BLEND_PASSES, Emission, FeedPlan
 from .engagement import Engagement
 from .gcode.interpret import Program
 from .job import Job
-from .limits import HARD, JobLimits, static_caps
+from .limits import HARD, QUALITY, JobLimits, static_caps
 from .operations import restart_points
 from .replay import Replay, binding_shares, feed_at_samples
 from .schedule import FeedLimit, PathGrid, ProgramSchedule
@@ -246,7 +246,7 @@ def _held_lines(samples: Samples, limits: JobLimits, physical: dict[str, float])
     for name, mask in sorted(limits.held.items()):
         if not mask.any():
             continue
-        kind = HARD if name in limits.forced else "quality"
+        kind = HARD if name in limits.forced else QUALITY
         lines = np.unique(samples.line[mask])
         out[name] = {"kind": kind, "samples": int(mask.sum()), "lines": [int(x) for x in lines[:20]],
                      "line_count": int(len(lines)), "over_bound": round(float(physical.get(name, 0.0)), 3),

@@ -8,12 +8,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import ParseError
+import numpy as np
+
+from ..errors import MillpostError, ParseError
+from ..toolpath import RAPID
 from . import dialects
 from .feed_mode import FeedMode
 from .interpret import Event, Interpreter, Program, ReaderOptions
 
-__all__ = ["Event", "FeedMode", "Program", "ReaderOptions", "read_program", "read_text"]
+__all__ = ["Event", "FeedMode", "Program", "ReaderOptions", "check_program", "read_program", "read_text"]
 
 # The largest program file read: ~10 M blocks, for which the reader holds ~1.3 GB of moves (124 bytes
 # each) beside the text, and reads for ~2 minutes; a larger file is refused before it is read.
@@ -46,3 +49,16 @@ def read_program(path: str | Path, options: ReaderOptions | None = None) -> Prog
         raise ParseError("binary file, not G-code text", file=str(path), line=1, column=text.index("\x00") + 1,
                          word="NUL", expected="a text file of G-code")
     return read_text(text, str(path), options)
+
+
+def check_program(program: Program) -> None:
+    """A program with no motion has nothing to simulate or optimize, and one with a non-finite
+    coordinate or feed cannot be run: say so instead of failing later."""
+    tp = program.toolpath
+    if len(tp) == 0:
+        raise MillpostError(f"{program.path}: the program has no moves (nothing to simulate or optimize)")
+    bad = ~(np.isfinite(tp.start).all(axis=1) & np.isfinite(tp.end).all(axis=1)
+            & (np.isfinite(tp.feed_mm_min) | (tp.kind == RAPID)))
+    if bad.any():
+        raise MillpostError(f"{program.path}:{int(tp.line[np.argmax(bad)])}: a coordinate or feed of this move is "
+                            "not a finite number")

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import MillpostError
 from ..operations import Operation, operations_from_lines
-from ..signals import step_times_s
+from ..signals import Load, step_times_s
 
 RAPID_FEED = np.nan  # the trace's programmed feed on rapids
 TIGHT = 0.97  # a ratio this close to 1 counts as binding
@@ -124,8 +124,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
 
 
 # the loads the report plots against their bounds: (trace column of the load, of its bound; None: a ratio)
-TRACE_LIMITS = {"peak_force_N": "peak_force_limit_N", "power_W": "power_limit_W",
-                "deflection_mm": "deflection_limit_mm", "chip_mm": "chip_limit_mm", "current_ratio": None}
+TRACE_LIMITS = {load.column: load.bound_column for load in Load.plotted()}
 
 
 def _trace_limits(data: ReportData) -> None:
@@ -138,8 +137,7 @@ def _trace_limits(data: ReportData) -> None:
             data.limits[key] = tr[bound] if bound is not None else np.ones(len(tr[key]))
 
 
-LABELS = {"peak_force_N": "cutting force", "power_W": "power", "deflection_mm": "deflection", "chip_mm": "chip load",
-          "current_ratio": "drive current"}
+LABELS = {load.column: load.label for load in Load.plotted()}
 
 
 def _binding(data: ReportData, feed_cap: float | None) -> np.ndarray:

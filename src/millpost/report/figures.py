@@ -136,7 +136,7 @@ def feed_along_path(data: ReportData) -> str:
 def loads_vs_limits(data: ReportData) -> str:
     tr = data.trace
     s = tr["s_mm"]
-    keys = [k for k in ("peak_force_N", "power_W", "deflection_mm", "chip_mm", "current_ratio") if k in tr or k in data.signals]
+    keys = [k for k in LABELS if k in tr or k in data.signals]
     ratios = data.summary.get("limits", {})
     fig, axes = _figure(height_in=2.6, rows=len(keys) + 1)
     for ax, key in zip(axes, keys):

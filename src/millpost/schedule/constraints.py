@@ -2,8 +2,8 @@
 rows (see rows.py) for a PathGrid of N samples; per-sample arrays have length N.
 
 Which limits are caps and which need real rows:
-- speed-only limits at a sample (feed, axis velocity, a load α·v + β ≤ L, a vector load
-  ‖α·v + β‖ ≤ L, chip load per tooth) depend on v alone, so their feasible set in v is an interval
+- speed-only limits at a sample (feed, axis velocity, a load α·v + β ≤ L: a force, a power, the chip
+  per tooth) depend on v alone, so their feasible set in v is an interval
   and they reduce to a cap b ≤ v_hi² (and possibly a floor b ≥ v_lo²): SpeedBounds / SoftFloor;
 - axis acceleration t·a + κ·b couples a and b: linear LocalRows;
 - motor current adds a term γ·√b (cutting + viscous force): the side where √b helps is convex and
@@ -147,26 +147,15 @@ class PathJerk:
                          np.zeros((1, n)))]
 
 
-def _load_interval(a2: np.ndarray, a1: np.ndarray, a0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """v ≥ 0 with a2·v² + 2·a1·v + a0 ≤ 0 (a2 ≥ 0): returns (v_lo, v_hi, impossible) per sample."""
+def _load_interval(a1: np.ndarray, a0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """v ≥ 0 with 2·a1·v + a0 ≤ 0: returns (v_lo, v_hi, impossible) per sample."""
     n = len(a0)
     v_lo, v_hi = np.zeros(n), np.full(n, np.inf)
-    impossible = np.zeros(n, bool)
-    lin = a2 <= 0  # linear: 2·a1·v + a0 ≤ 0
     with np.errstate(divide="ignore", invalid="ignore"):
         root = -a0 / (2 * a1)
-        v_hi = np.where(lin & (a1 > 0), root, v_hi)
-        v_lo = np.where(lin & (a1 < 0), np.maximum(root, 0), v_lo)
-        impossible |= lin & (a1 == 0) & (a0 > 0)
-        q = ~lin
-        if q.any():  # quadratic rows (a vector load's norm)
-            disc = a1**2 - a2 * a0
-            sq = np.sqrt(np.maximum(disc, 0))
-            r1, r2 = (-a1 - sq) / a2, (-a1 + sq) / a2
-            v_lo = np.where(q, np.maximum(r1, 0), v_lo)
-            v_hi = np.where(q, r2, v_hi)
-            impossible |= q & ((disc < 0) | (r2 < 0))
-    impossible |= lin & (a1 > 0) & (v_hi < 0)
+        v_hi = np.where(a1 > 0, root, v_hi)
+        v_lo = np.where(a1 < 0, np.maximum(root, 0), v_lo)
+    impossible = ((a1 == 0) & (a0 > 0)) | ((a1 > 0) & (v_hi < 0))
     v_hi = np.where(impossible, np.sqrt(_TINY_B), v_hi)
     v_lo = np.where(impossible, 0.0, v_lo)
     return v_lo, v_hi, impossible
@@ -186,58 +175,13 @@ class SpeedLoad:
     def blocks(self, grid: PathGrid) -> list[Block]:
         n = len(grid)
         al, be, L = _per_sample(self.alpha, n), _per_sample(self.beta, n), _per_sample(self.limit, n)
-        v_lo, v_hi, _ = _load_interval(np.zeros(n), al / 2, be - L)
+        v_lo, v_hi, _ = _load_interval(al / 2, be - L)
         return [SpeedBounds(self.name, np.zeros(n), v_hi**2), SoftFloor(self.name + "_floor", v_lo**2)]
 
     def impossible(self, n: int) -> np.ndarray:
         """Samples where the load exceeds its limit at every speed (cap set to ~0)."""
         al, be, L = _per_sample(self.alpha, n), _per_sample(self.beta, n), _per_sample(self.limit, n)
-        return _load_interval(np.zeros(n), al / 2, be - L)[2]
-
-
-@dataclass(frozen=True)
-class SpeedLoadNorm:
-    """Norm of a vector load linear in speed under a bound: ‖alpha_i·v + beta_i‖ ≤ limit_i, alpha,
-    beta (N, m) (e.g. resultant cutting force, deflection). The quadratic ‖α‖²v² + 2α·β v + ‖β‖² ≤ L²
-    holds on an interval of v: a cap, and a soft floor when the static part alone is too large."""
-
-    alpha: np.ndarray
-    beta: np.ndarray
-    limit: float | np.ndarray
-    name: str = "load_norm"
-
-    def _interval(self, n: int):
-        al = np.asarray(self.alpha, float).reshape(n, -1)
-        be = np.asarray(self.beta, float).reshape(n, -1)
-        L = _per_sample(self.limit, n)
-        return _load_interval((al**2).sum(1), (al * be).sum(1), (be**2).sum(1) - L**2)
-
-    def blocks(self, grid: PathGrid) -> list[Block]:
-        n = len(grid)
-        v_lo, v_hi, _ = self._interval(n)
-        return [SpeedBounds(self.name, np.zeros(n), v_hi**2), SoftFloor(self.name + "_floor", v_lo**2)]
-
-    def impossible(self, n: int) -> np.ndarray:
-        return self._interval(n)[2]
-
-
-@dataclass(frozen=True)
-class ChipLoad:
-    """Feed per tooth f_z = v·60/(flutes·rpm) between fz_min_mm (ploughing; a soft floor reported
-    where dynamics make it impossible) and fz_max_mm (a cap)."""
-
-    flutes: int
-    rpm: float | np.ndarray
-    fz_min_mm: float | np.ndarray
-    fz_max_mm: float | np.ndarray
-    name: str = "chip_load"
-
-    def blocks(self, grid: PathGrid) -> list[Block]:
-        n = len(grid)
-        per = self.flutes * _per_sample(self.rpm, n) / 60.0  # mm/s per mm/tooth
-        vmax = _per_sample(self.fz_max_mm, n) * per
-        vmin = _per_sample(self.fz_min_mm, n) * per
-        return [SpeedBounds(self.name + "_max", np.zeros(n), vmax**2), SoftFloor(self.name + "_min", vmin**2)]
+        return _load_interval(al / 2, be - L)[2]
 
 
 @dataclass(frozen=True)
