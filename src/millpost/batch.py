@@ -14,6 +14,7 @@ from pathlib import Path
 
 from .files import json_text, write_atomic
 from .progress import Progress, silent
+from .summary import JobStatus
 
 COLUMNS = ("job", "status", "cycle_time_before_s", "cycle_time_after_s", "cycle_time_baseline_s", "run_s",
            "output", "report", "message")
@@ -49,7 +50,7 @@ def run_one(job_path: str, out_dir: str) -> dict:
         from .errors import MillpostError
         detail = str(exc) if isinstance(exc, (MillpostError, OSError)) else "".join(
             traceback.format_exception_only(type(exc), exc)).strip()
-        row.update(status="error", message=detail)
+        row.update(status=JobStatus.ERROR, message=detail)
     row["run_s"] = round(time.perf_counter() - t0, 3)
     return row
 
@@ -86,7 +87,7 @@ def run_batch(jobs: Sequence[str], out_dir: str | Path, *, scheduler: str | None
                 try:
                     rows[k] = future.result()
                 except Exception as exc:  # noqa: BLE001 — a worker lost mid-job
-                    rows[k] = {**dict.fromkeys(COLUMNS, ""), "job": str(jobs[k]), "status": "error",
+                    rows[k] = {**dict.fromkeys(COLUMNS, ""), "job": str(jobs[k]), "status": JobStatus.ERROR,
                                "message": f"the task failed: {exc}"}
                 progress("batch", done, len(jobs))
     finally:
@@ -114,7 +115,7 @@ def write_tables(rows: list[dict], out: Path) -> None:
         return html.escape(f"{value:.1f}" if isinstance(value, float) else str(value))
     head = "".join(f"<th>{html.escape(c)}</th>" for c in COLUMNS)
     body = "".join("<tr>" + "".join(f"<td>{cell(r, c)}</td>" for c in COLUMNS) + "</tr>" for r in rows)
-    ok = sum(r["status"] == "solved" for r in rows)
+    ok = sum(r["status"] == JobStatus.SOLVED for r in rows)
     write_atomic(out / "results.html", f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
                  f"<title>millpost batch</title><style>td,th{{padding:0.2em 0.6em}}</style></head><body>"
                  f"<h1>millpost batch: {ok} of {len(rows)} jobs solved</h1><table><thead><tr>{head}</tr></thead>"

@@ -3,9 +3,7 @@ baseline, per-tool table, limits and their ratios, what the policy held, notes a
 asked for, the per-sample trace (`--trace`, `--report`). Feeds here are in mm/min, as a machinist reads
 them; every stage before it works in mm/s.
 
-The status: "solved"; "slower" where the optimized program runs longer than the programmed one (a hard
-limit the program exceeds); "fallback_programmed_feeds" where the schedule failed and the programmed
-feeds were kept (the message says why). The gates "slower" (much slower than programmed because the
+The status is a `JobStatus`. The gates "slower" (much slower than programmed because the
 programmed cuts exceed a hard load limit) and "overload" (a cut too heavy even at the lowest feed
 written) refuse the run unless allowed (`safety.refuse_or_note`).
 """
@@ -14,6 +12,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -29,7 +28,18 @@ from .schedule import FeedLimit, PathGrid, ProgramSchedule
 from .signals import running_rpm
 from .toolpath import RAPID, Samples
 
-SOLVED, SLOWER, FALLBACK = "solved", "slower", "fallback_programmed_feeds"
+
+
+class JobStatus(StrEnum):
+    """What became of a job, in the summary, the batch table, the CLI and the report: SOLVED; SLOWER, the
+    optimized program runs longer than the programmed one (a hard limit the program exceeds);
+    FALLBACK, the schedule failed and the programmed feeds were kept (the message says why); ERROR, the
+    job did not run (batch: its row's message says why)."""
+
+    SOLVED = "solved"
+    SLOWER = "slower"
+    FALLBACK = "fallback_programmed_feeds"
+    ERROR = "error"
 
 
 @dataclass
@@ -53,19 +63,20 @@ class Run:
     executed: np.ndarray
     checked: Replay
     as_programmed: dict[str, float]
-    status: str
+    status: JobStatus
     message: str
     spindle: dict
 
 
-def run_status(failed: list, before: controller.Execution, after: controller.Execution | None) -> tuple[str, str]:
+def run_status(failed: list, before: controller.Execution, after: controller.Execution | None
+               ) -> tuple[JobStatus, str]:
     """The run's status and message: the schedule's failed segments (`failed`: their `Schedule`s) keep
-    the programmed feeds; else "slower" where the emitted program runs longer than the programmed one."""
+    the programmed feeds; else SLOWER where the emitted program runs longer than the programmed one."""
     if failed:
-        return FALLBACK, "; ".join(f"{s.status.value}: {s.message}" for s in failed[:3])
+        return JobStatus.FALLBACK, "; ".join(f"{s.status.value}: {s.message}" for s in failed[:3])
     if after is not None and after.time_s > before.time_s * (1 + 1e-3):
-        return SLOWER, ""
-    return SOLVED, ""
+        return JobStatus.SLOWER, ""
+    return JobStatus.SOLVED, ""
 
 
 def summarize(run: Run, solver_s: float, stage_s: dict[str, float]) -> dict:

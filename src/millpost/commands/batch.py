@@ -25,9 +25,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..batch import run_batch
     from ..progress import Bars
+    from ..summary import JobStatus
     with Bars(enabled=False if args.quiet else None) as bars:
         rows = run_batch(args.jobs, args.out, scheduler=args.scheduler, workers=args.workers, progress=bars)
-    failed = [r for r in rows if r["status"] == "error"]
+    failed = [r for r in rows if r["status"] == JobStatus.ERROR]
     if not args.quiet:
         print(f"millpost: {len(rows) - len(failed)} of {len(rows)} jobs done ({len(failed)} failed); "
               f"table in {args.out}/results.html", file=sys.stderr)

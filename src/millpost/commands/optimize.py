@@ -13,6 +13,7 @@ from ..progress import Bars, stage
 from ..report.page import headline
 from ..safety import check_outputs
 from ..schedule import ScheduleOptions
+from ..summary import JobStatus
 from . import add_allow_argument
 
 
@@ -90,7 +91,7 @@ def report(s: dict, output: Path) -> str:
     if over:
         out.append("  the programmed feeds exceed hard limits (x bound): " +
                    ", ".join(f"{k} {v:.2f}" for k, v in sorted(over.items())) +
-                   ("; feeds lowered there, hence slower" if s["status"] == "slower" else ""))
+                   ("; feeds lowered there, hence slower" if s["status"] == JobStatus.SLOWER else ""))
     if s.get("hard_limits_exceeded"):
         out.append("  warning: the optimized program still exceeds hard limits (x bound) where the cut is too "
                    "heavy at the lowest feed written (see held): " +

@@ -7,6 +7,7 @@ import html
 import os
 
 from ..files import write_atomic
+from ..summary import JobStatus
 from . import figures
 from .data import ReportData, operation_times
 
@@ -16,8 +17,8 @@ h1 { font-size: 1.5em; } h2 { font-size: 1.15em; margin-top: 1.6em; border-botto
 table { border-collapse: collapse; } td, th { padding: 0.2em 0.7em; text-align: right; }
 td:first-child, th:first-child { text-align: left; } tr:nth-child(even) { background: #f4f4f4; }
 .headline { font-size: 1.1em; } figure { margin: 0.5em 0; } svg { max-width: 100%; height: auto; }
-.status-solved { color: #2ca02c; } .status-fallback_programmed_feeds { color: #d62728; }
 """
+STYLE += f".status-{JobStatus.SOLVED} {{ color: #2ca02c; }} .status-{JobStatus.FALLBACK} {{ color: #d62728; }}\n"
 
 
 def headline(summary: dict) -> str:
