@@ -140,27 +140,46 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
           v0: np.ndarray, vref: float, aref: float, floor_penalty: float = 10.0,
           b_fixed_end: np.ndarray | None = None) -> tuple[ConicProblem, Layout]:
     """The SOCP of one window. b_fixed_start/b_fixed_end fix b (mm²/s²) at the first/last samples;
-    b_end = (lo, hi) bounds b at the last sample otherwise (the controllable set for a window)."""
+    b_end = (lo, hi) bounds b at the last sample otherwise (the controllable set for a window).
+    Variables (`Layout`): β = b/vref² per sample, c ≤ √β, d ≥ 1/(c_i + c_{i+1}) per step (the time of a
+    step is 2·ds·d/vref), α the path acceleration where rate rows need it, and slacks of the soft
+    minimum-chip floor; the objective is the traversal time plus the floor's penalty."""
     n = len(grid)
-    ds = grid.ds
     b_lo, b_hi = merged_bounds(blocks, n)
     floor = soft_floor(blocks, n)
     steps = [blk for blk in blocks if isinstance(blk, StepRows)]
-    explicit = bool(steps)
     soft_idx = np.flatnonzero(floor > np.maximum(b_lo, 0))
-    lay = Layout(n, explicit, vref, aref, grid.length_mm, soft_idx)
+    lay = Layout(n, bool(steps), vref, aref, grid.length_mm, soft_idx)
     prob = ConicProblem(lay.nvar)
-    v2 = vref**2
-    nb = np.arange(n)
+    _objective(prob, lay, grid.ds, floor_penalty)
+    fixed = _boundary(prob, lay, b_fixed_start, b_fixed_end, b_end)
+    _cones(prob, lay, fixed)
+    _speed_bounds(prob, lay, b_lo, b_hi, floor, fixed)
+    if lay.explicit_a:
+        _acceleration(prob, lay, grid.ds)
+    _local_rows(prob, lay, grid.ds, blocks, b_hi, v0, fixed)
+    for blk in steps:
+        _step_rows(prob, lay, grid, blk, v0)
+    return prob, lay
 
-    # objective
+
+def _objective(prob: ConicProblem, lay: Layout, ds: np.ndarray, floor_penalty: float) -> None:
+    """Traversal time Σ 2·ds·d_i (per length of the window) plus the soft floor's slacks weighted by
+    their samples' path length."""
+    n = lay.n
     prob.q[lay.d0: lay.d0 + n - 1] = 2 * ds / lay.length_mm
-    if len(soft_idx):
+    if len(lay.soft_idx):
         node_len = np.zeros(n)
         node_len[:-1] += ds / 2
         node_len[1:] += ds / 2
-        prob.q[lay.s0:] = floor_penalty * node_len[soft_idx] / lay.length_mm
+        prob.q[lay.s0:] = floor_penalty * node_len[lay.soft_idx] / lay.length_mm
 
+
+def _boundary(prob: ConicProblem, lay: Layout, b_fixed_start: np.ndarray, b_fixed_end: np.ndarray | None,
+              b_end: tuple[float, float]) -> np.ndarray:
+    """Fixed b at the window's ends (and c = √β there) or the bounds on the last sample's b; returns
+    the mask of fixed samples."""
+    n, v2, vref = lay.n, lay.vref ** 2, lay.vref
     # boundary conditions: fixed b, and c = √β there (no cone at a known value: at b = 0 the cone's
     # degenerate apex slows the interior-point method down to ~1e-6 accuracy)
     fix_idx = [np.arange(len(b_fixed_start))]
@@ -181,9 +200,16 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
             prob.add_le(sp.csr_matrix(([1.0], ([0], [n - 1])), shape=(1, lay.nvar)), [hi_e / v2])
         if lo_e > 0:
             prob.add_le(sp.csr_matrix(([-1.0], ([0], [n - 1])), shape=(1, lay.nvar)), [-lo_e / v2])
+    fixed = np.zeros(n, bool)
+    fixed[fi] = True
+    return fixed
 
-    # epigraph cones: c_i ≤ √β_i  ⇔ ‖(2c, β−1)‖ ≤ β+1 at the free samples
-    free = np.setdiff1d(nb, fi)
+
+def _cones(prob: ConicProblem, lay: Layout, fixed: np.ndarray) -> None:
+    """The epigraph cones: c_i ≤ √β_i ⇔ ‖(2c, β−1)‖ ≤ β+1 at the free samples, and
+    d_i ≥ 1/(c_i + c_{i+1}) on every step."""
+    n = lay.n
+    free = np.flatnonzero(~fixed)
     nf = len(free)
     r = np.arange(3 * nf)
     cols = np.stack([free, free, lay.c0 + free], axis=1).ravel()
@@ -198,11 +224,13 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
     vals = np.tile([-1.0, -1.0, -1.0, -1.0, -1.0, 1.0], m)
     prob.add(SOC, sp.csr_matrix((vals, (rows, cols)), shape=(3 * m, lay.nvar)), np.tile([0.0, 0.0, 2.0], m), 3)
 
-    # speed bounds
+
+def _speed_bounds(prob: ConicProblem, lay: Layout, b_lo: np.ndarray, b_hi: np.ndarray, floor: np.ndarray,
+                  fixed: np.ndarray) -> None:
+    """b_lo ≤ b ≤ b_hi at the samples not fixed, and the soft floor b + slack ≥ floor, slack ≥ 0."""
+    v2, soft_idx = lay.vref ** 2, lay.soft_idx
     # Rows whose every variable is fixed are constants: the window before already obeyed them, and
     # its solution's round-off (≤ the accepted residual) must not make this window infeasible.
-    fixed = np.zeros(n, bool)
-    fixed[fi] = True
     fin = np.flatnonzero(np.isfinite(b_hi) & ~fixed)
     prob.add_le(sp.csr_matrix((np.ones(len(fin)), (np.arange(len(fin)), fin)), shape=(len(fin), lay.nvar)),
                 b_hi[fin] / v2)
@@ -216,14 +244,23 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
         prob.add_le(A, -floor[soft_idx] / v2)
         prob.add_le(sp.csr_matrix((-np.ones(len(k)), (k, lay.s0 + k)), shape=(len(k), lay.nvar)), np.zeros(len(k)))
 
-    # explicit a: β_{i+1} − β_i − (2 ds aref/vref²) α_i = 0
-    if explicit:
-        i = np.arange(m)
-        vals = np.r_[np.ones(m), -np.ones(m), -2 * ds * aref / v2]
-        A = sp.csr_matrix((vals, (np.r_[i, i, i], np.r_[i + 1, i, n + i])), shape=(m, lay.nvar))
-        prob.add_eq(A, np.zeros(m))
 
-    # local rows
+def _acceleration(prob: ConicProblem, lay: Layout, ds: np.ndarray) -> None:
+    """The explicit path acceleration: β_{i+1} − β_i − (2 ds aref/vref²) α_i = 0."""
+    n, v2, aref = lay.n, lay.vref ** 2, lay.aref
+    m = n - 1
+    i = np.arange(m)
+    vals = np.r_[np.ones(m), -np.ones(m), -2 * ds * aref / v2]
+    A = sp.csr_matrix((vals, (np.r_[i, i, i], np.r_[i + 1, i, n + i])), shape=(m, lay.nvar))
+    prob.add_eq(A, np.zeros(m))
+
+
+def _local_rows(prob: ConicProblem, lay: Layout, ds: np.ndarray, blocks: list[Block], b_hi: np.ndarray,
+                v0: np.ndarray, fixed: np.ndarray) -> None:
+    """The blocks' linear rows in (b, a) at each sample (`linear_rows`), normalised; a row of fixed
+    samples only is a constant and left out."""
+    n, vref = lay.n, lay.vref
+    nb = np.arange(n)
     U, W, G, H = linear_rows(blocks, b_hi, v0, convex_exact=True)
     if len(U):
         M = U.shape[0]
@@ -245,19 +282,20 @@ def build(grid: PathGrid, blocks: list[Block], *, b_fixed_start: np.ndarray, b_e
             rr, cc, vv, h = remap[rr[keep]], cc[keep], vv[keep], h[sel]
         _add_normalised_le(prob, rr, cc, vv, h)
 
-    # step rows: ±(e_{i+1} − e_i) + kb·b_{i+1} ≤ rhs (tangent of the rate bound at v0)
-    for blk in steps:
-        if n < 3:
-            continue
-        kb, rhs = blk.linearised(grid, v0)  # (M, n−2)
-        M = blk.u.shape[0]
-        i = np.tile(np.arange(n - 2), M)
-        mrow = np.repeat(np.arange(M), n - 2)
-        r1, c1, v1 = _expr(lay, ds, i + 1, blk.u[mrow, i + 1], blk.w[mrow, i + 1])
-        r0, c0_, v0_ = _expr(lay, ds, i, blk.u[mrow, i], blk.w[mrow, i])
-        rb, cb, vb = _expr(lay, ds, i + 1, np.zeros(len(i)), kb.ravel())
-        rr, cc, vv = np.r_[r1, r0], np.r_[c1, c0_], np.r_[v1, -v0_]
-        h = rhs.ravel()
-        _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[vv, vb], h)
-        _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[-vv, vb], h)
-    return prob, lay
+
+def _step_rows(prob: ConicProblem, lay: Layout, grid: PathGrid, blk: StepRows, v0: np.ndarray) -> None:
+    """A rate block's rows ±(e_{i+1} − e_i) + kb·b_{i+1} ≤ rhs (tangent of the rate bound at v0)."""
+    n, ds = lay.n, grid.ds
+    if n < 3:
+        return
+    kb, rhs = blk.linearised(grid, v0)  # (M, n−2)
+    M = blk.u.shape[0]
+    i = np.tile(np.arange(n - 2), M)
+    mrow = np.repeat(np.arange(M), n - 2)
+    r1, c1, v1 = _expr(lay, ds, i + 1, blk.u[mrow, i + 1], blk.w[mrow, i + 1])
+    r0, c0_, v0_ = _expr(lay, ds, i, blk.u[mrow, i], blk.w[mrow, i])
+    rb, cb, vb = _expr(lay, ds, i + 1, np.zeros(len(i)), kb.ravel())
+    rr, cc, vv = np.r_[r1, r0], np.r_[c1, c0_], np.r_[v1, -v0_]
+    h = rhs.ravel()
+    _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[vv, vb], h)
+    _add_normalised_le(prob, np.r_[rr, rb], np.r_[cc, cb], np.r_[-vv, vb], h)
