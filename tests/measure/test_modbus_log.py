@@ -20,7 +20,7 @@ from millpost.errors import ConfigError
 from millpost.measure import read_log
 from millpost.measure.modbus import RegisterMap
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # tests/, where vfd_server.py lives
 SRC = HERE.parent / "src"
 RATE = 50.0
 
