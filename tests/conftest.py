@@ -27,7 +27,7 @@ SLOW = {
     "tests/test_real_jobs.py": "the real-program regression set through optimize, on every machine",
     "tests/controller/test_controller_lcnc.py": "LinuxCNC's planner in its simulator (60-100 s a program)",
     "tests/test_freecad_real.py": "FreeCAD 0.20 headless posting a job",
-    "tests/report/test_report_browser.py": "headless Chromium opening the report",
+    "tests/report/test_report_browser.py": "headless Chromium opening the report: 14 s",
     "tests/discover/test_discover.py::test_seeded_runs_name_the_hidden_effect": "3 seeded runs per effect: 680 s",
     "tests/discover/test_discover.py::test_runout_at_1_khz_null_run_names_nothing": "a 1 kHz run: 25 s",
     "tests/discover/test_discover_independent.py": "independent runs, one per hidden effect: over 10 min",
@@ -61,10 +61,9 @@ SLOW = {
     "tests/measure/test_modbus_log.py::test_logger_survives_a_vanishing_server": "10 s and 3 s of real-time logging",
     "tests/measure/test_modbus_log.py::test_ctrl_c_ends_with_a_complete_file": "a real-time logger run: 11 s",
     "tests/report/test_report.py::test_cli_optimize_report_and_report_from_trace": "optimize and report runs: 21 s",
-    "tests/schedule/test_schedule.py::test_seeded_random_problems_exceed_no_limit": "seeded random problems",
-    "tests/schedule/test_schedule_certify.py": "40 random jobs against Clarabel",
-    "tests/schedule/test_schedule_windows.py": "windowed and two-process solves of long problems",
-    "tests/schedule/test_solver_choice.py::test_auto_and_clarabel_agree_on_the_adaptive_pocket": "two optimizes",
+    "tests/schedule/test_schedule.py::test_seeded_random_problems_exceed_no_limit": "random problems: 20 s",
+    "tests/schedule/test_schedule_certify.py": "40 random jobs against Clarabel: 16 s",
+    "tests/schedule/test_solver_choice.py::test_auto_and_clarabel_agree_on_the_adaptive_pocket": "2 optimizes: 10 s",
 }
 _SLOW = re.compile("|".join(re.escape(k).replace(r"\*", ".*") + r"(?:$|::|\[)" for k in SLOW))
 
