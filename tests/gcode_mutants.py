@@ -7,7 +7,7 @@ swapped or moved, random letters with numbers (``Q0.001`` on a G1), truncation, 
 and control-flow edits (loop bounds, repeat counts ``L``/``repeat [n]``, conditions, ``M98``/``M99``,
 dropped ``endwhile``/``endsub``). `check(text)` reads a mutant and classifies it: accepted (and every
 number of the result finite), refused (a MillpostError), or a failure: an uncaught exception, a
-non-finite value in an accepted program, or (with a time limit) a hang. Used by tests/test_fuzz.py
+non-finite value in an accepted program, or (with a time limit) a hang. Used by tests/gcode/test_fuzz.py
 (a few thousand mutants) and benchmarks/fuzz.py (>= 100 000).
 """
 

@@ -1,17 +1,18 @@
 """`millpost optimize` end to end on the bundled sample jobs: golden summaries (fail on drift beyond the
 stated tolerances), no limit exceeded on the emitted program replayed through the controller and force
 models, the path unchanged (and accepted by LinuxCNC's rs274 when installed), and the solver-failure
-fallback to the programmed feeds. Set MILLPOST_UPDATE_GOLDEN=1 to rewrite the expected summaries."""
+fallback to the programmed feeds. The expected summaries are read here, never written: tests/goldens.py
+rewrites them."""
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import goldens
 import rs274_oracle
 from millpost import optimize as opt_module
 from millpost.cli import main
@@ -65,10 +66,9 @@ def run(request):
 def test_summary_matches_golden(run):
     name, job, result = run
     s = result.summary
-    golden = JOBS / name / "expected.json"
-    keys = ["status", "cycle_time_before_s", "cycle_time_after_s", "cycle_time_baseline_s", "samples"]
-    if os.environ.get("MILLPOST_UPDATE_GOLDEN") or not golden.exists():
-        golden.write_text(json.dumps({k: s[k] for k in keys}, indent=2) + "\n")
+    golden, keys = goldens.path(name), goldens.KEYS
+    if not golden.exists():
+        pytest.fail(f"{golden} is missing: write it with `PYTHONPATH=src python tests/goldens.py {name}` and review it")
     expected = json.loads(golden.read_text())
     assert s["status"] == expected["status"] == "solved"
     assert s["samples"] == expected["samples"]

@@ -263,6 +263,12 @@ def test_abrupt_exit_removes_the_temporary_file(tmp_path):
     assert not PENDING
 
 
+def _cpu_s(pid: int) -> float:
+    """The CPU time (user + system, s) a process has spent, all its threads."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def test_ctrl_c_prints_interrupted_and_exits_130(tmp_path):
     """A real SIGINT in the middle of `optimize`: exit 130, one line, no traceback, no output file."""
     job = job_copy(tmp_path, "adaptive_pocket")
@@ -273,7 +279,12 @@ def test_ctrl_c_prints_interrupted_and_exits_130(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
     proc = subprocess.Popen([sys.executable, "-m", "millpost.cli", "optimize", str(job), "-o", str(out)],
                             stderr=subprocess.PIPE, text=True, env=env)
-    time.sleep(4.0)
+    # interrupted once the run has spent 3 s of CPU (its imports up to the handler `run` installs take
+    # ~0.2 s): a fixed wall-clock wait (4 s) can end, on a busy machine, before the process gets that far
+    deadline = time.monotonic() + 300
+    while proc.poll() is None and _cpu_s(proc.pid) < 3.0 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err

@@ -16,7 +16,7 @@ import pytest
 from millpost.report import collect, write_report
 from test_report import zigzag_report
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 BROWSER = shutil.which("chromium") or shutil.which("chromium-browser")
 DRIVER = shutil.which("chromedriver")
 

@@ -23,8 +23,8 @@ from millpost.job import load_job
 from millpost.machine import Machine
 from millpost.optimize import optimize
 
-JOBS = Path(__file__).resolve().parents[1] / "sample_jobs"
-REAL_JOBS = sorted(p.parent for p in (Path(__file__).parent / "real_jobs").glob("*/job.toml"))
+JOBS = Path(__file__).resolve().parents[2] / "sample_jobs"
+REAL_JOBS = sorted(p.parent for p in (Path(__file__).resolve().parents[1] / "real_jobs").glob("*/job.toml"))
 SAMPLES = sorted(p.parent.name for p in JOBS.glob("*/job.toml"))
 # real programs LinuxCNC runs cleanly (left out: Fanuc G76/G87 and G41 in fusion-fanuc-benchmark, Centroid
 # M25, a G1 with no F in compass/mt_kazbegi and sworn_brothers and test_linuxcnc_00, a '%' LinuxCNC

@@ -31,7 +31,7 @@ from millpost.materials import Material
 from millpost.optimize import optimize
 from millpost.tools import Tool
 
-JOBS = Path(__file__).resolve().parents[1] / "sample_jobs"
+JOBS = Path(__file__).resolve().parents[2] / "sample_jobs"
 
 
 def solid_end(n: int = 1, bins: int = 8) -> Engagement:
@@ -283,7 +283,7 @@ def test_plunge_raised_at_most_twice_the_programmed_feed(tmp_path):
 
 def test_plunge_held_without_end_cutting_data(tmp_path):
     """A material without [end_cutting] data: the loads of the end are unknown, the plunge keeps F300."""
-    src = Path(__file__).resolve().parents[1] / "src/millpost/data/materials/al6061.toml"
+    src = Path(__file__).resolve().parents[2] / "src/millpost/data/materials/al6061.toml"
     text = src.read_text()
     (tmp_path / "al.toml").write_text(text[:text.index("[end_cutting]")])
     job_path = plunge_job(tmp_path)

@@ -84,7 +84,7 @@ def test_report_numbers_and_self_contained(slotting_result):
 
 def test_cli_optimize_report_and_report_from_trace(tmp_path):
     from pathlib import Path
-    job = Path(__file__).resolve().parents[1] / "sample_jobs" / "slotting"
+    job = Path(__file__).resolve().parents[2] / "sample_jobs" / "slotting"
     out, html_a, trace, summary = (tmp_path / n for n in ("o.nc", "a.html", "t.csv", "s.json"))
     assert main(["optimize", str(job), "-o", str(out), "--report", str(html_a), "--trace", str(trace),
                  "--json", str(summary)]) == 0

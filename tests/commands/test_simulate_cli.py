@@ -12,7 +12,7 @@ import trimesh
 
 from millpost.cli import main
 
-DATA = Path(__file__).parents[1] / ".." / "shared" / "data"
+DATA = Path(__file__).parents[2] / ".." / "shared" / "data"
 
 
 def test_slot_trace_and_final_stock(tmp_path, capsys):

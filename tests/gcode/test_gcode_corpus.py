@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+import gcode_mutants
 import rs274_oracle
 from conftest import SHARED_DATA
 from millpost.errors import ParseError
@@ -42,7 +43,10 @@ def test_corpus_file(path: Path) -> None:
         trace = rs274_oracle.run(path, diameters_mm=DIAMETERS_MM)
         assert trace.error is not None, f"millpost refused a program LinuxCNC runs: {err}"
         return
-    assert program.blocks >= 0
+    # read: every position, arc centre, feed, speed and dwell a finite number, and moves only from blocks
+    # (a file of subroutine definitions only, like ngcgui_lib/helix.ngc, runs no block and has no move)
+    assert gcode_mutants.nonfinite(program) is None, f"{path}: {gcode_mutants.nonfinite(program)}"
+    assert program.blocks >= 1 or len(program.toolpath.kind) == 0, f"{path}: moves from {program.blocks} blocks"
     if rs274_oracle.RS274 is None or any(bug in str(path) for bug in LINUXCNC_BUGS):
         return
     trace = rs274_oracle.run(path, diameters_mm=DIAMETERS_MM)

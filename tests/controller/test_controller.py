@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from test_schedule import make_toolpath
+from toolpaths import make_toolpath
 
 from millpost.controller import ControllerModel, GrblPlanner, LinuxCNCPlanner, Planner, execute, to_blocks
 from millpost.errors import ConfigError

@@ -14,7 +14,7 @@ from millpost.job import load_job
 from millpost.optimize import optimize
 from millpost.schedule import ScheduleOptions
 
-POCKET = Path(__file__).resolve().parents[1] / "sample_jobs" / "adaptive_pocket"
+POCKET = Path(__file__).resolve().parents[2] / "sample_jobs" / "adaptive_pocket"
 
 
 def test_auto_and_clarabel_agree_on_the_adaptive_pocket():
