@@ -291,7 +291,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
     loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
-    # the force models' loads are affine in the F word (mm/min), tangent at the programmed one
+    # the force models' tangent (Kienzle, the end cut) at the programmed F word (mm/min)
     f_word = toolpath.feed_mm_min[samples.move]
     k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
     peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
@@ -321,8 +321,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
             ll = model.linear_loads(eng_p, tool, rpm[part],
                                     feed_ref_mm_min=np.nan_to_num(f_word[part], nan=100.0) * edge)
             for key in ("peak", "power", "torque", "force"):
-                a = getattr(ll, f"{key}_a")  # per mm/min of the edge → per mm/s of the centre
-                loads[f"{key}_a"][part] = a * 60.0 * (edge[:, None] if a.ndim == 2 else edge)
+                a = getattr(ll, f"{key}_a")  # per mm/s of the edge → per mm/s of the centre
+                loads[f"{key}_a"][part] = a * (edge[:, None] if a.ndim == 2 else edge)
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
             # a corner tighter than the tool (its centre's radius under R) wraps the tool: a full slot's
             # chip at the wall (sin φ = 1) whatever the stock model shows (a closing corner pre-cut by
@@ -346,7 +346,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
                 ref = np.minimum(np.nan_to_num(f_word[part], nan=100.0), fz_cap * tool.flutes * rpm[part])
                 le = end_model.linear_loads(eng_p, tool, rpm[part], feed_ref_mm_min=ref)
                 for key in ("power", "torque", "force"):
-                    loads[f"{key}_a"][part] += getattr(le, f"{key}_a") * 60.0
+                    loads[f"{key}_a"][part] += getattr(le, f"{key}_a")
                     loads[f"{key}_b"][part] += getattr(le, f"{key}_b")
         thrust_limit[idx] = thrust_limit_N(tool, job.limits["tool_safety_factor"] or None)
         tool_torque_limit[idx] = torque_limit_Nm(tool, job.limits["tool_safety_factor"] or None)
