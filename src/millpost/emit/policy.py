@@ -61,7 +61,14 @@ def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarra
     return L, V
 
 
-SLOWEST_FEED_MM_S = 0.016666666666666666  # the slowest feed written, F1 mm/min (F0 would be no feed at all)
+SLOWEST_FEED_MM_MIN = 1.0  # the slowest F word written (F0 would be no feed at all)
+
+
+def _at_least_slowest(v_mm_s: np.ndarray) -> np.ndarray:
+    """Feeds (mm/s) raised to the slowest F word: max(v·60, SLOWEST_FEED_MM_MIN)/60. Through mm/min, as
+    the policy always has: cells' feeds one ulp apart can split a move elsewhere (max(v, 1/60) moved a
+    split point of fabex_parallel_ocl by 0.0001 mm)."""
+    return np.maximum(v_mm_s * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
 
 
 def settle(feeds: np.ndarray, step: float, keep: np.ndarray | None = None) -> np.ndarray:
@@ -145,7 +152,7 @@ def _move_cells(s: np.ndarray, v: np.ndarray, L: float, min_fragment_mm: float,
     hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
     cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
     cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
-    q = np.maximum(cell_v, SLOWEST_FEED_MM_S)
+    q = _at_least_slowest(cell_v)
     return _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
 
 
@@ -153,8 +160,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
                     max_changes_per_mm: float = 0.2, step: float = 0.05,
                     accel_mm_s2: tuple[float, float, float] | None = None) -> list[Fragment]:
     """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
-    and never below SLOWEST_FEED_MM_S; settled into runs (`settle`: under a fragment's programmed
-    feed only in a run a limit slows in part) and, with the axes'
+    and never below the slowest F word (`SLOWEST_FEED_MM_MIN`); settled into runs (`settle`: under a
+    fragment's programmed feed only in a run a limit slows in part) and, with the axes'
     accelerations (mm/s²), short peaks the controller cannot reach joined to their neighbours
     (`reachable`), repeated until stable; equal neighbours within a move merged.
 
@@ -184,7 +191,7 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     # leave a sample out; such moves take the general way, which reproduces that)
     repeat = np.r_[True, np.diff(samples.s_mm) <= 0].astype(np.int8)
     one = keep & (np.floor_divide(L, min_fragment_mm) <= 1) & (np.maximum.reduceat(repeat, starts) == 0)
-    q = np.maximum(np.where(np.isfinite(v_min), v_min, v_fin), SLOWEST_FEED_MM_S)
+    q = _at_least_slowest(np.where(np.isfinite(v_min), v_min, v_fin))
     k1 = np.flatnonzero(one)
     parts = [(k1, np.zeros(len(k1)), np.ones(len(k1)), q[k1], L[k1])]  # move, u0, u1, feed, length
     for k in np.flatnonzero(keep & ~one):
