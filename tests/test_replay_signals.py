@@ -58,7 +58,7 @@ def test_each_limit_signal_is_its_rows_load(drill_and_mill):
 def test_exact_model_against_the_schedules_affine_loads(drill_and_mill):
     job, samples, eng, limits, _ = drill_and_mill
     assert job.limits["model"] == "mechanistic"  # affine in the feed: the flank loads are exact
-    v = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0  # the tangents' reference feed
+    v = np.nan_to_num(samples.feed_mm_s, nan=0.0)  # the tangents' reference feed
     exact = predict(job, samples, eng, v)
     affine = predict(job, samples, eng, v, loads=limits.loads)
     cut = (samples.kind != RAPID) & (eng.ap_mm > 1e-9)

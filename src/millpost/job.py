@@ -95,6 +95,11 @@ class Job:
         its only tool (when it describes one) loaded before any T word."""
         return ReaderOptions.for_tools({n: t.diameter_mm for n, t in self.tools.items()}, self.dialect)
 
+    def feed_key_mm_s(self, key: str) -> float | None:
+        """A feed key of [limits] (`..._mm_min`, as the job file writes it) in mm/s; None where unset."""
+        value = self.limits[key]
+        return None if value is None else float(value) / 60.0
+
     def stock(self):
         """Build the stock height field (mm, program frame)."""
         from . import stock

@@ -236,7 +236,7 @@ def _corners(model: ControllerModel, samples: Samples, toolpath: Toolpath, modes
 def axis_rates(toolpath: Toolpath, samples: Samples, axes) -> np.ndarray:
     """Per sample the highest speed (mm/s) at which no axis exceeds its rate anywhere on the sample's
     move (min_i vmax_i / share_i, `Toolpath.axis_shares`); inf on rapids."""
-    vmax = np.array([a.vmax_mm_min / 60.0 for a in axes])
+    vmax = np.array([a.vmax_mm_s for a in axes])
     share = toolpath.axis_shares()
     with np.errstate(divide="ignore"):
         rate = np.min(np.where(share > 1e-12, vmax / share, np.inf), axis=1)
@@ -249,17 +249,17 @@ def axis_rate_caps(toolpath: Toolpath, samples: Samples, axes, feed_max_mm_s: fl
     24000), so it is `axis_rates`; except that the program's own F above them stays where it is within the
     maximum feed (LinuxCNC blends a corner up to the faster requested F: lowered to the rates, a raster
     programmed at F4000 on 3000 mm/min axes would run slower)."""
-    v_prog = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0
+    v_prog = np.nan_to_num(samples.feed_mm_s, nan=0.0)
     rate = axis_rates(toolpath, samples, axes)
     return np.where(v_prog <= feed_max_mm_s, np.maximum(rate, v_prog), rate)
 
 
-def feed_cap_mm_min(job: Job) -> float:
-    """The highest F word (mm/min): the machine's (`Machine.feed_cap_mm_min`, the fastest any direction
-    runs; the axis rates of each move's direction are a limit of their own) and the user's
+def feed_cap_mm_s(job: Job) -> float:
+    """The highest feed an F word asks for (mm/s): the machine's (`Machine.feed_cap_mm_s`, the fastest any
+    direction runs; the axis rates of each move's direction are a limit of their own) and the user's
     `feed_max_mm_min`."""
-    cap = job.machine.feed_cap_mm_min
-    return min(cap, float(job.limits["feed_max_mm_min"])) if job.limits["feed_max_mm_min"] else cap
+    cap = job.machine.feed_cap_mm_s
+    return min(cap, job.feed_key_mm_s("feed_max_mm_min")) if job.limits["feed_max_mm_min"] else cap
 
 
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
@@ -276,13 +276,13 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     limits = _machine_limits(job, samples, toolpath, modes, planner)
     cutting = samples.kind != RAPID
     restart = restart_descents(job, samples, eng)
-    cut = _cut_loads(job, samples, eng, restart, progress)
+    cut = _cut_loads(job, samples, eng, toolpath, restart, progress)
     if release_slices:  # below, only the per-sample fields are read
         lean = eng.per_sample()
         for f in fields(eng):
             setattr(eng, f.name, getattr(lean, f.name))
         del lean
-    v_prog = np.where(cutting, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
+    v_prog = np.where(cutting, np.nan_to_num(samples.feed_mm_s, nan=0.0), 0.0)
     # the speed the programmed program's own blend arcs pass each sample at (a bound set from the
     # programmed feeds never reads the programmed program over it: it runs that fast there)
     carried = programmed_arcs(samples, v_prog, blend_zones(toolpath, planner, modes) if zones is None else zones)
@@ -305,19 +305,19 @@ def _machine_limits(job: Job, samples: Samples, toolpath: Toolpath, modes: PathM
     m = job.machine
     ax = [m.axes[a] for a in "xyz"]
     amax = tuple(a.amax_mm_s2 for a in ax)
-    feed_max = feed_cap_mm_min(job)
+    feed_max = feed_cap_mm_s(job)
     # the controller reads at most block_rate blocks per second: a block of length L runs at most L·rate,
     # a block being a move or the chain of straight feeds it merges them into (`block_lengths`). It slows
     # by itself there (an F word cannot make it faster or need make it slower): no F word carries this
     # cap, which on a micro-segment would write a crawl into the moves around it
     block_cap = np.where(samples.kind != RAPID,
                          block_lengths(toolpath, modes)[samples.move] * m.controller.block_rate_Hz, np.inf)
-    limits = [Limit(FeedLimit(feed_max / 60.0), HARD, "feed"),
+    limits = [Limit(FeedLimit(feed_max), HARD, "feed"),
               Limit(FeedLimit(block_cap, name="block_rate"), HARD, "feed", controller=True, f_word=False, clamp=True),
-              Limit(AxisVelocity(tuple(a.vmax_mm_min / 60.0 for a in ax)), HARD, "inertia", controller=True,
+              Limit(AxisVelocity(tuple(a.vmax_mm_s for a in ax)), HARD, "inertia", controller=True,
                     f_word=False, clamp=True),
               # the same rates over each whole move (an arc's every direction)
-              Limit(FeedLimit(axis_rate_caps(toolpath, samples, ax, feed_max / 60.0), name="axis_rate"),
+              Limit(FeedLimit(axis_rate_caps(toolpath, samples, ax, feed_max), name="axis_rate"),
                     HARD, "inertia", controller=True, clamp=True),
               Limit(AxisAcceleration(amax), HARD, "inertia", controller=True, f_word=False),
               # LinuxCNC's planner (`controller`) runs an arc as one segment clamped at √(a_n·r) by itself;
@@ -356,7 +356,8 @@ class _CutLoads:
     defaults: dict[str, str]
 
 
-def _cut_loads(job: Job, samples: Samples, eng, restart: np.ndarray | None, progress: Progress) -> _CutLoads:
+def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.ndarray | None,
+               progress: Progress) -> _CutLoads:
     """Per tool, the force models' loads affine in the speed (the flank's at its edge's feed, and the
     end's where it descends), the chip per unit speed and the minimum-chip feed, and the tool's and the
     machine's bounds on them (see `_CutLoads`). restart: the descents that keep the plunge rules
@@ -368,6 +369,8 @@ def _cut_loads(job: Job, samples: Samples, eng, restart: np.ndarray | None, prog
     cutting = samples.kind != RAPID
     engaged = eng.ap_mm > 1e-9
     spin = samples.rpm > 0
+    # the force models' tangent (Kienzle, the end cut) at the programmed F word (mm/min)
+    f_word = toolpath.feed_mm_min[samples.move]
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
         raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
@@ -399,10 +402,10 @@ def _cut_loads(job: Job, samples: Samples, eng, restart: np.ndarray | None, prog
             # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
             edge = eng_p.edge
             ll = model.linear_loads(eng_p, tool, rpm[part],
-                                    feed_ref_mm_min=np.nan_to_num(samples.feed_mm_min[part], nan=100.0) * edge)
+                                    feed_ref_mm_min=np.nan_to_num(f_word[part], nan=100.0) * edge)
             for key in ("peak", "power", "torque", "force"):
-                a = getattr(ll, f"{key}_a")  # per mm/min of the edge → per mm/s of the centre
-                loads[f"{key}_a"][part] = a * 60.0 * (edge[:, None] if a.ndim == 2 else edge)
+                a = getattr(ll, f"{key}_a")  # per mm/s of the edge → per mm/s of the centre
+                loads[f"{key}_a"][part] = a * (edge[:, None] if a.ndim == 2 else edge)
                 loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
             # a corner tighter than the tool (its centre's radius under R) wraps the tool: a full slot's
             # chip at the wall (sin φ = 1) whatever the stock model shows (a closing corner pre-cut by
@@ -423,10 +426,10 @@ def _cut_loads(job: Job, samples: Samples, eng, restart: np.ndarray | None, prog
                 # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
                 with np.errstate(divide="ignore"):
                     fz_cap = np.where(chip_factor[part] > 0, h_chip / chip_factor[part], np.inf)
-                ref = np.minimum(np.nan_to_num(samples.feed_mm_min[part], nan=100.0), fz_cap * tool.flutes * rpm[part])
+                ref = np.minimum(np.nan_to_num(f_word[part], nan=100.0), fz_cap * tool.flutes * rpm[part])
                 le = end_model.linear_loads(eng_p, tool, rpm[part], feed_ref_mm_min=ref)
                 for key in ("power", "torque", "force"):
-                    loads[f"{key}_a"][part] += getattr(le, f"{key}_a") * 60.0
+                    loads[f"{key}_a"][part] += getattr(le, f"{key}_a")
                     loads[f"{key}_b"][part] += getattr(le, f"{key}_b")
         thrust_limit[idx] = thrust_limit_N(tool, job.limits["tool_safety_factor"] or None)
         tool_torque_limit[idx] = torque_limit_Nm(tool, job.limits["tool_safety_factor"] or None)
@@ -518,7 +521,7 @@ def _plunge_limits(policy: _Policy, job: Job, cut: _CutLoads, restart: np.ndarra
     n, sin_end = len(v_prog), cut.sin_end
     plunging = (sin_end > 0) | (restart if restart is not None else False)
     plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
-                         else float(job.limits["plunge_feed_max_mm_min"]) / 60.0)
+                         else job.feed_key_mm_s("plunge_feed_max_mm_min"))
     # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
     # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
     raise_max = float(job.limits["plunge_raise_max"]) if job.material.end_cutting is not None else 1.0
@@ -592,7 +595,7 @@ def _air_limits(policy: _Policy, job: Job, samples: Samples, eng, toolpath: Tool
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
     if job.limits["air_feed_max_mm_min"] and eng.below_top is not None:  # the user's cap on air in cut space
         air = cutting & ~engaged & eng.below_top
-        limits.append(Limit(FeedLimit(np.where(air, float(job.limits["air_feed_max_mm_min"]) / 60.0, np.inf),
+        limits.append(Limit(FeedLimit(np.where(air, job.feed_key_mm_s("air_feed_max_mm_min"), np.inf),
                                       name="air_feed"), HARD, "feed", baseline=False))
 
 

@@ -72,6 +72,11 @@ class Axis:
     amax_mm_s2: float
 
     @property
+    def vmax_mm_s(self) -> float:
+        """The axis rate in mm/s (the machine file's vmax_mm_min)."""
+        return self.vmax_mm_min / 60.0
+
+    @property
     def rho_m_per_rad(self) -> float:
         """Travel per motor radian (m/rad)."""
         per_turn = self.lead_mm / (2 * math.pi) if self.drive == "ballscrew" else self.pulley_radius_mm
@@ -235,6 +240,11 @@ class Machine:
         sqrt(Σ vmax_k²). The controller clamps each axis to its own rate (as it does a programmed F
         above it), so a move runs at min_k vmax_k/|t_k|, never faster than this in any direction."""
         return math.sqrt(sum(self.axes[a].vmax_mm_min ** 2 for a in "xyz"))
+
+    @property
+    def feed_cap_mm_s(self) -> float:
+        """`feed_cap_mm_min` in mm/s."""
+        return self.feed_cap_mm_min / 60.0
 
     def deflection_mm(self, force_N) -> np.ndarray:
         """Machine deflection (mm) under a machine-XYZ force (N), (…, 3): axes in series with the tool."""

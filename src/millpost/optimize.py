@@ -138,8 +138,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
                                     limits.names(clamp=True))
         # corners the controller blends at the faster feed carry it into the slower move: the bound at every
         # programmed corner here, the arcs of the program as emitted in `emit_within`
-        hard_cap = np.full(len(tp), np.inf)
-        np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD) * 60.0)
+        hard_cap = np.full(len(tp), np.inf)  # per move, mm/s
+        np.minimum.at(hard_cap, samples.move, static_caps(samples, limits, HARD))
         emission = emit_within(job, program, samples, limit_mm_s, zones, hard_cap, model, progress)
     t_emit = time.perf_counter()
     after = emission.execution

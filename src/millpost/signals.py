@@ -247,10 +247,10 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
         tool_deflection_mm=tool_defl, machine_deflection_mm=m.deflection_mm(force), engagement=eng)
 
 
-def simulate(job: Job, feed_mm_min: np.ndarray | None = None, *, program: Program | None = None,
+def simulate(job: Job, feed_mm_s: np.ndarray | None = None, *, program: Program | None = None,
              peaks: bool = False, progress: Progress | bool | None = None) -> Signals:
     """The whole job: read the program, resample at the job's ds_mm, step the tools through the stock,
-    run the controller model (feed_mm_min overrides the programmed feed per move) and predict."""
+    run the controller model (feed_mm_s overrides the programmed feed per move, mm/s) and predict."""
     program = program or read_program(job.program, job.reader_options())
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     if len(samples) == 0:
@@ -259,6 +259,6 @@ def simulate(job: Job, feed_mm_min: np.ndarray | None = None, *, program: Progra
     with reporting(report):  # the controller kernel's first compile too
         eng = engagement.simulate(job.stock(), dict(job.tools), samples, progress=report)
         samples = check_spindle(program, samples, eng, job.spindle_rpm, job.allow, [])  # a hand-switched spindle
-        execution = controller.execute(program.toolpath, controller_model(job), feed_mm_min)
+        execution = controller.execute(program.toolpath, controller_model(job), feed_mm_s)
     return predict(job, samples, eng, execution.speed_at_samples(samples),
                    time_s=time_base(program, samples, execution), peaks=peaks)

@@ -125,7 +125,8 @@ def summarize(run: Run, solver_s: float, stage_s: dict[str, float]) -> dict:
                              or np.any(limits.held.get(k, False))},
         "chip_floor_unmet_samples": int(sum(int(np.sum(s.floor_unmet)) for _, _, s in sched.segments)),
         "held": _held_lines(samples, limits, checked.physical),
-        "below_min_chip": _below_min_chip(samples, limits, feed_at_samples(tp, emitted_tp, samples)),
+        "below_min_chip": _below_min_chip(samples, limits, tp.feed_mm_min[samples.move],
+                                          feed_at_samples(tp, emitted_tp, samples)),
         # the operations' starts: a restart there keeps every descent below the stock's top at its plunge feeds
         "restart_from": restart_points(program, samples),
         "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends) + _flow_notes(run.emission.plan)
@@ -162,7 +163,7 @@ def trace_columns(run: Run) -> dict[str, np.ndarray]:
     cut = samples.kind != RAPID
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
              "line": samples.line, "tool": samples.tool, "ap_mm": eng.ap_mm, "ae_mm": eng.ae_mm,
-             "area_mm2": eng.area_mm2, "feed_programmed_mm_min": samples.feed_mm_min,
+             "area_mm2": eng.area_mm2, "feed_programmed_mm_min": run.program.toolpath.feed_mm_min[samples.move],
              "feed_baseline_mm_min": np.where(cut, run.base_feeds[samples.move], np.nan),
              "feed_schedule_mm_min": sched.feed_mm_s * 60.0, "feed_executed_mm_min": run.executed * 60.0,
              "feed_min_chip_mm_min": limits.floor_mm_s * 60.0,
@@ -236,12 +237,13 @@ def _tool_table(tp, emitted_tp, before: controller.Execution, after: controller.
     return out
 
 
-def _below_min_chip(samples: Samples, limits: JobLimits, feed_mm_min: np.ndarray) -> dict:
+def _below_min_chip(samples: Samples, limits: JobLimits, programmed_mm_min: np.ndarray, feed_mm_min: np.ndarray
+                    ) -> dict:
     """Lines whose written F is under the minimum-chip feed (or the programmed one, if lower)
     somewhere: one F covers a stretch of samples, and a hard limit on a heavier part of it needs less
     than the chip floor of a lighter part."""
     cut = (samples.kind != RAPID) & (limits.floor_mm_s > 0)
-    need = np.minimum(limits.floor_mm_s * 60.0, np.nan_to_num(samples.feed_mm_min, nan=np.inf))
+    need = np.minimum(limits.floor_mm_s * 60.0, np.nan_to_num(programmed_mm_min, nan=np.inf))
     low = cut & (feed_mm_min < need * (1 - 1e-3) - 0.1)  # F words are rounded down to 0.1 mm/min
     lines = np.unique(samples.line[low])
     return {"samples": int(low.sum()), "lines": [int(x) for x in lines[:20]], "line_count": int(len(lines)),
@@ -274,7 +276,7 @@ def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, a
     table), is much slower than programmed: per tool, each hard load limit the programmed feeds
     exceed, its first lines and how far over its bound the load is at the programmed feed (the factor
     the cut must lose)."""
-    v_prog = np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0
+    v_prog = np.nan_to_num(samples.feed_mm_s, nan=0.0)
     over: dict[tuple[int, str], tuple[float, np.ndarray]] = {}  # (tool, limit) → (largest ratio, its samples)
     for lim in limits:
         if lim.bound is None or lim.kind != HARD:
@@ -303,7 +305,7 @@ def f_words_over_caps(samples: Samples, limits: JobLimits) -> dict[str, float]:
     largest programmed feed over it where a move is fed: the controller runs an F above the axis rates or
     the maximum feed at them, so the replay of the programmed run never shows it (F6000 on 3000 mm/min
     axes written at the rates is what makes such a program a little slower)."""
-    v_prog = np.where(samples.kind != RAPID, np.nan_to_num(samples.feed_mm_min, nan=0.0) / 60.0, 0.0)
+    v_prog = np.where(samples.kind != RAPID, np.nan_to_num(samples.feed_mm_s, nan=0.0), 0.0)
     out = {}
     for lim in limits.f_word_caps():
         if isinstance(lim.constraint, FeedLimit):

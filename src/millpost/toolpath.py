@@ -31,8 +31,10 @@ class Toolpath:
     kind: int8 RAPID/FEED/ARC_CW/ARC_CCW. start, end: (n, 3). center: (n, 3) arc centre (the
     normal-axis component equals the start's); nan for lines. plane: int8 index into PLANE_AXES.
     turns: int32 extra full turns of an arc (P word − 1). feed_mm_min: programmed feed (nan for
-    rapids; for G93 inverse time it is the equivalent mm/min). rpm: spindle speed (0 when off).
-    tool: tool number (−1 before the first change). line: 1-based source line. block: 0-based block.
+    rapids; for G93 inverse time it is the equivalent mm/min), as the program's F words have it: the
+    reader's and the writer's unit; everything after the reader takes `feed_mm_s`. rpm: spindle speed
+    (0 when off). tool: tool number (−1 before the first change). line: 1-based source line. block:
+    0-based block.
     """
 
     kind: np.ndarray
@@ -49,6 +51,11 @@ class Toolpath:
 
     def __len__(self) -> int:
         return len(self.kind)
+
+    @property
+    def feed_mm_s(self) -> np.ndarray:
+        """The programmed feed per move in mm/s (nan for rapids): the unit of every stage after the reader."""
+        return self.feed_mm_min / 60.0
 
     @classmethod
     def empty(cls) -> "Toolpath":
@@ -240,7 +247,7 @@ class Toolpath:
             move=moves,
             line=self.line[moves],
             kind=self.kind[moves],
-            feed_mm_min=self.feed_mm_min[moves],
+            feed_mm_s=self.feed_mm_s[moves],
             rpm=self.rpm[moves],
             tool=self.tool[moves],
             segment_start=brk,
@@ -252,9 +259,10 @@ class Samples:
     """Points along a toolpath at arc length s (mm).
 
     xyz_mm: position; tangent: unit dq/ds; curvature: d²q/ds² (1/mm), so axis velocity is
-    tangent·v and axis acceleration tangent·a + curvature·v². move/line/kind/feed_mm_min/rpm/tool:
-    the move each sample ends (sample 0: the first move). segment_start: True where the path jumps
-    (the sample does not continue the previous one), so consumers restart there.
+    tangent·v and axis acceleration tangent·a + curvature·v². move/line/kind/feed_mm_s/rpm/tool:
+    the move each sample ends (sample 0: the first move); feed_mm_s: its programmed feed (mm/s).
+    segment_start: True where the path jumps (the sample does not continue the previous one), so
+    consumers restart there.
     """
 
     s_mm: np.ndarray
@@ -264,7 +272,7 @@ class Samples:
     move: np.ndarray
     line: np.ndarray
     kind: np.ndarray
-    feed_mm_min: np.ndarray
+    feed_mm_s: np.ndarray
     rpm: np.ndarray
     tool: np.ndarray
     segment_start: np.ndarray

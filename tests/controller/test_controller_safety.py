@@ -186,7 +186,7 @@ def _baseline_ratio(job, result) -> float:
     _, eng, _ = engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                        clearance_mm=float(job.limits["air_clearance_mm"]))
     model = ControllerModel.from_machine(job.machine)
-    v = execute_program(program, model, feeds).speed_at(smp.move, Execution.sample_fractions(smp))
+    v = execute_program(program, model, feeds / 60.0).speed_at(smp.move, Execution.sample_fractions(smp))  # mm/s
     limits = build_limits(job, smp, eng, program.toolpath, modes=path_modes(program, model))
     return replay(job, smp, eng, limits, v).ratios["plunge_feed"]
 

@@ -224,10 +224,10 @@ def test_a_line_that_computes_a_word_is_never_split_only_its_f_changes():
     p = read_text(PARAMETRIC, "p.ngc", ReaderOptions())
     tp = p.toolpath
     plunge, cut = (int(np.flatnonzero(tp.line == n)[0]) for n in (7, 8))
-    frags = [Fragment(plunge, 0.0, 0.4, 80.0), Fragment(plunge, 0.4, 1.0, 60.0),
-             Fragment(cut, 0.0, 0.5, 900.0), Fragment(cut, 0.5, 1.0, 700.0)]
+    frags = [Fragment(plunge, 0.0, 0.4, 80.0 / 60), Fragment(plunge, 0.4, 1.0, 60.0 / 60),  # mm/s
+             Fragment(cut, 0.0, 0.5, 900.0 / 60), Fragment(cut, 0.5, 1.0, 700.0 / 60)]
     assert sorted(whole_moves(p, frags), key=lambda f: f.move) == [
-        Fragment(plunge, 0.0, 1.0, 60.0), Fragment(cut, 0.0, 1.0, 700.0)]
+        Fragment(plunge, 0.0, 1.0, 60.0 / 60), Fragment(cut, 0.0, 1.0, 700.0 / 60)]
     plan = FeedPlan.programmed(p)
     plan.feed_mm_min[[plunge, cut]] = [60.0, 700.0]
     plan.fragments = {plunge: [(0.4, 80.0), (1.0, 60.0)], cut: [(0.5, 900.0), (1.0, 700.0)]}
@@ -332,10 +332,11 @@ def test_a_feed_held_at_the_hard_cap_is_the_cap():
     from millpost.emit import Fragment
 
     prog = read_text("G20 G90\nG0 X0 Y0 Z0.5\nG1 Z-0.05 F10\nG1 X1 F10\nG1 X2\nM2\n")
-    cap = np.array([np.inf, 508.0, 3000.0, 3000.0])
-    frags = [Fragment(1, 0.0, 1.0, 507.5678539813687), Fragment(2, 0.0, 1.0, 2999.8), Fragment(3, 0.0, 1.0, 2990.0)]
+    cap = np.array([np.inf, 508.0, 3000.0, 3000.0]) / 60  # mm/s
+    frags = [Fragment(1, 0.0, 1.0, 507.5678539813687 / 60), Fragment(2, 0.0, 1.0, 2999.8 / 60),
+             Fragment(3, 0.0, 1.0, 2990.0 / 60)]
     plan = FeedPlan.from_fragments(prog, frags, 0.0, cap)  # every change written (no step)
-    assert plan.feed_mm_min[1:].tolist() == [508.0, 3000.0, 2990.0]
+    assert plan.feed_mm_min[1:].tolist() == pytest.approx([508.0, 3000.0, 2990.0], rel=1e-15)
     out = write_feeds(prog, plan).splitlines()
     assert out[2:5] == ["G1 Z-0.05 F20", "G1 X1 F118.11", "G1 X2 F117.71"]
 
@@ -350,7 +351,7 @@ def test_every_written_f_change_is_at_least_the_step_of_the_f_it_leaves():
     moves = "G1 X1 F10\n" + "".join(f"G1 X{k}\n" for k in range(2, 8))
     prog = read_text(f"G20 G90\nG0 X0 Y0 Z-0.1\n{moves}M2\n")
     wanted = [73.62, 69.94, 66.41, 52.43, 40.13, 38.17, 39.9]  # in/min: falls 2, 6 and the rise 7 < 5 %
-    frags = [Fragment(k + 1, 0.0, 1.0, f * 25.4) for k, f in enumerate(wanted)]
+    frags = [Fragment(k + 1, 0.0, 1.0, f * 25.4 / 60) for k, f in enumerate(wanted)]  # mm/s
     cap = np.full(len(prog.toolpath), np.inf)
     text = write_feeds(prog, FeedPlan.from_fragments(prog, frags, 0.05, cap))
     assert text.splitlines()[2:9] == ["G1 X1 F73.62", "G1 X2 F69.93", "G1 X3 F66.41", "G1 X4 F52.43",
@@ -372,7 +373,7 @@ def test_the_feed_step_never_takes_a_feed_below_the_programmed_one():
     prog = read_text("G21 G90\nG0 X0 Y0 Z-1\nG1 X10 F400\nG1 X20\nG1 X30\nG1 X40\nG1 X50 F390\n"
                      "G1 X60 F400\nM2\n")
     wanted = [420.0, 401.0, 385.0, 400.0, 390.0, 405.0]  # mm/min; 385: a hard limit under the F400
-    frags = [Fragment(k + 1, 0.0, 1.0, f) for k, f in enumerate(wanted)]
+    frags = [Fragment(k + 1, 0.0, 1.0, f / 60) for k, f in enumerate(wanted)]  # mm/s
     cap = np.full(len(prog.toolpath), np.inf)
     text = write_feeds(prog, FeedPlan.from_fragments(prog, frags, 0.05, cap))
     # F401 after F420 stops at the programmed F400; F385, under it, falls a full step from F400; F405
@@ -410,9 +411,9 @@ def test_a_run_held_at_a_cap_is_the_cap_on_every_move_the_caps_allow():
 
     prog = read_text("G20 G90\nG0 X0 Y0 Z0\nG1 X1 Z-0.3 F5\nG1 X2 Z0\nG1 X3 Z-0.3\nG1 X4 Z-0.2\nM2\n")
     run = 9.9974 * 25.4
-    cap = np.array([np.inf, 254.0, 24000.0, 254.0, 253.9])
-    plan = FeedPlan.from_fragments(prog, [Fragment(k, 0.0, 1.0, run) for k in range(1, 5)], 0.05, cap)
-    assert plan.feed_mm_min[1:].tolist() == [254.0, 254.0, 254.0, run]
+    cap = np.array([np.inf, 254.0, 24000.0, 254.0, 253.9]) / 60  # mm/s
+    plan = FeedPlan.from_fragments(prog, [Fragment(k, 0.0, 1.0, run / 60) for k in range(1, 5)], 0.05, cap)
+    assert plan.feed_mm_min[1:].tolist() == pytest.approx([254.0, 254.0, 254.0, run], rel=1e-15)
 
 
 def test_no_split_where_the_written_feed_does_not_change():

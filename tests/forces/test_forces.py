@@ -89,7 +89,7 @@ def test_identification_round_trip_M7():
     truth = Mechanistic.from_coefficients(**AL7075)
     loads = truth.predict(eng, c, 6000, TOOL_19)
     lin = truth.linear_loads(eng, TOOL_19, 6000)
-    per_fz = lin.force_a[0] * 4 * 6000            # slope in N per (mm/tooth)
+    per_fz = lin.force_a[0] * 4 * 6000 / 60       # slope in N per (mm/tooth): per mm/s × teeth per second
     np.testing.assert_allclose(per_fz, [-844.000, 3835.050, 1413.296], atol=1e-3)
     np.testing.assert_allclose(lin.force_b[0], [-169.341, 176.344, 7.000], atol=1e-3)
     fitted = Mechanistic(reweight_steps=0).fit(eng, Measurements(c, 6000, force_N=loads.force_N), TOOL_19)
@@ -192,13 +192,14 @@ def test_kienzle_linear_bound_is_tangent_upper_bound():
     eng = Engagement.uniform([PI - 1.2, 0.0], [PI, PI], 4.0, 5.0)
     lin = model.linear_loads(eng, tool, 8000, feed_ref_mm_min=1200)
     assert not lin.exact
-    for v in (50, 400, 1200, 3000, 9000):
-        exact = model.predict(eng, v / (3 * 8000), 8000, tool)
+    for f in (50, 400, 1200, 3000, 9000):  # mm/min
+        v = f / 60.0  # the loads are affine in the feed in mm/s
+        exact = model.predict(eng, f / (3 * 8000), 8000, tool)
         bound_F = np.linalg.norm(lin.force_at(v), axis=1)
         assert np.all(bound_F >= np.linalg.norm(exact.force_N, axis=1) - 1e-9)
         assert np.all(lin.power_a * v + lin.power_b >= exact.power_W - 1e-9)
         assert np.all(lin.peak_a * v + lin.peak_b >= exact.peak_force_xy_N * (1 - 1e-9))
-        if v == 1200:
+        if f == 1200:
             np.testing.assert_allclose(lin.force_at(v), exact.force_N, rtol=1e-12)
     with pytest.raises(MillpostError):
         model.linear_loads(eng, tool, 8000)
@@ -210,8 +211,9 @@ def test_mechanistic_linear_loads_are_exact_and_bound_the_peak():
     tool = Tool(diameter_mm=10, flutes=3, helix_deg=35)
     lin = model.linear_loads(eng, tool, 9000)
     assert lin.exact
-    for v in (100.0, 900.0, 2700.0):
-        loads = model.predict(eng, v / (3 * 9000), 9000, tool)
+    for f in (100.0, 900.0, 2700.0):  # mm/min
+        v = f / 60.0  # the loads are affine in the feed in mm/s
+        loads = model.predict(eng, f / (3 * 9000), 9000, tool)
         np.testing.assert_allclose(lin.force_at(v), loads.force_N, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(lin.power_a * v + lin.power_b, loads.power_W, rtol=1e-12)
         np.testing.assert_allclose(lin.torque_a * v + lin.torque_b, loads.torque_Nm, rtol=1e-12)

@@ -332,9 +332,10 @@ def test_compensated_moves_are_never_split():
     p = read(BOSS, diameter_mm=6.0)
     tp = p.toolpath
     i = int(np.flatnonzero((tp.line == 7) & (tp.kind == FEED))[0])  # the X10 side
-    frags = [Fragment(i, 0.0, 0.5, 700.0), Fragment(i, 0.5, 1.0, 450.0), Fragment(1, 0.0, 1.0, 200.0)]
+    frags = [Fragment(i, 0.0, 0.5, 700.0 / 60), Fragment(i, 0.5, 1.0, 450.0 / 60),
+             Fragment(1, 0.0, 1.0, 200.0 / 60)]  # mm/s
     whole = whole_moves(p, frags)
-    assert Fragment(i, 0.0, 1.0, 450.0) in whole and Fragment(1, 0.0, 1.0, 200.0) in whole and len(whole) == 2
+    assert Fragment(i, 0.0, 1.0, 450.0 / 60) in whole and Fragment(1, 0.0, 1.0, 200.0 / 60) in whole and len(whole) == 2
     plan = FeedPlan.programmed(p)
     plan.feed_mm_min[i] = 450.0
     plan.fragments[i] = [(0.5, 700.0), (1.0, 450.0)]  # even a plan that asks for a split gets one F

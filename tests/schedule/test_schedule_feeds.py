@@ -29,7 +29,7 @@ def fragment_feed_at_samples(samples, fragments, tp):
         u = (samples.s_mm[k] - s0[m]) / L[m]
         for f in fragments:
             if f.move == m and f.u_start - 1e-9 <= u <= f.u_end + 1e-9:
-                out[k] = np.nanmin([out[k], f.feed_mm_min / 60.0])
+                out[k] = np.nanmin([out[k], f.feed_mm_s])
     return out
 
 
@@ -46,7 +46,7 @@ def split_toolpath(tp: Toolpath, fragments: list[Fragment]) -> Toolpath:
             idx.append(m), u0.append(0.0), u1.append(1.0), feed.append(tp.feed_mm_min[m])
             continue
         for f in sorted(frs, key=lambda f: f.u_start):
-            idx.append(m), u0.append(f.u_start), u1.append(f.u_end), feed.append(f.feed_mm_min)
+            idx.append(m), u0.append(f.u_start), u1.append(f.u_end), feed.append(f.feed_mm_s * 60.0)  # F words
     idx, u0, u1 = np.array(idx), np.array(u0), np.array(u1)
     out = tp.subset(idx)
     out.start = tp.points(idx, u0)
@@ -87,8 +87,8 @@ def test_fragments_bound_the_limit_and_respect_length_and_count():
         assert sum(lengths) == pytest.approx(L[m])
     # more freedom → closer to the limit: time Σ l/F approaches ∫ ds/limit
     fine = piecewise_feeds(smp, lim, min_fragment_mm=0.05, max_changes_per_mm=100, step=0.0)
-    t_fine = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in fine)
-    t_coarse = sum((f.u_end - f.u_start) * L[f.move] / (f.feed_mm_min / 60) for f in frs)
+    t_fine = sum((f.u_end - f.u_start) * L[f.move] / f.feed_mm_s for f in fine)
+    t_coarse = sum((f.u_end - f.u_start) * L[f.move] / f.feed_mm_s for f in frs)
     ideal = np.sum(np.diff(smp.s_mm) / np.minimum(lim[1:], lim[:-1]))
     assert ideal * (1 - 1e-3) <= t_fine <= ideal * 1.02 < t_coarse
 
@@ -102,7 +102,7 @@ def test_a_slow_move_does_not_hold_the_next_moves_first_fragment():
     smp = tp.resample(0.1)
     lim = np.where(smp.move == 0, 5.0, 20.0)
     frs = piecewise_feeds(smp, lim, min_fragment_mm=2.0, max_changes_per_mm=0.2, step=0.0)
-    assert [(f.move, f.u_start, f.u_end, f.feed_mm_min) for f in frs] == [(0, 0.0, 1.0, 300.0), (1, 0.0, 1.0, 1200.0)]
+    assert [(f.move, f.u_start, f.u_end, f.feed_mm_s) for f in frs] == [(0, 0.0, 1.0, 5.0), (1, 0.0, 1.0, 20.0)]
 
 
 def test_split_toolpath_keeps_geometry():
@@ -144,7 +144,7 @@ def test_scheduled_program_replayed_through_controller_exceeds_no_limit():
     assert force.max() <= force_cap * 1.005
     assert v_on_orig.max() <= 150.0 * 1.005
     # and the optimised program is faster than the best single constant feed meeting the force cap
-    best_const = (force_cap - 5.0) / alpha.max() * 60
+    best_const = (force_cap - 5.0) / alpha.max()  # mm/s
     base = execute(tp, ctl, np.full(len(tp), best_const))
     assert ex.time_s < base.time_s
 
@@ -190,16 +190,16 @@ def test_settle_lowers_a_feed_below_its_programmed_one_only_for_a_limit():
 def test_reachable_joins_short_peaks_only():
     from millpost.emit import reachable
     joined = np.array([False, True, True, True])
-    f = np.array([600.0, 660.0, 600.0, 6000.0])  # mm/min; 0.1 mm pieces at 3000 mm/s²
+    f = np.array([10.0, 11.0, 10.0, 100.0])  # mm/s (F600, F660, F600, F6000); 0.1 mm pieces at 3000 mm/s²
     out = reachable(f, np.full(4, 0.1), np.full(4, 3000.0), joined, 0.05)
     # piece 1 peaks at sqrt(10² + 300) = 20 mm/s (1200 mm/min) > 1.05 × 600: it keeps its F
     np.testing.assert_array_equal(out, f)
     out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05)
     # 1 µm: it peaks at sqrt(100 + 3) mm/s = 609 mm/min, within 5 % of 600: joined to its neighbours
-    np.testing.assert_array_equal(out, [600.0, 600.0, 600.0, 6000.0])
+    np.testing.assert_array_equal(out, [10.0, 10.0, 10.0, 100.0])
     # unless that takes it under its programmed feed (F630 programmed there): only a limit lowers a feed
     # below the programmed one (a short G3 F39.37 carried the plunge's F12.46 before it)
-    out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05, np.array([600.0, 630.0, 600.0, 6000.0]))
+    out = reachable(f, np.full(4, 0.001), np.full(4, 3000.0), joined, 0.05, np.array([10.0, 10.5, 10.0, 100.0]))
     np.testing.assert_array_equal(out, f)
 
 
@@ -211,10 +211,12 @@ def test_feeds_within_solver_tolerance_under_the_programmed_are_the_programmed()
     never above it; a feed 1 % under is kept as the schedule gave it."""
     prog = read_text("G21 G90\nG0 X0 Y0 Z1\nG1 Z-1 F400\nG1 X50\nG1 X100\n")
     near = 400 * (1 - SNAP_TO_PROGRAMMED / 2)
-    frags = [Fragment(1, 0.0, 1.0, near), Fragment(2, 0.0, 0.5, near), Fragment(2, 0.5, 1.0, 700.0),
-             Fragment(3, 0.0, 1.0, 396.0)]
+    frags = [Fragment(1, 0.0, 1.0, near / 60), Fragment(2, 0.0, 0.5, near / 60), Fragment(2, 0.5, 1.0, 700.0 / 60),
+             Fragment(3, 0.0, 1.0, 396.0 / 60)]  # mm/s
     plan = FeedPlan.from_fragments(prog, frags, 0.05, np.full(4, np.inf))
-    assert plan.feed_mm_min[1] == 400 and plan.fragments[2] == [(0.5, 400.0), (1.0, 700.0)]
-    assert plan.feed_mm_min[3] == 396.0
-    capped = FeedPlan.from_fragments(prog, frags, 0.05, np.full(4, 399.9))
-    assert capped.feed_mm_min[1] == 399.9 and capped.feed_mm_min[3] == 396.0
+    assert plan.feed_mm_min[1] == 400 and plan.fragments[2][0] == (0.5, 400.0)
+    assert plan.fragments[2][1] == (1.0, pytest.approx(700.0, rel=1e-15))
+    assert plan.feed_mm_min[3] == pytest.approx(396.0, rel=1e-15)
+    capped = FeedPlan.from_fragments(prog, frags, 0.05, np.full(4, 399.9 / 60))
+    assert capped.feed_mm_min[1] == pytest.approx(399.9, rel=1e-15)
+    assert capped.feed_mm_min[3] == pytest.approx(396.0, rel=1e-15)

@@ -106,7 +106,7 @@ def write_trace(path: str, samples, eng) -> None:
     if path.endswith(".npz"):
         arrays = {k: v for k, v in vars(eng).items() if isinstance(v, np.ndarray)}
         arrays.update(s_mm=samples.s_mm, xyz_mm=samples.xyz_mm, kind=samples.kind, tool=samples.tool,
-                      feed_mm_min=samples.feed_mm_min)
+                      feed_mm_min=samples.feed_mm_s * 60.0)
 
         with atomic_path(path) as tmp, open(tmp, "wb") as fh:
             np.savez_compressed(fh, **arrays)
@@ -119,7 +119,7 @@ def write_trace(path: str, samples, eng) -> None:
     engaged = np.degrees(eng.arc_rad.max(axis=1))
     columns = dict(zip(TRACE_COLUMNS, [
         np.arange(len(samples)), samples.s_mm, *samples.xyz_mm.T, eng.move, eng.line, samples.kind, samples.tool,
-        samples.feed_mm_min, eng.volume_mm3, eng.area_mm2, eng.ap_mm, eng.ae_mm, st, ex, engaged,
+        samples.feed_mm_s * 60.0, eng.volume_mm3, eng.area_mm2, eng.ap_mm, eng.ae_mm, st, ex, engaged,
         eng.descending.astype(int)]))
     write_csv(path, columns, TRACE_FORMATS)
 

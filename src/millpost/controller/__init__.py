@@ -17,9 +17,10 @@ modules, one job each:
 - `pauses`: commands between moves, which stop the motion and take time;
 - `profile`: the look-ahead passes and the trapezoidal profile.
 
-Rates mm/s, accelerations mm/s², lengths mm, times s; F words mm/min. A controller that processes at
-most `block_rate_hz` blocks per second cannot finish a block of length L faster than 1/rate
-(speed ≤ L·rate). Times count from the first motion to the end of the last one.
+Rates and feeds mm/s (a toolpath's programmed feed as `Toolpath.feed_mm_s`), accelerations mm/s²,
+lengths mm, times s. A controller that processes at most `block_rate_hz` blocks per second cannot
+finish a block of length L faster than 1/rate (speed ≤ L·rate). Times count from the first motion to
+the end of the last one.
 """
 
 from .blends import blend_zones, corner_speeds, programmed_arcs, zone_samples

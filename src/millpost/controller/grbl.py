@@ -29,9 +29,9 @@ class Blocks:
     feed_mm_s: np.ndarray  # programmed (nan for rapids)
 
 
-def to_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None) -> Blocks:
+def to_blocks(tp: Toolpath, model: ControllerModel, feed_mm_s: np.ndarray | None = None) -> Blocks:
     """grbl: lines as one block each, arcs as chords with sagitta ≤ arc_tolerance (grbl's mc_arc)."""
-    feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
+    feed = tp.feed_mm_s if feed_mm_s is None else np.asarray(feed_mm_s, float)
     L = tp.lengths()
     nseg = np.ones(len(tp), np.int64)
     arc = tp.kind >= ARC_CW
@@ -49,7 +49,7 @@ def to_blocks(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | No
     u = j / np.repeat(nseg, nseg)
     end = tp.points(move, u)
     start = tp.points(move, u - 1.0 / np.repeat(nseg, nseg))
-    return Blocks(start, end, move, u, feed[move] / 60.0)
+    return Blocks(start, end, move, u, feed[move])
 
 
 def _junction_speeds2(tp: Toolpath, blk: Blocks, u: np.ndarray, model: ControllerModel,
@@ -88,10 +88,10 @@ class GrblPlanner(Planner):
     runs_arcs_whole = False
     blends_corners = False
 
-    def queue(self, tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None,
+    def queue(self, tp: Toolpath, model: ControllerModel, feed_mm_s: np.ndarray | None,
               pauses: np.ndarray | None, modes: PathModes | None) -> Queue:
         """Chord blocks (`to_blocks`) with grbl's junction-deviation corner speeds; modes play no part."""
-        blk = to_blocks(tp, model, feed_mm_min)
+        blk = to_blocks(tp, model, feed_mm_s)
         d = blk.end - blk.start
         L = np.linalg.norm(d, axis=1)
         u = d / np.maximum(L, 1e-300)[:, None]

@@ -178,12 +178,12 @@ class LinuxCNCPlanner(Planner):
     blends_corners = True
     merges_naive_cam: bool = True
 
-    def queue(self, tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None,
+    def queue(self, tp: Toolpath, model: ControllerModel, feed_mm_s: np.ndarray | None,
               pauses: np.ndarray | None, modes: PathModes | None) -> Queue:
         """LinuxCNC's queue: segments, blend arcs and the speed caps at their junctions; and the blend
         arcs' spans (`Execution.blends`). A line's rest shorter than GAP_CYCLES periods at the next
         blend arc's speed is dropped from the queue and runs as that arc's lead-in (blendCheckConsume)."""
-        segs = build_segments(tp, model, feed_mm_min, modes, merge=True)
+        segs = build_segments(tp, model, feed_mm_s, modes, merge=True)
         joints = _joints(segs, stops(tp, pauses).tolist(), model)
         dt = model.servo_period_s
         consumed = [j + 1 < len(segs) and joints[j + 1].kind == "blend" and not s.arc

@@ -85,9 +85,9 @@ class Planner(ABC):
         return Planner._of_kind[kind]
 
     @abstractmethod
-    def queue(self, tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None,
+    def queue(self, tp: Toolpath, model: ControllerModel, feed_mm_s: np.ndarray | None,
               pauses: np.ndarray | None, modes: PathModes | None) -> Queue:
-        """The blocks the planner runs for the toolpath at feed_mm_min (per move; None: programmed),
+        """The blocks the planner runs for the toolpath at feed_mm_s (per move; None: programmed),
         stopping at the pauses (`pauses_s`), in the path modes `modes` (None: the controller's own)."""
 
     def timed(self, q: Queue, ve: np.ndarray, t: np.ndarray, model: ControllerModel
@@ -156,7 +156,7 @@ class ControllerModel:
         ax = [machine.axes[a] for a in "xyz"]
         c = machine.controller
         planner = Planner.of_kind(c.kind)
-        return cls(max_rate_mm_s=tuple(a.vmax_mm_min / 60.0 for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
+        return cls(max_rate_mm_s=tuple(a.vmax_mm_s for a in ax), accel_mm_s2=tuple(a.amax_mm_s2 for a in ax),
                    junction_deviation_mm=c.junction_deviation_mm, block_rate_hz=c.block_rate_Hz, planner=planner,
                    blend_tolerance_mm=c.blend_tolerance_mm, tool_change_s=c.tool_change_s,
                    naive_cam_mm=c.blend_tolerance_mm if planner.merges_naive_cam else 0.0,

@@ -81,7 +81,7 @@ def _chains(start, end, straight, merge_mm, flush, max_points):
     return first
 
 
-def naive_cam_chains(tp: Toolpath, modes: PathModes, feed_mm_min: np.ndarray | None = None) -> np.ndarray:
+def naive_cam_chains(tp: Toolpath, modes: PathModes, feed_mm_s: np.ndarray | None = None) -> np.ndarray:
     """LinuxCNC's naive-CAM detector (its canon layer, emccanon.cc: see_segment, linkable and
     flush_segments): consecutive straight feeds are chained while every point of the chain lies within
     the naive-CAM tolerance of the line from the chain's start to the newest end point (its nearest point
@@ -90,7 +90,7 @@ def naive_cam_chains(tp: Toolpath, modes: PathModes, feed_mm_min: np.ndarray | N
     mode (G61, G61.1, G64; a plain G64 or G61 sets no tolerance), a command (`PathModes.flush`). The chain
     goes to the planner as one line from its start to its last point at the current feed. Returns per
     move the index of the first move of its chain (its own index where nothing is merged)."""
-    feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
+    feed = tp.feed_mm_s if feed_mm_s is None else np.asarray(feed_mm_s, float)
     flush = np.asarray(modes.flush, bool).copy()
     if len(tp) > 1:
         flush[1:] |= feed[1:] != feed[:-1]

@@ -14,13 +14,13 @@ from .pauses import paused_s, pauses_s
 from .profile import plan_speeds, trapezoid_time
 
 
-def execute_program(program, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
+def execute_program(program, model: ControllerModel, feed_mm_s: np.ndarray | None = None,
                     modes: PathModes | None = None) -> Execution:
     """`execute` on an interpreted program: its pauses (dwells, tool changes, commands) stop the
     motion and take their time, its path modes (G61/G64 P Q; `path_modes`, computed here unless
-    given) set the corners and the merging of straight feeds; feed_mm_min overrides the programmed
-    feed per move."""
-    return execute(program.toolpath, model, feed_mm_min, pauses=pauses_s(program, model),
+    given) set the corners and the merging of straight feeds; feed_mm_s overrides the programmed
+    feed per move (mm/s)."""
+    return execute(program.toolpath, model, feed_mm_s, pauses=pauses_s(program, model),
                    modes=path_modes(program, model) if modes is None else modes)
 
 
@@ -30,14 +30,14 @@ def program_time(program, model: ControllerModel) -> float:
     return execute_program(program, model).time_s
 
 
-def execute(tp: Toolpath, model: ControllerModel, feed_mm_min: np.ndarray | None = None,
+def execute(tp: Toolpath, model: ControllerModel, feed_mm_s: np.ndarray | None = None,
             pauses: np.ndarray | None = None, modes: PathModes | None = None) -> Execution:
-    """Plan and time the whole program (rapids at the axis rates) on the model's planner. feed_mm_min
-    overrides the programmed feed per move; pauses (see `pauses_s`, len(tp)+1) stop the motion between
+    """Plan and time the whole program (rapids at the axis rates) on the model's planner. feed_mm_s
+    overrides the programmed feed per move (mm/s); pauses (see `pauses_s`, len(tp)+1) stop the motion between
     moves; modes (see `path_modes`; default: the controller's own) set the path modes. A junction is
     never faster than the slower of its two blocks; a controller that processes at most `block_rate_hz`
     blocks per second runs a block of length L at most at L·rate."""
-    q = model.planner.queue(tp, model, feed_mm_min, pauses, modes)
+    q = model.planner.queue(tp, model, feed_mm_s, pauses, modes)
     L, vnom, acc = q.length, q.vnom, q.acc
     vj2 = q.vj2.copy()
     vj2[1:-1] = np.minimum(vj2[1:-1], np.minimum(vnom[:-1], vnom[1:]) ** 2)

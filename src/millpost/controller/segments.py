@@ -66,12 +66,12 @@ def arc_maxvel(s: Segment, halved: bool) -> float:
     return min(s.maxvel, math.sqrt(NORMAL_SHARE * a * s.radius))
 
 
-def build_segments(tp: Toolpath, model: ControllerModel, feed_mm_min, modes: PathModes | None,
+def build_segments(tp: Toolpath, model: ControllerModel, feed_mm_s, modes: PathModes | None,
                    merge: bool = False) -> list[Segment]:
     """Segments of LinuxCNC's queue with the limits emccanon gives them: one per move, or with merge
     one per chain of straight feeds (`naive_cam_chains`); a line whose every axis moves less than
     AXIS_TINY_MM never reaches the planner (canon drops it), nor does an arc shorter than 1e-9 mm."""
-    feed = tp.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
+    feed = tp.feed_mm_s if feed_mm_s is None else np.asarray(feed_mm_s, float)
     modes = PathModes.uniform(len(tp), model) if modes is None else modes
     vax, aax = np.asarray(model.max_rate_mm_s, float), np.asarray(model.accel_mm_s2, float)
     if not len(tp):
@@ -117,7 +117,7 @@ def build_segments(tp: Toolpath, model: ControllerModel, feed_mm_min, modes: Pat
         nrm[np.arange(arc.sum()), an] = 1.0
         normal[arc] = nrm
     rapid = tp.kind[idx] == RAPID
-    f = feed[idx] / 60.0
+    f = feed[idx]
     req = np.where(rapid | ~np.isfinite(f), vmax, np.minimum(f, vmax))
     segs = []
     for k in range(len(idx)):

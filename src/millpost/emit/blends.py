@@ -115,7 +115,7 @@ def emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nda
                  hard_cap: np.ndarray, model: controller.ControllerModel, progress: Progress
                  ) -> Emission:
     """The program with F words within the per-sample feed limit (mm/s; `piecewise_feeds`, hard_cap: per
-    move, mm/min) where the controller's blend arcs carry them, what the reader makes of it and how the
+    move, mm/s) where the controller's blend arcs carry them, what the reader makes of it and how the
     controller runs it. A blend arc runs at up to the faster of two F words over a reach set by the
     segments the controller is given: for LinuxCNC the chains of straight feeds its canon layer merges
     at the F words written (far longer than one programmed move), and a short line before an arc runs
@@ -175,7 +175,7 @@ def baseline_within(program: Program, samples: Samples, feeds: np.ndarray, cap_m
     if len(over):
         feeds = lowered_to(over, blend_limit(samples, cap_mm_s, over))
     for passes in range(1, BLEND_PASSES + 2):
-        run = controller.execute_program(program, model, feeds, modes=modes)
+        run = controller.execute_program(program, model, feeds / 60.0, modes=modes)  # F words → mm/s
         over = blend_excess(samples, cap_mm_s, run.blends, SNAP_TO_PROGRAMMED)
         if not len(over) or passes > BLEND_PASSES:
             return feeds, run

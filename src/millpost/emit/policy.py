@@ -7,9 +7,9 @@ their neighbours (`reachable`); `cluster` gives lines that run several times one
 
 Each cutting move is cut into fragments of at least `min_fragment_mm` (shorter only when the move
 is), at most `1 + floor(L·max_changes_per_mm)` per move, each with the smallest limit over the
-samples it touches, rounded down to `resolution_mm_min`: the programmed feed never exceeds the
-limit anywhere (the limit is piecewise linear in b between samples, so its minimum over a fragment
-is at a sample). Fragments start as equal cells; adjacent ones are merged where that costs the
+samples it touches (mm/s, as the schedule's; the writer rounds the F words down): the feed never
+exceeds the limit anywhere (the limit is piecewise linear in b between samples, so its minimum over a
+fragment is at a sample). Fragments start as equal cells; adjacent ones are merged where that costs the
 least time until the count bound holds.
 
 Pass the schedule's feed (or just its process caps: loads, chip load, max feed). Samples where the
@@ -32,12 +32,12 @@ from ..toolpath import RAPID, Samples
 
 @dataclass(frozen=True)
 class Fragment:
-    """Part [u_start, u_end] (fractions of the move's length) of move `move` at feed_mm_min."""
+    """Part [u_start, u_end] (fractions of the move's length) of move `move` at feed_mm_s."""
 
     move: int
     u_start: float
     u_end: float
-    feed_mm_min: float
+    feed_mm_s: float
 
 
 def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -61,23 +61,30 @@ def _merge(length: np.ndarray, v: np.ndarray, max_count: int) -> tuple[np.ndarra
     return L, V
 
 
-SLOWEST_FEED_MM_MIN = 1.0  # the slowest feed written (F0 would be no feed at all)
+SLOWEST_FEED_MM_MIN = 1.0  # the slowest F word written (F0 would be no feed at all)
 
 
-def settle(feeds_mm_min: np.ndarray, step: float, keep_mm_min: np.ndarray | None = None) -> np.ndarray:
+def _at_least_slowest(v_mm_s: np.ndarray) -> np.ndarray:
+    """Feeds (mm/s) raised to the slowest F word: max(v·60, SLOWEST_FEED_MM_MIN)/60. Through mm/min, as
+    the policy always has: cells' feeds one ulp apart can split a move elsewhere (max(v, 1/60) moved a
+    split point of fabex_parallel_ocl by 0.0001 mm)."""
+    return np.maximum(v_mm_s * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
+
+
+def settle(feeds: np.ndarray, step: float, keep: np.ndarray | None = None) -> np.ndarray:
     """Feeds in program order lowered into runs of one feed each, so that F words change only where
     the feed changes meaningfully: a feed joins the current run while the run's largest member stays
     within `step` (relative) of its smallest, and the run takes its smallest (never above any
-    member's limit). `keep_mm_min`: each feed's programmed one; a run takes a member under it only
+    member's limit). `keep`: each feed's programmed one (the feeds' unit); a run takes a member under it only
     where its smallest member is itself under its own (a limit holds it there: one F for a run a
     limit slows in part), never for a run of feeds all at or above their programmed ones (only a
     limit lowers a feed below the programmed one, not the settling). Repeated until no two
     neighbouring runs lie within `step` of each other (a run pulled down by a later member may land
     next to the one before)."""
-    out = np.asarray(feeds_mm_min, float).copy()
+    out = np.asarray(feeds, float).copy()
     if step <= 0 or len(out) == 0:
         return out
-    keep = np.zeros_like(out) if keep_mm_min is None else np.nan_to_num(keep_mm_min, nan=0.0)
+    keep = np.zeros_like(out) if keep is None else np.nan_to_num(keep, nan=0.0)
     floor = np.minimum(out, keep)
     while True:
         prev = out.copy()
@@ -96,11 +103,11 @@ def settle(feeds_mm_min: np.ndarray, step: float, keep_mm_min: np.ndarray | None
             return out
 
 
-def cluster(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
+def cluster(feeds: np.ndarray, step: float) -> np.ndarray:
     """Feeds in any order lowered to the smallest of their cluster: ascending, a cluster holds the
     feeds within `step` (relative) of its smallest; so any two different results differ by more
     than `step`."""
-    f = np.asarray(feeds_mm_min, float)
+    f = np.asarray(feeds, float)
     order = np.argsort(f)
     out = f.copy()
     lo = -np.inf
@@ -111,16 +118,16 @@ def cluster(feeds_mm_min: np.ndarray, step: float) -> np.ndarray:
     return out
 
 
-def reachable(feeds_mm_min: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.ndarray, joined: np.ndarray,
-              step: float, keep_mm_min: np.ndarray | None = None) -> np.ndarray:
+def reachable(feeds_mm_s: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.ndarray, joined: np.ndarray,
+              step: float, keep_mm_s: np.ndarray | None = None) -> np.ndarray:
     """Feeds of pieces too short to reach them taken down to their faster neighbour's: a piece of
     length L between neighbours at lower feeds v_prev, v_next, accelerating and braking at most at a,
     peaks at v² = (v_prev² + v_next²)/2 + a·L; where that is within `step` of the faster neighbour the
     piece's own F changes nothing meaningful on the machine and is not written (a bounds the path
     acceleration from above, so the loss is under `step`), unless that neighbour's feed is under the
-    piece's programmed one (`keep_mm_min`: only a limit lowers a feed below the programmed one, not
+    piece's programmed one (`keep_mm_s`: only a limit lowers a feed below the programmed one, not
     the writing of F words). joined[i]: piece i continues piece i − 1."""
-    v = np.asarray(feeds_mm_min, float) / 60.0
+    v = np.asarray(feeds_mm_s, float)
     nxt_joined = np.r_[joined[1:], False]
     prev = np.r_[np.inf, v[:-1]]
     nxt = np.r_[v[1:], np.inf]
@@ -128,9 +135,9 @@ def reachable(feeds_mm_min: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.n
     peak = np.sqrt((prev**2 + nxt**2) / 2 + accel_mm_s2 * length_mm)
     faster = np.maximum(prev, nxt)
     take = inner & (peak <= faster * (1 + step))
-    if keep_mm_min is not None:
-        take &= faster * 60.0 >= np.nan_to_num(keep_mm_min, nan=0.0) * (1 - 1e-9)
-    return np.where(take, faster, v) * 60.0
+    if keep_mm_s is not None:
+        take &= faster >= np.nan_to_num(keep_mm_s, nan=0.0) * (1 - 1e-9)
+    return np.where(take, faster, v)
 
 
 def _move_cells(s: np.ndarray, v: np.ndarray, L: float, min_fragment_mm: float,
@@ -145,7 +152,7 @@ def _move_cells(s: np.ndarray, v: np.ndarray, L: float, min_fragment_mm: float,
     hi = np.clip(np.searchsorted(s, edges[1:], side="left"), 0, len(s) - 1)
     cell_v = np.array([v[i:j + 1].min() for i, j in zip(lo, hi)])
     cell_v = np.where(np.isfinite(cell_v), cell_v, np.nanmin(np.where(np.isfinite(v), v, np.nan)))
-    q = np.maximum(cell_v * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
+    q = _at_least_slowest(cell_v)
     return _merge(np.diff(edges), q, 1 + int(np.floor(L * max_changes_per_mm)))
 
 
@@ -153,8 +160,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
                     max_changes_per_mm: float = 0.2, step: float = 0.05,
                     accel_mm_s2: tuple[float, float, float] | None = None) -> list[Fragment]:
     """Fragments of every cutting move whose samples carry a finite limit (mm/s), at most the limit
-    and never below SLOWEST_FEED_MM_MIN; settled into runs (`settle`: under a fragment's programmed
-    feed only in a run a limit slows in part) and, with the axes'
+    and never below the slowest F word (`SLOWEST_FEED_MM_MIN`); settled into runs (`settle`: under a
+    fragment's programmed feed only in a run a limit slows in part) and, with the axes'
     accelerations (mm/s²), short peaks the controller cannot reach joined to their neighbours
     (`reachable`), repeated until stable; equal neighbours within a move merged.
 
@@ -184,16 +191,16 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     # leave a sample out; such moves take the general way, which reproduces that)
     repeat = np.r_[True, np.diff(samples.s_mm) <= 0].astype(np.int8)
     one = keep & (np.floor_divide(L, min_fragment_mm) <= 1) & (np.maximum.reduceat(repeat, starts) == 0)
-    q = np.maximum(np.where(np.isfinite(v_min), v_min, v_fin) * 60.0, SLOWEST_FEED_MM_MIN) / 60.0
+    q = _at_least_slowest(np.where(np.isfinite(v_min), v_min, v_fin))
     k1 = np.flatnonzero(one)
-    parts = [(k1, np.zeros(len(k1)), np.ones(len(k1)), q[k1] * 60.0, L[k1])]  # move, u0, u1, feed, length
+    parts = [(k1, np.zeros(len(k1)), np.ones(len(k1)), q[k1], L[k1])]  # move, u0, u1, feed, length
     for k in np.flatnonzero(keep & ~one):
         b, f = ends[k], first[k]
         Lf, Vf = _move_cells(samples.s_mm[f:b] - samples.s_mm[f], np.r_[np.inf, lim[f + 1:b]] if f < starts[k]
                              else lim[f:b], float(L[k]), min_fragment_mm, max_changes_per_mm)
         u = np.r_[0.0, np.cumsum(Lf) / L[k]]
         u[-1] = 1.0
-        parts.append((np.full(len(Lf), k), u[:-1], u[1:], Vf * 60.0, Lf))
+        parts.append((np.full(len(Lf), k), u[:-1], u[1:], Vf, Lf))
     cols = [np.concatenate(c) for c in zip(*parts)]
     order = np.argsort(cols[0], kind="stable")
     k_of, u0, u1, feeds, length = (c[order] for c in cols)
@@ -202,7 +209,7 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     k_of = k_of.astype(np.int64)
     move = np.asarray(mv)[starts[k_of]]
     joined = np.r_[False, (move[1:] == move[:-1]) | (move[1:] == move[:-1] + 1)]
-    programmed = samples.feed_mm_min[starts[k_of]]  # mm/min, of each fragment's move
+    programmed = samples.feed_mm_s[starts[k_of]]  # of each fragment's move
     for _ in range(20):
         before = feeds
         feeds = reachable(settle(feeds, step, programmed), length, accel[k_of], joined, step, programmed)

@@ -78,20 +78,22 @@ class FeedPlan:
         return cls(program.toolpath.feed_mm_min.copy(), {})
 
     @classmethod
-    def from_fragments(cls, program: Program, fragments, step: float, hard_cap_mm_min: np.ndarray,
+    def from_fragments(cls, program: Program, fragments, step: float, hard_cap_mm_s: np.ndarray,
                        axis_vmax_mm_min: tuple[float, float, float] | None = None) -> "FeedPlan":
-        """The plan from the schedule's fragments (`emit.policy.Fragment`). With control flow a line that runs several times gets
+        """The plan (mm/min, the F words' unit) from the policy's fragments (`emit.policy.Fragment`, mm/s).
+        With control flow a line that runs several times gets
         one F (the lowest of its runs): those line feeds are clustered (`cluster`) so that two different
         ones differ by at least `step`. One F would slow the runs programmed faster than the slowest one
         (a subroutine's F[#5/1.5] called with several feeds): unless a run must go slower than programmed
         (a hard limit), a line with its own F word whose single F would be below a run's programmed feed
         keeps the program's F (each run at its programmed feed). axis_vmax_mm_min: the machine's axis rates
-        (`_split_move`). hard_cap_mm_min: per move, the lowest speed
+        (`_split_move`). hard_cap_mm_s: per move, the lowest speed
         cap of the hard limits over its samples (a run is forced slower where it is under the programmed feed)."""
         plan = replace(cls.programmed(program), step=step, axis_vmax_mm_min=axis_vmax_mm_min)
-        by_move: dict[int, list] = {}
+        hard_cap_mm_min = np.asarray(hard_cap_mm_s, float) * 60.0
+        by_move: dict[int, list] = {}  # per move its fragments (u_start, u_end, feed in mm/min)
         for f in fragments:
-            by_move.setdefault(f.move, []).append(f)
+            by_move.setdefault(f.move, []).append((f.u_start, f.u_end, f.feed_mm_s * 60.0))
         programmed_mm_min = program.toolpath.feed_mm_min
 
         def held(mv: int, f: float) -> float:
@@ -109,21 +111,21 @@ class FeedPlan:
         # that bound on every move of its run whose hard cap allows it (not 10 and 9.9974 alternately)
         lifted: dict[float, float] = {}
         for mv, frs in by_move.items():
-            for f in frs:
-                bound = held(mv, f.feed_mm_min)
+            for _, _, f in frs:
+                bound = held(mv, f)
                 if not math.isnan(bound):
-                    lifted[f.feed_mm_min] = min(lifted.get(f.feed_mm_min, math.inf), bound)
+                    lifted[f] = min(lifted.get(f, math.inf), bound)
 
         def snapped(mv: int, f: float) -> float:
             bound = lifted.get(f, math.nan)
             return bound if bound <= hard_cap_mm_min[mv] else f
 
         for mv, frs in by_move.items():
-            frs.sort(key=lambda f: f.u_start)
+            frs.sort(key=lambda f: f[0])
             if len(frs) == 1:
-                plan.feed_mm_min[mv] = snapped(mv, frs[0].feed_mm_min)
+                plan.feed_mm_min[mv] = snapped(mv, frs[0][2])
             else:
-                plan.fragments[mv] = [(f.u_end, snapped(mv, f.feed_mm_min)) for f in frs]
+                plan.fragments[mv] = [(u_end, snapped(mv, f)) for _, u_end, f in frs]
                 plan.feed_mm_min[mv] = min(f for _, f in plan.fragments[mv])
         plan.feed_mm_min, held = cycle_feeds(program, plan.feed_mm_min)
         for mv in held:
@@ -611,7 +613,7 @@ def whole_moves(program: Program, fragments: list) -> list:
     for f in fragments:
         if not (program.compensated[f.move] or program.cycle[f.move] or int(move_line[f.move]) in computed_lines):
             out.append(f)
-        elif f.move not in whole or f.feed_mm_min < whole[f.move].feed_mm_min:
+        elif f.move not in whole or f.feed_mm_s < whole[f.move].feed_mm_s:
             whole[f.move] = replace(f, u_start=0.0, u_end=1.0)
     return out + list(whole.values())
 

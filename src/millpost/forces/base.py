@@ -168,9 +168,9 @@ class Loads:
 
 @dataclass(frozen=True)
 class LinearLoads:
-    """Loads as affine functions of the feed v (mm/min) per sample: load(v) = a·v + b.
+    """Loads as affine functions of the path feed v (mm/s) per sample: load(v) = a·v + b.
 
-    force_a, force_b: (N, 3) machine-XYZ average force, N/(mm/min) and N. peak_a, peak_b: (N,) an upper
+    force_a, force_b: (N, 3) machine-XYZ average force, N/(mm/s) and N. peak_a, peak_b: (N,) an upper
     bound of the peak in-plane |F| per revolution. torque_a/b (N·m), power_a/b (W): (N,).
     `exact` is True when the affine form is the model itself (mechanistic); otherwise (Kienzle) every
     quantity is the tangent at `feed_ref_mm_min` of a concave law, hence an upper bound for all v ≥ 0
@@ -195,9 +195,15 @@ class LinearLoads:
     exact: bool
     feed_ref_mm_min: np.ndarray | None = None
 
-    def force_at(self, feed_mm_min) -> np.ndarray:
-        """(N, 3) average force (N) at feed v (scalar or (N,))."""
-        v = np.asarray(feed_mm_min, float)
+    @classmethod
+    def per_minute(cls, **fields) -> "LinearLoads":
+        """The loads from slopes per mm/min of feed (the models' chip per tooth f_z = v/(z·n) of a spindle
+        at n rpm), stored per mm/s: each `*_a` × 60."""
+        return cls(**{k: v * 60.0 if k.endswith("_a") else v for k, v in fields.items()})
+
+    def force_at(self, feed_mm_s) -> np.ndarray:
+        """(N, 3) average force (N) at feed v (mm/s, scalar or (N,))."""
+        v = np.asarray(feed_mm_s, float)
         return self.force_a * (v[..., None] if v.ndim else v) + self.force_b
 
     @staticmethod

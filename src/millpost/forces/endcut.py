@@ -168,8 +168,9 @@ class EndCut:
 
     def linear_loads(self, engagement: Engagement, tool: Tool, rpm, feed_ref_mm_min) -> LinearLoads:
         """Thrust (+Z on the tool: the work pushes the tool up; a vertical tool) and torque as affine
-        functions of the path feed v (mm/min): the tangent at feed_ref (scalar or (N,), > 0) of
-        f^p, f = v·descent/(z·n), which bounds it from above for every v ≥ 0."""
+        functions of the path feed (mm/s; `LinearLoads.per_minute`): the tangent at feed_ref (the F word,
+        mm/min, scalar or (N,), > 0) of f^p, f = v·descent/(z·n) for v in mm/min, which bounds it from
+        above for every v ≥ 0."""
         n = len(engagement)
         rpm_n = rpm_array(rpm, n)
         per_feed = _descent(engagement) / (tool.flutes * rpm_n)        # f per mm/min of path feed
@@ -186,5 +187,6 @@ class EndCut:
         force_a[:, 2], force_b[:, 2] = QF * slope, QF * icpt + C
         T_a, T_b = QM * slope / 1000.0, QM * icpt / 1000.0
         zero = np.zeros(n)
-        return LinearLoads(force_a=force_a, force_b=force_b, peak_a=zero, peak_b=zero, torque_a=T_a, torque_b=T_b,
-                           power_a=T_a * omega, power_b=T_b * omega, exact=False, feed_ref_mm_min=v0.copy())
+        return LinearLoads.per_minute(force_a=force_a, force_b=force_b, peak_a=zero, peak_b=zero, torque_a=T_a,
+                                      torque_b=T_b, power_a=T_a * omega, power_b=T_b * omega, exact=False,
+                                      feed_ref_mm_min=v0.copy())

@@ -140,8 +140,9 @@ class Kienzle:
                               steps_per_rev=self.steps_per_rev, peaks=peaks)
 
     def linear_loads(self, engagement: Engagement, tool: Tool, rpm, feed_ref_mm_min=None) -> LinearLoads:
-        """Tangent at feed_ref (mm/min, scalar or (N,)) of the exact law: an upper bound for every feed ≥ 0,
-        exact at the reference: f_z^p ≤ p f_0^(p−1) f_z + (1 − p) f_0^p."""
+        """Tangent at feed_ref (the F word, mm/min, scalar or (N,)) of the exact law, affine in the path
+        feed (mm/s; `LinearLoads.per_minute`): an upper bound for every feed ≥ 0, exact at the reference:
+        f_z^p ≤ p f_0^(p−1) f_z + (1 − p) f_0^p."""
         if feed_ref_mm_min is None:
             raise MillpostError("the Kienzle model needs a reference feed for its linear bound")
         n = len(engagement)
@@ -165,7 +166,7 @@ class Kienzle:
         fd = engagement.feed_dir
         F = to_machine(fd, Q[:, :3])
         T = Q[:, 3] / 1000.0
-        return LinearLoads(
+        return LinearLoads.per_minute(
             force_a=F * slope[:, None], force_b=F * icpt[:, None], peak_a=peak1 * slope, peak_b=peak1 * icpt,
             torque_a=T * slope, torque_b=T * icpt, power_a=T * slope * omega, power_b=T * icpt * omega,
             exact=False, feed_ref_mm_min=f0 / per_feed)

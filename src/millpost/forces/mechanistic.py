@@ -155,7 +155,8 @@ class Mechanistic:
                               p=1.0, runout_mm=self.runout_mm, steps_per_rev=self.steps_per_rev, peaks=peaks)
 
     def linear_loads(self, engagement: Engagement, tool: Tool, rpm, feed_ref_mm_min=None) -> LinearLoads:
-        """Exact affine loads in the feed v (mm/min): f_z = v / (flutes·rpm). feed_ref is not needed.
+        """Exact affine loads in the path feed (mm/s; `LinearLoads.per_minute`): f_z = v / (flutes·rpm) for v
+        in mm/min. feed_ref is not needed.
 
         The peak bound is max_φ ‖A(φ)‖·f_z + max_φ ‖B(φ)‖ (triangle inequality on the instantaneous
         force f_z·A(φ) + B(φ)), shearing part at f_z = 1 and edge part from one time-domain run; runout is
@@ -174,7 +175,7 @@ class Mechanistic:
                             helix_deg=tool.helix_deg, radius_mm=tool.radius_mm, steps_per_rev=self.steps_per_rev)
         pa, pb = peaks[:, 1], peaks[:, 2]
         fd = engagement.feed_dir
-        return LinearLoads(
+        return LinearLoads.per_minute(
             force_a=to_machine(fd, slope[:, :3]) * per_feed[:, None], force_b=to_machine(fd, icpt[:, :3]),
             peak_a=pa * per_feed, peak_b=pb,
             torque_a=slope[:, 3] / 1000 * per_feed, torque_b=icpt[:, 3] / 1000,

@@ -108,7 +108,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
         data.binding = _binding(data, feed_cap=None)
         return data
     from ..gcode import read_program
-    from ..limits import feed_cap_mm_min
+    from ..limits import feed_cap_mm_s
     program = read_program(job.program, job.reader_options())
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     if len(samples) != n:
@@ -117,7 +117,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
     data.title = job.program.name
     data.operations = operations_from_lines(samples.line, samples.tool, comments)
-    data.binding = _binding(data, feed_cap_mm_min(job))
+    data.binding = _binding(data, feed_cap_mm_s(job) * 60.0)  # mm/min, as the trace
     if stock_map:
         data.stock = final_stock(job, samples)
     return data
