@@ -20,6 +20,7 @@ import numpy as np
 from ._kernels import compiling
 from ._kernels import engage as _k
 from .errors import CrashError, MillpostError
+from .gcode import check_program
 from .gcode.convert import SourceBlocks
 from .gcode.interpret import Program
 from .progress import Progress, reporting, resolve
@@ -462,15 +463,42 @@ def known_start(program: Program, samples: Samples) -> int:
     return start
 
 
+def _check_tools(program: Program, tools: Tool | Mapping[int, Tool], stock_top_mm: float) -> None:
+    """Every feed move runs with a tool the job describes. A program that cuts (a feed move below the
+    stock top, Z mm) before any T word selects a tool can only run with the job's only tool
+    (`ReaderOptions.for_tools`); with several, say what to write."""
+    if isinstance(tools, Tool):
+        return
+    tp = program.toolpath
+    fed = tp.kind != RAPID
+    described = ", ".join(f"[tools.{n}]" for n in sorted(tools)) or "none"
+    unloaded = fed & (tp.tool < 0) & (np.minimum(tp.start[:, 2], tp.end[:, 2]) < stock_top_mm)
+    if unloaded.any():
+        line = int(tp.line[np.argmax(unloaded)])
+        raise MillpostError(f"{program.path}:{line}: the program cuts before any T word selects a tool; the job "
+                            f"describes {described}: write `T<n> M6` (e.g. T{min(tools, default=1)} M6) before "
+                            "this line, or describe only the tool it uses (a job with one [tools.N] table has "
+                            "that tool loaded)")
+    missing = fed & (tp.tool >= 0) & ~np.isin(tp.tool, list(tools))
+    if missing.any():
+        k = int(np.argmax(missing))
+        empty = " (T0 is the empty spindle on LinuxCNC)" if tp.tool[k] == 0 else ""
+        raise MillpostError(f"{program.path}:{int(tp.line[k])}: tool T{int(tp.tool[k])} cuts{empty} but the job "
+                            f"has no [tools.{int(tp.tool[k])}] (it describes {described})")
+
+
 def engage(program: Program, stock, tools: Tool | Mapping[int, Tool], ds_mm: float, allow: Iterable[str],
            *, stage: str = "optimize", slices: int = 8, progress: Progress | bool | None = None,
            clearance_mm: float | None = None) -> tuple[Samples, Engagement, list[str]]:
-    """The engagement stage of a checked program (`millpost.gcode.check_program`, `millpost.job.check_tools`):
-    resample every `ds_mm` (mm; ``large`` gate), step the tools through `stock` (cut in place; ``rapid`` gate
-    from the first known position) and check the cut (``no-cut``, ``below-stock``, ``flute-length``).
-    clearance_mm: see `simulate`. Returns the samples, the engagement and the warnings/notes the gates left."""
+    """The engagement stage: check the program (`millpost.gcode.check_program`) and that every feed move
+    runs with a described tool, resample every `ds_mm` (mm; ``large`` gate), step the tools through `stock`
+    (cut in place; ``rapid`` gate from the first known position) and check the cut (``no-cut``,
+    ``below-stock``, ``flute-length``). clearance_mm: see `simulate`. Returns the samples, the engagement
+    and the warnings/notes the gates left."""
     notes: list[str] = []
     bounds = stock.bounds()
+    check_program(program)
+    _check_tools(program, tools, float(bounds[1][2]))
     samples = resample(program, ds_mm, allow, notes, stage=stage)
     try:
         eng = simulate(stock, tools, samples, slices=slices, progress=progress,

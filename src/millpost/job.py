@@ -38,18 +38,14 @@ from __future__ import annotations
 
 import math
 import tomllib
-from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
-
-from .errors import ConfigError, MillpostError
+from .errors import ConfigError
 from .machine import Machine
 from .materials import Material
 from .registry import plugins
-from .gcode import Program, ReaderOptions
-from .toolpath import RAPID
+from .gcode import ReaderOptions
 from .tools import Tool
 from .config import Table
 from .tools.library import load_tool, tool_from_table
@@ -106,30 +102,6 @@ class Job:
         if self.stock_file is not None:
             return stock.load(self.stock_file, self.cell_mm)
         return stock.box(*self.stock_box, self.cell_mm)
-
-
-def check_tools(program: Program, tools: Tool | Mapping[int, Tool], stock_top_mm: float) -> None:
-    """Every feed move runs with a tool the job describes. A program that cuts (a feed move below the
-    stock top, Z mm) before any T word selects a tool can only run with the job's only tool
-    (`ReaderOptions.for_tools`); with several, say what to write."""
-    if isinstance(tools, Tool):
-        return
-    tp = program.toolpath
-    fed = tp.kind != RAPID
-    described = ", ".join(f"[tools.{n}]" for n in sorted(tools)) or "none"
-    unloaded = fed & (tp.tool < 0) & (np.minimum(tp.start[:, 2], tp.end[:, 2]) < stock_top_mm)
-    if unloaded.any():
-        line = int(tp.line[np.argmax(unloaded)])
-        raise MillpostError(f"{program.path}:{line}: the program cuts before any T word selects a tool; the job "
-                            f"describes {described}: write `T<n> M6` (e.g. T{min(tools, default=1)} M6) before "
-                            "this line, or describe only the tool it uses (a job with one [tools.N] table has "
-                            "that tool loaded)")
-    missing = fed & (tp.tool >= 0) & ~np.isin(tp.tool, list(tools))
-    if missing.any():
-        k = int(np.argmax(missing))
-        empty = " (T0 is the empty spindle on LinuxCNC)" if tp.tool[k] == 0 else ""
-        raise MillpostError(f"{program.path}:{int(tp.line[k])}: tool T{int(tp.tool[k])} cuts{empty} but the job "
-                            f"has no [tools.{int(tp.tool[k])}] (it describes {described})")
 
 
 def load_job(path: str | Path) -> Job:

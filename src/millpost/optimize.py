@@ -22,9 +22,9 @@ from . import controller, safety
 from ._kernels import set_threads
 from .emit import baseline_within, emission_limit, emit_programmed, emit_within, emitted_positions
 from .engagement import engage
-from .gcode import check_program, read_program
+from .gcode import read_program
 from .gcode.interpret import Program
-from .job import Job, check_tools
+from .job import Job
 from .progress import Progress, reporting, resolve, silent, stage
 from .limits import HARD, JobLimits, build_limits, static_caps
 from .replay import baseline_feeds, replay
@@ -62,8 +62,6 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         t_read = time.perf_counter()
         with stage(report, "stock"):
             stock = job.stock()
-        check_program(program)
-        check_tools(program, job.tools, float(stock.bounds()[1][2]))
         samples, eng, notes = engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
                                      progress=report, clearance_mm=float(job.limits["air_clearance_mm"]))
         samples = safety.check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)

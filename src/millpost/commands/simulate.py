@@ -126,8 +126,8 @@ def write_trace(path: str, samples, eng) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..engagement import engage
-    from ..gcode import ReaderOptions, check_program, read_program
-    from ..job import LIMIT_RANGES, check_tools
+    from ..gcode import ReaderOptions, read_program
+    from ..job import LIMIT_RANGES
 
     lo, hi = LIMIT_RANGES["ds_mm"]
     if args.step is not None and not lo <= args.step <= hi:
@@ -140,8 +140,6 @@ def run(args: argparse.Namespace) -> int:
     program = read_program(program_path, ReaderOptions.for_tools(diameters, dialect))
     v0 = stock.volume_mm3()
     with Bars() as bars:
-        check_program(program)
-        check_tools(program, tools, float(stock.bounds()[1][2]))
         samples, eng, notes = engage(program, stock, tools, step, allow | set(args.allow), stage="simulate",
                                      slices=args.slices, progress=bars)
     write_trace(args.trace, samples, eng)
