@@ -33,14 +33,19 @@ def _cost(grid: PathGrid, blocks: list, b: np.ndarray, penalty: float) -> float:
     return t + penalty * float(np.sum(node * np.maximum(floor - b, 0.0))) / vref**3
 
 
-@pytest.mark.parametrize("seed", range(40))
-def test_certified_profile_matches_clarabel_on_random_jobs(seed):
+def _random_problem(seed: int):
+    """The samples and limits of random job `seed` (tests/random_jobs.py) with a random engagement."""
     rng = np.random.default_rng(seed)
     job, text = random_job(rng)
     program = read_text(text, "random.nc")
     samples = program.toolpath.resample(float(job.limits["ds_mm"]))
     eng = random_engagement(rng, samples, job.tools[1])
-    limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
+    return samples, build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_certified_profile_matches_clarabel_on_random_jobs(seed):
+    samples, limits = _random_problem(seed)
     auto = schedule_samples(samples, limits, ScheduleOptions(processes=1))
     ref = schedule_samples(samples, limits, ScheduleOptions.from_choices(solver="clarabel", jobs=1))
     grid = PathGrid.from_samples(samples)
@@ -64,12 +69,7 @@ def test_certified_profile_covers_current_slew():
     """Some random jobs with current-slew rows are accepted by the certificate (not all fall back)."""
     accepted = 0
     for seed in range(40):
-        rng = np.random.default_rng(seed)
-        job, text = random_job(rng)
-        program = read_text(text, "random.nc")
-        samples = program.toolpath.resample(float(job.limits["ds_mm"]))
-        eng = random_engagement(rng, samples, job.tools[1])
-        limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
+        samples, limits = _random_problem(seed)
         grid = PathGrid.from_samples(samples)
         if not any(isinstance(blk, StepRows) for lim in limits for blk in lim.blocks(grid)):
             continue
