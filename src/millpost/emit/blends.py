@@ -164,7 +164,7 @@ def baseline_within(program: Program, samples: Samples, feeds: np.ndarray, cap_m
     between stops at its lowest cap."""
     moving = program.toolpath.kind != RAPID
 
-    def lowered_to(over: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    def lowered_to(limit: np.ndarray) -> np.ndarray:
         move_cap = np.full(len(feeds), np.inf)
         np.fmin.at(move_cap, samples.move, limit * 60.0)
         return np.where(moving, np.fmin(feeds, np.floor(move_cap * (1 + 1e-9))), feeds)
@@ -173,13 +173,13 @@ def baseline_within(program: Program, samples: Samples, feeds: np.ndarray, cap_m
     arcs = np.column_stack([zones[:, :2], np.minimum(zones[:, 2], np.fmax(*feeds[samples.move[ends]].T) / 60.0)])
     over = blend_excess(samples, cap_mm_s, arcs, SNAP_TO_PROGRAMMED)
     if len(over):
-        feeds = lowered_to(over, blend_limit(samples, cap_mm_s, over))
+        feeds = lowered_to(blend_limit(samples, cap_mm_s, over))
     for passes in range(1, BLEND_PASSES + 2):
         run = controller.execute_program(program, model, feeds / 60.0, modes=modes)  # F words → mm/s
         over = blend_excess(samples, cap_mm_s, run.blends, SNAP_TO_PROGRAMMED)
         if not len(over) or passes > BLEND_PASSES:
             return feeds, run
-        feeds = lowered_to(over, _arcs_kept(samples, cap_mm_s, over, cap_mm_s, passes))
+        feeds = lowered_to(_arcs_kept(samples, cap_mm_s, over, cap_mm_s, passes))
     return feeds, run
 
 
