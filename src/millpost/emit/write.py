@@ -13,7 +13,9 @@ cutter radius compensation (G41/G42) are never split: the controller offsets wha
 written, so a split point (a point of the offset path) would be offset again; they take one F. Neither
 are moves of canned cycles: a cycle block's X Y Z R are the hole's, not a move's end, nor moves of a
 line that computes a word (a parameter or an expression, ``G1 Z#<depth>``): split pieces would replace
-the expressions by numbers; the line keeps its words and only its F changes.
+the expressions by numbers; the line keeps its words and only its F changes. Nor are the moves of a
+program read through a translation (Sinumerik, Heidenhain): it is written back in its own language
+with only F words changed (`in_source`).
 """
 
 from __future__ import annotations
@@ -316,7 +318,7 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     # wants), no F is kept for its value, and parameters only locate the words.
     flow = program.control_flow
     if flow and not plan.fragments and np.array_equal(plan.feed_mm_min, tp.feed_mm_min, equal_nan=True):
-        return program.text
+        return in_source(program, program.text)
     params: dict = _Unknown() if flow else {}
     # a line holding only an F word (`F369.75` before `G1 X4`), followed by nothing but comments and
     # blank lines up to the next cutting line: (its index in out, its text, block, ending). Where that
@@ -480,7 +482,34 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
                 out.append(writer.replace({"F": text}) + ending)
             value = float(text)
         modal_f = value
+    return in_source(program, "".join(out))
+
+
+def in_source(program: Program, text: str) -> str:
+    """`text` (the program's RS-274 text with feeds written, `write_feeds`) in the program's own
+    language: for a program read through a translation (`Program.source`), the source with each line's
+    F as the written translation has it (`Dialect.set_feed`), every other byte kept; else `text`."""
+    if program.source is None:
+        return text
+    set_feed = dialects.get(program.dialect).set_feed
+    before, after = source_lines(program.text), source_lines(text)
+    if len(after) != len(before):
+        raise MillpostError(f"{program.path}: the feeds written changed the translation's lines "
+                            f"({len(before)} → {len(after)}); only F words may change in a {program.dialect} program")
+    out = source_lines(program.source, keepends=True)
+    for n, (old, new) in enumerate(zip(before, after)):
+        if old != new and n < len(out):
+            f_old, f_new = _f_text(old, n + 1, program.path), _f_text(new, n + 1, program.path)
+            if f_old != f_new:
+                body = out[n].rstrip("\r\n")
+                out[n] = set_feed(body, f_new) + out[n][len(body):]
     return "".join(out)
+
+
+def _f_text(line: str, n: int, path: str) -> str | None:
+    """The number text of a line's F word (None without one)."""
+    found = [w.text[1:].strip() for w in lex_line(line, n, path, _Unknown()).words if w.letter == "F"]
+    return found[-1] if found else None
 
 
 def split_decimals(block: Block, inch: bool) -> int:
@@ -608,8 +637,9 @@ def whole_moves(program: Program, fragments: list) -> list:
     out, whole = [], {}
     lines, move_line = source_lines(program.text), program.toolpath.line
     suspect = {int(move_line[f.move]) for f in fragments}
-    computed_lines = {n for n in suspect if 0 < n <= len(lines) and ("#" in lines[n - 1] or "[" in lines[n - 1])
-                      and _computed_line(lines[n - 1], n, program.path)}
+    computed_lines = {n for n in suspect if 0 < n <= len(lines) and (
+        program.source is not None  # a translated program's moves: only F words may change
+        or ("#" in lines[n - 1] or "[" in lines[n - 1]) and _computed_line(lines[n - 1], n, program.path))}
     for f in fragments:
         if not (program.compensated[f.move] or program.cycle[f.move] or int(move_line[f.move]) in computed_lines):
             out.append(f)

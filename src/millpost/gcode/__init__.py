@@ -28,8 +28,12 @@ def read_text(text: str, name: str = "<string>", options: ReaderOptions | None =
     options = options or ReaderOptions()
     dialect = dialects.get(options.dialect) if options.dialect else dialects.detect(text)
     interp = Interpreter(options, name, dialect)
-    interp.run(text)
-    return interp.finish(name, text)
+    ngc = dialect.translate(text, name) if dialect.translate else text
+    interp.run(ngc)
+    program = interp.finish(name, ngc)
+    if dialect.translate:
+        program.source = text
+    return program
 
 
 def read_program(path: str | Path, options: ReaderOptions | None = None) -> Program:

@@ -8,7 +8,8 @@ Built-ins are registered as entry points (group ``millpost.dialects``) like any 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 from ..errors import MillpostError
 from ..registry import plugins
@@ -47,6 +48,15 @@ class Dialect:
     (LinuxCNC), not only a change of mode. Dwell units: `dwell_s`.
     What the writer needs to know: g43_without_h: G43 with no H takes the loaded tool's length
     (LinuxCNC); path_modes: the controller has G61/G61.1/G64 path control modes (grbl has not).
+
+    A language other than RS-274 (Sinumerik, Heidenhain Klartext) is read through its translation:
+    translate(text, file) gives an RS-274/NGC program the interpreter runs, line for line (its line k is
+    the translation of source line k, so every move, event and error keeps its source line; lines past
+    the source's last may hold subroutines the translation adds, with no F words). Refusals name the
+    source's file, line and column. set_feed(line, f) writes a feed back into one source line: the F
+    word's number text `f` (in the line's units, as the RS-274 writer formatted it) in place of the
+    line's F, added where it has none, or the F removed when `f` is None; the rest of the line keeps
+    its bytes.
     """
 
     name: str
@@ -75,6 +85,8 @@ class Dialect:
     off_plane_arc_offset_refused: bool = False
     feed_before_units: bool = False
     feed_mode_resets_f: bool = False
+    translate: Callable[[str, str], str] | None = field(default=None, compare=False, repr=False)
+    set_feed: Callable[[str, str | None], str] | None = field(default=None, compare=False, repr=False)
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""

@@ -149,7 +149,9 @@ class Event:
 
 @dataclass
 class Program:
-    """An interpreted program. Moves in mm in the program frame; `text` is the source, untouched.
+    """An interpreted program. Moves in mm in the program frame; `text` is the source, untouched, or
+    for a dialect read through a translation (`Dialect.translate`) its RS-274 translation, line for
+    line, with the source in `source`.
 
     units: units as programmed, in order of first appearance ("mm", "inch"). Per move, as modal state
     when it ran (for writing it back): move_inch (G20), feed_mode (a `FeedMode` value, 930/940/950 for
@@ -175,6 +177,7 @@ class Program:
     compensated: np.ndarray  # per move: offset by cutter compensation (its end is not the programmed point)
     cycle: np.ndarray  # per move: the canned cycle's G code × 10, 0 outside cycles
     control_flow: bool = False  # O-word subroutines or loops: a line may run several times
+    source: str | None = None  # the text as written, when `text` is its translation
 
     @property
     def tools(self) -> list[int]:
