@@ -1,0 +1,496 @@
+"""HEIDENHAIN Klartext (TNC 640/530 conversational) programs, read through a translation to RS-274/NGC.
+
+Section numbers cite the HEIDENHAIN TNC 640 user's manual "Klartext programming" (ID 892903):
+§ 3.2 program structure (BEGIN PGM / BLK FORM / END PGM), § 6 tools (TOOL CALL, TOOL DEF),
+§ 7 contours with Cartesian (L, CC, C, CR, CT, RND, CHF) and polar (LP, CP) coordinates,
+§ 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas).
+
+The translation is line for line (`Dialect.translate`): NGC line k runs what Klartext block k does.
+Positions the Klartext semantics need (the last programmed point for incremental ``IX``, the circle
+centre ``CC``/pole, the direction of the last contour element for ``CT``) are kept in named
+parameters the translation assigns on the same line (``#<_hh_x>``, ``#<_hh_ccx>``, ``#<_hh_tx>`` ...),
+so they stay right inside repeats. Q parameter ``Qn`` is ``#<_qn>``. Lengths are in the program's
+units (``BEGIN PGM name MM|INCH``), angles in degrees, feeds in units per minute.
+
+Refused, with file:line:column and why: tilted working planes (PLANE, CYCL DEF 19), TCPM (M128,
+FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, feed per tooth or
+revolution (FZ, FU), tool axes other than Z, and any block this reader does not know.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from ..errors import ParseError
+from .dialects import Dialect
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+_BLOCK_NUMBER = re.compile(r"[ \t]*\d+(?=[ \t]|$)[ \t]*")
+_TOKEN = re.compile(r"\S+")
+# coordinate words: axis (incremental with I), value a signed number or a signed Q parameter
+_COORD = re.compile(rf"(I?)(X|Y|Z|PA|PR)({_NUMBER}|[-+]?Q\d+)$")
+_FEED = re.compile(rf"F({_NUMBER}|MAX|AUTO)$")
+_M = re.compile(r"M(\d+)$")
+_PASSED_M = {0, 1, 2, 3, 4, 5, 8, 9, 30}
+_NOOP_M = {126: "shortest rotary path", 127: "rotary path as programmed", 129: "TCPM off"}
+_REFUSED = [
+    (re.compile(r"PLANE\b"), "tilted working planes (PLANE) are not supported", "a 3-axis program"),
+    (re.compile(r"FUNCTION\s+TCPM\b"), "TCPM is not supported", "a 3-axis program"),
+    (re.compile(r"CYCL\s+DEF\s+19\b"), "tilted working planes (CYCL DEF 19) are not supported", "a 3-axis program"),
+    (re.compile(r"CYCL\s+DEF\s+2[0-5]\b"), "SL contour cycles (CYCL DEF 20-25) are not supported",
+     "the contour as L/C blocks"),
+    (re.compile(r"F(?:L|LT|C|CT|POL|SELECT|PL)\b"), "FK free contour programming is not supported",
+     "the contour as L/C/CR/CT blocks"),
+]
+
+
+@dataclass
+class _State:
+    """What the translation carries from block to block (in text order)."""
+
+    file: str
+    inch: bool = False
+    comp: str = "R0"
+    tool_f: str | None = None  # the TOOL CALL F (for FAUTO)
+    ended: bool = False
+    refs: set[str] = field(default_factory=set)
+
+
+def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
+    return ParseError(message, file=st.file, line=line, column=column, word=word, expected=expected)
+
+
+@dataclass
+class _Tokens:
+    """A block's words after its keyword: text and 1-based column."""
+
+    words: list[tuple[str, int]]
+    line: int
+
+    def take(self, pattern: re.Pattern) -> list[tuple[re.Match, int]]:
+        """The words matching `pattern` (removed from the block)."""
+        found, rest = [], []
+        for text, col in self.words:
+            m = pattern.match(text)
+            (found if m else rest).append((m, col) if m else (text, col))
+        self.words = rest
+        return found
+
+
+def _split(code: str, start: int, offset: int, line: int) -> _Tokens:
+    """The whitespace-separated words of `code` from index `start` (columns offset by `offset`)."""
+    return _Tokens([(m.group(), m.start() + 1 + offset) for m in _TOKEN.finditer(code, start)], line)
+
+
+def _value(text: str) -> str:
+    """An NGC value from a Klartext number or Q parameter (``+5`` → ``5``, ``-Q3`` → ``[-#<_q3>]``)."""
+    sign, body = (text[0], text[1:]) if text[0] in "+-" else ("", text)
+    if body.startswith("Q"):
+        return f"[{'-' if sign == '-' else ''}#<_q{int(body[1:])}>]"
+    return f"-{body}" if sign == "-" else body
+
+
+def _comment(text: str) -> str:
+    """An NGC comment holding `text` (its parentheses as brackets)."""
+    clean = text.strip().replace("(", "[").replace(")", "]")
+    return f"({clean})" if clean else ""
+
+
+def translate(text: str, file: str) -> str:
+    """The Klartext program `text` as RS-274/NGC, line for line (see the module docstring)."""
+    st = _State(file)
+    lines = text.split("\n")
+    return "\n".join(_line(st, raw.rstrip("\r"), n) for n, raw in enumerate(lines, 1))
+
+
+def _line(st: _State, raw: str, n: int) -> str:
+    """One Klartext block as one NGC line."""
+    code, _, note = raw.partition(";")
+    m = _BLOCK_NUMBER.match(code)
+    start = m.end() if m else 0
+    body = code[start:].rstrip()
+    comment = _comment(note)
+    if not body or body.startswith("*"):
+        return " ".join(p for p in (_comment(body[1:].lstrip(" -")) if body else "", comment) if p)
+    ngc = _block(st, code, start, n)
+    return f"{ngc} {comment}".strip()
+
+
+def _block(st: _State, code: str, start: int, n: int) -> str:
+    """The NGC words of the block `code[start:]` (its keyword decides)."""
+    body = code[start:].upper()
+    for pattern, message, expected in _REFUSED:
+        hit = pattern.search(body)
+        if hit:
+            raise _error(st, n, start + hit.start() + 1, hit.group(), message, expected)
+    keyword = body.split()[0]
+    handler = _HANDLERS.get(keyword)
+    if handler is None:
+        for prefix, h in _PREFIXED:
+            if body.startswith(prefix):
+                return h(st, code, start, n)
+        raise _error(st, n, start + 1, keyword, "unknown Klartext block",
+                     "L, C, CC, CR, CT, TOOL CALL, CYCL DEF, BEGIN/END PGM, BLK FORM, M functions")
+    return handler(st, code, start + len(keyword), n)
+
+
+def _begin(st: _State, code: str, start: int, n: int) -> str:
+    """BEGIN PGM name MM|INCH (§ 3.2): the units; absolute, XY plane, no compensation."""
+    words = code[start:].split()
+    if len(words) != 3 or words[0].upper() != "PGM" or words[2].upper() not in ("MM", "INCH"):
+        raise _error(st, n, start + 1, code[start:].strip(), "malformed BEGIN PGM", "BEGIN PGM <name> MM|INCH")
+    st.inch = words[2].upper() == "INCH"
+    return (f"{'G20' if st.inch else 'G21'} G90 G17 G94 G40 #<_hh_x>=0 #<_hh_y>=0 #<_hh_z>=0 #<_hh_ccx>=0 "
+            f"#<_hh_ccy>=0 #<_hh_tx>=0 #<_hh_ty>=0 ({_comment(words[1])[1:-1]})")
+
+
+def _end(st: _State, code: str, start: int, n: int) -> str:
+    """END PGM name (§ 3.2): the end of the program (M2 unless an M2/M30 ended it before)."""
+    return "(END PGM)" if st.ended else "M2"
+
+
+def _blk_form(st: _State, code: str, start: int, n: int) -> str:
+    """BLK FORM 0.1/0.2 (§ 3.2): the blank, as a comment (see `blank`)."""
+    _blank_corner(st, code, start, n)
+    return _comment(f"BLK FORM {code[start:].strip()}")
+
+
+def _blank_corner(st: _State, code: str, start: int, n: int) -> tuple[str, dict[str, tuple[bool, float]]]:
+    """The corner kind ("0.1" min point, "0.2" max point) and its {axis: (incremental, value)}."""
+    tokens = _split(code, start, 0, n)
+    if not tokens.words or tokens.words[0][0] not in ("0.1", "0.2"):
+        col = tokens.words[0][1] if tokens.words else start + 1
+        raise _error(st, n, col, tokens.words[0][0] if tokens.words else "", "malformed BLK FORM",
+                     "BLK FORM 0.1 Z X.. Y.. Z.. or BLK FORM 0.2 X.. Y.. Z..")
+    kind = tokens.words.pop(0)[0]
+    if kind == "0.1" and tokens.words and tokens.words[0][0].upper() in ("X", "Y", "Z"):
+        axis, col = tokens.words.pop(0)
+        if axis.upper() != "Z":
+            raise _error(st, n, col, axis, "tool axis other than Z", "Z")
+    corner = {}
+    for m, col in tokens.take(_COORD):
+        if m.group(2) not in "XYZ" or "Q" in m.group(3):
+            raise _error(st, n, col, m.group(), "BLK FORM takes X, Y, Z numbers", "X+.. Y+.. Z+..")
+        corner[m.group(2)] = (m.group(1) == "I", float(m.group(3)))
+    _no_more(st, tokens, "BLK FORM X.. Y.. Z..")
+    return kind, corner
+
+
+def _no_more(st: _State, tokens: _Tokens, expected: str) -> None:
+    if tokens.words:
+        text, col = tokens.words[0]
+        raise _error(st, tokens.line, col, text, "unexpected word", expected)
+
+
+def blank(text: str, file: str = "<string>") -> tuple[tuple[float, float, float], tuple[float, float, float]] | None:
+    """The blank of a Klartext program (BLK FORM 0.1 min point, 0.2 max point, § 3.2) as
+    ((xmin, ymin, zmin), (xmax, ymax, zmax)) in mm; None when the program has no BLK FORM. An
+    incremental 0.2 point (IX/IY/IZ) is relative to the 0.1 point."""
+    st = _State(file)
+    corners: dict[str, dict[str, tuple[bool, float]]] = {}
+    for n, raw in enumerate(text.split("\n"), 1):
+        code = raw.partition(";")[0].rstrip("\r")
+        m = _BLOCK_NUMBER.match(code)
+        start = m.end() if m else 0
+        upper = code[start:].upper()
+        if upper.startswith("BEGIN PGM"):
+            st.inch = upper.split()[-1] == "INCH"
+        elif upper.startswith("BLK FORM"):
+            kind, corner = _blank_corner(st, code, start + len("BLK FORM"), n)
+            corners[kind] = corner
+    if "0.1" not in corners or "0.2" not in corners:
+        return None
+    scale = 25.4 if st.inch else 1.0
+    lo = tuple(corners["0.1"].get(a, (False, 0.0))[1] for a in "XYZ")
+    hi = tuple((lo[i] if inc else 0.0) + v for i, (inc, v) in
+               enumerate(corners["0.2"].get(a, (False, lo["XYZ".index(a)])) for a in "XYZ"))
+    pairs = [sorted((lo[i] * scale, hi[i] * scale)) for i in range(3)]
+    return tuple(p[0] for p in pairs), tuple(p[1] for p in pairs)
+
+
+def _tool_call(st: _State, code: str, start: int, n: int) -> str:
+    """TOOL CALL n Z S.. F.. DL.. (§ 6.3): tool change, spindle speed, the feed (modal, and FAUTO's)."""
+    tokens = _split(code, start, 0, n)
+    if not tokens.words or not re.fullmatch(r"\d+", tokens.words[0][0]):
+        text, col = tokens.words[0] if tokens.words else ("", start + 1)
+        raise _error(st, n, col, text, "TOOL CALL needs a tool number", "TOOL CALL <number> Z S..")
+    words = [f"T{tokens.words.pop(0)[0]} M6 G43"]
+    axis = [w for w in tokens.words if re.fullmatch(r"[XYZ]", w[0])]
+    if axis and axis[0][0] != "Z":
+        raise _error(st, n, axis[0][1], axis[0][0], "tool axis other than Z is not supported", "Z")
+    tokens.words = [w for w in tokens.words if w[0] != "Z"]
+    for m, col in tokens.take(re.compile(rf"S({_NUMBER})$")):
+        words.append(f"S{_value(m.group(1))}")
+    for m, col in tokens.take(re.compile(rf"F({_NUMBER})$")):
+        st.tool_f = _value(m.group(1))
+        words.append(f"F{st.tool_f}")
+    for m, col in tokens.take(re.compile(rf"D(L|R|R2)({_NUMBER})$")):
+        if m.group(1) != "L" and float(m.group(2)) != 0:
+            raise _error(st, n, col, m.group(), "a radius oversize (DR, DR2) changes the tool's cut and is not "
+                         "modelled", "DR+0, or the tool's radius in the job")
+    _no_more(st, tokens, "TOOL CALL n Z S.. F.. DL..")
+    return " ".join(words)
+
+
+def _tool_def(st: _State, code: str, start: int, n: int) -> str:
+    """TOOL DEF n (§ 6.3): the next tool (prepared, not changed)."""
+    tokens = _split(code, start, 0, n)
+    if len(tokens.words) != 1 or not tokens.words[0][0].isdigit():
+        text, col = tokens.words[0] if tokens.words else ("", start + 1)
+        raise _error(st, n, col, text, "malformed TOOL DEF", "TOOL DEF <number>")
+    return f"T{tokens.words[0][0]}"
+
+
+def _cycl_def(st: _State, code: str, start: int, n: int) -> str:
+    """CYCL DEF 32 TOLERANCE (and 32.1/32.2, § cycles): path tolerance, kept as a comment."""
+    tokens = _split(code, start, 0, n)
+    number = tokens.words[0][0] if tokens.words else ""
+    if number.split(".")[0] == "32":
+        return _comment(f"CYCL DEF {code[start:].strip()}")
+    raise _error(st, n, tokens.words[0][1] if tokens.words else start + 1, number,
+                 f"CYCL DEF {number} is not supported", "CYCL DEF 32 TOLERANCE")
+
+
+def _m_words(st: _State, tokens: _Tokens) -> tuple[list[str], bool]:
+    """The block's M functions as NGC words, and whether M91/M92 (machine coordinates) is among them."""
+    words, machine = [], False
+    for m, col in tokens.take(_M):
+        code = int(m.group(1))
+        if code in _PASSED_M:
+            words.append(f"M{code}")
+            st.ended = st.ended or code in (2, 30)
+        elif code in (13, 14):
+            words += [f"M{code - 10}", "M8"]
+        elif code in (91, 92):
+            machine = True
+        elif code in _NOOP_M:
+            words.append(f"(M{code}: {_NOOP_M[code]})")
+        else:
+            raise _error(st, tokens.line, col, m.group(), f"M{code} is not supported",
+                         "M0 M1 M2 M3 M4 M5 M8 M9 M13 M14 M30 M91 M92 M126 M127 M129")
+    return words, machine
+
+
+def _m_only(st: _State, code: str, start: int, n: int) -> str:
+    """A block of M functions alone (e.g. ``M30``, ``M3``)."""
+    tokens = _split(code, start, 0, n)
+    words, machine = _m_words(st, tokens)
+    _no_more(st, tokens, "M functions")
+    return " ".join(words)
+
+
+def _stop(st: _State, code: str, start: int, n: int) -> str:
+    """STOP (§ 11): program stop (M0)."""
+    tokens = _split(code, start, 0, n)
+    words, _ = _m_words(st, tokens)
+    _no_more(st, tokens, "STOP M..")
+    return " ".join(["M0", *words])
+
+
+_AXIS_PARAM = {"X": "#<_hh_x>", "Y": "#<_hh_y>", "Z": "#<_hh_z>"}
+
+
+def _targets(st: _State, tokens: _Tokens, allowed: str) -> dict[str, str]:
+    """The block's X/Y/Z words as absolute NGC expressions ({axis: expr}); ``IX`` adds to the last
+    programmed position (§ 7.3, incremental coordinates)."""
+    out: dict[str, str] = {}
+    for m, col in tokens.take(_COORD):
+        inc, axis, value = m.groups()
+        if axis not in allowed:
+            raise _error(st, tokens.line, col, m.group(), f"{axis} is not a word of this block", allowed)
+        if axis in out:
+            raise _error(st, tokens.line, col, m.group(), f"{axis} twice in one block", f"one {axis} word")
+        out[axis] = f"[{_AXIS_PARAM[axis]}+{_value(value)}]" if inc else _value(value)
+    return out
+
+
+def _contour_words(st: _State, tokens: _Tokens, rapid_ok: bool = True) -> tuple[str | None, list[str], bool]:
+    """The radius compensation (G40/G41/G42 when it changes), F (None: FMAX, a rapid for this block
+    only, § 7.2), the M words and whether M91/M92 asks for machine coordinates."""
+    pre: list[str] = []
+    for m, col in tokens.take(re.compile(r"R(0|L|R)$")):
+        comp = "R" + m.group(1)
+        if comp != st.comp:
+            pre.append({"R0": "G40", "RL": "G41", "RR": "G42"}[comp])
+            st.comp = comp
+    feed = ""
+    for m, col in tokens.take(_FEED):
+        if m.group(1) == "MAX":
+            if not rapid_ok:
+                raise _error(st, tokens.line, col, m.group(), "FMAX on an arc", "F<feed>")
+            feed = None
+        elif m.group(1) == "AUTO":
+            if st.tool_f is None:
+                raise _error(st, tokens.line, col, m.group(), "FAUTO with no F in the TOOL CALL", "F<feed>")
+            feed = f"F{st.tool_f}"
+        else:
+            feed = f"F{_value(m.group(1))}"
+    m_words, machine = _m_words(st, tokens)
+    return feed, pre + m_words, machine
+
+
+def _assigns(targets: dict[str, str]) -> list[str]:
+    return [f"{_AXIS_PARAM[a]}={e}" for a, e in targets.items()]
+
+
+def _l(st: _State, code: str, start: int, n: int) -> str:
+    """L X.. Y.. Z.. R0|RL|RR F..|FMAX|FAUTO M.. (§ 7.4): a straight line, or a rapid with FMAX."""
+    tokens = _split(code, start, 0, n)
+    targets = _targets(st, tokens, "XYZ")
+    feed, words, machine = _contour_words(st, tokens)
+    _no_more(st, tokens, "L X.. Y.. Z.. R0|RL|RR F..|FMAX M..")
+    motion = "G0" if feed is None else "G1"
+    coords = [f"{a}{e}" for a, e in targets.items()]
+    if machine:
+        if st.comp != "R0" or any(e.startswith("[#<_hh") for e in targets.values()):
+            raise _error(st, n, start + 1, "M91", "M91/M92 with compensation or incremental coordinates",
+                         "L Z.. R0 FMAX M91 with absolute machine coordinates")
+        return " ".join(["G53", motion, *coords, *(words or [])])  # the tracked position no longer known
+    tangent = []
+    if "X" in targets or "Y" in targets:
+        tangent = [f"#<_hh_tx>=[{targets.get('X', '#<_hh_x>')}-#<_hh_x>]",
+                   f"#<_hh_ty>=[{targets.get('Y', '#<_hh_y>')}-#<_hh_y>]"]
+    return " ".join([*_pre(words), motion, *coords, *([feed] if feed else []), *_post(words),
+                     *_assigns(targets), *tangent])
+
+
+def _pre(words: list[str]) -> list[str]:
+    return [w for w in words if w.startswith("G")]
+
+
+def _post(words: list[str]) -> list[str]:
+    return [w for w in words if not w.startswith("G")]
+
+
+def _cc(st: _State, code: str, start: int, n: int) -> str:
+    """CC X.. Y.. (§ 7.4): the circle centre and pole; CC alone: the last programmed position."""
+    tokens = _split(code, start, 0, n)
+    targets = _targets(st, tokens, "XY")
+    _no_more(st, tokens, "CC X.. Y..")
+    if len(targets) == 1:
+        raise _error(st, n, start + 1, "CC", "CC with one coordinate", "CC X.. Y.., or CC alone")
+    x, y = (targets["X"], targets["Y"]) if targets else ("#<_hh_x>", "#<_hh_y>")
+    return f"#<_hh_ccx>={x} #<_hh_ccy>={y}"
+
+
+def _direction(st: _State, tokens: _Tokens) -> str:
+    """DR+ (counter-clockwise, G3) or DR- (clockwise, G2), § 7.4."""
+    found = tokens.take(re.compile(r"DR([-+])$"))
+    if len(found) != 1:
+        raise _error(st, tokens.line, tokens.words[0][1] if tokens.words else 1, "", "an arc needs one direction",
+                     "DR+ (counter-clockwise) or DR- (clockwise)")
+    return "G3" if found[0][0].group(1) == "+" else "G2"
+
+
+def _arc_end(st: _State, code: str, start: int, n: int) -> tuple[dict[str, str], _Tokens]:
+    tokens = _split(code, start, 0, n)
+    return _targets(st, tokens, "XYZ"), tokens
+
+
+def _arc_line(st: _State, tokens: _Tokens, motion: str, targets: dict[str, str], centre: list[str],
+              tangent: list[str], expected: str) -> str:
+    feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
+    _no_more(st, tokens, expected)
+    coords = [f"{a}{e}" for a, e in targets.items()]
+    return " ".join([*_pre(words), motion, *coords, *centre, *([feed] if feed else []), *_post(words),
+                     *_assigns(targets), *tangent])
+
+
+def _end_tangent(motion: str, targets: dict[str, str], cx: str, cy: str) -> list[str]:
+    """The direction at an arc's end: perpendicular to the radius, turning with the arc."""
+    ex, ey = targets.get("X", "#<_hh_x>"), targets.get("Y", "#<_hh_y>")
+    sign = "" if motion == "G3" else "-"
+    return [f"#<_hh_tx>=[{sign}[{cy}-{ey}]]", f"#<_hh_ty>=[{sign}[{ex}-{cx}]]"]
+
+
+def _c(st: _State, code: str, start: int, n: int) -> str:
+    """C X.. Y.. DR+|DR- (§ 7.4): an arc about CC to the end point (Z too: a helix)."""
+    targets, tokens = _arc_end(st, code, start, n)
+    motion = _direction(st, tokens)
+    centre = ["I[#<_hh_ccx>-#<_hh_x>]", "J[#<_hh_ccy>-#<_hh_y>]"]
+    return _arc_line(st, tokens, motion, targets, centre, _end_tangent(motion, targets, "#<_hh_ccx>", "#<_hh_ccy>"),
+                     "C X.. Y.. DR+|DR- F..")
+
+
+def _cr(st: _State, code: str, start: int, n: int) -> str:
+    """CR X.. Y.. R.. DR+|DR- (§ 7.4): an arc of radius R; R negative: the arc over 180°."""
+    targets, tokens = _arc_end(st, code, start, n)
+    motion = _direction(st, tokens)
+    radius = tokens.take(re.compile(rf"R({_NUMBER}|[-+]?Q\d+)$"))
+    if len(radius) != 1:
+        raise _error(st, n, start + 1, "CR", "CR needs one radius", "CR X.. Y.. R+.. DR+|DR-")
+    r = _value(radius[0][0].group(1))
+    # the centre, as the interpreter finds it from R: kept for CT after this arc
+    sx, sy = "#<_hh_x>", "#<_hh_y>"
+    ex, ey = targets.get("X", sx), targets.get("Y", sy)
+    dx, dy, rr = f"[{ex}-{sx}]", f"[{ey}-{sy}]", f"[{r}]"
+    d2 = f"[{dx}*{dx}+{dy}*{dy}]"
+    h = f"[SQRT[ABS[{rr}*{rr}/{d2}-0.25]]]"
+    side = f"[{'' if motion == 'G3' else '-'}{rr}/ABS[{rr}]]"
+    cx, cy = f"[{sx}+{dx}/2-{side}*{h}*{dy}]", f"[{sy}+{dy}/2+{side}*{h}*{dx}]"
+    return _arc_line(st, tokens, motion, targets, [f"R{r}"], _end_tangent(motion, targets, cx, cy),
+                     "CR X.. Y.. R.. DR+|DR- F..")
+
+
+def _ct(st: _State, code: str, start: int, n: int) -> str:
+    """CT X.. Y.. (§ 7.4): the arc tangent to the previous contour element, to the end point."""
+    targets, tokens = _arc_end(st, code, start, n)
+    sx, sy = "#<_hh_x>", "#<_hh_y>"
+    ex, ey = targets.get("X", sx), targets.get("Y", sy)
+    dx, dy = f"[{ex}-{sx}]", f"[{ey}-{sy}]"
+    nx, ny = "[-#<_hh_ty>]", "#<_hh_tx>"  # left of the direction of travel
+    nd = f"[{nx}*{dx}+{ny}*{dy}]"
+    s = f"[[{dx}*{dx}+{dy}*{dy}]/[2*{nd}]]"  # centre = start + s·normal
+    motion = f"G[2+[{nd} GT 0]]"
+    i, j = f"[{s}*{nx}]", f"[{s}*{ny}]"
+    ex_c, ey_c = f"[{sx}+{i}]", f"[{sy}+{j}]"
+    ux, uy = f"[{ey_c}-{ey}]", f"[{ex}-{ex_c}]"  # the end direction, counter-clockwise; × sign(nd)
+    sign = f"[2*[{nd} GT 0]-1]"
+    tangent = [f"#<_hh_tx>=[-{sign}*{ux}]", f"#<_hh_ty>=[-{sign}*{uy}]"]
+    return _arc_line(st, tokens, motion, targets, [f"I{i}", f"J{j}"], tangent, "CT X.. Y.. F..")
+
+
+_HANDLERS = {
+    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
+}
+_PREFIXED = [
+    ("BLK FORM", lambda st, code, s, n: _blk_form(st, code, s + code[s:].upper().index("FORM") + 4, n)),
+    ("TOOL CALL", lambda st, code, s, n: _tool_call(st, code, s + code[s:].upper().index("CALL") + 4, n)),
+    ("TOOL DEF", lambda st, code, s, n: _tool_def(st, code, s + code[s:].upper().index("DEF") + 3, n)),
+    ("CYCL DEF", lambda st, code, s, n: _cycl_def(st, code, s + code[s:].upper().index("DEF") + 3, n)),
+    ("M", _m_only),
+]
+
+_F_WORD = re.compile(rf"(?<=\s)F{_NUMBER}(?=\s|$)")
+_F_ANY = re.compile(r"(?<=\s)F(?:MAX|AUTO)(?=\s|$)")
+_M_WORD = re.compile(r"(?<=\s)M\d+(?=\s|$)")
+
+
+def set_feed(line: str, f: str | None) -> str:
+    """The Klartext block `line` with its F word's number `f` (in place; added before the M functions
+    and the comment when the block has none), or without its F when `f` is None. FMAX/FAUTO blocks
+    and blocks that are not L/C/CR/CT keep every byte."""
+    code, sep, note = line.partition(";")
+    if _F_ANY.search(code):
+        return line
+    hit = _F_WORD.search(code)
+    if f is None:
+        if hit:
+            code = code[:hit.start()].rstrip(" \t") + code[hit.end():]
+            code = code if code.endswith((" ", "\t")) or not sep else code + " "
+        return code + sep + note
+    if hit:
+        return code[:hit.start()] + f"F{f}" + code[hit.end():] + sep + note
+    m = _M_WORD.search(code)
+    at = m.start() if m else len(code.rstrip(" \t"))
+    tail = code[at:]
+    rest = " " + tail.lstrip(" \t") if tail.strip() else tail
+    return code[:at].rstrip(" \t") + f" F{f}{rest}" + sep + note
+
+
+HEIDENHAIN = Dialect(
+    "heidenhain", comment="semicolon", end_code="M30", line_numbers=1, g43_without_h=True,
+    translate=translate, set_feed=set_feed,
+    markers=(r"BEGIN\s+PGM", r"TOOL\s+CALL", r"BLK\s+FORM", r"^\s*\d+\s+L\s", r"\bFMAX\b", r"END\s+PGM",
+             r"^\s*%\w+\s+G7[01]\s*\*", r"\s\*\s*$"))
