@@ -54,7 +54,7 @@ class _State:
     comp: str = "R0"
     tool_f: str | None = None  # the TOOL CALL F (for FAUTO)
     ended: bool = False
-    refs: set[str] = field(default_factory=set)
+    unknown: set[str] = field(default_factory=lambda: set("XYZ"))  # axes with no programmed position yet
 
 
 def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
@@ -301,6 +301,9 @@ def _targets(st: _State, tokens: _Tokens, allowed: str) -> dict[str, str]:
             raise _error(st, tokens.line, col, m.group(), f"{axis} is not a word of this block", allowed)
         if axis in out:
             raise _error(st, tokens.line, col, m.group(), f"{axis} twice in one block", f"one {axis} word")
+        if inc and axis in st.unknown:
+            raise _error(st, tokens.line, col, m.group(), f"incremental {axis} from an unknown position (program "
+                         "start or a machine-coordinate move)", f"an absolute {axis} before it")
         out[axis] = f"[{_AXIS_PARAM[axis]}+{_value(value)}]" if inc else _value(value)
     return out
 
@@ -346,7 +349,9 @@ def _l(st: _State, code: str, start: int, n: int) -> str:
         if st.comp != "R0" or any(e.startswith("[#<_hh") for e in targets.values()):
             raise _error(st, n, start + 1, "M91", "M91/M92 with compensation or incremental coordinates",
                          "L Z.. R0 FMAX M91 with absolute machine coordinates")
-        return " ".join(["G53", motion, *coords, *(words or [])])  # the tracked position no longer known
+        st.unknown |= set(targets)  # where the program's frame puts these axes now is not tracked
+        return " ".join(["G53", motion, *coords, *words])
+    st.unknown -= set(targets)
     tangent = []
     if "X" in targets or "Y" in targets:
         tangent = [f"#<_hh_tx>=[{targets.get('X', '#<_hh_x>')}-#<_hh_x>]",
@@ -370,6 +375,8 @@ def _cc(st: _State, code: str, start: int, n: int) -> str:
     _no_more(st, tokens, "CC X.. Y..")
     if len(targets) == 1:
         raise _error(st, n, start + 1, "CC", "CC with one coordinate", "CC X.. Y.., or CC alone")
+    if not targets:
+        _known_xy(st, code, start, n)
     x, y = (targets["X"], targets["Y"]) if targets else ("#<_hh_x>", "#<_hh_y>")
     return f"#<_hh_ccx>={x} #<_hh_ccy>={y}"
 
@@ -384,8 +391,19 @@ def _direction(st: _State, tokens: _Tokens) -> str:
 
 
 def _arc_end(st: _State, code: str, start: int, n: int) -> tuple[dict[str, str], _Tokens]:
+    """The arc's end point and the block's other words; the start point must be known."""
+    _known_xy(st, code, start, n)
     tokens = _split(code, start, 0, n)
-    return _targets(st, tokens, "XYZ"), tokens
+    targets = _targets(st, tokens, "XYZ")
+    st.unknown -= set(targets)
+    return targets, tokens
+
+
+def _known_xy(st: _State, code: str, start: int, n: int) -> None:
+    if st.unknown & {"X", "Y"}:
+        keyword = code[:start].split()[-1]
+        raise _error(st, n, start - len(keyword) + 1, keyword, "an arc or CC from an unknown X/Y position (program "
+                     "start or a machine-coordinate move)", "an L block to an absolute X and Y before it")
 
 
 def _arc_line(st: _State, tokens: _Tokens, motion: str, targets: dict[str, str], centre: list[str],
