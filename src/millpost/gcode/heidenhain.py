@@ -34,13 +34,15 @@ _FEED = re.compile(rf"F({_NUMBER}|MAX|AUTO)$")
 _M = re.compile(r"M(\d+)$")
 _PASSED_M = {0, 1, 2, 3, 4, 5, 8, 9, 30}
 _NOOP_M = {126: "shortest rotary path", 127: "rotary path as programmed", 129: "TCPM off"}
+_REFUSED_M = {128: "TCPM (tool centre point management) is not supported", 140: "M140 (retract along the tool "
+              "axis by MB) is not supported", 118: "M118 (handwheel superimposition) is not supported"}
 _REFUSED = [
     (re.compile(r"PLANE\b"), "tilted working planes (PLANE) are not supported", "a 3-axis program"),
     (re.compile(r"FUNCTION\s+TCPM\b"), "TCPM is not supported", "a 3-axis program"),
     (re.compile(r"CYCL\s+DEF\s+19\b"), "tilted working planes (CYCL DEF 19) are not supported", "a 3-axis program"),
     (re.compile(r"CYCL\s+DEF\s+2[0-5]\b"), "SL contour cycles (CYCL DEF 20-25) are not supported",
      "the contour as L/C blocks"),
-    (re.compile(r"F(?:L|LT|C|CT|POL|SELECT|PL)\b"), "FK free contour programming is not supported",
+    (re.compile(r"F(?:L|LT|C|CT|POL|SELECT|PL|LN)\b"), "FK free contour programming is not supported",
      "the contour as L/C/CR/CT blocks"),
 ]
 
@@ -121,7 +123,7 @@ def _block(st: _State, code: str, start: int, n: int) -> str:
     """The NGC words of the block `code[start:]` (its keyword decides)."""
     body = code[start:].upper()
     for pattern, message, expected in _REFUSED:
-        hit = pattern.search(body)
+        hit = pattern.match(body)
         if hit:
             raise _error(st, n, start + hit.start() + 1, hit.group(), message, expected)
     keyword = body.split()[0]
@@ -266,6 +268,8 @@ def _m_words(st: _State, tokens: _Tokens) -> tuple[list[str], bool]:
             machine = True
         elif code in _NOOP_M:
             words.append(f"(M{code}: {_NOOP_M[code]})")
+        elif code in _REFUSED_M:
+            raise _error(st, tokens.line, col, m.group(), _REFUSED_M[code], "a 3-axis program without it")
         else:
             raise _error(st, tokens.line, col, m.group(), f"M{code} is not supported",
                          "M0 M1 M2 M3 M4 M5 M8 M9 M13 M14 M30 M91 M92 M126 M127 M129")
@@ -318,6 +322,9 @@ def _contour_words(st: _State, tokens: _Tokens, rapid_ok: bool = True) -> tuple[
             pre.append({"R0": "G40", "RL": "G41", "RR": "G42"}[comp])
             st.comp = comp
     feed = ""
+    for m, col in tokens.take(re.compile(r"F[ZU]")):
+        raise _error(st, tokens.line, col, m.string, "feed per tooth or per revolution (FZ, FU) is not supported",
+                     "F<feed in mm/min>, FMAX or FAUTO")
     for m, col in tokens.take(_FEED):
         if m.group(1) == "MAX":
             if not rapid_ok:

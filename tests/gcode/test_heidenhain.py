@@ -1,0 +1,242 @@
+"""HEIDENHAIN Klartext read through its RS-274 translation: the moves the TNC 640 user's manual
+("Klartext programming", ID 892903) defines, checked against closed forms and against the same
+program written by hand in RS-274/NGC."""
+
+import math
+
+import numpy as np
+import pytest
+
+from millpost.emit.write import FeedPlan, write_feeds
+from millpost.errors import ParseError
+from millpost.gcode import ReaderOptions, read_text
+from millpost.gcode.convert import same_path
+from millpost.gcode.dialects import detect
+from millpost.gcode.heidenhain import HEIDENHAIN, blank, set_feed
+from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID
+
+HH = ReaderOptions(dialect="heidenhain")
+
+# in the style Fusion 360's and NX's Heidenhain posts write (block numbers, signed coordinates)
+SLOTS = """0 BEGIN PGM SLOTS MM
+1 BLK FORM 0.1 Z X+0 Y+0 Z-10
+2 BLK FORM 0.2 X+60 Y+40 Z+0
+3 ; slots and contour, 6 mm 3F flat
+4 TOOL CALL 1 Z S9000
+5 CYCL DEF 32.0 TOLERANCE
+6 CYCL DEF 32.1 T0.05
+7 L Z+10 R0 FMAX M3
+8 L X-5 Y+8 R0 FMAX
+9 L Z-1.5 F300
+10 L X+65 F700 M8 ; slot
+11 L Z+2 FMAX
+12 L X-5 Y+20 FMAX
+13 L Z-3
+14 L IX+70 IY+0.5
+15 L Z+10 FMAX
+16 L X+30 Y-2 FMAX
+17 L Z-4 F300
+18 L X+52 F900
+19 CC X+52 Y+8
+20 C X+62 Y+8 DR+
+21 L Y+32
+22 CR X+52 Y+42 R+10 DR+
+23 L X+8
+24 CT X-2 Y+32
+25 L Y+8
+26 CC X+8 Y+8
+27 C X+8 Y-2 DR+
+28 L X+30
+29 L Z+10 FMAX M5
+30 M30
+31 END PGM SLOTS MM
+"""
+
+# the same program by hand in RS-274/NGC, line for line
+SLOTS_NGC = """G21 G90 G17
+(blank)
+(blank)
+(comment)
+T1 M6 G43 S9000
+(tolerance)
+(tolerance)
+G0 Z10 M3
+G0 X-5 Y8
+G1 Z-1.5 F300
+G1 X65 F700 M8
+G0 Z2
+G0 X-5 Y20
+G1 Z-3
+G1 X65 Y20.5
+G0 Z10
+G0 X30 Y-2
+G1 Z-4 F300
+G1 X52 F900
+(CC)
+G3 X62 Y8 I0 J10
+G1 Y32
+G3 X52 Y42 R10
+G1 X8
+G3 X-2 Y32 I0 J-10
+G1 Y8
+(CC)
+G3 X8 Y-2 I10 J0
+G1 X30
+G0 Z10 M5
+M30
+M2
+"""
+
+
+def _read(text: str, name: str = "t.h"):
+    return read_text(text, name, HH)
+
+
+def test_detected_from_the_text():
+    assert detect(SLOTS) is not None and detect(SLOTS).name == "heidenhain"
+    assert detect(SLOTS_NGC).name != "heidenhain"
+    assert read_text(SLOTS, "t.h").dialect == "heidenhain"
+
+
+def test_same_moves_as_the_program_written_by_hand_in_rs274():
+    """§ 7.4: L is a line; FMAX a rapid; C an arc about CC; CR R+ the arc under 180°; CT the arc
+    tangent to the previous element; IX/IY add to the last programmed position (§ 7.3)."""
+    a, b = _read(SLOTS), read_text(SLOTS_NGC, "t.ngc", ReaderOptions(dialect="linuxcnc"))
+    ta, tb = a.toolpath, b.toolpath
+    assert len(ta) == len(tb) and ta.line.tolist() == tb.line.tolist()
+    assert np.abs(ta.end - tb.end).max() < 1e-6
+    assert np.array_equal(ta.kind, tb.kind)
+    arcs = ta.kind >= ARC_CW
+    assert np.abs(ta.center[arcs] - tb.center[arcs]).max() < 1e-6
+    assert np.allclose(ta.feed_mm_min, tb.feed_mm_min, equal_nan=True)
+    assert same_path(a, b, 1e-6) == []
+
+
+def test_fmax_holds_for_its_block_only():
+    """§ 7.2 (feed rate F): FMAX is rapid traverse for its block; the last F holds again after it."""
+    tp = _read(SLOTS).toolpath
+    rows = {int(ln): i for i, ln in enumerate(tp.line)}
+    assert tp.kind[rows[12]] == RAPID and tp.kind[rows[14]] == FEED
+    assert tp.feed_mm_min[rows[14]] == 700.0  # line 13's L Z-3 without F: the F700 of line 10 again
+
+
+def test_arc_directions_and_ct_centre_closed_form():
+    """§ 7.4: DR+ is counter-clockwise, DR- clockwise. CT: the centre lies on the normal of the
+    previous element's direction at the start, equidistant from start and end."""
+    text = """0 BEGIN PGM T MM
+1 L X+0 Y+0 Z+0 R0 FMAX
+2 L X+10 F500
+3 CT X+20 Y+6
+4 CC X+20 Y+0
+5 C X+26 Y+0 DR-
+6 END PGM T MM
+"""
+    tp = _read(text).toolpath
+    ct = int(np.flatnonzero(tp.line == 4)[0])
+    # start (10,0) heading +X: centre (10, r) with r² = 10² + (6 - r)² → r = 136/12
+    r = 136 / 12
+    assert tp.kind[ct] == ARC_CCW and np.allclose(tp.center[ct, :2], [10, r], atol=1e-9)
+    c = int(np.flatnonzero(tp.line == 6)[0])
+    assert tp.kind[c] == ARC_CW and np.allclose(tp.center[c, :2], [20, 0])
+    # the arc from (20, 6) clockwise about (20, 0) to (26, 0): a quarter circle of radius 6
+    assert tp.lengths()[c] == pytest.approx(math.pi * 6 / 2, rel=1e-9)
+
+
+def test_cr_negative_radius_is_the_arc_over_180():
+    """§ 7.4 (CR): R negative gives the arc larger than 180°, positive the smaller one."""
+    base = "0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 R0 FMAX\n2 CR X+10 Y+0 R{r} DR+ F300\n3 END PGM T MM\n"
+    short, long = (_read(base.format(r=r)).toolpath for r in ("+6", "-6"))
+    theta = 2 * math.asin(5 / 6)  # the angle the chord of 10 subtends on a radius of 6
+    assert short.lengths()[-1] == pytest.approx(6 * theta, rel=1e-9)
+    assert long.lengths()[-1] == pytest.approx(6 * (2 * math.pi - theta), rel=1e-9)
+    h = math.sqrt(36 - 25)  # counter-clockwise from (0,0) to (10,0): under 180° about (5, h), over about (5, -h)
+    assert np.allclose(short.center[-1, :2], [5, h]) and np.allclose(long.center[-1, :2], [5, -h])
+
+
+@pytest.mark.parametrize("r, dr", [("+6", "DR+"), ("-6", "DR+"), ("+6", "DR-"), ("-6", "DR-")])
+def test_ct_after_cr_is_tangent(r, dr):
+    """§ 7.4 (CT): the arc continues the previous one tangentially, so both centres and the joint
+    point lie on one line (the common normal)."""
+    text = f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+0 R0 FMAX\n2 CR X+10 Y+0 R{r} {dr} F300\n3 CT X+14 Y+9\n4 END PGM T MM\n"
+    tp = _read(text).toolpath
+    c1, p, c2 = tp.center[-2, :2], tp.end[-2, :2], tp.center[-1, :2]
+    u, v = p - c1, c2 - p
+    assert abs(u[0] * v[1] - u[1] * v[0]) < 1e-9 * np.linalg.norm(u) * np.linalg.norm(v)
+    # and the direction of travel at the joint is the same on both arcs
+    def direction(kind, centre):
+        t = np.array([-(p - centre)[1], (p - centre)[0]])
+        return t if kind == ARC_CCW else -t
+    d1, d2 = direction(tp.kind[-2], c1), direction(tp.kind[-1], c2)
+    assert np.dot(d1, d2) > 0
+
+
+def test_blank_box_in_mm():
+    """§ 3.2 (BLK FORM): 0.1 is the MIN point, 0.2 the MAX point (incremental: from the MIN point)."""
+    assert blank(SLOTS) == ((0.0, 0.0, -10.0), (60.0, 40.0, 0.0))
+    inch = "0 BEGIN PGM A INCH\n1 BLK FORM 0.1 Z X-1 Y+0 Z-2\n2 BLK FORM 0.2 IX+4 IY+3 Z+0\n"
+    lo, hi = blank(inch)
+    assert np.allclose(lo, [-25.4, 0, -50.8]) and np.allclose(hi, [76.2, 76.2, 0])
+    assert blank("0 BEGIN PGM A MM\n1 L X+0 FMAX\n") is None
+
+
+@pytest.mark.parametrize("block, word, column", [
+    ("PLANE SPATIAL SPA+0 SPB+45 SPC+0 TURN FMAX", "PLANE", 3),
+    ("L X+10 FMAX M128", "M128", 15),
+    ("CYCL DEF 19.0 WORKING PLANE", "CYCL DEF 19", 3),
+    ("CYCL DEF 22 ROUGH-OUT", "CYCL DEF 22", 3),
+    ("FL X+10 Y+5 AN+45", "FL", 3),
+    ("L X+10 FZ0.05", "FZ0.05", 10),
+    ("TOOL CALL 1 X S5000", "X", 15),
+    ("L X+10 G+5", "G+5", 10),
+    ("SPLINE X+1", "SPLINE", 3),
+])
+def test_refused_with_file_line_column(block, word, column):
+    """Tilted planes, TCPM, SL cycles, FK, feed per tooth, other tool axes and unknown words are
+    refused where they are written."""
+    text = f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 R0 FMAX\n2 {block}\n3 END PGM T MM\n"
+    with pytest.raises(ParseError) as e:
+        _read(text, "part.h")
+    assert (e.value.file, e.value.line, e.value.column) == ("part.h", 3, column)
+    assert word in e.value.word
+    assert str(e.value).startswith("part.h:3:")
+
+
+def test_incremental_from_an_unknown_position_is_refused():
+    with pytest.raises(ParseError, match="incremental X from an unknown position"):
+        _read("0 BEGIN PGM T MM\n1 L IX+5 F100\n2 END PGM T MM\n")
+
+
+@pytest.mark.parametrize("line, f, expected", [
+    ("10 L X+65 F700 M8 ; slot", "450", "10 L X+65 F450 M8 ; slot"),
+    ("13 L Z-3", "300", "13 L Z-3 F300"),
+    ("13 L Z-3 M8", "300", "13 L Z-3 F300 M8"),
+    ("13 L Z-3 ; down", "300", "13 L Z-3 F300 ; down"),
+    ("10 L X+65 F700 M8 ; slot", None, "10 L X+65 M8 ; slot"),
+    ("10 L X+65 F700", None, "10 L X+65"),
+    ("11 L Z+2 FMAX", "500", "11 L Z+2 FMAX"),
+    ("11 L Z+2 FAUTO", "500", "11 L Z+2 FAUTO"),
+])
+def test_set_feed_changes_only_the_f_word(line, f, expected):
+    assert set_feed(line, f) == expected
+
+
+def test_optimized_feeds_written_back_only_f_changes_same_path():
+    """Only F words change, the rest of every block keeps its bytes, and the program read back takes
+    the same path (within 1e-4 mm) at the written feeds."""
+    program = _read(SLOTS)
+    tp = program.toolpath
+    feeds = tp.feed_mm_min * np.linspace(0.5, 1.5, len(tp))
+    out = write_feeds(program, FeedPlan(feeds, {}))
+    again = _read(out)
+    assert same_path(program, again) == []
+    cutting = tp.kind != RAPID
+    assert np.allclose(again.toolpath.feed_mm_min[cutting], feeds[cutting], rtol=1e-3)
+    for old, new in zip(SLOTS.splitlines(), out.splitlines()):
+        strip = lambda s: " ".join(w for w in s.split() if not (w.startswith("F") and w[1:2].isdigit()))  # noqa: E731
+        assert strip(old) == strip(new)
+        assert "FMAX" not in old or old == new
+
+
+def test_dialect_is_registered():
+    from millpost.gcode import dialects
+    assert dialects.get("heidenhain") is HEIDENHAIN
