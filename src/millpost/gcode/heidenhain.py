@@ -80,9 +80,21 @@ class _Tokens:
         return found
 
 
+_LONE_AXIS = re.compile(r"I?(?:X|Y|Z|PA|PR)$")
+_NUMBER_TOKEN = re.compile(rf"{_NUMBER}$")
+
+
 def _split(code: str, start: int, offset: int, line: int) -> _Tokens:
-    """The whitespace-separated words of `code` from index `start` (columns offset by `offset`)."""
-    return _Tokens([(m.group(), m.start() + 1 + offset) for m in _TOKEN.finditer(code, start)], line)
+    """The whitespace-separated words of `code` from index `start` (columns offset by `offset`); an
+    axis letter apart from its number (``Z 25.000``, as some posts write) is one word."""
+    words: list[tuple[str, int]] = []
+    for m in _TOKEN.finditer(code, start):
+        text = m.group()
+        if words and _NUMBER_TOKEN.match(text) and _LONE_AXIS.match(words[-1][0]):
+            words[-1] = (words[-1][0] + text, words[-1][1])
+        else:
+            words.append((text, m.start() + 1 + offset))
+    return _Tokens(words, line)
 
 
 def _value(text: str) -> str:
@@ -144,7 +156,7 @@ def _begin(st: _State, code: str, start: int, n: int) -> str:
         raise _error(st, n, start + 1, code[start:].strip(), "malformed BEGIN PGM", "BEGIN PGM <name> MM|INCH")
     st.inch = words[2].upper() == "INCH"
     return (f"{'G20' if st.inch else 'G21'} G90 G17 G94 G40 #<_hh_x>=0 #<_hh_y>=0 #<_hh_z>=0 #<_hh_ccx>=0 "
-            f"#<_hh_ccy>=0 #<_hh_tx>=0 #<_hh_ty>=0 ({_comment(words[1])[1:-1]})")
+            f"#<_hh_ccy>=0 #<_hh_tx>=0 #<_hh_ty>=0 #<_hh_dx>=0 #<_hh_dy>=0 #<_hh_dz>=0 ({_comment(words[1])[1:-1]})")
 
 
 def _end(st: _State, code: str, start: int, n: int) -> str:
@@ -236,22 +248,42 @@ def _tool_call(st: _State, code: str, start: int, n: int) -> str:
 
 
 def _tool_def(st: _State, code: str, start: int, n: int) -> str:
-    """TOOL DEF n (§ 6.3): the next tool (prepared, not changed)."""
+    """TOOL DEF n (L.. R..) (§ 6.3): the next tool, prepared, not changed (its length and radius, as
+    older TNCs define them in the program, are the job's tool description's business)."""
     tokens = _split(code, start, 0, n)
-    if len(tokens.words) != 1 or not tokens.words[0][0].isdigit():
+    if not tokens.words or not tokens.words[0][0].isdigit():
         text, col = tokens.words[0] if tokens.words else ("", start + 1)
-        raise _error(st, n, col, text, "malformed TOOL DEF", "TOOL DEF <number>")
-    return f"T{tokens.words[0][0]}"
+        raise _error(st, n, col, text, "malformed TOOL DEF", "TOOL DEF <number> (L.. R..)")
+    number = tokens.words.pop(0)[0]
+    tokens.take(re.compile(rf"[LR]{_NUMBER}$"))
+    _no_more(st, tokens, "TOOL DEF <number> L.. R..")
+    return f"T{number}"
 
 
 def _cycl_def(st: _State, code: str, start: int, n: int) -> str:
-    """CYCL DEF 32 TOLERANCE (and 32.1/32.2, § cycles): path tolerance, kept as a comment."""
+    """CYCL DEF 32 TOLERANCE (and 32.1/32.2): path tolerance, kept as a comment; CYCL DEF 7 DATUM SHIFT."""
     tokens = _split(code, start, 0, n)
     number = tokens.words[0][0] if tokens.words else ""
-    if number.split(".")[0] == "32":
+    if number.split(".")[0] == "32" or number in ("7", "7.0"):
         return _comment(f"CYCL DEF {code[start:].strip()}")
+    if number in ("7.1", "7.2", "7.3"):
+        return _datum_shift(st, tokens, number)
     raise _error(st, n, tokens.words[0][1] if tokens.words else start + 1, number,
                  f"CYCL DEF {number} is not supported", "CYCL DEF 32 TOLERANCE")
+
+
+def _datum_shift(st: _State, tokens: _Tokens, number: str) -> str:
+    """CYCL DEF 7.1 X.. / 7.2 Y.. / 7.3 Z.. (datum shift, cycle 7): the datum moves to the value
+    (incremental IX: by it), as G52; the last programmed position is carried into the new frame."""
+    tokens.words.pop(0)
+    axis = "XYZ"[int(number[-1]) - 1]
+    targets = _targets(st, _Tokens(list(tokens.words), tokens.line), axis) if tokens.words else {}
+    if len(tokens.words) != 1 or axis not in targets:
+        text, col = tokens.words[0] if tokens.words else ("", 1)
+        raise _error(st, tokens.line, col, text, f"CYCL DEF {number} takes one {axis} value", f"{axis}+<shift>")
+    shift, pos = f"#<_hh_d{axis.lower()}>", _AXIS_PARAM[axis]
+    value = targets[axis].replace(pos, shift)  # IX: incremental to the shift in force
+    return f"G52 {axis}{value} {pos}=[{pos}+{shift}-{value}] {shift}={value}"
 
 
 def _m_words(st: _State, tokens: _Tokens) -> tuple[list[str], bool]:
@@ -359,6 +391,8 @@ def _l(st: _State, code: str, start: int, n: int) -> str:
         st.unknown |= set(targets)  # where the program's frame puts these axes now is not tracked
         return " ".join(["G53", motion, *coords, *words])
     st.unknown -= set(targets)
+    if not targets:  # L with only F or M functions: no motion (FMAX alone moves nowhere)
+        return " ".join([*_pre(words), *([feed] if feed else []), *_post(words)])
     tangent = []
     if "X" in targets or "Y" in targets:
         tangent = [f"#<_hh_tx>=[{targets.get('X', '#<_hh_x>')}-#<_hh_x>]",
@@ -417,7 +451,8 @@ def _arc_line(st: _State, tokens: _Tokens, motion: str, targets: dict[str, str],
               tangent: list[str], expected: str) -> str:
     feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
     _no_more(st, tokens, expected)
-    coords = [f"{a}{e}" for a, e in targets.items()]
+    end = {"X": "#<_hh_x>", "Y": "#<_hh_y>", **targets}  # no end point: back to the start (a full circle)
+    coords = [f"{a}{e}" for a, e in end.items()]
     return " ".join([*_pre(words), motion, *coords, *centre, *([feed] if feed else []), *_post(words),
                      *_assigns(targets), *tangent])
 
