@@ -57,6 +57,7 @@ class _State:
     tool_f: str | None = None  # the TOOL CALL F (for FAUTO)
     ended: bool = False
     unknown: set[str] = field(default_factory=lambda: set("XYZ"))  # axes with no programmed position yet
+    labels: dict[int, str] = field(default_factory=dict)  # line → the NGC control line of a LBL/CALL LBL
 
 
 def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
@@ -115,6 +116,7 @@ def translate(text: str, file: str) -> str:
     """The Klartext program `text` as RS-274/NGC, line for line (see the module docstring)."""
     st = _State(file)
     lines = text.split("\n")
+    st.labels = _label_plan(st, lines)
     return "\n".join(_line(st, raw.rstrip("\r"), n) for n, raw in enumerate(lines, 1))
 
 
@@ -127,7 +129,7 @@ def _line(st: _State, raw: str, n: int) -> str:
     comment = _comment(note)
     if not body or body.startswith("*"):
         return " ".join(p for p in (_comment(body[1:].lstrip(" -")) if body else "", comment) if p)
-    ngc = _block(st, code, start, n)
+    ngc = st.labels[n] if n in st.labels else _block(st, code, start, n)
     return f"{ngc} {comment}".strip()
 
 
@@ -511,6 +513,159 @@ def _ct(st: _State, code: str, start: int, n: int) -> str:
     return _arc_line(st, tokens, motion, targets, [f"I{i}", f"J{j}"], tangent, "CT X.. Y.. F..")
 
 
+_LBL = re.compile(r"LBL\s*(\d+|\"[^\"]*\")\s*$", re.IGNORECASE)
+_CALL_LBL = re.compile(r"CALL\s+LBL\s*(\d+|\"[^\"]*\")(?:\s+REP\s*(\d+)(?:\s*/\s*\d+)?)?\s*$", re.IGNORECASE)
+
+
+def _label_name(text: str) -> str:
+    """The O-word name of a label (``1`` → ``hh1``, ``"CONTOUR"`` → ``hh_contour``)."""
+    if text.startswith('"'):
+        return "hh_" + re.sub(r"[^a-z0-9]", "_", text[1:-1].lower())
+    return f"hh{int(text)}"
+
+
+def _label_plan(st: _State, lines: list[str]) -> dict[int, str]:
+    """The NGC control line of every LBL and CALL LBL block (§ 8): a section repeat (LBL n before
+    ``CALL LBL n REP m``: the section runs m + 1 times) is ``repeat [m+1]``/``endrepeat``; a label
+    called without REP is a subprogram (``sub``, up to the next LBL 0 ``endsub``; ``call``). Labels
+    nothing calls are comments."""
+    blocks: list[tuple[int, str, int]] = []  # (line, block text upper case, column of the block)
+    for n, raw in enumerate(lines, 1):
+        code = raw.partition(";")[0].rstrip("\r")
+        m = _BLOCK_NUMBER.match(code)
+        start = m.end() if m else 0
+        blocks.append((n, code[start:].strip(), start + 1))
+    plan: dict[int, str] = {}
+    last_label: dict[str, int] = {}
+    subs: dict[str, int] = {}
+    for n, body, col in blocks:
+        call, label = _CALL_LBL.match(body), _LBL.match(body)
+        if label:
+            last_label[label.group(1).upper()] = n
+            plan[n] = _comment(body)
+        elif call and call.group(2) is not None and call.group(1).upper() in last_label:
+            at, name = last_label.pop(call.group(1).upper()), _label_name(call.group(1))
+            if at in subs.values():
+                raise _error(st, n, col, body, "a label both repeated and called as a subprogram", "two labels")
+            plan[at], plan[n] = f"o<{name}_{n}> repeat [{int(call.group(2)) + 1}]", f"o<{name}_{n}> endrepeat"
+        elif call:
+            if call.group(2) is not None:
+                raise _error(st, n, col, body, "CALL LBL REP of a label that is not before it (a subprogram "
+                             "called several times)", "CALL LBL n REP m after LBL n, or CALL LBL n")
+            subs[call.group(1).upper()] = 0
+            plan[n] = f"o<{_label_name(call.group(1))}> call"
+    _subprograms(st, blocks, plan, subs)
+    return plan
+
+
+def _subprograms(st: _State, blocks: list[tuple[int, str, int]], plan: dict[int, str], subs: dict[str, int]) -> None:
+    """The ``sub``/``endsub`` lines of the labels called as subprograms (each ends at the next LBL 0)."""
+    open_sub: str | None = None
+    for n, body, col in blocks:
+        label = _LBL.match(body)
+        if not label:
+            continue
+        key = label.group(1).upper()
+        if key == "0":
+            if open_sub is not None:
+                plan[n] = f"o<{_label_name(open_sub)}> endsub"
+                open_sub = None
+        elif key in subs:
+            if open_sub is not None:
+                raise _error(st, n, col, body, f"LBL {open_sub} has no LBL 0 before the next subprogram", "LBL 0")
+            if plan.get(n, "(").startswith("o<"):
+                raise _error(st, n, col, body, "a label both repeated and called as a subprogram", "two labels")
+            plan[n], open_sub, subs[key] = f"o<{_label_name(key)}> sub", key, n
+    if open_sub is not None:
+        raise _error(st, subs[open_sub], 1, f"LBL {open_sub}", "a subprogram without LBL 0", "LBL 0 after it")
+    missing = [k for k, at in subs.items() if not at]
+    if missing:
+        n = next(n for n, body, _ in blocks if (m := _CALL_LBL.match(body)) and m.group(1).upper() == missing[0])
+        raise _error(st, n, 1, f"LBL {missing[0]}", "CALL LBL of a label that is not in the program", "LBL n")
+
+
+_Q = re.compile(r"Q([LR]?)(\d+)")
+_FUNCTIONS = {"SIN": "SIN", "COS": "COS", "TAN": "TAN", "ASIN": "ASIN", "ACOS": "ACOS", "ATAN": "ATAN",
+              "SQRT": "SQRT", "ABS": "ABS", "LN": "LN", "EXP": "EXP"}
+_FORMULA_TOKEN = re.compile(r"\s*(?:(\d+\.?\d*|\.\d+)|(Q[LR]?\d+)|([A-Z]+)|(\*\*|[-+*/^()]))", re.IGNORECASE)
+
+
+def _param(text: str) -> str:
+    """The NGC name of Q parameter `text` (Qn: #<_qn>; local QLn and remanent QRn: #<_qln>, #<_qrn>)."""
+    kind, number = _Q.fullmatch(text.upper()).groups()
+    return f"#<_q{kind.lower()}{int(number)}>"
+
+
+def _formula(st: _State, text: str, at: int, n: int) -> str:
+    """A Klartext formula (§ 9.8: + - * / ^, parentheses, SIN COS TAN ASIN ACOS ATAN SQRT SQ ABS LN
+    EXP PI, Q parameters) as an NGC expression in brackets; angles in degrees as in NGC. `at`: the
+    formula's index in its line (for error columns)."""
+    out: list[str] = []
+    squares: list[bool] = []  # per open parenthesis: whether it is SQ's (x², written [x]**2)
+    pending_sq, pos = False, 0
+    while pos < len(text.rstrip()):
+        m = _FORMULA_TOKEN.match(text, pos)
+        if not m or (pending_sq and m.group(4) != "("):
+            word = text[pos:].split()[0]
+            raise _error(st, n, at + pos + 1, word, "not a formula term",
+                         "numbers, Q parameters, + - * / ^, ( ), SIN COS TAN ASIN ACOS ATAN SQRT SQ ABS LN EXP PI")
+        number, q, name, op = m.groups()
+        pos = m.end()
+        if name:
+            name = name.upper()
+            if name not in _FUNCTIONS and name not in ("PI", "SQ"):
+                raise _error(st, n, at + m.start(3) + 1, name, f"the function {name} is not supported",
+                             "SIN COS TAN ASIN ACOS ATAN SQRT SQ ABS LN EXP PI")
+            pending_sq = name == "SQ"
+            out.append({"PI": "3.141592653589793", "SQ": ""}.get(name, name))
+        elif op == "(":
+            squares.append(pending_sq)
+            out.append("[[" if pending_sq else "[")
+            pending_sq = False
+        elif op == ")":
+            if not squares:
+                raise _error(st, n, at + m.start(4) + 1, ")", "unbalanced parenthesis", "( before )")
+            out.append("]**2]" if squares.pop() else "]")
+        else:
+            out.append(number or (_param(q) if q else {"^": "**"}.get(op, op)))
+    if squares or pending_sq:
+        raise _error(st, n, at + pos + 1, text.strip(), "unbalanced parenthesis", ") for every (")
+    return "[" + "".join(out) + "]"
+
+
+_OPERAND = r"[-+]?\s*(?:\d+\.?\d*|\.\d+|Q[LR]?\d+)"
+_FN = re.compile(r"FN\s*(\d+)\s*:\s*", re.IGNORECASE)
+_FN_OPS = {0: None, 1: "+", 2: "-", 3: "*", 4: "/"}
+_ASSIGN = re.compile(r"(Q[LR]?\d+)\s*=\s*", re.IGNORECASE)
+
+
+def _fn(st: _State, code: str, start: int, n: int) -> str:
+    """FN 0: Q1 = a (assign), FN 1/2/3/4: Q1 = a +|-|*|/ b (§ 9.3); other FN functions are refused."""
+    m = _FN.match(code, start)
+    number = int(m.group(1))
+    if number not in _FN_OPS:
+        raise _error(st, n, start + 1, m.group().strip(), f"FN {number} is not supported (only arithmetic: no "
+                     "jumps, system data, output or errors)", "FN 0 to FN 4, or a formula Q.. = ..")
+    a = _ASSIGN.match(code, m.end())
+    if not a:
+        raise _error(st, n, m.end() + 1, code[m.end():].strip(), "malformed FN", f"FN {number}: Q<n> = ..")
+    rest = code[a.end():].strip()
+    op = _FN_OPS[number]
+    if op and not re.fullmatch(rf"({_OPERAND})\s*{re.escape(op)}\s*({_OPERAND})", rest, re.IGNORECASE):
+        raise _error(st, n, a.end() + 1, rest, f"FN {number} takes two operands", f"a {op} b (numbers or Q)")
+    if not op and not re.fullmatch(_OPERAND, rest, re.IGNORECASE):
+        raise _error(st, n, a.end() + 1, rest, "FN 0 takes one value", "a number or a Q parameter")
+    return f"{_param(a.group(1))}={_formula(st, rest, a.end(), n)}"
+
+
+def _q_assign(st: _State, code: str, start: int, n: int) -> str:
+    """Q1 = formula (§ 9.8)."""
+    a = _ASSIGN.match(code, start)
+    if not a:
+        raise _error(st, n, start + 1, code[start:].split()[0], "a Q parameter block without =", "Q<n> = <formula>")
+    return f"{_param(a.group(1))}={_formula(st, code[a.end():], a.end(), n)}"
+
+
 _HANDLERS = {
     "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
 }
@@ -520,6 +675,8 @@ _PREFIXED = [
     ("TOOL DEF", lambda st, code, s, n: _tool_def(st, code, s + code[s:].upper().index("DEF") + 3, n)),
     ("CYCL DEF", lambda st, code, s, n: _cycl_def(st, code, s + code[s:].upper().index("DEF") + 3, n)),
     ("M", _m_only),
+    ("FN", lambda st, code, s, n: _fn(st, code, s, n)),
+    ("Q", lambda st, code, s, n: _q_assign(st, code, s, n)),
 ]
 
 _F_WORD = re.compile(rf"(?<=\s)F{_NUMBER}(?=\s|$)")
