@@ -29,7 +29,8 @@ _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
 _BLOCK_NUMBER = re.compile(r"[ \t]*\d+(?=[ \t]|$)[ \t]*")
 _TOKEN = re.compile(r"\S+")
 # coordinate words: axis (incremental with I), value a signed number or a signed Q parameter
-_COORD = re.compile(rf"(I?)(X|Y|Z|PA|PR)({_NUMBER}|[-+]?Q\d+)$")
+_COORD = re.compile(rf"(I?)(X|Y|Z)({_NUMBER}|[-+]?Q[LR]?\d+)$")
+_POLAR = re.compile(rf"(I?)(PA|PR)({_NUMBER}|[-+]?Q[LR]?\d+)$")
 _FEED = re.compile(rf"F({_NUMBER}|MAX|AUTO)$")
 _M = re.compile(r"M(\d+)$")
 _PASSED_M = {0, 1, 2, 3, 4, 5, 8, 9, 30}
@@ -102,7 +103,7 @@ def _value(text: str) -> str:
     """An NGC value from a Klartext number or Q parameter (``+5`` → ``5``, ``-Q3`` → ``[-#<_q3>]``)."""
     sign, body = (text[0], text[1:]) if text[0] in "+-" else ("", text)
     if body.startswith("Q"):
-        return f"[{'-' if sign == '-' else ''}#<_q{int(body[1:])}>]"
+        return f"[{'-' if sign == '-' else ''}{_param(body)}]"
     return f"-{body}" if sign == "-" else body
 
 
@@ -666,8 +667,58 @@ def _q_assign(st: _State, code: str, start: int, n: int) -> str:
     return f"{_param(a.group(1))}={_formula(st, code[a.end():], a.end(), n)}"
 
 
+_PR0 = "SQRT[[#<_hh_x>-#<_hh_ccx>]**2+[#<_hh_y>-#<_hh_ccy>]**2]"
+_PA0 = "ATAN[#<_hh_y>-#<_hh_ccy>]/[#<_hh_x>-#<_hh_ccx>]"
+
+
+def _polar(st: _State, code: str, start: int, tokens: _Tokens) -> tuple[dict[str, str], str | None]:
+    """The X/Y end point of a polar block (§ 7.5: PR radius, PA angle in degrees from +X about the
+    pole CC; IPR/IPA add to the last position's; a missing one keeps the last position's) and the
+    incremental angle's expression (None when PA is absolute)."""
+    words = {m.group(2): (m.group(1) == "I", _value(m.group(3))) for m, _ in tokens.take(_POLAR)}
+    if any(inc or k not in words for k, (inc, _) in {"PA": (False, ""), "PR": (False, ""), **words}.items()):
+        _known_xy(st, code, start, tokens.line)
+    pr = words.get("PR", (True, "0"))
+    pa = words.get("PA", (True, "0"))
+    r = f"[{_PR0}+{pr[1]}]" if pr[0] else pr[1]
+    a = f"[{_PA0}+{pa[1]}]" if pa[0] else pa[1]
+    xy = {"X": f"[#<_hh_ccx>+{r}*COS[{a}]]", "Y": f"[#<_hh_ccy>+{r}*SIN[{a}]]"}
+    return xy, (pa[1] if pa[0] and "PA" in words else None)
+
+
+def _lp(st: _State, code: str, start: int, n: int) -> str:
+    """LP PR.. PA.. (Z..) R0|RL|RR F.. M.. (§ 7.5): a straight line to a point in polar coordinates."""
+    tokens = _split(code, start, 0, n)
+    xy, _ = _polar(st, code, start, tokens)
+    targets = {**xy, **_targets(st, tokens, "Z")}
+    st.unknown -= set(targets)
+    feed, words, _ = _contour_words(st, tokens)
+    _no_more(st, tokens, "LP PR.. PA.. Z.. R0|RL|RR F..|FMAX M..")
+    motion = "G0" if feed is None else "G1"
+    tangent = [f"#<_hh_tx>=[{xy['X']}-#<_hh_x>]", f"#<_hh_ty>=[{xy['Y']}-#<_hh_y>]"]
+    return " ".join([*_pre(words), motion, *(f"{a}{e}" for a, e in targets.items()), *([feed] if feed else []),
+                     *_post(words), *_assigns(targets), *tangent])
+
+
+def _cp(st: _State, code: str, start: int, n: int) -> str:
+    """CP PA.. (IPA..) (Z..) DR+|DR- (§ 7.5): an arc about the pole CC to the polar angle PA (radius:
+    the distance from the pole); IPA beyond ±360° adds whole turns (a helix with IZ)."""
+    _known_xy(st, code, start, n)
+    tokens = _split(code, start, 0, n)
+    motion = _direction(st, tokens)
+    if any(m.group(2) == "PR" for m, _ in ((_POLAR.match(t), c) for t, c in tokens.words) if m):
+        raise _error(st, n, start + 1, "CP", "CP takes no PR (the radius is the distance from the pole)", "CP PA..")
+    xy, ipa = _polar(st, code, start, tokens)
+    targets = {**xy, **_targets(st, tokens, "Z")}
+    centre = ["I[#<_hh_ccx>-#<_hh_x>]", "J[#<_hh_ccy>-#<_hh_y>]"]
+    if ipa is not None:
+        centre.append(f"P[FUP[ABS[{ipa}]/360-0.000000001]+[ABS[{ipa}] LT 0.000000001]]")
+    return _arc_line(st, tokens, motion, targets, centre, _end_tangent(motion, targets, "#<_hh_ccx>", "#<_hh_ccy>"),
+                     "CP PA.. Z.. DR+|DR- F..")
+
+
 _HANDLERS = {
-    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
+    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop, "LP": _lp, "CP": _cp,
 }
 _PREFIXED = [
     ("BLK FORM", lambda st, code, s, n: _blk_form(st, code, s + code[s:].upper().index("FORM") + 4, n)),
