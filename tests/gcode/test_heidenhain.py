@@ -240,3 +240,140 @@ def test_optimized_feeds_written_back_only_f_changes_same_path():
 def test_dialect_is_registered():
     from millpost.gcode import dialects
     assert dialects.get("heidenhain") is HEIDENHAIN
+
+
+def _moves(text: str):
+    tp = _read(text).toolpath
+    return tp, {int(ln): i for i, ln in enumerate(tp.line)}
+
+
+def test_q_parameters_fn_and_formulas():
+    """§ 9.3 (FN 0-4: assignment and the four operations) and § 9.8 (formulas: SQ, SQRT, SIN in
+    degrees, PI, ^, precedence): the values the coordinates then take."""
+    text = """0 BEGIN PGM Q MM
+1 FN 0: Q1 = +10
+2 FN0: Q2 = 25
+3 FN 1: Q3 = +Q1 + +Q2
+4 FN 2: Q4 = +Q2 - -5
+5 FN 3: Q5 = +Q1 * +3
+6 FN 4: Q6 = +Q2 / +Q1
+7 Q7 = SQ(Q1) + SQRT(Q2) * SIN(30) - PI ^ 2
+8 QL8 = (Q1 + 2) * 3
+9 L X+Q3 Y-Q4 Z+Q5 R0 FMAX
+10 L X+Q6 Y+Q7 Z+QL8 F100
+11 END PGM Q MM
+"""
+    tp, at = _moves(text)
+    assert np.allclose(tp.end[at[10]], [35, -30, 30])
+    assert np.allclose(tp.end[at[11]], [2.5, 100 + 2.5 - math.pi ** 2, 36])
+
+
+def test_section_repeat_runs_rep_plus_one_times():
+    """§ 8.4 (program section repeats): CALL LBL 1 REP 2 jumps back to LBL 1 twice, so the section
+    runs three times; the repeat count may be written as the TNC shows it (REP 2/2)."""
+    text = """0 BEGIN PGM R MM
+1 FN 0: Q1 = 40
+2 L X-5 Y+0 Z+0.5 R0 FMAX
+3 LBL 1
+4 L IZ-1 F100
+5 L X+Q1 F300
+6 L IZ-1 F100
+7 L X-5 F300
+8 CALL LBL 1 REP 2/2
+9 L Z+10 FMAX
+10 END PGM R MM
+"""
+    tp = _read(text).toolpath
+    cuts = tp.kind == FEED
+    assert cuts.sum() == 12 and tp.line[cuts].tolist() == [5, 6, 7, 8] * 3
+    assert np.allclose(tp.end[cuts][-1], [-5, 0, 0.5 - 6])
+
+
+def test_subprogram_call_runs_up_to_lbl_0():
+    """§ 8.3 (subprograms): CALL LBL n runs the blocks after LBL n up to LBL 0, then the block after
+    the call; a named label ("CONT") too."""
+    text = """0 BEGIN PGM S MM
+1 L X+0 Y+0 Z+2 R0 FMAX
+2 CALL LBL "CONT"
+3 L IX+5 FMAX
+4 CALL LBL 7
+5 L Z+50 FMAX
+6 M30
+7 LBL "CONT"
+8 L Z-1 F100
+9 L IY+10 F300
+10 LBL 0
+11 LBL 7
+12 L IY-10 F300
+13 LBL 0
+14 END PGM S MM
+"""
+    tp = _read(text).toolpath
+    assert tp.line.tolist() == [2, 9, 10, 4, 13, 6]
+    assert np.allclose(tp.end[-2], [5, 0, -1]) and np.allclose(tp.end[-1], [5, 0, 50])
+
+
+def test_polar_lines_and_arcs_about_the_pole():
+    """§ 7.5: LP PR/PA is the point at radius PR and angle PA (degrees, from +X counter-clockwise)
+    about the pole CC; CP PA an arc about the pole to that angle; CP IPA+720 with IZ two turns of a
+    helix; IPR/IPA add to the last position's radius/angle."""
+    text = """0 BEGIN PGM P MM
+1 L X+0 Y+0 Z+5 R0 FMAX
+2 CC X+10 Y+10
+3 LP PR+5 PA+0 F300
+4 CP PA+90 DR+
+5 CP IPA+720 IZ-2 DR+
+6 LP IPR+5
+7 LP PA+180 IPR-3
+8 END PGM P MM
+"""
+    tp, at = _moves(text)
+    assert np.allclose(tp.end[at[4], :2], [15, 10]) and np.allclose(tp.end[at[5], :2], [10, 15])
+    assert tp.kind[at[5]] == ARC_CCW and tp.lengths()[at[5]] == pytest.approx(2 * math.pi * 5 / 4)
+    assert tp.lengths()[at[6]] == pytest.approx(math.hypot(2 * 2 * math.pi * 5, 2))  # two turns, 2 mm down
+    assert np.allclose(tp.end[at[6]], [10, 15, 3])
+    assert np.allclose(tp.end[at[7], :2], [10, 20]) and np.allclose(tp.end[at[8], :2], [3, 10])
+
+
+def test_rnd_and_chf_at_line_corners():
+    """§ 7.4: RND R inserts the arc of radius R tangent to both lines (tangent points R·tan(θ/2)
+    from the corner, θ the change of direction); CHF s cuts the corner from s before it to s after it.
+    Incremental coordinates after them count from the corner."""
+    text = """0 BEGIN PGM R MM
+1 L X+0 Y+0 Z-1 R0 FMAX
+2 L X+10 F300
+3 RND R2
+4 L Y+10
+5 CHF 3
+6 L X+0
+7 RND R1 F100
+8 L IX-5 IY-5
+9 END PGM R MM
+"""
+    tp, at = _moves(text)
+    assert np.allclose(tp.end[at[3], :2], [8, 0])
+    assert tp.kind[at[4]] == ARC_CCW and np.allclose(tp.center[at[4], :2], [8, 2])
+    assert np.allclose(tp.end[at[4], :2], [10, 2]) and tp.lengths()[at[4]] == pytest.approx(math.pi)
+    assert np.allclose(tp.start[at[6], :2], [10, 7]) and np.allclose(tp.end[at[6], :2], [7, 10])
+    d = math.tan(math.radians(45 / 2))  # a 45° turn, radius 1
+    assert np.allclose(tp.end[at[7], :2], [d, 10])
+    assert np.allclose(tp.center[at[8], :2], [d, 9]) and tp.lengths()[at[8]] == pytest.approx(math.pi / 4)
+    assert tp.feed_mm_min[at[8]] == 100 and np.allclose(tp.end[at[9], :2], [-5, 5])
+
+
+def test_datum_shift_moves_the_frame():
+    """CYCL DEF 7 (datum shift): the program's coordinates count from the shifted datum; an
+    incremental move after it continues from where the tool is."""
+    text = """0 BEGIN PGM D MM
+1 L X+0 Y+0 Z+5 R0 FMAX
+2 CYCL DEF 7.0 DATUM SHIFT
+3 CYCL DEF 7.1 X+10
+4 CYCL DEF 7.2 IY+5
+5 L IX+1 F100
+6 L X+0 Y+0
+7 END PGM D MM
+"""
+    shifted = _read(text)
+    by_hand = read_text("G21 G90\nG0 X0 Y0 Z5\n(7.0)\nG52 X10\nG52 Y5\nG1 X-9 Y-5 F100\nG1 X0 Y0\nM2\n", "d.ngc",
+                        ReaderOptions(dialect="linuxcnc"))
+    assert np.abs(shifted.toolpath.end - by_hand.toolpath.end).max() < 1e-9

@@ -59,6 +59,8 @@ class _State:
     ended: bool = False
     unknown: set[str] = field(default_factory=lambda: set("XYZ"))  # axes with no programmed position yet
     labels: dict[int, str] = field(default_factory=dict)  # line → the NGC control line of a LBL/CALL LBL
+    lines: list[str] = field(default_factory=list)  # the program's lines (RND/CHF look ahead)
+    corner: int = 0  # the line of the RND/CHF whose points the last L block computed
 
 
 def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
@@ -117,7 +119,7 @@ def translate(text: str, file: str) -> str:
     """The Klartext program `text` as RS-274/NGC, line for line (see the module docstring)."""
     st = _State(file)
     lines = text.split("\n")
-    st.labels = _label_plan(st, lines)
+    st.labels, st.lines = _label_plan(st, lines), lines
     return "\n".join(_line(st, raw.rstrip("\r"), n) for n, raw in enumerate(lines, 1))
 
 
@@ -400,6 +402,9 @@ def _l(st: _State, code: str, start: int, n: int) -> str:
     if "X" in targets or "Y" in targets:
         tangent = [f"#<_hh_tx>=[{targets.get('X', '#<_hh_x>')}-#<_hh_x>]",
                    f"#<_hh_ty>=[{targets.get('Y', '#<_hh_y>')}-#<_hh_y>]"]
+    corner = _corner_after(st, n, targets)
+    if corner:
+        coords, tangent = [f"X{corner[0]}", f"Y{corner[1]}"], tangent + corner[2]
     return " ".join([*_pre(words), motion, *coords, *([feed] if feed else []), *_post(words),
                      *_assigns(targets), *tangent])
 
@@ -667,6 +672,69 @@ def _q_assign(st: _State, code: str, start: int, n: int) -> str:
     return f"{_param(a.group(1))}={_formula(st, code[a.end():], a.end(), n)}"
 
 
+def _next_block(st: _State, n: int) -> tuple[int, str, int] | None:
+    """The next block after line `n` that is not blank or a comment: (line, its code, start of its body)."""
+    for k in range(n + 1, len(st.lines) + 1):
+        code = st.lines[k - 1].partition(";")[0].rstrip("\r")
+        m = _BLOCK_NUMBER.match(code)
+        start = m.end() if m else 0
+        if code[start:].strip() and not code[start:].strip().startswith("*"):
+            return k, code, start
+    return None
+
+
+_CORNER = re.compile(rf"(RND|CHF)\s+R?({_NUMBER}|[-+]?Q[LR]?\d+)", re.IGNORECASE)
+
+
+def _corner_after(st: _State, n: int, targets: dict[str, str]) -> tuple[str, str, list[str]] | None:
+    """When an RND or CHF block follows this L block (and an L block follows it), the point where
+    this line must end (X, Y expressions) and the assignments that hand the corner's points to the
+    RND/CHF block: § 7.4, RND R: the arc of radius R tangent to both lines; CHF s: the chamfer
+    from s before the corner along the first line to s after it along the second. The last
+    programmed position stays the corner (for the next block's incremental coordinates)."""
+    after = _next_block(st, n)
+    if not after or not _CORNER.match(after[1], after[2]):
+        return None
+    k, code, start = after
+    kind, amount = _CORNER.match(code, start).groups()
+    nxt = _next_block(st, k)
+    if "Z" in targets or not nxt or not re.match(r"L\s", nxt[1][nxt[2]:] + " "):
+        raise _error(st, k, start + 1, kind, f"{kind} between two L blocks in the working plane is supported",
+                     "L X.. Y.., RND/CHF, L X.. Y..")
+    second = _targets(st, _Tokens([(t, c) for t, c in _split(nxt[1], nxt[2] + 1, 0, nxt[0]).words
+                                   if _COORD.match(t)], nxt[0]), "XY")
+    x0, y0 = "#<_hh_x>", "#<_hh_y>"
+    x1, y1 = targets.get("X", x0), targets.get("Y", y0)
+    x2, y2 = (second.get(a, p).replace(p, f"[{c}]") for a, p, c in (("X", x0, x1), ("Y", y0, y1)))
+    a1x, a1y, a2x, a2y = f"[{x1}-{x0}]", f"[{y1}-{y0}]", f"[{x2}-{x1}]", f"[{y2}-{y1}]"
+    l1, l2 = f"SQRT[{a1x}**2+{a1y}**2]", f"SQRT[{a2x}**2+{a2y}**2]"
+    cross, dot = f"[{a1x}*{a2y}-{a1y}*{a2x}]", f"[{a1x}*{a2x}+{a1y}*{a2y}]"
+    r = _value(amount)
+    d = f"[{r}*ABS[{cross}]/[{l1}*{l2}+{dot}]]" if kind.upper() == "RND" else r  # corner → tangent point
+    t1x, t1y = f"[{x1}-{d}*{a1x}/{l1}]", f"[{y1}-{d}*{a1y}/{l1}]"
+    sign = f"[2*[{cross} GT 0]-1]"
+    st.corner = k
+    return t1x, t1y, [f"#<_hh_r1x>={t1x}", f"#<_hh_r1y>={t1y}", f"#<_hh_r2x>=[{x1}+{d}*{a2x}/{l2}]",
+                      f"#<_hh_r2y>=[{y1}+{d}*{a2y}/{l2}]", f"#<_hh_rcx>=[{t1x}-{r}*{sign}*{a1y}/{l1}]",
+                      f"#<_hh_rcy>=[{t1y}+{r}*{sign}*{a1x}/{l1}]", f"#<_hh_rdir>=[2+[{cross} GT 0]]"]
+
+
+def _rnd_chf(st: _State, code: str, start: int, n: int) -> str:
+    """RND R.. / CHF .. (F..) (§ 7.4): the rounding arc or chamfer the L block before computed."""
+    keyword = code[:start].split()[-1].upper()
+    if st.corner != n:
+        raise _error(st, n, start - len(keyword) + 1, keyword, f"{keyword} not after an L block",
+                     "L X.. Y.., RND/CHF, L X.. Y..")
+    tokens = _split(code, start, 0, n)
+    tokens.take(re.compile(rf"R?({_NUMBER}|[-+]?Q[LR]?\d+)$"))
+    feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
+    _no_more(st, tokens, f"{keyword} <size> F..")
+    motion = "G[#<_hh_rdir>]" if keyword == "RND" else "G1"
+    centre = ["I[#<_hh_rcx>-#<_hh_r1x>]", "J[#<_hh_rcy>-#<_hh_r1y>]"] if keyword == "RND" else []
+    return " ".join([*_pre(words), motion, "X#<_hh_r2x>", "Y#<_hh_r2y>", *centre, *([feed] if feed else []),
+                     *_post(words)])
+
+
 _PR0 = "SQRT[[#<_hh_x>-#<_hh_ccx>]**2+[#<_hh_y>-#<_hh_ccy>]**2]"
 _PA0 = "ATAN[#<_hh_y>-#<_hh_ccy>]/[#<_hh_x>-#<_hh_ccx>]"
 
@@ -718,7 +786,7 @@ def _cp(st: _State, code: str, start: int, n: int) -> str:
 
 
 _HANDLERS = {
-    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop, "LP": _lp, "CP": _cp,
+    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop, "LP": _lp, "CP": _cp, "RND": _rnd_chf, "CHF": _rnd_chf,
 }
 _PREFIXED = [
     ("BLK FORM", lambda st, code, s, n: _blk_form(st, code, s + code[s:].upper().index("FORM") + 4, n)),
