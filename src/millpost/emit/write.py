@@ -178,7 +178,10 @@ def cycle_feeds(program: Program, feed_mm_min: np.ndarray) -> tuple[np.ndarray, 
 
 
 class _Unknown(dict):
-    """Parameters whose values the text alone cannot give (0 for any missing one)."""
+    """Parameters whose values the text alone cannot give (0 for any missing one); an operation
+    undefined on such values (a division by 0) gives 0 too: they only locate a line's words."""
+
+    values_unknown = True
 
     def __missing__(self, key) -> float:
         return 0.0
