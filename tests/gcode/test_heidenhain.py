@@ -377,3 +377,36 @@ def test_datum_shift_moves_the_frame():
     by_hand = read_text("G21 G90\nG0 X0 Y0 Z5\n(7.0)\nG52 X10\nG52 Y5\nG1 X-9 Y-5 F100\nG1 X0 Y0\nM2\n", "d.ngc",
                         ReaderOptions(dialect="linuxcnc"))
     assert np.abs(shifted.toolpath.end - by_hand.toolpath.end).max() < 1e-9
+
+
+LOOPED = """0 BEGIN PGM FL MM
+1 TOOL CALL 1 Z S9000
+2 L X+0 Y+0 Z+5 R0 FMAX M3
+3 L Z+0.5 F300
+4 LBL 1
+5 L IZ-1 F100
+6 L X+10 F600
+7 CT X+15 Y+3
+8 L X+20 Y+10
+9 RND R2
+10 L X+0
+11 CC X+0 Y+5
+12 C X+0 Y+0 DR+
+13 CR X+5 Y+5 R-5 DR-
+14 L X+0 Y+0
+15 CALL LBL 1 REP 2
+16 L Z+10 FMAX
+17 END PGM FL MM
+"""
+
+
+def test_write_back_with_repeats_and_computed_arcs():
+    """A program whose lines run several times (a section repeat) and whose arcs the translation
+    computes (CT, RND, CR): feeds written back, only F words changed, the same path read back."""
+    program = _read(LOOPED)
+    feeds = program.toolpath.feed_mm_min * 0.8
+    out = write_feeds(program, FeedPlan(feeds, {}))
+    again = _read(out)
+    assert same_path(program, again) == []
+    assert [ln.split(" F")[0] for ln in out.splitlines()] == [ln.split(" F")[0] for ln in LOOPED.splitlines()]
+    assert "16 L Z+10 FMAX" in out.splitlines()

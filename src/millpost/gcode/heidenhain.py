@@ -109,6 +109,11 @@ def _value(text: str) -> str:
     return f"-{body}" if sign == "-" else body
 
 
+def _div(a: str, b: str) -> str:
+    """a / b in NGC."""
+    return f"[{a}/{b}]"
+
+
 def _comment(text: str) -> str:
     """An NGC comment holding `text` (its parentheses as brackets)."""
     clean = text.strip().replace("(", "[").replace(")", "]")
@@ -120,6 +125,11 @@ def translate(text: str, file: str) -> str:
     st = _State(file)
     lines = text.split("\n")
     st.labels, st.lines = _label_plan(st, lines), lines
+    first = _next_block(st, 0)
+    if first is None or not first[1][first[2]:].upper().startswith("BEGIN PGM"):
+        n, code, start = first or (1, "", 0)
+        raise _error(st, n, start + 1, code[start:].strip()[:20], "a Klartext program starts with BEGIN PGM",
+                     "BEGIN PGM <name> MM|INCH")
     return "\n".join(_line(st, raw.rstrip("\r"), n) for n, raw in enumerate(lines, 1))
 
 
@@ -494,8 +504,8 @@ def _cr(st: _State, code: str, start: int, n: int) -> str:
     ex, ey = targets.get("X", sx), targets.get("Y", sy)
     dx, dy, rr = f"[{ex}-{sx}]", f"[{ey}-{sy}]", f"[{r}]"
     d2 = f"[{dx}*{dx}+{dy}*{dy}]"
-    h = f"[SQRT[ABS[{rr}*{rr}/{d2}-0.25]]]"
-    side = f"[{'' if motion == 'G3' else '-'}{rr}/ABS[{rr}]]"
+    h = f"[SQRT[ABS[{_div(f'{rr}*{rr}', d2)}-0.25]]]"
+    side = f"[{'' if motion == 'G3' else '-'}{_div(rr, f'ABS[{rr}]')}]"
     cx, cy = f"[{sx}+{dx}/2-{side}*{h}*{dy}]", f"[{sy}+{dy}/2+{side}*{h}*{dx}]"
     return _arc_line(st, tokens, motion, targets, [f"R{r}"], _end_tangent(motion, targets, cx, cy),
                      "CR X.. Y.. R.. DR+|DR- F..")
@@ -509,7 +519,7 @@ def _ct(st: _State, code: str, start: int, n: int) -> str:
     dx, dy = f"[{ex}-{sx}]", f"[{ey}-{sy}]"
     nx, ny = "[-#<_hh_ty>]", "#<_hh_tx>"  # left of the direction of travel
     nd = f"[{nx}*{dx}+{ny}*{dy}]"
-    s = f"[[{dx}*{dx}+{dy}*{dy}]/[2*{nd}]]"  # centre = start + s·normal
+    s = _div(f"[{dx}*{dx}+{dy}*{dy}]", f"[2*{nd}]")  # centre = start + s·normal
     motion = f"G[2+[{nd} GT 0]]"
     i, j = f"[{s}*{nx}]", f"[{s}*{ny}]"
     ex_c, ey_c = f"[{sx}+{i}]", f"[{sy}+{j}]"
@@ -710,13 +720,14 @@ def _corner_after(st: _State, n: int, targets: dict[str, str]) -> tuple[str, str
     l1, l2 = f"SQRT[{a1x}**2+{a1y}**2]", f"SQRT[{a2x}**2+{a2y}**2]"
     cross, dot = f"[{a1x}*{a2y}-{a1y}*{a2x}]", f"[{a1x}*{a2x}+{a1y}*{a2y}]"
     r = _value(amount)
-    d = f"[{r}*ABS[{cross}]/[{l1}*{l2}+{dot}]]" if kind.upper() == "RND" else r  # corner → tangent point
-    t1x, t1y = f"[{x1}-{d}*{a1x}/{l1}]", f"[{y1}-{d}*{a1y}/{l1}]"
+    d = f"[{r}*{_div(f'ABS[{cross}]', f'[{l1}*{l2}+{dot}]')}]" if kind.upper() == "RND" else r  # to the corner
+    u1x, u1y, u2x, u2y = _div(a1x, l1), _div(a1y, l1), _div(a2x, l2), _div(a2y, l2)
+    t1x, t1y = f"[{x1}-{d}*{u1x}]", f"[{y1}-{d}*{u1y}]"
     sign = f"[2*[{cross} GT 0]-1]"
     st.corner = k
-    return t1x, t1y, [f"#<_hh_r1x>={t1x}", f"#<_hh_r1y>={t1y}", f"#<_hh_r2x>=[{x1}+{d}*{a2x}/{l2}]",
-                      f"#<_hh_r2y>=[{y1}+{d}*{a2y}/{l2}]", f"#<_hh_rcx>=[{t1x}-{r}*{sign}*{a1y}/{l1}]",
-                      f"#<_hh_rcy>=[{t1y}+{r}*{sign}*{a1x}/{l1}]", f"#<_hh_rdir>=[2+[{cross} GT 0]]"]
+    return t1x, t1y, [f"#<_hh_r1x>={t1x}", f"#<_hh_r1y>={t1y}", f"#<_hh_r2x>=[{x1}+{d}*{u2x}]",
+                      f"#<_hh_r2y>=[{y1}+{d}*{u2y}]", f"#<_hh_rcx>=[{t1x}-{r}*{sign}*{u1y}]",
+                      f"#<_hh_rcy>=[{t1y}+{r}*{sign}*{u1x}]", f"#<_hh_rdir>=[2+[{cross} GT 0]]"]
 
 
 def _rnd_chf(st: _State, code: str, start: int, n: int) -> str:
