@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 from ..errors import ParseError
 from .dialects import Dialect
+from .heidenhain_write import write as _write
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
 _BLOCK_NUMBER = re.compile(r"[ \t]*\d+(?=[ \t]|$)[ \t]*")
@@ -239,12 +240,14 @@ def blank(text: str, file: str = "<string>") -> tuple[tuple[float, float, float]
 
 
 def _tool_call(st: _State, code: str, start: int, n: int) -> str:
-    """TOOL CALL n Z S.. F.. DL.. (§ 6.3): tool change, spindle speed, the feed (modal, and FAUTO's)."""
+    """TOOL CALL n Z S.. F.. DL.. (§ 6.3): tool change, spindle speed, the feed (modal, and FAUTO's);
+    without a tool number (TOOL CALL Z S..) only the spindle speed changes."""
     tokens = _split(code, start, 0, n)
-    if not tokens.words or not re.fullmatch(r"\d+", tokens.words[0][0]):
-        text, col = tokens.words[0] if tokens.words else ("", start + 1)
-        raise _error(st, n, col, text, "TOOL CALL needs a tool number", "TOOL CALL <number> Z S..")
-    words = [f"T{tokens.words.pop(0)[0]} M6 G43"]
+    if tokens.words and tokens.words[0][0].startswith('"'):
+        text, col = tokens.words[0]
+        raise _error(st, n, col, text, "a tool called by name: the job describes tools by number",
+                     "TOOL CALL <number> Z S..")
+    words = [f"T{tokens.words.pop(0)[0]} M6 G43"] if tokens.words and tokens.words[0][0].isdigit() else []
     axis = [w for w in tokens.words if re.fullmatch(r"[XYZ]", w[0])]
     if axis and axis[0][0] != "Z":
         raise _error(st, n, axis[0][1], axis[0][0], "tool axis other than Z is not supported", "Z")
@@ -283,8 +286,22 @@ def _cycl_def(st: _State, code: str, start: int, n: int) -> str:
         return _comment(f"CYCL DEF {code[start:].strip()}")
     if number in ("7.1", "7.2", "7.3"):
         return _datum_shift(st, tokens, number)
+    if number in ("9", "9.0"):
+        return _comment(f"CYCL DEF {code[start:].strip()}")
+    if number == "9.1":
+        return _dwell(st, tokens)
     raise _error(st, n, tokens.words[0][1] if tokens.words else start + 1, number,
                  f"CYCL DEF {number} is not supported", "CYCL DEF 32 TOLERANCE")
+
+
+def _dwell(st: _State, tokens: _Tokens) -> str:
+    """CYCL DEF 9.1 DWELL s (cycle 9, active where defined): a dwell of s seconds."""
+    words = tokens.words[1:]
+    value = words[-1][0] if words else ""
+    if not re.fullmatch(rf"{_NUMBER}|Q[LR]?\d+", value, re.IGNORECASE) or len(words) > 2:
+        raise _error(st, tokens.line, words[-1][1] if words else 1, value, "malformed dwell",
+                     "CYCL DEF 9.1 DWELL <seconds>")
+    return f"G4 P{_value(value)}"
 
 
 def _datum_shift(st: _State, tokens: _Tokens, number: str) -> str:
@@ -838,6 +855,6 @@ def set_feed(line: str, f: str | None) -> str:
 
 HEIDENHAIN = Dialect(
     "heidenhain", comment="semicolon", end_code="M30", line_numbers=1, g43_without_h=True,
-    translate=translate, set_feed=set_feed,
+    translate=translate, set_feed=set_feed, write=_write,
     markers=(r"BEGIN\s+PGM", r"TOOL\s+CALL", r"BLK\s+FORM", r"^\s*\d+\s+L\s", r"\bFMAX\b", r"END\s+PGM",
              r"^\s*%\w+\s+G7[01]\s*\*", r"\s\*\s*$"))
