@@ -36,8 +36,9 @@ _FEED = re.compile(rf"F({_NUMBER}|MAX|AUTO)$")
 _M = re.compile(r"M(\d+)$")
 _PASSED_M = {0, 1, 2, 3, 4, 5, 8, 9, 30}
 _NOOP_M = {126: "shortest rotary path", 127: "rotary path as programmed", 129: "TCPM off"}
-_REFUSED_M = {128: "TCPM (tool centre point management) is not supported", 140: "M140 (retract along the tool "
-              "axis by MB) is not supported", 118: "M118 (handwheel superimposition) is not supported"}
+_REFUSED_M = {128: "TCPM (tool centre point management) is not supported",
+              140: "M140 (retract along the tool axis) on a block that moves", 118: "M118 (handwheel "
+              "superimposition) is not supported"}
 _REFUSED = [
     (re.compile(r"PLANE\b"), "tilted working planes (PLANE) are not supported", "a 3-axis program"),
     (re.compile(r"FUNCTION\s+TCPM\b"), "TCPM is not supported", "a 3-axis program"),
@@ -62,6 +63,8 @@ class _State:
     labels: dict[int, str] = field(default_factory=dict)  # line → the NGC control line of a LBL/CALL LBL
     lines: list[str] = field(default_factory=list)  # the program's lines (RND/CHF look ahead)
     corner: int = 0  # the line of the RND/CHF whose points the last L block computed
+    cycle: int = 0  # the drilling cycle defined (200, 203, 205; 0: none)
+    cycle_q: dict[int, float | str | None] = field(default_factory=dict)  # its parameters as written
 
 
 def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
@@ -91,11 +94,12 @@ _NUMBER_TOKEN = re.compile(rf"{_NUMBER}$")
 
 def _split(code: str, start: int, offset: int, line: int) -> _Tokens:
     """The whitespace-separated words of `code` from index `start` (columns offset by `offset`); an
-    axis letter apart from its number (``Z 25.000``, as some posts write) is one word."""
+    axis letter apart from its number (``Z 25.000``) and ``F MAX``, as some posts write, are one word."""
     words: list[tuple[str, int]] = []
     for m in _TOKEN.finditer(code, start):
         text = m.group()
-        if words and _NUMBER_TOKEN.match(text) and _LONE_AXIS.match(words[-1][0]):
+        if words and ((_NUMBER_TOKEN.match(text) and _LONE_AXIS.match(words[-1][0]))
+                      or (words[-1][0] == "F" and text in ("MAX", "AUTO"))):  # "F MAX", as some posts write
             words[-1] = (words[-1][0] + text, words[-1][1])
         else:
             words.append((text, m.start() + 1 + offset))
@@ -135,10 +139,12 @@ def translate(text: str, file: str) -> str:
 
 
 def _line(st: _State, raw: str, n: int) -> str:
-    """One Klartext block as one NGC line."""
+    """One Klartext block as one NGC line (a block continued on the next line with ``~``, as the TNC 640
+    writes cycle definitions, is read line by line: each of its lines is whole)."""
     code, _, note = raw.partition(";")
+    code, note = code.rstrip().removesuffix("~"), note.rstrip().removesuffix("~")
     m = _BLOCK_NUMBER.match(code)
-    start = m.end() if m else 0
+    start = m.end() if m else len(code) - len(code.lstrip())
     body = code[start:].rstrip()
     comment = _comment(note)
     if not body or body.startswith("*"):
@@ -286,12 +292,60 @@ def _cycl_def(st: _State, code: str, start: int, n: int) -> str:
         return _comment(f"CYCL DEF {code[start:].strip()}")
     if number in ("7.1", "7.2", "7.3"):
         return _datum_shift(st, tokens, number)
+    if number in ("200", "203", "205"):
+        st.cycle, st.cycle_q = int(number), {}
+        return _comment(f"CYCL DEF {code[start:].strip()}")
     if number in ("9", "9.0"):
         return _comment(f"CYCL DEF {code[start:].strip()}")
     if number == "9.1":
         return _dwell(st, tokens)
     raise _error(st, n, tokens.words[0][1] if tokens.words else start + 1, number,
                  f"CYCL DEF {number} is not supported", "CYCL DEF 32 TOLERANCE")
+
+
+_CYCLE_DEFAULTS = {200: {210: 0.0, 211: 0.0}, 203: {210: 0.0, 211: 0.0, 212: 0.0, 213: 0.0, 395: 0.0},
+                   205: {211: 0.0, 212: 0.0, 257: 0.0, 379: 0.0, 395: 0.0}}
+_CYCLE_REFUSED = {210: "a dwell at the top (Q210)", 212: "a plunging depth decrement (Q212)",
+                  379: "a deepened starting point (Q379)", 395: "depth measured to the full diameter (Q395=1)"}
+
+
+def _drill(st: _State, n: int, column: int, xy: list[str]) -> str:
+    """The drilling cycle defined (200 DRILLING, 203 UNIVERSAL DRILLING, 205 UNIVERSAL PECKING), called
+    here, as one RS-274 drilling cycle: from the set-up clearance R = Q203 + Q200 to the depth
+    Z = Q203 + Q201 at F = Q206, in pecks of Q202 (G83, full retracts to R) or in one plunge (G81; G82
+    with the dwell at depth Q211), retracting to the set-up clearance (G99), or where the 2nd set-up
+    clearance Q204 is higher, to the height the tool came from (G98: the program positions there).
+    Chip breaking (Q213, Q257) is run as full retracts: the same cut, other moves in the air."""
+    if not st.cycle:
+        raise _error(st, n, column, "CYCL CALL", "a cycle call with no cycle defined", "CYCL DEF 200/203/205 before it")
+    q = {**_CYCLE_DEFAULTS[st.cycle], **st.cycle_q}
+    missing = [k for k in (200, 201, 202, 203, 204, 206) if not isinstance(q.get(k), float)]
+    if missing:
+        raise _error(st, n, column, f"Q{missing[0]}", f"cycle {st.cycle} needs Q{missing[0]} as a number",
+                     f"Q{missing[0]}=<number> in the CYCL DEF")
+    for k, what in _CYCLE_REFUSED.items():
+        if q.get(k, 0.0) not in (0.0, None) or (k in q and q[k] is None):
+            raise _error(st, n, column, f"Q{k}", f"cycle {st.cycle} with {what} is not supported", f"Q{k}=0")
+    if q[201] >= 0:
+        raise _error(st, n, column, "Q201", "a drilling depth Q201 that is not negative", "Q201 < 0")
+    peck = 0 < q[202] < -q[201]
+    if peck and q[211]:
+        raise _error(st, n, column, "Q211", "a dwell at depth (Q211) with pecking is not supported", "Q211=0")
+    code = "G83" if peck else "G82" if q[211] else "G81"
+    words = [f"{'G98' if q[204] > q[200] else 'G99'} {code}", *xy, f"Z{q[203] + q[201]:g}", f"R{q[203] + q[200]:g}"]
+    words += [f"Q{q[202]:g}"] if peck else [f"P{q[211]:g}"] if q[211] else []
+    retract = "#<_hh_z>" if q[204] > q[200] else f"{q[203] + q[200]:g}"
+    return " ".join([*words, f"F{q[206]:g}", f"#<_hh_z>={retract}"])
+
+
+def _cycl_call(st: _State, code: str, start: int, n: int) -> str:
+    """CYCL CALL (M..): the cycle defined, here (see `_drill`)."""
+    tokens = _split(code, start, 0, n)
+    if tokens.words and tokens.words[0][0].upper() == "POS":
+        raise _error(st, n, tokens.words[0][1], "POS", "CYCL CALL POS is not supported", "L X.. Y.. FMAX M99")
+    words, _ = _m_words(st, tokens)
+    _no_more(st, tokens, "CYCL CALL M..")
+    return " ".join([_drill(st, n, start - 3, []), *words])
 
 
 def _dwell(st: _State, tokens: _Tokens) -> str:
@@ -330,6 +384,8 @@ def _m_words(st: _State, tokens: _Tokens) -> tuple[list[str], bool]:
             words += [f"M{code - 10}", "M8"]
         elif code in (91, 92):
             machine = True
+        elif code == 99:
+            words.append("M99")
         elif code in _NOOP_M:
             words.append(f"(M{code}: {_NOOP_M[code]})")
         elif code in _REFUSED_M:
@@ -408,9 +464,33 @@ def _assigns(targets: dict[str, str]) -> list[str]:
     return [f"{_AXIS_PARAM[a]}={e}" for a, e in targets.items()]
 
 
+def _retract(st: _State, tokens: _Tokens) -> str | None:
+    """L M140 MB MAX|MB <distance> (§ M functions): a rapid up the tool axis, to the top of its travel
+    (machine Z0, as G53 Z0) or by the distance; None when the block has no M140."""
+    at = next((k for k, (t, _) in enumerate(tokens.words) if t.upper() == "M140"), None)
+    if at is None:
+        return None
+    rest = tokens.words[at + 1:]
+    mb = "".join(t for t, _ in rest[:2]).upper() if rest and rest[0][0].upper().startswith("MB") else ""
+    others = [w for k, w in enumerate(tokens.words) if k != at and not (mb and k in (at + 1, at + 2) and
+                                                                          "MB" in "".join(t for t, _ in rest[:k - at]).upper())]
+    m = re.fullmatch(rf"MB(MAX|{_NUMBER})", mb)
+    if not m or any(not re.fullmatch(r"R0|FMAX|F\s*MAX", t, re.IGNORECASE) for t, _ in others):
+        text, col = tokens.words[at]
+        raise _error(st, tokens.line, col, text, "M140 on a block that moves, or without MB",
+                     "L M140 MB MAX or L M140 MB <distance>")
+    if m.group(1) == "MAX":
+        st.unknown.add("Z")
+        return "G53 G0 Z0"
+    return f"G0 Z[#<_hh_z>+{_value(m.group(1))}] #<_hh_z>=[#<_hh_z>+{_value(m.group(1))}]"
+
+
 def _l(st: _State, code: str, start: int, n: int) -> str:
     """L X.. Y.. Z.. R0|RL|RR F..|FMAX|FAUTO M.. (§ 7.4): a straight line, or a rapid with FMAX."""
     tokens = _split(code, start, 0, n)
+    retract = _retract(st, tokens)
+    if retract:
+        return retract
     targets = _targets(st, tokens, "XYZ")
     feed, words, machine = _contour_words(st, tokens)
     _no_more(st, tokens, "L X.. Y.. Z.. R0|RL|RR F..|FMAX M..")
@@ -423,6 +503,8 @@ def _l(st: _State, code: str, start: int, n: int) -> str:
         st.unknown |= set(targets)  # where the program's frame puts these axes now is not tracked
         return " ".join(["G53", motion, *coords, *words])
     st.unknown -= set(targets)
+    if "M99" in words:  # position, then call the cycle (§ cycles: M99 calls it in this block)
+        return _l_cycle_call(st, n, start, targets, feed, words)
     if not targets:  # L with only F or M functions: no motion (FMAX alone moves nowhere)
         return " ".join([*_pre(words), *([feed] if feed else []), *_post(words)])
     tangent = []
@@ -434,6 +516,17 @@ def _l(st: _State, code: str, start: int, n: int) -> str:
         coords, tangent = [f"X{corner[0]}", f"Y{corner[1]}"], tangent + corner[2]
     return " ".join([*_pre(words), motion, *coords, *([feed] if feed else []), *_post(words),
                      *_assigns(targets), *tangent])
+
+
+def _l_cycle_call(st: _State, n: int, start: int, targets: dict[str, str], feed: str | None,
+                  words: list[str]) -> str:
+    """L X.. Y.. FMAX M99: the cycle at that point (the RS-274 cycle makes the rapid to it)."""
+    if "Z" in targets or (feed is not None and targets):
+        raise _error(st, n, start + 1, "M99", "M99 on a block that moves Z or feeds to the hole",
+                     "L X.. Y.. FMAX M99 (the cycle moves Z)")
+    rest = [w for w in words if w != "M99"]
+    xy = [f"{a}{e}" for a, e in targets.items()]
+    return " ".join([*_pre(rest), _drill(st, n, start + 1, xy), *_post(rest), *_assigns(targets)])
 
 
 def _pre(words: list[str]) -> list[str]:
@@ -696,6 +789,13 @@ def _q_assign(st: _State, code: str, start: int, n: int) -> str:
     a = _ASSIGN.match(code, start)
     if not a:
         raise _error(st, n, start + 1, code[start:].split()[0], "a Q parameter block without =", "Q<n> = <formula>")
+    value = code[a.end():].strip()
+    number = int(re.sub(r"\D", "", a.group(1)))
+    if st.cycle and a.group(1).upper().startswith("Q") and a.group(1)[1].isdigit():
+        literal = re.fullmatch(_NUMBER, value)
+        st.cycle_q[number] = float(value) if literal else value.upper() if value.upper() == "MAX" else None
+    if value.upper() == "MAX":  # a cycle's feed at rapid traverse (Q208= MAX)
+        return _comment(f"{a.group(1)} = MAX")
     return f"{_param(a.group(1))}={_formula(st, code[a.end():], a.end(), n)}"
 
 
@@ -821,6 +921,7 @@ _PREFIXED = [
     ("TOOL CALL", lambda st, code, s, n: _tool_call(st, code, s + code[s:].upper().index("CALL") + 4, n)),
     ("TOOL DEF", lambda st, code, s, n: _tool_def(st, code, s + code[s:].upper().index("DEF") + 3, n)),
     ("CYCL DEF", lambda st, code, s, n: _cycl_def(st, code, s + code[s:].upper().index("DEF") + 3, n)),
+    ("CYCL CALL", lambda st, code, s, n: _cycl_call(st, code, s + code[s:].upper().index("CALL") + 4, n)),
     ("M", _m_only),
     ("FN", lambda st, code, s, n: _fn(st, code, s, n)),
     ("Q", lambda st, code, s, n: _q_assign(st, code, s, n)),
