@@ -410,3 +410,65 @@ def test_write_back_with_repeats_and_computed_arcs():
     assert same_path(program, again) == []
     assert [ln.split(" F")[0] for ln in out.splitlines()] == [ln.split(" F")[0] for ln in LOOPED.splitlines()]
     assert "16 L Z+10 FMAX" in out.splitlines()
+
+
+CYCLE = """0 BEGIN PGM D MM
+1 TOOL CALL 1 Z S3000
+2 L X+10 Y+10 Z+20 R0 FMAX M3
+3 CYCL DEF 200 DRILLING ~
+  Q200=+2 ;SET-UP CLEARANCE ~
+  Q201=-15 ;DEPTH ~
+  Q206=+150 ;FEED RATE FOR PLNGNG ~
+  Q202={peck} ;PLUNGING DEPTH ~
+  Q210=+0 ;DWELL TIME AT TOP ~
+  Q203=+1 ;SURFACE COORDINATE ~
+  Q204={second} ;2ND SET-UP CLEARANCE ~
+  Q211={dwell} ;DWELL TIME AT DEPTH
+12 L FMAX M99
+13 L X+30 FMAX M99
+14 CYCL CALL
+15 END PGM D MM
+"""
+
+
+@pytest.mark.parametrize("peck, second, dwell, ngc", [
+    ("+15", "+2", "+0", "G99 G81 Z-14 R3 F150"),
+    ("+15", "+2", "+0.5", "G99 G82 Z-14 R3 P0.5 F150"),
+    ("+5", "+2", "+0", "G99 G83 Z-14 R3 Q5 F150"),
+    ("+5", "+19", "+0", "G98 G83 Z-14 R3 Q5 F150"),
+])
+def test_drilling_cycle_200_runs_as_the_rs274_cycle(peck, second, dwell, ngc):
+    """Cycle 200 DRILLING (TNC 640 cycles manual, cycle 200): rapid to the set-up clearance Q200 above
+    the surface Q203, drill at Q206 to Q203 + Q201 in infeeds of Q202 (one when Q202 ≥ the depth),
+    dwell Q211 at depth, retract to the set-up clearance (here from Z20 when the 2nd set-up
+    clearance is Q203 + Q204 = Z20). M99 on a positioning block and CYCL CALL call it."""
+    text = CYCLE.format(peck=peck, second=second, dwell=dwell)
+    by_hand = f"""G21 G90 G17
+T1 M6 G43 S3000
+G0 X10 Y10 Z20 M3
+{ngc.replace(" Z", " X10 Y10 Z", 1)}
+{ngc.replace(" Z", " X30 Z", 1)}
+{ngc}
+M2
+"""
+    a, b = _read(text).toolpath, read_text(by_hand, "d.ngc", ReaderOptions(dialect="linuxcnc")).toolpath
+    assert len(a) == len(b) and np.abs(a.end - b.end).max() < 1e-9
+    assert np.array_equal(a.kind, b.kind) and np.allclose(a.feed_mm_min, b.feed_mm_min, equal_nan=True)
+    bottom = a.end[:, 2].min()
+    assert bottom == pytest.approx(1 - 15)
+
+
+def test_cycle_parameters_not_modelled_are_refused():
+    text = CYCLE.format(peck="+5", second="+2", dwell="+0").replace("Q210=+0", "Q210=+1")
+    with pytest.raises(ParseError, match="dwell at the top") as e:
+        _read(text, "d.h")
+    assert (e.value.line, e.value.column, e.value.word) == (9, 3, "Q210")  # where Q210 is set
+
+
+def test_fusion_style_tool_change_retract_and_f_max():
+    """L M140 MB MAX (retract to the top of the tool axis) and "F MAX" written apart, as posts do."""
+    text = "0 BEGIN PGM F MM\n1 TOOL CALL 3 Z S5000\n2 L M140 MB MAX\n3 L X+5 Y+5 R0 F MAX\n4 L Z+2 FMAX\n" \
+           "5 L M140 MB+10\n6 END PGM F MM\n"
+    tp = _read(text).toolpath
+    assert tp.kind.tolist() == [RAPID] * 4
+    assert np.allclose(tp.end[-1], [5, 5, 12])

@@ -65,6 +65,7 @@ class _State:
     corner: int = 0  # the line of the RND/CHF whose points the last L block computed
     cycle: int = 0  # the drilling cycle defined (200, 203, 205; 0: none)
     cycle_q: dict[int, float | str | None] = field(default_factory=dict)  # its parameters as written
+    cycle_at: dict[int, tuple[int, int]] = field(default_factory=dict)  # their lines and columns
 
 
 def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
@@ -293,7 +294,7 @@ def _cycl_def(st: _State, code: str, start: int, n: int) -> str:
     if number in ("7.1", "7.2", "7.3"):
         return _datum_shift(st, tokens, number)
     if number in ("200", "203", "205"):
-        st.cycle, st.cycle_q = int(number), {}
+        st.cycle, st.cycle_q, st.cycle_at = int(number), {}, {}
         return _comment(f"CYCL DEF {code[start:].strip()}")
     if number in ("9", "9.0"):
         return _comment(f"CYCL DEF {code[start:].strip()}")
@@ -321,16 +322,21 @@ def _drill(st: _State, n: int, column: int, xy: list[str]) -> str:
     q = {**_CYCLE_DEFAULTS[st.cycle], **st.cycle_q}
     missing = [k for k in (200, 201, 202, 203, 204, 206) if not isinstance(q.get(k), float)]
     if missing:
-        raise _error(st, n, column, f"Q{missing[0]}", f"cycle {st.cycle} needs Q{missing[0]} as a number",
+        line, col = st.cycle_at.get(missing[0], (n, column))
+        raise _error(st, line, col, f"Q{missing[0]}", f"cycle {st.cycle} needs Q{missing[0]} as a number",
                      f"Q{missing[0]}=<number> in the CYCL DEF")
+    def refuse(k: int, message: str, expected: str) -> ParseError:
+        line, col = st.cycle_at.get(k, (n, column))
+        return _error(st, line, col, f"Q{k}", message, expected)
+
     for k, what in _CYCLE_REFUSED.items():
-        if q.get(k, 0.0) not in (0.0, None) or (k in q and q[k] is None):
-            raise _error(st, n, column, f"Q{k}", f"cycle {st.cycle} with {what} is not supported", f"Q{k}=0")
+        if k in q and q[k] != 0.0:
+            raise refuse(k, f"cycle {st.cycle} with {what} is not supported", f"Q{k}=0")
     if q[201] >= 0:
-        raise _error(st, n, column, "Q201", "a drilling depth Q201 that is not negative", "Q201 < 0")
+        raise refuse(201, "a drilling depth Q201 that is not negative", "Q201 < 0")
     peck = 0 < q[202] < -q[201]
     if peck and q[211]:
-        raise _error(st, n, column, "Q211", "a dwell at depth (Q211) with pecking is not supported", "Q211=0")
+        raise refuse(211, "a dwell at depth (Q211) with pecking is not supported", "Q211=0")
     code = "G83" if peck else "G82" if q[211] else "G81"
     words = [f"{'G98' if q[204] > q[200] else 'G99'} {code}", *xy, f"Z{q[203] + q[201]:g}", f"R{q[203] + q[200]:g}"]
     words += [f"Q{q[202]:g}"] if peck else [f"P{q[211]:g}"] if q[211] else []
@@ -794,6 +800,7 @@ def _q_assign(st: _State, code: str, start: int, n: int) -> str:
     if st.cycle and a.group(1).upper().startswith("Q") and a.group(1)[1].isdigit():
         literal = re.fullmatch(_NUMBER, value)
         st.cycle_q[number] = float(value) if literal else value.upper() if value.upper() == "MAX" else None
+        st.cycle_at[number] = (n, a.start() + 1)
     if value.upper() == "MAX":  # a cycle's feed at rapid traverse (Q208= MAX)
         return _comment(f"{a.group(1)} = MAX")
     return f"{_param(a.group(1))}={_formula(st, code[a.end():], a.end(), n)}"
