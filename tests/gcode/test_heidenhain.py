@@ -472,3 +472,51 @@ def test_fusion_style_tool_change_retract_and_f_max():
     tp = _read(text).toolpath
     assert tp.kind.tolist() == [RAPID] * 4
     assert np.allclose(tp.end[-1], [5, 5, 12])
+
+
+ISO = """%DRILL G71 *
+N10 G30 G17 X+0 Y+0 Z-20 *
+N20 G31 G90 X+100 Y+100 Z+0 *
+N30 T1 G17 S3000 *
+N40 G00 G40 G90 Z+100 M03 *
+N50 X+10 Y+10 *
+N60 G01 Z-5 F200 *
+N70 I+50 J+10 *
+N80 G03 X+90 Y+10 F500 *
+N90 X+10 Y+10 *
+N100 G02 X+30 Y+30 R+20 *
+N110 G00 Z+100 M30 *
+N99999999 %DRILL G71 *
+"""
+
+
+def test_iso_mode_reads_as_its_rs274_equivalent():
+    """ISO programs (TNC 640 manual, ISO programming): blocks end in *, %name G71 * begins and ends
+    the program, I/J are the circle centre in absolute coordinates and stay in force, T n G17 S.. calls
+    the tool."""
+    assert detect(ISO).name == "heidenhain"
+    by_hand = """G21 G90 G17
+(blank)
+(blank)
+T1 M6 G43 S3000
+G0 Z100 M3
+X10 Y10
+G1 Z-5 F200
+(centre)
+G3 X90 Y10 I40 J0 F500
+X10 Y10 I-40 J0
+G2 X30 Y30 R20
+G0 Z100 M30
+"""
+    a = read_text(ISO, "d.h").toolpath
+    b = read_text(by_hand, "d.ngc", ReaderOptions(dialect="linuxcnc")).toolpath
+    assert a.line.tolist() == b.line.tolist() and np.abs(a.end - b.end).max() < 1e-9
+    assert np.abs(a.center[a.kind >= ARC_CW] - b.center[b.kind >= ARC_CW]).max() < 1e-9
+    assert set_feed("N60 G01Z-5F200*", "150") == "N60 G01Z-5F150*"
+    assert set_feed("N50 X+10 Y+10 *", "150") == "N50 X+10 Y+10 F150 *"
+
+
+def test_iso_mode_refuses_what_it_does_not_read():
+    with pytest.raises(ParseError, match="G6 is not supported") as e:
+        read_text(ISO.replace("N90 X+10 Y+10 *", "N90 G06 X+10 Y+10 *"), "d.h")
+    assert (e.value.line, e.value.column, e.value.word) == (10, 5, "G06")

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 from ..errors import ParseError
 from .dialects import Dialect
+from . import heidenhain_iso as iso
 from .heidenhain_write import write as _write
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
@@ -130,6 +131,8 @@ def translate(text: str, file: str) -> str:
     """The Klartext program `text` as RS-274/NGC, line for line (see the module docstring)."""
     st = _State(file)
     lines = text.split("\n")
+    if iso.is_iso(lines):
+        return iso.translate(lines, file)
     st.labels, st.lines = _label_plan(st, lines), lines
     first = _next_block(st, 0)
     if first is None or not first[1][first[2]:].upper().startswith("BEGIN PGM"):
@@ -934,15 +937,15 @@ _PREFIXED = [
     ("Q", lambda st, code, s, n: _q_assign(st, code, s, n)),
 ]
 
-_F_WORD = re.compile(rf"(?<=\s)F{_NUMBER}(?=\s|$)")
-_F_ANY = re.compile(r"(?<=\s)F(?:MAX|AUTO)(?=\s|$)")
-_M_WORD = re.compile(r"(?<=\s)M\d+(?=\s|$)")
+_F_WORD = re.compile(rf"(?<![A-Za-z])F\s*{_NUMBER}(?![\d.])")
+_F_ANY = re.compile(r"(?<![A-Za-z])F\s*(?:MAX|AUTO)\b")
+_M_WORD = re.compile(r"(?<![A-Za-z])M\d+")
 
 
 def set_feed(line: str, f: str | None) -> str:
-    """The Klartext block `line` with its F word's number `f` (in place; added before the M functions
-    and the comment when the block has none), or without its F when `f` is None. FMAX/FAUTO blocks
-    and blocks that are not L/C/CR/CT keep every byte."""
+    """The block `line` (Klartext or ISO) with its F word's number `f` (in place; added before the M
+    functions, the ISO ``*`` and the comment when the block has none), or without its F when `f` is
+    None. FMAX/FAUTO blocks keep every byte."""
     code, sep, note = line.partition(";")
     if _F_ANY.search(code):
         return line
@@ -955,7 +958,8 @@ def set_feed(line: str, f: str | None) -> str:
     if hit:
         return code[:hit.start()] + f"F{f}" + code[hit.end():] + sep + note
     m = _M_WORD.search(code)
-    at = m.start() if m else len(code.rstrip(" \t"))
+    star = re.search(r"\*\s*$", code)
+    at = m.start() if m else star.start() if star else len(code.rstrip(" \t"))
     tail = code[at:]
     rest = " " + tail.lstrip(" \t") if tail.strip() else tail
     return code[:at].rstrip(" \t") + f" F{f}{rest}" + sep + note
