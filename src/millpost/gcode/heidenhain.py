@@ -777,6 +777,8 @@ _ASSIGN = re.compile(r"(Q[LR]?\d+)\s*=\s*", re.IGNORECASE)
 def _fn(st: _State, code: str, start: int, n: int) -> str:
     """FN 0: Q1 = a (assign), FN 1/2/3/4: Q1 = a +|-|*|/ b (§ 9.3); other FN functions are refused."""
     m = _FN.match(code, start)
+    if not m:
+        raise _error(st, n, start + 1, code[start:].split()[0], "malformed FN block", "FN <number>: Q<n> = ..")
     number = int(m.group(1))
     if number not in _FN_OPS:
         raise _error(st, n, start + 1, m.group().strip(), f"FN {number} is not supported (only arithmetic: no "
