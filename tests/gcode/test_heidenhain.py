@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from millpost.emit.write import FeedPlan, write_feeds
-from millpost.errors import ParseError
+from millpost.errors import MillpostError, ParseError
 from millpost.gcode import ReaderOptions, read_text
 from millpost.gcode.convert import same_path
 from millpost.gcode.dialects import detect
@@ -520,3 +520,31 @@ def test_iso_mode_refuses_what_it_does_not_read():
     with pytest.raises(ParseError, match="G6 is not supported") as e:
         read_text(ISO.replace("N90 X+10 Y+10 *", "N90 G06 X+10 Y+10 *"), "d.h")
     assert (e.value.line, e.value.column, e.value.word) == (10, 5, "G06")
+
+
+def test_comment_continued_with_tilde_and_cycle_feed_from_a_parameter():
+    """A comment broken with ~ goes on in the next line (as Fusion 360 writes its header); a cycle's
+    feed Q206 may be a Q parameter (Q206=Q2, as hyperMILL writes); the feed of a cycle call is not
+    rewritten in the calling block (it is Q206's)."""
+    text = """0 BEGIN PGM D MM
+1 ; a long description of the machine~
+ Head
+2 TOOL CALL 5 Z S943
+3 FN 0:Q2=75 ; Z FEED RATE
+4 L X+0 Y+0 Z+50 R0 F MAX M3
+5 CYCL DEF 200 DRILLING~
+    Q200=5 ;SET-UP CLEARANCE~
+    Q201=-15 ;DEPTH~
+    Q206=Q2 ;FEED RATE FOR PLUNGING~
+    Q202=15 ;PLUNGING DEPTH~
+    Q210=0 ;DWELL TIME AT TOP~
+    Q203=0 ;SURFACE COORDINATE~
+    Q204=50 ;2ND SET-UP CLEARANCE~
+    Q211=0 ;DWELL TIME AT BOTTOM
+6 L X+10 Y+10 R0 F MAX M99
+7 END PGM D MM
+"""
+    tp = _read(text).toolpath
+    assert set(tp.feed_mm_min[tp.kind == FEED]) == {75.0} and tp.end[:, 2].min() == -15
+    with pytest.raises(MillpostError, match="Q206"):
+        set_feed("6 L X+10 Y+10 R0 F MAX M99", "60")

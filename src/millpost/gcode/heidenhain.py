@@ -22,7 +22,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from ..errors import ParseError
+from ..errors import MillpostError, ParseError
 from .dialects import Dialect
 from . import heidenhain_iso as iso
 from .heidenhain_write import write as _write
@@ -133,6 +133,7 @@ def translate(text: str, file: str) -> str:
     lines = text.split("\n")
     if iso.is_iso(lines):
         return iso.translate(lines, file)
+    lines = _comment_continuations(lines)
     st.labels, st.lines = _label_plan(st, lines), lines
     first = _next_block(st, 0)
     if first is None or not first[1][first[2]:].upper().startswith("BEGIN PGM"):
@@ -140,6 +141,18 @@ def translate(text: str, file: str) -> str:
         raise _error(st, n, start + 1, code[start:].strip()[:20], "a Klartext program starts with BEGIN PGM",
                      "BEGIN PGM <name> MM|INCH")
     return "\n".join(_line(st, raw.rstrip("\r"), n) for n, raw in enumerate(lines, 1))
+
+
+def _comment_continuations(lines: list[str]) -> list[str]:
+    """The lines with a comment continued on the next line (a comment line ending in ``~``, as the
+    TNC 640 and Fusion 360 break long comments) marked as comments (``;`` put in front)."""
+    out, continued = [], False
+    for raw in lines:
+        out.append(";" + raw if continued else raw)
+        code, _, note = raw.partition(";")
+        m = _BLOCK_NUMBER.match(code)
+        continued = (continued or not code[m.end() if m else 0:].strip()) and raw.rstrip().endswith("~")
+    return out
 
 
 def _line(st: _State, raw: str, n: int) -> str:
@@ -323,7 +336,8 @@ def _drill(st: _State, n: int, column: int, xy: list[str]) -> str:
     if not st.cycle:
         raise _error(st, n, column, "CYCL CALL", "a cycle call with no cycle defined", "CYCL DEF 200/203/205 before it")
     q = {**_CYCLE_DEFAULTS[st.cycle], **st.cycle_q}
-    missing = [k for k in (200, 201, 202, 203, 204, 206) if not isinstance(q.get(k), float)]
+    missing = [k for k in (200, 201, 202, 203, 204) if not isinstance(q.get(k), float)]
+    missing += [206] if 206 not in q else []
     if missing:
         line, col = st.cycle_at.get(missing[0], (n, column))
         raise _error(st, line, col, f"Q{missing[0]}", f"cycle {st.cycle} needs Q{missing[0]} as a number",
@@ -344,7 +358,8 @@ def _drill(st: _State, n: int, column: int, xy: list[str]) -> str:
     words = [f"{'G98' if q[204] > q[200] else 'G99'} {code}", *xy, f"Z{q[203] + q[201]:g}", f"R{q[203] + q[200]:g}"]
     words += [f"Q{q[202]:g}"] if peck else [f"P{q[211]:g}"] if q[211] else []
     retract = "#<_hh_z>" if q[204] > q[200] else f"{q[203] + q[200]:g}"
-    return " ".join([*words, f"F{q[206]:g}", f"#<_hh_z>={retract}"])
+    feed = f"F{q[206]:g}" if isinstance(q[206], float) else "F#<_q206>"  # Q206=Q2: the parameter's value
+    return " ".join([*words, feed, f"#<_hh_z>={retract}"])
 
 
 def _cycl_call(st: _State, code: str, start: int, n: int) -> str:
@@ -947,8 +962,12 @@ _M_WORD = re.compile(r"(?<![A-Za-z])M\d+")
 def set_feed(line: str, f: str | None) -> str:
     """The block `line` (Klartext or ISO) with its F word's number `f` (in place; added before the M
     functions, the ISO ``*`` and the comment when the block has none), or without its F when `f` is
-    None. FMAX/FAUTO blocks keep every byte."""
+    None. FMAX/FAUTO blocks keep every byte; a block that calls a drilling cycle (M99, CYCL CALL) is
+    refused: its feed is the cycle's Q206, on another line."""
     code, sep, note = line.partition(";")
+    if re.search(r"(?<![A-Za-z])M99\b|CYCL\s+CALL", code, re.IGNORECASE):
+        raise MillpostError(f"{line.strip()!r}: the feed of a drilling cycle is its CYCL DEF's Q206; millpost "
+                            "does not rewrite it (keep the programmed feeds of this cycle)")
     if _F_ANY.search(code):
         return line
     hit = _F_WORD.search(code)
