@@ -494,12 +494,13 @@ def _retract(st: _State, tokens: _Tokens) -> str | None:
     at = next((k for k, (t, _) in enumerate(tokens.words) if t.upper() == "M140"), None)
     if at is None:
         return None
-    rest = tokens.words[at + 1:]
-    mb = "".join(t for t, _ in rest[:2]).upper() if rest and rest[0][0].upper().startswith("MB") else ""
-    others = [w for k, w in enumerate(tokens.words) if k != at and not (mb and k in (at + 1, at + 2) and
-                                                                          "MB" in "".join(t for t, _ in rest[:k - at]).upper())]
+    words = [t.upper() for t, _ in tokens.words]
+    taken = 1 if at + 1 < len(words) and words[at + 1].startswith("MB") else 0
+    taken += 1 if taken and words[at + 1] == "MB" and at + 2 < len(words) else 0  # "MB MAX" apart
+    mb = "".join(words[at + 1:at + 1 + taken])
+    others = words[:at] + words[at + 1 + taken:]
     m = re.fullmatch(rf"MB(MAX|{_NUMBER})", mb)
-    if not m or any(not re.fullmatch(r"R0|FMAX|F\s*MAX", t, re.IGNORECASE) for t, _ in others):
+    if not m or any(t not in ("R0", "FMAX") for t in others):
         text, col = tokens.words[at]
         raise _error(st, tokens.line, col, text, "M140 on a block that moves, or without MB",
                      "L M140 MB MAX or L M140 MB <distance>")
@@ -941,7 +942,8 @@ def _cp(st: _State, code: str, start: int, n: int) -> str:
 
 
 _HANDLERS = {
-    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop, "LP": _lp, "CP": _cp, "RND": _rnd_chf, "CHF": _rnd_chf,
+    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
+    "LP": _lp, "CP": _cp, "RND": _rnd_chf, "CHF": _rnd_chf,
 }
 _PREFIXED = [
     ("BLK FORM", lambda st, code, s, n: _blk_form(st, code, s + code[s:].upper().index("FORM") + 4, n)),
