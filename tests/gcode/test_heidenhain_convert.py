@@ -122,3 +122,13 @@ def test_linuxcnc_to_heidenhain_to_linuxcnc_is_rs274_equal(tmp_path):
     assert [c for c, _ in got] == [c for c, _ in want]
     worst = max(np.abs(np.subtract(g, w)).max() for (_, g), (_, w) in zip(got, want))
     assert worst < 1e-4
+
+
+def test_a_move_that_goes_nowhere_stays_a_move():
+    """Klartext coordinates are modal and only changed ones are written; a move to where the tool is
+    writes them all, so that the converted program has the same moves (calibration plans map their
+    rows to moves by count)."""
+    program = _read("G21 G90\nG0 X1 Y2 Z3\nG1 Z3 F100\nG1 X5\nM2\n", "in.ngc", "linuxcnc")
+    text = convert(program, HH)
+    assert "L X+1 Y+2 Z+3 F100" in text and "L X+5" in text
+    assert len(_read(text, "out.h", "heidenhain").toolpath) == len(program.toolpath)

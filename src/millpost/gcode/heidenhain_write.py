@@ -147,13 +147,16 @@ class _Writer:
             self.out(f"L {coords}{self._f(i)}".replace("  ", " "))
 
     def _coords(self, point: np.ndarray, axes) -> list[str]:
-        """The words of the known axes among `axes` whose text changes (Klartext coordinates are modal)."""
+        """The words of the known axes among `axes` whose text changes (Klartext coordinates are modal);
+        all of them for a move that goes nowhere, so that it stays a move."""
         words = []
         for a in axes:
             text = _num(point[a])
             if self.known[a] and text != self.last[a]:
                 words.append(f"{'XYZ'[a]}{text}")
                 self.last[a] = text
+        if not words:  # a move to where the tool is: still a move (every axis known written again)
+            words = [f"{'XYZ'[a]}{self.last[a]}" for a in axes if self.known[a] and self.last[a] is not None]
         return words
 
     def _f(self, i: int) -> str:
@@ -204,7 +207,7 @@ def write(program: Program) -> str:
     w = _Writer(program)
     name = "".join(c for c in Path(program.path).stem.upper() if c.isalnum() or c in "_-") or "MILLPOST"
     w.out(f"BEGIN PGM {name} MM")
-    w.out(f"; converted by millpost from {Path(program.path).name} ({program.dialect} to heidenhain)")
+    w.out(f"; converted by millpost from {program.path} [{program.dialect} to heidenhain]")  # as `convert` words it
     events, ev = program.events, 0
     for i in range(len(program.toolpath)):
         while ev < len(events) and events[ev].move <= i:
