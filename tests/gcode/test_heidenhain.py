@@ -548,3 +548,13 @@ def test_comment_continued_with_tilde_and_cycle_feed_from_a_parameter():
     assert set(tp.feed_mm_min[tp.kind == FEED]) == {75.0} and tp.end[:, 2].min() == -15
     with pytest.raises(MillpostError, match="Q206"):
         set_feed("6 L X+10 Y+10 R0 F MAX M99", "60")
+
+
+def test_untilted_plane_and_tcpm_off_are_accepted():
+    """PLANE RESET STAY and FUNCTION RESET TCPM put the control in the 3-axis state without moving
+    (NX and hyperMILL write them before each operation); PLANE RESET TURN would move rotary axes."""
+    base = "0 BEGIN PGM T MM\n1 {}\n2 L X+0 Y+0 Z+5 R0 FMAX\n3 END PGM T MM\n"
+    for block in ("PLANE RESET STAY", "FUNCTION RESET TCPM"):
+        assert len(_read(base.format(block)).toolpath) == 1
+    with pytest.raises(ParseError, match="tilted working planes"):
+        _read(base.format("PLANE RESET TURN FMAX"))

@@ -40,6 +40,7 @@ _NOOP_M = {126: "shortest rotary path", 127: "rotary path as programmed", 129: "
 _REFUSED_M = {128: "TCPM (tool centre point management) is not supported",
               140: "M140 (retract along the tool axis) on a block that moves", 118: "M118 (handwheel "
               "superimposition) is not supported"}
+_NO_TILT = re.compile(r"PLANE\s+RESET\s+STAY|FUNCTION\s+RESET\s+TCPM")
 _REFUSED = [
     (re.compile(r"PLANE\b"), "tilted working planes (PLANE) are not supported", "a 3-axis program"),
     (re.compile(r"FUNCTION\s+TCPM\b"), "TCPM is not supported", "a 3-axis program"),
@@ -173,6 +174,8 @@ def _line(st: _State, raw: str, n: int) -> str:
 def _block(st: _State, code: str, start: int, n: int) -> str:
     """The NGC words of the block `code[start:]` (its keyword decides)."""
     body = code[start:].upper()
+    if _NO_TILT.fullmatch(body.strip()):  # the untilted plane / no TCPM: the 3-axis state, nothing moves
+        return _comment(body.strip())
     for pattern, message, expected in _REFUSED:
         hit = pattern.match(body)
         if hit:
