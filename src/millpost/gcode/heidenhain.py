@@ -1,20 +1,25 @@
-"""HEIDENHAIN Klartext (TNC 640/530 conversational) programs, read through a translation to RS-274/NGC.
+"""HEIDENHAIN Klartext (TNC 640/530 conversational) programs, read through a translation to RS-274/NGC;
+ISO programs (``%NAME G71 *``) go to `heidenhain_iso`, and `convert` writes Klartext with
+`heidenhain_write`.
 
 Section numbers cite the HEIDENHAIN TNC 640 user's manual "Klartext programming" (ID 892903):
 § 3.2 program structure (BEGIN PGM / BLK FORM / END PGM), § 6 tools (TOOL CALL, TOOL DEF),
 § 7 contours with Cartesian (L, CC, C, CR, CT, RND, CHF) and polar (LP, CP) coordinates,
-§ 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas).
+§ 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas); the cycles
+manual for CYCL DEF 7 (datum shift), 9 (dwell), 32 (tolerance), 200/203/205 (drilling).
 
 The translation is line for line (`Dialect.translate`): NGC line k runs what Klartext block k does.
 Positions the Klartext semantics need (the last programmed point for incremental ``IX``, the circle
-centre ``CC``/pole, the direction of the last contour element for ``CT``) are kept in named
-parameters the translation assigns on the same line (``#<_hh_x>``, ``#<_hh_ccx>``, ``#<_hh_tx>`` ...),
-so they stay right inside repeats. Q parameter ``Qn`` is ``#<_qn>``. Lengths are in the program's
-units (``BEGIN PGM name MM|INCH``), angles in degrees, feeds in units per minute.
+centre ``CC``/pole, the direction of the last contour element for ``CT``, the datum shift) are kept
+in named parameters the translation assigns on the same line (``#<_hh_x>``, ``#<_hh_ccx>``,
+``#<_hh_tx>``, ``#<_hh_dx>`` ...), so they stay right inside repeats and subprograms. Q parameter
+``Qn`` is ``#<_qn>``. Lengths are in the program's units (``BEGIN PGM name MM|INCH``), angles in
+degrees, feeds in units per minute, dwells in seconds.
 
 Refused, with file:line:column and why: tilted working planes (PLANE, CYCL DEF 19), TCPM (M128,
 FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, feed per tooth or
-revolution (FZ, FU), tool axes other than Z, and any block this reader does not know.
+revolution (FZ, FU), tool axes other than Z, tools called by name, FN functions other than
+arithmetic (FN 9 jumps, FN 18 system data ...), and any block this reader does not know.
 """
 
 from __future__ import annotations
