@@ -558,3 +558,29 @@ def test_untilted_plane_and_tcpm_off_are_accepted():
         assert len(_read(base.format(block)).toolpath) == 1
     with pytest.raises(ParseError, match="tilted working planes"):
         _read(base.format("PLANE RESET TURN FMAX"))
+
+
+def test_tool_call_feed_fauto_cc_alone_and_machine_coordinates():
+    """§ 6.3: the F of TOOL CALL is the feed until a block programs another, and FAUTO's; § 7.4: CC
+    without coordinates takes the last programmed position; M91: the coordinates of the block are
+    machine coordinates (as G53), after which incremental moves of that axis are refused (where the
+    tool is in the program's frame is the machine's business)."""
+    text = """0 BEGIN PGM T MM
+1 TOOL CALL 1 Z S1000 F250
+2 L X+0 Y+0 Z+5 R0 FMAX
+3 L X+10
+4 CC
+5 L X+20 F900
+6 L X+30 FAUTO
+7 C X-10 Y+0 DR+
+8 STOP
+9 L Z+0 FMAX M91
+10 END PGM T MM
+"""
+    program = _read(text)
+    tp, at = program.toolpath, {int(ln): i for i, ln in enumerate(program.toolpath.line)}
+    assert tp.feed_mm_min[at[4]] == 250 and tp.feed_mm_min[at[6]] == 900 and tp.feed_mm_min[at[7]] == 250
+    assert np.allclose(tp.center[at[8], :2], [10, 0]) and tp.kind[at[8]] == ARC_CCW  # about the point of line 3
+    assert any(e.kind == "stop" and e.value == 0 for e in program.events)
+    with pytest.raises(ParseError, match="incremental Z from an unknown position"):
+        _read(text.replace("10 END PGM T MM", "10 L IZ+5 FMAX\n11 END PGM T MM"))
