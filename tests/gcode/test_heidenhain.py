@@ -584,3 +584,11 @@ def test_tool_call_feed_fauto_cc_alone_and_machine_coordinates():
     assert any(e.kind == "stop" and e.value == 0 for e in program.events)
     with pytest.raises(ParseError, match="incremental Z from an unknown position"):
         _read(text.replace("10 END PGM T MM", "10 L IZ+5 FMAX\n11 END PGM T MM"))
+
+
+def test_feed_from_a_q_parameter():
+    """F may name a Q parameter (FQ2, as hyperMILL writes its feeds); the feed written back takes the
+    place of that F word."""
+    text = "0 BEGIN PGM Q MM\n1 FN 0: Q2 = +750\n2 L X+0 Y+0 Z-1 R0 FMAX\n3 L X+10 FQ2\n4 END PGM Q MM\n"
+    assert _read(text).toolpath.feed_mm_min[-1] == 750
+    assert set_feed("3 L X+10 FQ2", "600") == "3 L X+10 F600"

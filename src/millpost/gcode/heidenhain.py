@@ -38,7 +38,7 @@ _TOKEN = re.compile(r"\S+")
 # coordinate words: axis (incremental with I), value a signed number or a signed Q parameter
 _COORD = re.compile(rf"(I?)(X|Y|Z)({_NUMBER}|[-+]?Q[LR]?\d+)$")
 _POLAR = re.compile(rf"(I?)(PA|PR)({_NUMBER}|[-+]?Q[LR]?\d+)$")
-_FEED = re.compile(rf"F({_NUMBER}|MAX|AUTO)$")
+_FEED = re.compile(rf"F({_NUMBER}|MAX|AUTO|Q[LR]?\d+)$")
 _M = re.compile(r"M(\d+)$")
 _PASSED_M = {0, 1, 2, 3, 4, 5, 8, 9, 30}
 _NOOP_M = {126: "shortest rotary path", 127: "rotary path as programmed", 129: "TCPM off"}
@@ -964,7 +964,7 @@ _PREFIXED = [
     ("Q", lambda st, code, s, n: _q_assign(st, code, s, n)),
 ]
 
-_F_WORD = re.compile(rf"(?<![A-Za-z])F\s*{_NUMBER}(?![\d.])")
+_F_WORD = re.compile(rf"(?<![A-Za-z])F\s*(?:{_NUMBER}|Q[LR]?\d+)(?![\d.])")  # FQ2: a feed from Q2 (hyperMILL)
 _F_ANY = re.compile(r"(?<![A-Za-z])F\s*(?:MAX|AUTO)\b")
 _M_WORD = re.compile(r"(?<![A-Za-z])M\d+")
 
@@ -972,7 +972,8 @@ _M_WORD = re.compile(r"(?<![A-Za-z])M\d+")
 def set_feed(line: str, f: str | None) -> str:
     """The block `line` (Klartext or ISO) with its F word's number `f` (in place; added before the M
     functions, the ISO ``*`` and the comment when the block has none), or without its F when `f` is
-    None. FMAX/FAUTO blocks keep every byte; a block that calls a drilling cycle (M99, CYCL CALL) is
+    None; a feed from a Q parameter (FQ2) is an F word like any (the number takes its place).
+    FMAX/FAUTO blocks keep every byte; a block that calls a drilling cycle (M99, CYCL CALL) is
     refused: its feed is the cycle's Q206, on another line."""
     code, sep, note = line.partition(";")
     if re.search(r"(?<![A-Za-z])M99\b|CYCL\s+CALL", code, re.IGNORECASE):
