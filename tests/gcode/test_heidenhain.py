@@ -592,3 +592,14 @@ def test_feed_from_a_q_parameter():
     text = "0 BEGIN PGM Q MM\n1 FN 0: Q2 = +750\n2 L X+0 Y+0 Z-1 R0 FMAX\n3 L X+10 FQ2\n4 END PGM Q MM\n"
     assert _read(text).toolpath.feed_mm_min[-1] == 750
     assert set_feed("3 L X+10 FQ2", "600") == "3 L X+10 F600"
+
+
+def test_tool_oversizes_are_refused():
+    """§ 6.3: DL/DR in TOOL CALL are oversizes of the tool's length and radius; the control would cut
+    DL higher and DR wider than programmed, which millpost does not model: refused, zeros accepted."""
+    base = "0 BEGIN PGM T MM\n1 TOOL CALL 1 Z S1000 {}\n2 L X+0 Y+0 Z+5 R0 FMAX\n3 END PGM T MM\n"
+    assert len(_read(base.format("DL+0 DR+0")).toolpath) == 1
+    for word in ("DL+0.2", "DR-0.05"):
+        with pytest.raises(ParseError, match="oversize") as e:
+            _read(base.format(word))
+        assert e.value.word == word

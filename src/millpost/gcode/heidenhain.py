@@ -271,7 +271,7 @@ def blank(text: str, file: str = "<string>") -> tuple[tuple[float, float, float]
 
 
 def _tool_call(st: _State, code: str, start: int, n: int) -> str:
-    """TOOL CALL n Z S.. F.. DL.. (§ 6.3): tool change, spindle speed, the feed (modal, and FAUTO's);
+    """TOOL CALL n Z S.. F.. DL+0 DR+0 (§ 6.3): tool change, spindle speed, the feed (modal, and FAUTO's);
     without a tool number (TOOL CALL Z S..) only the spindle speed changes."""
     tokens = _split(code, start, 0, n)
     if tokens.words and tokens.words[0][0].startswith('"'):
@@ -289,10 +289,10 @@ def _tool_call(st: _State, code: str, start: int, n: int) -> str:
         st.tool_f = _value(m.group(1))
         words.append(f"F{st.tool_f}")
     for m, col in tokens.take(re.compile(rf"D(L|R|R2)({_NUMBER})$")):
-        if m.group(1) != "L" and float(m.group(2)) != 0:
-            raise _error(st, n, col, m.group(), "a radius oversize (DR, DR2) changes the tool's cut and is not "
-                         "modelled", "DR+0, or the tool's radius in the job")
-    _no_more(st, tokens, "TOOL CALL n Z S.. F.. DL..")
+        if float(m.group(2)) != 0:  # the control would cut DL higher, DR wider than programmed
+            raise _error(st, n, col, m.group(), "a length or radius oversize (DL, DR, DR2) moves the cut and is "
+                         "not modelled", "DL+0 DR+0, or the tool's size in the job")
+    _no_more(st, tokens, "TOOL CALL n Z S.. F.. DL+0 DR+0")
     return " ".join(words)
 
 
