@@ -123,6 +123,10 @@ def test_real_programs_are_read_or_refused_where_they_say():
         tp = program.toolpath
         assert np.isfinite(tp.end).all()
         if len(tp):
-            again = read_text(write_feeds(program, FeedPlan(tp.feed_mm_min * 0.9, {})), str(path),
-                              ReaderOptions(dialect="heidenhain"))
+            try:
+                written = write_feeds(program, FeedPlan(tp.feed_mm_min * 0.9, {}))
+            except MillpostError as err:  # a drilling cycle's feed: refused, said so
+                assert "Q206" in str(err), str(err)
+                continue
+            again = read_text(written, str(path), ReaderOptions(dialect="heidenhain"))
             assert same_path(program, again) == [], path
