@@ -155,7 +155,7 @@ def _comment_continuations(lines: list[str]) -> list[str]:
     out, continued = [], False
     for raw in lines:
         out.append(";" + raw if continued else raw)
-        code, _, note = raw.partition(";")
+        code = raw.partition(";")[0]
         m = _BLOCK_NUMBER.match(code)
         continued = (continued or not code[m.end() if m else 0:].strip()) and raw.rstrip().endswith("~")
     return out
@@ -192,7 +192,8 @@ def _block(st: _State, code: str, start: int, n: int) -> str:
             if body.startswith(prefix):
                 return h(st, code, start, n)
         raise _error(st, n, start + 1, keyword, "unknown Klartext block",
-                     "L, C, CC, CR, CT, TOOL CALL, CYCL DEF, BEGIN/END PGM, BLK FORM, M functions")
+                     "L, C, CC, CR, CT, LP, CP, RND, CHF, TOOL CALL/DEF, CYCL DEF/CALL, FN, Q.. =, LBL, CALL LBL, "
+                     "STOP, BEGIN/END PGM, BLK FORM, M functions")
     return handler(st, code, start + len(keyword), n)
 
 
