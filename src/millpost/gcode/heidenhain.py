@@ -998,8 +998,10 @@ def set_feed(line: str, f: str | None) -> str:
     return code[:at].rstrip(" \t") + f" F{f}{rest}" + sep + note
 
 
+# The translation writes G43 without H on TOOL CALL (the control applies the called tool's length) and
+# G98/G99 on every drilling cycle; Klartext is written by `heidenhain_write` (the RS-274 fields unused).
 HEIDENHAIN = Dialect(
-    "heidenhain", comment="semicolon", end_code="M30", line_numbers=1, g43_without_h=True,
+    "heidenhain", comment="semicolon", g43_without_h=True,
     translate=translate, set_feed=set_feed, write=_write,
     markers=(r"BEGIN\s+PGM", r"TOOL\s+CALL", r"BLK\s+FORM", r"^\s*\d+\s+L\s", r"\bFMAX\b", r"END\s+PGM",
              r"^\s*%\w+\s+G7[01]\s*\*", r"\s\*\s*$"))
