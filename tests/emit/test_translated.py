@@ -55,3 +55,18 @@ def test_written_back_in_its_language_with_only_feeds_changed(monkeypatch):
     again = read_text(out, "toy.nc", ReaderOptions(dialect="toy"))
     assert same_path(program, again) == []
     assert np.allclose(again.toolpath.feed_mm_min[1:], [100, 450, 600, 600])
+
+
+def test_text_only_evaluation_takes_undefined_operations_as_zero():
+    """The writer reads lines with unknown parameters (all 0) only to locate their words: a division
+    by such a 0 (a translation's computed arc) gives 0 there, while a real run still refuses it."""
+    import pytest
+
+    from millpost.emit.write import _Unknown
+    from millpost.errors import ParseError
+    from millpost.gcode.lexer import lex_line
+
+    block = lex_line("G1 X[1/#<_a>] F100", 1, "t.nc", _Unknown())
+    assert [(w.letter, w.value) for w in block.words] == [("G", 1.0), ("X", 0.0), ("F", 100.0)]
+    with pytest.raises(ParseError, match="undefined"):
+        lex_line("G1 X[1/#<_a>] F100", 1, "t.nc", {"_a": 0.0})

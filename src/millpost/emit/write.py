@@ -178,7 +178,10 @@ def cycle_feeds(program: Program, feed_mm_min: np.ndarray) -> tuple[np.ndarray, 
 
 
 class _Unknown(dict):
-    """Parameters whose values the text alone cannot give (0 for any missing one)."""
+    """Parameters whose values the text alone cannot give (0 for any missing one); an operation
+    undefined on such values (a division by 0) gives 0 too: they only locate a line's words."""
+
+    values_unknown = True
 
     def __missing__(self, key) -> float:
         return 0.0
@@ -499,17 +502,24 @@ def in_source(program: Program, text: str) -> str:
     out = source_lines(program.source, keepends=True)
     for n, (old, new) in enumerate(zip(before, after)):
         if old != new and n < len(out):
-            f_old, f_new = _f_text(old, n + 1, program.path), _f_text(new, n + 1, program.path)
+            f_old, f_new = _f_text(old), _f_text(new)
             if f_old != f_new:
                 body = out[n].rstrip("\r\n")
                 out[n] = set_feed(body, f_new) + out[n][len(body):]
     return "".join(out)
 
 
-def _f_text(line: str, n: int, path: str) -> str | None:
-    """The number text of a line's F word (None without one)."""
-    found = [w.text[1:].strip() for w in lex_line(line, n, path, _Unknown()).words if w.letter == "F"]
-    return found[-1] if found else None
+# a plain F word of a translated line (the translation writes F<number>, never a parameter or expression),
+# outside comments and not part of a parameter name (#<_f>)
+_PLAIN_F = re.compile(r"(?<![#<_A-Za-z])[Ff][ \t]*([-+]?(?:\d+\.?\d*|\.\d+))")
+_NGC_COMMENT = re.compile(r"\([^()]*\)|;.*")
+
+
+def _f_text(line: str) -> str | None:
+    """The number text of a translated line's F word (None without one). Read from the text, not by
+    evaluating the line: a translation's expressions may need the run's parameters to be defined."""
+    found = _PLAIN_F.findall(_NGC_COMMENT.sub(" ", line))
+    return found[-1].strip() if found else None
 
 
 def split_decimals(block: Block, inch: bool) -> int:

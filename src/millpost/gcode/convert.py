@@ -92,6 +92,8 @@ def convert(program: Program, dialect: Dialect) -> str:
                       "and wear offsets", "a program without compensation")
     blocks = SourceBlocks(program)
     _frame_setting(program, blocks)
+    if dialect.write is not None:  # a language other than RS-274 writes itself
+        return dialect.write(program)
     block = blocks.__getitem__
     out: list[str] = []
     seq = [0]

@@ -195,6 +195,9 @@ class _Scanner:
             try:
                 left = float(_BINOPS[_LEVEL[op]][op](left, right))
             except (ZeroDivisionError, OverflowError, ValueError) as exc:
+                if getattr(self.params, "values_unknown", False):  # locating words only: any value will do
+                    left = 0.0
+                    continue
                 raise self.error(f"{op} is undefined here ({exc})", "a defined arithmetic result", at) from None
             if not math.isfinite(left):
                 raise self.error(f"{op} overflows (the result is beyond 1.8e308)", "a finite arithmetic result", at)
