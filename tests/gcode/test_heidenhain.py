@@ -213,8 +213,6 @@ def test_incremental_from_an_unknown_position_is_refused():
     ("13 L Z-3 ; down", "300", "13 L Z-3 F300 ; down"),
     ("10 L X+65 F700 M8 ; slot", None, "10 L X+65 M8 ; slot"),
     ("10 L X+65 F700", None, "10 L X+65"),
-    ("11 L Z+2 FMAX", "500", "11 L Z+2 FMAX"),
-    ("11 L Z+2 FAUTO", "500", "11 L Z+2 FAUTO"),
 ])
 def test_set_feed_changes_only_the_f_word(line, f, expected):
     assert set_feed(line, f) == expected

@@ -643,16 +643,25 @@ def whole_moves(program: Program, fragments: list) -> list:
     """Fragments (`emit.policy.Fragment`) with those of each compensated move, of each move a canned
     cycle runs (its block's words are the cycle's, not a move's end point), and of each move whose line
     computes a word (`computed`), merged into one over the whole move at their lowest feed (such moves
-    are written with one F, see the module docstring)."""
+    are written with one F, see the module docstring). A translated program's move whose source line
+    cannot carry its feed (`Dialect.fixed_feed`: a Heidenhain cycle call, whose feed is its cycle's Q206)
+    keeps its programmed feed."""
     out, whole = [], {}
     lines, move_line = source_lines(program.text), program.toolpath.line
     suspect = {int(move_line[f.move]) for f in fragments}
     computed_lines = {n for n in suspect if 0 < n <= len(lines) and (
         program.source is not None  # a translated program's moves: only F words may change
         or ("#" in lines[n - 1] or "[" in lines[n - 1]) and _computed_line(lines[n - 1], n, program.path))}
+    fixed_feed = dialects.get(program.dialect).fixed_feed if program.source is not None else None
+    if fixed_feed is not None:
+        source = source_lines(program.source)
+        fixed = {n for n in suspect if 0 < n <= len(source) and fixed_feed(source[n - 1])}
+        programmed = program.toolpath.feed_mm_s
     for f in fragments:
         if not (program.compensated[f.move] or program.cycle[f.move] or int(move_line[f.move]) in computed_lines):
             out.append(f)
+        elif fixed_feed is not None and int(move_line[f.move]) in fixed:
+            whole[f.move] = replace(f, u_start=0.0, u_end=1.0, feed_mm_s=float(programmed[f.move]))
         elif f.move not in whole or f.feed_mm_s < whole[f.move].feed_mm_s:
             whole[f.move] = replace(f, u_start=0.0, u_end=1.0)
     return out + list(whole.values())

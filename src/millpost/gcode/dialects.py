@@ -56,8 +56,9 @@ class Dialect:
     source's file, line and column. set_feed(line, f) writes a feed back into one source line: the F
     word's number text `f` (in the line's units, as the RS-274 writer formatted it) in place of the
     line's F, added where it has none, or the F removed when `f` is None; the rest of the line keeps
-    its bytes. write(program) writes an interpreted program in such a language (`convert` uses it in
-    place of its RS-274 writer).
+    its bytes. fixed_feed(line): the source line's moves run at a feed written elsewhere (a Heidenhain
+    cycle call runs at its cycle's Q206): they keep their programmed feed. write(program) writes an
+    interpreted program in such a language (`convert` uses it in place of its RS-274 writer).
     """
 
     name: str
@@ -88,6 +89,7 @@ class Dialect:
     feed_mode_resets_f: bool = False
     translate: Callable[[str, str], str] | None = field(default=None, compare=False, repr=False)
     set_feed: Callable[[str, str | None], str] | None = field(default=None, compare=False, repr=False)
+    fixed_feed: Callable[[str], bool] | None = field(default=None, compare=False, repr=False)
     write: Callable[..., str] | None = field(default=None, compare=False, repr=False)
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:

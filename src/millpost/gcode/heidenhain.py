@@ -967,21 +967,26 @@ _PREFIXED = [
 
 _F_WORD = re.compile(rf"(?<![A-Za-z])F\s*(?:{_NUMBER}|Q[LR]?\d+)(?![\d.])")  # FQ2: a feed from Q2 (hyperMILL)
 _F_ANY = re.compile(r"(?<![A-Za-z])F\s*(?:MAX|AUTO)\b")
+_CYCLE_CALL = re.compile(r"(?<![A-Za-z])M99\b|CYCL\s+CALL", re.IGNORECASE)
 _M_WORD = re.compile(r"(?<![A-Za-z])M\d+")
+
+
+def fixed_feed(line: str) -> bool:
+    """A block whose moves run at a feed written elsewhere: a drilling cycle's call (M99, CYCL CALL; its
+    feed is the cycle's Q206) and an FAUTO block (the TOOL CALL's F)."""
+    code = line.partition(";")[0]
+    return bool(_CYCLE_CALL.search(code) or _F_ANY.search(code))
 
 
 def set_feed(line: str, f: str | None) -> str:
     """The block `line` (Klartext or ISO) with its F word's number `f` (in place; added before the M
     functions, the ISO ``*`` and the comment when the block has none), or without its F when `f` is
     None; a feed from a Q parameter (FQ2) is an F word like any (the number takes its place).
-    FMAX/FAUTO blocks keep every byte; a block that calls a drilling cycle (M99, CYCL CALL) is
-    refused: its feed is the cycle's Q206, on another line."""
+    A block whose feed is written elsewhere (`fixed_feed`) is refused."""
     code, sep, note = line.partition(";")
-    if re.search(r"(?<![A-Za-z])M99\b|CYCL\s+CALL", code, re.IGNORECASE):
-        raise MillpostError(f"{line.strip()!r}: the feed of a drilling cycle is its CYCL DEF's Q206; millpost "
-                            "does not rewrite it (keep the programmed feeds of this cycle)")
-    if _F_ANY.search(code):
-        return line
+    if fixed_feed(line):
+        raise MillpostError(f"{line.strip()!r}: its feed is written elsewhere (a cycle's Q206, the TOOL CALL's F); "
+                            "millpost does not rewrite it (keep the programmed feeds of this block)")
     hit = _F_WORD.search(code)
     if f is None:
         if hit:
@@ -1002,6 +1007,6 @@ def set_feed(line: str, f: str | None) -> str:
 # G98/G99 on every drilling cycle; Klartext is written by `heidenhain_write` (the RS-274 fields unused).
 HEIDENHAIN = Dialect(
     "heidenhain", comment="semicolon", g43_without_h=True,
-    translate=translate, set_feed=set_feed, write=_write,
+    translate=translate, set_feed=set_feed, fixed_feed=fixed_feed, write=_write,
     markers=(r"BEGIN\s+PGM", r"TOOL\s+CALL", r"BLK\s+FORM", r"^\s*\d+\s+L\s", r"\bFMAX\b", r"END\s+PGM",
              r"^\s*%\w+\s+G7[01]\s*\*", r"\s\*\s*$"))
