@@ -26,8 +26,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .config import Table, is_number
-from .errors import ConfigError
-from .gcode import ReaderOptions
+from .errors import ConfigError, MillpostError
+from .gcode import ReaderOptions, dialects
 from .machine import Machine
 from .materials import Material
 from .settings import JobSettings
@@ -187,8 +187,6 @@ def _dialect(dialect: object, f: str) -> str | None:
     """The job's dialect name (checked against `gcode.dialects`), or None: detected."""
     if dialect is None:
         return None
-    from .errors import MillpostError
-    from .gcode import dialects
     try:
         if not isinstance(dialect, str):
             raise MillpostError("not a name")
@@ -200,6 +198,7 @@ def _dialect(dialect: object, f: str) -> str | None:
 
 
 def _table(value: object, key: str, f: str) -> dict:
+    """The job file's table `key` (its `value`)."""
     if not isinstance(value, dict):
         raise ConfigError(key, value, "must be a table", file=f)
     return value

@@ -20,7 +20,7 @@ from .errors import ConfigError
 from .registry import plugins
 
 
-def _number(default: float | None, lo: float, hi: float, unit: str = "") -> Any:
+def _ranged(default: float | None, lo: float, hi: float, unit: str = "") -> Any:
     """A numeric setting in [lo, hi]; `unit` follows the range in the refusal."""
     return field(default=default, metadata={"range": (lo, hi), "unit": unit})
 
@@ -35,41 +35,41 @@ class JobSettings:
     """The `[limits]` table of a job file: each key a field, its default where the file leaves it out.
     Checked on construction: a value outside its rule is a `ConfigError` naming `limits.<key>`."""
 
-    deflection_mm: float | None = _number(None, 1e-4, 5.0)
+    deflection_mm: float | None = _ranged(None, 1e-4, 5.0)
     """Bound on the tool's deflection at the cut (mm); None: a rough bound by the tool's diameter."""
-    feed_max_mm_min: float | None = _number(None, 1.0, 1e6)
+    feed_max_mm_min: float | None = _ranged(None, 1.0, 1e6)
     """Cap on every feed (mm/min, `feed_max_mm_s`); None: the machine's."""
-    tool_safety_factor: float | None = _number(None, 1.0, 100.0)
+    tool_safety_factor: float | None = _ranged(None, 1.0, 100.0)
     """Safety factor on the tool's bending, buckling and torsional strength; None: by its diameter and
     slenderness (`tools.beam.default_safety_factor`)."""
-    ds_mm: float = _number(0.1, 1e-3, 5.0)
+    ds_mm: float = _ranged(0.1, 1e-3, 5.0)
     """Resampling step along the toolpath (mm)."""
     model: str = field(default="mechanistic", metadata={"plugins": "force_models"})
     """The force model: a plugin of the group `force_models` (`millpost.registry`)."""
-    jerk_mm_s3: float | None = _number(None, 1.0, 1e9)
+    jerk_mm_s3: float | None = _ranged(None, 1.0, 1e9)
     """Bound on the path jerk (mm/s³); None: none."""
-    plunge_feed_max_mm_min: float | None = _number(None, 1.0, 1e6)
+    plunge_feed_max_mm_min: float | None = _ranged(None, 1.0, 1e6)
     """Cap on the feed of moves going down into material: plunges, drilling, ramps (mm/min,
     `plunge_feed_max_mm_s`); None: none."""
-    plunge_raise_max: float = _number(2.0, 1.0, 100.0)
+    plunge_raise_max: float = _ranged(2.0, 1.0, 100.0)
     """Those moves at most this × their programmed feed."""
     lower: str = _choice("hard", "all")
     """Which limits lower a programmed feed: the hard ones, or all (quality limits too)."""
-    feed_step: float = _number(0.05, 0.0, 1.0, " (relative)")
+    feed_step: float = _ranged(0.05, 0.0, 1.0, " (relative)")
     """Relative step between the F words written."""
     solver: str = _choice("auto", "clarabel")
     """The schedule's solver: chosen per segment, or Clarabel on every segment."""
     rpm: str = _choice("programmed", "optimize")
     """The spindle speeds: as programmed, or chosen per operation (`millpost.spindle_speed`)."""
-    air_clearance_mm: float = _number(3.0, 0.0, 100.0)
+    air_clearance_mm: float = _ranged(3.0, 0.0, 100.0)
     """Feed moves that cut nothing within this of the stock keep their programmed feed (mm)."""
     trust_cut_space: bool = False
     """False: a move going down below the stock's top keeps the plunge rules where the program cut before
     (a restart from a later line leaves that space uncut)."""
-    air_feed_max_mm_min: float | None = _number(None, 1.0, 1e6)
+    air_feed_max_mm_min: float | None = _ranged(None, 1.0, 1e6)
     """Cap on feed moves through cut space below the stock's top (mm/min, `air_feed_max_mm_s`); None: the
     machine's maximum."""
-    slower_max: float = _number(1.25, 1.0, 100.0)
+    slower_max: float = _ranged(1.25, 1.0, 100.0)
     """Refuse an optimized program slower than this × the programmed one (unless --allow slower)."""
 
     def __post_init__(self) -> None:
