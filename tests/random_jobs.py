@@ -16,10 +16,11 @@ import numpy as np
 
 from millpost.engagement import Engagement
 from millpost.gcode import read_text
-from millpost.job import _LIMIT_KEYS, Job
+from millpost.job import Job
 from millpost.machine import Machine
 from millpost.materials import Material
 from millpost.optimize import Result, schedule_program
+from millpost.settings import JobSettings
 from millpost.toolpath import RAPID
 from millpost.tools import Tool
 
@@ -116,19 +117,17 @@ def random_engagement(rng: np.random.Generator, samples, tool: Tool) -> Engageme
 
 
 def random_job(rng: np.random.Generator) -> tuple[Job, str]:
-    limits = dict(_LIMIT_KEYS)
-    limits["deflection_mm"] = float(rng.choice([0.01, 0.025, 0.05, 0.1]))
-    limits["lower"] = "all"  # every limit enforced: the replay checks them all
-    limits["ds_mm"] = float(rng.uniform(0.15, 0.5))
-    limits["model"] = str(rng.choice(["mechanistic", "kienzle"]))
+    settings = {"deflection_mm": float(rng.choice([0.01, 0.025, 0.05, 0.1])),
+                "lower": "all",  # every limit enforced: the replay checks them all
+                "ds_mm": float(rng.uniform(0.15, 0.5)), "model": str(rng.choice(["mechanistic", "kienzle"]))}
     if rng.random() < 0.3:
-        limits["feed_max_mm_min"] = float(rng.uniform(200, 4000))
+        settings["feed_max_mm_min"] = float(rng.uniform(200, 4000))
     if rng.random() < 0.2:
-        limits["jerk_mm_s3"] = float(rng.uniform(2e3, 2e5))
+        settings["jerk_mm_s3"] = float(rng.uniform(2e3, 2e5))
     job = Job(path=Path("random/job.toml"), program=Path("random/program.nc"), output=Path("random/out.nc"),
               material=_builtin(Material, str(rng.choice(MATERIALS))),
               machine=_builtin(Machine, str(rng.choice(MACHINES))), tools={1: random_tool(rng)},
-              stock_box=((-50.0, -50.0, -10.0), (50.0, 50.0, 0.0)), limits=limits,
+              stock_box=((-50.0, -50.0, -10.0), (50.0, 50.0, 0.0)), settings=JobSettings(**settings),
               allow=frozenset({"slower", "overload"}))  # random cuts are often too heavy: the schedule, not the refusal, is tested
     return job, random_program(rng)
 
@@ -138,6 +137,6 @@ def run_job(seed: int) -> tuple[Job, Engagement, Result]:
     rng = np.random.default_rng(seed)
     job, text = random_job(rng)
     program = read_text(text, "random.nc")
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    samples = program.toolpath.resample(job.settings.ds_mm)
     eng = random_engagement(rng, samples, job.tools[1])
     return job, eng, schedule_program(job, program, samples, eng, trace=True)

@@ -15,11 +15,12 @@ import pytest
 from millpost.controller import path_modes
 from millpost.engagement import Engagement
 from millpost.gcode import read_text
-from millpost.job import _LIMIT_KEYS, Job, load_job
+from millpost.job import Job, load_job
 from millpost.limits import HARD, QUALITY, build_limits
 from millpost.machine import Machine
 from millpost.materials import Material
 from millpost.optimize import optimize, schedule_program
+from millpost.settings import JobSettings
 from millpost.signals import controller_model, predict
 from millpost.toolpath import RAPID
 from millpost.tools import Tool
@@ -29,11 +30,10 @@ PROGRAMMED = 1500.0  # mm/min
 
 
 def _job(lower: str, material: str = "al6061", **extra) -> tuple[Job, str]:
-    limits = dict(_LIMIT_KEYS, lower=lower, **extra)
     tool = Tool(diameter_mm=6.0, flutes=3, flute_length_mm=16.0, stickout_mm=24.0, number=1)
     job = Job(path=Path("t/job.toml"), program=Path("t/p.nc"), output=Path("t/o.nc"),
               material=Material.load(material), machine=Machine.load("vmc-small"), tools={1: tool},
-              stock_box=((-5.0, -5.0, -20.0), (80.0, 5.0, 0.0)), limits=limits,
+              stock_box=((-5.0, -5.0, -20.0), (80.0, 5.0, 0.0)), settings=JobSettings(lower=lower, **extra),
               allow=frozenset({"slower", "overload"}))  # deliberately heavy cuts: the policy, not the refusal, is tested
     lines = ["G21 G90 G94", "T1 M6", "S8000 M3", "G0 X0 Y0 Z1", f"G1 Z0 F{PROGRAMMED:g}"]
     lines += [f"X{10 * (k + 1)}" for k in range(len(DEPTHS))] + ["G0 Z5", "M30"]

@@ -48,7 +48,7 @@ def test_edge_feed_on_slowed_inside_arcs_within_the_straights_chip_load_feed(poc
     chip limit / chip, median over each straight; within one feed step)."""
     job, result, original, emitted = pocket
     R = job.tools[1].radius_mm
-    step = float(job.limits["feed_step"])
+    step = job.settings.feed_step
     tr = result.trace
     first = machinist.pieces_of_moves(original, emitted)
     arcs = np.flatnonzero(original.kind >= ARC_CW)
@@ -66,9 +66,9 @@ def test_edge_feed_on_slowed_inside_arcs_within_the_straights_chip_load_feed(poc
 
 def test_descents_approaches_and_axis_rates(pocket):
     job, result, original, emitted = pocket
-    top, c = 0.0, float(job.limits["air_clearance_mm"])
+    top, c = 0.0, job.settings.air_clearance_mm
     box = np.array(job.stock_box)[:, :2] + [[-job.tools[1].radius_mm - c], [job.tools[1].radius_mm + c]]
-    assert machinist.descent_excess(original, emitted, top, float(job.limits["plunge_raise_max"])) == []
+    assert machinist.descent_excess(original, emitted, top, job.settings.plunge_raise_max) == []
     assert machinist.approach_excess(original, emitted, top, c, box) == []
     vmax = [job.machine.axes[a].vmax_mm_min for a in "xyz"]
     assert machinist.axis_rate_excess(original, emitted, vmax) == []
@@ -89,7 +89,7 @@ def test_trusting_the_cut_space_lifts_the_descent_rule(tmp_path):
     assert through
     feeds = {}
     for trust in (False, True):
-        job.limits["trust_cut_space"] = trust
+        job.settings = replace(job.settings, trust_cut_space=trust)
         out = read_text(optimize(job, progress=False).text, "out.nc").toolpath
         first = machinist.pieces_of_moves(original, out)
         feeds[trust] = max(out.feed_mm_min[first[k]:first[k + 1]].max() for k in through)

@@ -102,7 +102,7 @@ def test_force_model_plugin_is_used(site, tmp_path):
                                                f'program = "{ROOT / "sample_jobs" / "slotting" / "program.nc"}"')
                                   + '\n[limits]\nmodel = "doubled"\n' if "[limits]" not in text else text)
     check = subprocess.run([sys.executable, "-c", "import sys; from millpost.job import load_job; "
-                            "j = load_job(sys.argv[1]); print(type(j.material.force_model(j.limits['model'])).__name__)",
+                            "j = load_job(sys.argv[1]); print(type(j.material.force_model(j.settings.model)).__name__)",
                             str(job)], env={**os.environ, "PYTHONPATH": f"{site}{os.pathsep}{ROOT / 'src'}"},
                            capture_output=True, text=True)
     assert check.returncode == 0 and check.stdout.strip() == "DoubledMechanistic", check.stderr

@@ -35,7 +35,7 @@ def _check(seed: int) -> dict:
     emitted = read_text(result.text, "emitted.nc").toolpath
     feeds = emitted.feed_mm_min[emitted.kind != RAPID]
     out["feed_over"] = float(np.nanmax(feeds, initial=0.0)) / min(job.machine.feed_cap_mm_min,
-                                                                   job.limits["feed_max_mm_min"] or np.inf)
+                                                                   job.settings.feed_max_mm_min or np.inf)
     if seed % 10 == 0 and s["status"] in ("solved", "slower"):
         out["independent"] = _independent(job, eng, result)
     return out
@@ -49,13 +49,13 @@ def _independent(job, eng, result) -> dict:
     cut = (smp.kind != RAPID) & (eng.ap_mm > 0) & (smp.rpm > 0)
     rpm = running_rpm(job, np.where(smp.rpm > 0, smp.rpm, 1.0))
     fz = tr["feed_executed_mm_min"] / (tool.flutes * rpm)
-    loads = job.material.force_model(job.limits["model"]).predict(eng, fz, rpm, tool)
+    loads = job.material.force_model(job.settings.model).predict(eng, fz, rpm, tool)
     beam = ToolBeam.of(tool)
     k_xy = min(job.machine.axes["x"].stiffness_N_per_mm, job.machine.axes["y"].stiffness_N_per_mm)
     ratios = {
         "cutting_force": loads.peak_force_xy_N / beam.breaking_force_N(eng.ap_mm),
         "deflection": loads.peak_force_xy_N * (beam.compliance_mm_per_N(eng.ap_mm, at_tip=True) + 1 / k_xy)
-        / job.limits["deflection_mm"],
+        / job.settings.deflection_mm,
         "power": loads.power_W / np.maximum(job.machine.spindle.power_available_W(rpm), 1e-9),
     }
     out = {}

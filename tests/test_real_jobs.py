@@ -95,7 +95,7 @@ def test_solved_and_not_slower_without_cause(run):
         assert s["cycle_time_after_s"] <= s["cycle_time_before_s"] * (1 + 1e-3)
     # much slower, the program or a tool's work: refused (written here only because the fixture allows
     # it), naming the limits
-    slower_max = float(job.limits["slower_max"])
+    slower_max = job.settings.slower_max
     slow = (s["cycle_time_after_s"] > slower_max * s["cycle_time_before_s"]
             or any(row["optimized_s"] > slower_max * row["programmed_s"] for row in s["tools"].values()))
     loads = ("cutting_force", "power", "torque", "thrust", "tool_torque", "cutting_current")
@@ -115,10 +115,10 @@ def test_what_a_machinist_checks_descents_approaches_and_axis_rates(run):
     original = read_text(job.program.read_text(), str(job.program), job.reader_options())
     emitted = read_text(result.text, "emitted.nc", job.reader_options()).toolpath
     bounds = job.stock().bounds()
-    top, c = float(bounds[1][2]), float(job.limits["air_clearance_mm"])
+    top, c = float(bounds[1][2]), job.settings.air_clearance_mm
     reach = max(t.radius_mm for t in job.tools.values()) + c
     box = np.array([bounds[0][:2] - reach, bounds[1][:2] + reach])
-    raise_max = float(job.limits["plunge_raise_max"]) if job.material.end_cutting else 1.0
+    raise_max = job.settings.plunge_raise_max if job.material.end_cutting else 1.0
     inch = bool(original.move_inch.any())
     assert machinist.descent_excess(original.toolpath, emitted, top, raise_max, inch) == [], name
     assert machinist.approach_excess(original.toolpath, emitted, top, c, box, inch) == [], name
@@ -179,7 +179,7 @@ def _runs_below(job, result, need: np.ndarray) -> tuple[np.ndarray, list[str]]:
     # of a blended corner fit the lowest limit within the arc's reach (`controller.blend_zones`)
     model = controller_model(job)
     zones = blend_zones(program.toolpath, model, path_modes(program, model))[:, :2]
-    ds, step = float(job.limits["ds_mm"]), float(job.limits["feed_step"])
+    ds, step = job.settings.ds_mm, job.settings.feed_step
     held_hard = np.zeros(len(result.samples), bool)
     for limit in result.summary["hard_limits"]:
         held_hard |= tr.get(f"held_{limit}", held_hard) > 0
@@ -257,7 +257,7 @@ def test_feed_changes_are_meaningful(run):
     changed = (changes > 1e-9) & ~(own[1:] & own[:-1])
     if changed.sum() < 5:
         return
-    step = float(job.limits["feed_step"])
+    step = job.settings.feed_step
     share = float(np.mean(changes[changed] >= step * 0.98))
     assert share >= 0.95, f"{name}: only {share:.1%} of {int(changed.sum())} feed changes are >= {step:.0%}"
 

@@ -32,7 +32,7 @@ def drill_and_mill():
     executed speed (mm/s) of the optimized program."""
     job = load_job(JOBS / "drill_and_mill")
     program = read_program(job.program, job.reader_options())
-    samples, eng, _ = engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+    samples, eng, _ = engage(program, job.stock(), dict(job.tools), job.settings.ds_mm, job.allow,
                              progress=False)
     limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     executed = optimize(job, progress=False, trace=True).trace["feed_executed_mm_min"] / 60.0
@@ -57,7 +57,7 @@ def test_each_limit_signal_is_its_rows_load(drill_and_mill):
 
 def test_exact_model_against_the_schedules_affine_loads(drill_and_mill):
     job, samples, eng, limits, _ = drill_and_mill
-    assert job.limits["model"] == "mechanistic"  # affine in the feed: the flank loads are exact
+    assert job.settings.model == "mechanistic"  # affine in the feed: the flank loads are exact
     v = np.nan_to_num(samples.feed_mm_s, nan=0.0)  # the tangents' reference feed
     exact = predict(job, samples, eng, v)
     affine = predict(job, samples, eng, v, loads=limits.loads)
@@ -123,7 +123,7 @@ def test_baseline_per_programmed_feed_closed_form(tmp_path, plunge_f):
         'flute_length_mm = 16\nstickout_mm = 24\n')
     job = load_job(tmp_path / "job.toml")
     program = read_program(job.program, job.reader_options())
-    samples, eng, _ = engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
+    samples, eng, _ = engage(program, job.stock(), dict(job.tools), job.settings.ds_mm, job.allow,
                              progress=False)
     limits = build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
     feeds, per_tool, _ = baseline_feeds(program, samples, limits)

@@ -106,7 +106,7 @@ def test_s_at_its_best_stays(tmp_path):
 
 def test_default_changes_no_s(tmp_path):
     job = load_job(SLOTTING)
-    assert job.limits["rpm"] == "programmed"
+    assert job.settings.rpm == "programmed"
     result = optimize(job, progress=False)
     assert "spindle" not in result.summary
     s_words = re.compile(r"^.*[Ss]\s*\d.*$", re.M)
@@ -120,7 +120,7 @@ def test_blocks_that_cannot_change_say_why(tmp_path):
     job = load_job(SLOTTING)
     (tmp_path / "program.nc").write_text(program)
     job = dataclasses.replace(job, program=tmp_path / "program.nc", output=tmp_path / "out.nc",
-                              limits={**job.limits, "rpm": "optimize"})
+                              settings=dataclasses.replace(job.settings, rpm="optimize"))
     result = optimize(job, progress=False)
     (row,) = result.summary["spindle"]["blocks"]
     assert not row["changed"] and "G95" in row["reason"]

@@ -94,6 +94,11 @@ def resolve(kind: str, name_or_path: str | Path) -> Path:
     return Path(str(builtin))
 
 
+def is_number(value: object) -> bool:
+    """A finite int or float (TOML's nan, inf and booleans are not numbers here)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
 def quantity(value: Any, suffix: str | None, field: str, *, file: str | None = None) -> float:
     """A finite float in the unit named by `suffix` (a key of SUFFIX_UNITS, None = dimensionless) from a
     number or a "value unit" string; ConfigError(field, value, rule) otherwise."""

@@ -259,7 +259,7 @@ def feed_cap_mm_s(job: Job) -> float:
     direction runs; the axis rates of each move's direction are a limit of their own) and the user's
     `feed_max_mm_min`."""
     cap = job.machine.feed_cap_mm_s
-    return min(cap, job.feed_key_mm_s("feed_max_mm_min")) if job.limits["feed_max_mm_min"] else cap
+    return cap if job.settings.feed_max_mm_s is None else min(cap, job.settings.feed_max_mm_s)
 
 
 def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: Progress = silent, *,
@@ -271,7 +271,7 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     program's path modes (`controller.path_modes`: where its corners blend and its straight feeds
     merge), required: the program's G61/G64 decide its corner caps. zones: the blend arcs of the
     programmed corners (`controller.blend_zones` of `toolpath` in `modes`; computed here unless given)."""
-    lower = str(job.limits["lower"])
+    lower = job.settings.lower
     planner = ControllerModel.from_machine(job.machine)
     limits = _machine_limits(job, samples, toolpath, modes, planner)
     cutting = samples.kind != RAPID
@@ -324,8 +324,8 @@ def _machine_limits(job: Job, samples: Samples, toolpath: Toolpath, modes: PathM
               # grbl runs it as chords whose F word it keeps, so the F word carries the cap there
               Limit(Centripetal(amax), HARD, "inertia", controller=True, f_word=not planner.planner.runs_arcs_whole),
               Limit(_corners(planner, samples, toolpath, modes), HARD, "inertia", controller=True, f_word=False)]
-    if job.limits.get("jerk_mm_s3"):
-        limits.append(Limit(PathJerk(float(job.limits["jerk_mm_s3"])), HARD, "inertia", controller=True,
+    if job.settings.jerk_mm_s3 is not None:
+        limits.append(Limit(PathJerk(job.settings.jerk_mm_s3), HARD, "inertia", controller=True,
                             f_word=False))
     return limits
 
@@ -364,7 +364,7 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
     (`restart_descents`). progress: stage "forces", in samples."""
     n = len(samples)
     m = job.machine
-    model = job.material.force_model(job.limits["model"])
+    model = job.material.force_model(job.settings.model)
     end_model = EndCut.from_material(job.material)
     cutting = samples.kind != RAPID
     engaged = eng.ap_mm > 1e-9
@@ -431,18 +431,18 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
                 for key in ("power", "torque", "force"):
                     loads[f"{key}_a"][part] += getattr(le, f"{key}_a")
                     loads[f"{key}_b"][part] += getattr(le, f"{key}_b")
-        thrust_limit[idx] = thrust_limit_N(tool, job.limits["tool_safety_factor"] or None)
-        tool_torque_limit[idx] = torque_limit_Nm(tool, job.limits["tool_safety_factor"] or None)
-        beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
-        if not job.limits["tool_safety_factor"]:
+        thrust_limit[idx] = thrust_limit_N(tool, job.settings.tool_safety_factor)
+        tool_torque_limit[idx] = torque_limit_Nm(tool, job.settings.tool_safety_factor)
+        beam = ToolBeam.of(tool, safety_factor=job.settings.tool_safety_factor)
+        if job.settings.tool_safety_factor is None:
             sf = f"T{number} {default_safety_factor(tool):g} (by diameter and slenderness)"
             defaults.setdefault("cutting_force", f"tool safety factor on the bending strength: {sf}")
             defaults.setdefault("thrust", f"tool safety factor on the buckling load: {sf}")
             defaults.setdefault("tool_torque", f"tool safety factor on the torsional strength: {sf}")
         peak_limit[idx] = beam.breaking_force_N(eng.ap_mm[idx])  # the cut's depth sets the lever arm
         defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + 1.0 / k_xy
-        if job.limits["deflection_mm"]:
-            defl_limit[idx] = float(job.limits["deflection_mm"])
+        if job.settings.deflection_mm is not None:
+            defl_limit[idx] = job.settings.deflection_mm
         else:
             defl_limit[idx] = rough_by_tool[int(number)] = max(DEFLECTION_ROUGH_MM,
                                                                DEFLECTION_ROUGH_RATIO * tool.diameter_mm)
@@ -520,11 +520,11 @@ def _plunge_limits(policy: _Policy, job: Job, cut: _CutLoads, restart: np.ndarra
     programmed blend arcs carry into it, `carried`, at least), and the chip floor (the minimum-chip feed)."""
     n, sin_end = len(v_prog), cut.sin_end
     plunging = (sin_end > 0) | (restart if restart is not None else False)
-    plunge_cap = np.full(n, np.inf if job.limits["plunge_feed_max_mm_min"] is None
-                         else job.feed_key_mm_s("plunge_feed_max_mm_min"))
+    user_cap = job.settings.plunge_feed_max_mm_s
+    plunge_cap = np.full(n, np.inf if user_cap is None else user_cap)
     # the programmer chose the plunge feed (a tool that cuts poorly at its centre, a loose fixture): at
     # most plunge_raise_max times it; with the end's loads unknown, the programmed feed stays the cap
-    raise_max = float(job.limits["plunge_raise_max"]) if job.material.end_cutting is not None else 1.0
+    raise_max = job.settings.plunge_raise_max if job.material.end_cutting is not None else 1.0
     # (the program itself runs a blended corner at the faster of its two feeds, into the plunge's end)
     raised = np.maximum(np.where(v_prog > 0, raise_max * v_prog, np.inf), carried)
     plunge_cap = np.minimum(plunge_cap, raised)
@@ -589,13 +589,13 @@ def _air_limits(policy: _Policy, job: Job, samples: Samples, eng, toolpath: Tool
         moves_of_block = np.bincount(toolpath.block)[toolpath.block]
         down = (samples.tangent[:, 2] < -DESCENDING) & (moves_of_block[samples.move] <= 1)
         known = near & eng.swept_air
-        if not job.limits["trust_cut_space"]:  # a descent, whatever was swept: the tool enters what it meets
+        if not job.settings.trust_cut_space:  # a descent, whatever was swept: the tool enters what it meets
             known &= ~(samples.tangent[:, 2] < -DESCENDING)
         cap = np.maximum(_air_clearance(near, known, engaged, samples, v_prog, v_cap, down), carried)
         limits.append(Limit(FeedLimit(cap, name="air_clearance"), HARD, "air clearance", baseline=False))
-    if job.limits["air_feed_max_mm_min"] and eng.below_top is not None:  # the user's cap on air in cut space
+    if job.settings.air_feed_max_mm_s is not None and eng.below_top is not None:  # the user's cap on air in cut space
         air = cutting & ~engaged & eng.below_top
-        limits.append(Limit(FeedLimit(np.where(air, job.feed_key_mm_s("air_feed_max_mm_min"), np.inf),
+        limits.append(Limit(FeedLimit(np.where(air, job.settings.air_feed_max_mm_s, np.inf),
                                       name="air_feed"), HARD, "feed", baseline=False))
 
 
@@ -606,7 +606,7 @@ def restart_descents(job: Job, samples: Samples, eng) -> np.ndarray | None:
     before: a restart from a later line, a skipped operation or a broken tool leaves it uncut. None
     with `[limits] trust_cut_space = true` (the program always runs whole) or without the stepping's
     record."""
-    if job.limits["trust_cut_space"] or eng.below_top is None or eng.descent is None:
+    if job.settings.trust_cut_space or eng.below_top is None or eng.descent is None:
         return None
     return eng.below_top & (eng.descent > 0) & (samples.kind != RAPID)
 

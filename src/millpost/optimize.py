@@ -53,7 +53,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
     `options` default to the job's `[limits] solver` on all cores. trace: also build the per-sample
     trace (`Result.trace`: for `--trace` and `--report`; ~30 columns a sample, built only when asked)."""
     t_start = time.perf_counter()
-    options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    options = options or ScheduleOptions.from_choices(solver=job.settings.solver)
     set_threads(options.processes)
     report = resolve(progress)
     with reporting(report):  # the schedule's windows and the first numba compile of a kernel report too
@@ -62,8 +62,8 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         t_read = time.perf_counter()
         with stage(report, "stock"):
             stock = job.stock()
-        samples, eng, notes = engage(program, stock, dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                                     progress=report, clearance_mm=float(job.limits["air_clearance_mm"]))
+        samples, eng, notes = engage(program, stock, dict(job.tools), job.settings.ds_mm, job.allow,
+                                     progress=report, clearance_mm=job.settings.air_clearance_mm)
         samples = safety.check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)
         # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
         # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
@@ -74,7 +74,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         model = controller_model(job)
         limits, modes = None, controller.path_modes(program, model)
         zones = controller.blend_zones(program.toolpath, model, modes)  # the programmed corners' blend arcs
-        if job.limits["rpm"] != "optimize":
+        if job.settings.rpm != "optimize":
             limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True, modes=modes,
                                   zones=zones)
         t_limits = time.perf_counter()
@@ -100,12 +100,12 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     both computed here unless given; trace: build the per-sample trace (`summary.trace_columns`). (Split
     from `optimize` so that tests can give engagements of known geometry.) progress: stages "forces",
     "schedule", "emission" and "replay"."""
-    options = options or ScheduleOptions.from_choices(solver=job.limits["solver"])
+    options = options or ScheduleOptions.from_choices(solver=job.settings.solver)
     model = controller_model(job)
     modes = modes if modes is not None else controller.path_modes(program, model)
     zones = zones if zones is not None else controller.blend_zones(program.toolpath, model, modes)
     spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
-    if job.limits["rpm"] == "optimize":  # the S words change, the moves and their path modes do not
+    if job.settings.rpm == "optimize":  # the S words change, the moves and their path modes do not
         program, samples, spindle = choose_speeds(job, program, samples, eng, options, modes, zones, progress)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
         limits = None  # the loads at the chosen speeds
@@ -123,8 +123,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     progress("emission", 1, 4)
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
-        result = schedule_program(replace(job, limits={**job.limits, "rpm": "programmed"}), *as_given, eng, options,
-                                  progress, modes=modes, zones=zones, trace=trace)
+        programmed = replace(job, settings=replace(job.settings, rpm="programmed"))
+        result = schedule_program(programmed, *as_given, eng, options, progress, modes=modes, zones=zones, trace=trace)
         result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
         return result
     if failed:

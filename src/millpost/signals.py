@@ -200,7 +200,7 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
     if np.any(engaged & (rpm <= 0)):
         k = int(np.flatnonzero(engaged & (rpm <= 0))[0])
         raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
-    model = job.material.force_model(job.limits["model"])
+    model = job.material.force_model(job.settings.model)
     end_model = EndCut.from_material(job.material)
     force = np.zeros((n, 3))
     torque, peak = np.zeros(n), np.full(n, np.nan)
@@ -225,7 +225,7 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
                 thrust, end_torque = end_model.predict(eng_t, fz[idx], tool)
                 force[idx, 2] += thrust
                 torque[idx] += end_torque
-        beam = ToolBeam.of(tool, safety_factor=job.limits["tool_safety_factor"] or None)
+        beam = ToolBeam.of(tool, safety_factor=job.settings.tool_safety_factor)
         tool_defl[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx]) * np.hypot(force[idx, 0], force[idx, 1])
     omega = 2 * np.pi * rpm / 60.0
     idle = m.spindle.idle_power_at_W(rpm)
@@ -252,7 +252,7 @@ def simulate(job: Job, feed_mm_s: np.ndarray | None = None, *, program: Program 
     """The whole job: read the program, resample at the job's ds_mm, step the tools through the stock,
     run the controller model (feed_mm_s overrides the programmed feed per move, mm/s) and predict."""
     program = program or read_program(job.program, job.reader_options())
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    samples = program.toolpath.resample(job.settings.ds_mm)
     if len(samples) == 0:
         raise MillpostError(f"{job.program}: the program has no motion")
     report = resolve(progress)

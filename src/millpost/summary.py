@@ -143,7 +143,7 @@ def _gates(run: Run, summary: dict) -> None:
     """The gates "slower" and "overload" on a run's summary (`safety.refuse_or_note`)."""
     job, limits = run.job, run.limits
     before, after = run.before.time_s, run.emission.execution.time_s
-    slower_max = float(job.limits["slower_max"])
+    slower_max = job.settings.slower_max
     slow = {t: row for t, row in summary["tools"].items() if row["optimized_s"] > slower_max * row["programmed_s"]}
     # the cuts exceed a physical hard limit (a load: power, torque, the tool's strength, the drives): not
     # quality limits lowered by `lower = "all"`, nor caps the user set (plunge_feed_max_mm_min)
@@ -296,7 +296,7 @@ def _too_heavy(job: Job, samples: Samples, limits: JobLimits, before_s: float, a
     return (f"{job.program}: the programmed cuts exceed hard limits of this machine and tool "
             f"({'; '.join(parts) or 'see limits_programmed'}): within them the program takes {after_s:.1f} s "
             f"against {before_s:.1f} s programmed ({after_s / before_s:.2f}x{'; ' + tools if tools else ''}: more "
-            f"than slower_max {float(job.limits['slower_max']):g}x); the cuts need to be lighter by those factors, "
+            f"than slower_max {job.settings.slower_max:g}x); the cuts need to be lighter by those factors, "
             "or another tool or a stronger machine")
 
 

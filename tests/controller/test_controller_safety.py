@@ -94,9 +94,10 @@ def _chain_job(tmp_path):
     zones per programmed move reach 12 µm."""
     from dataclasses import replace
 
-    from millpost.job import _LIMIT_KEYS, Job
+    from millpost.job import Job
     from millpost.machine import Machine
     from millpost.materials import Material
+    from millpost.settings import JobSettings
     from millpost.tools import Tool
 
     lines = ["G21 G90 G94 G64 P0.05 Q0.05", "T1 M6", "S18000 M3", "G0 X-4 Y0 Z2", "G1 Z-0.3 F1200"]
@@ -116,7 +117,7 @@ def _chain_job(tmp_path):
     return Job(path=tmp_path / "job.toml", program=program, output=tmp_path / "out.nc",
                material=Material.load("mdf"), machine=machine, tools={1: tool},
                stock_box=((0.0, -10.0, -5.0), (30.0, 10.0, 0.0)), cell_mm=0.1,
-               limits=dict(_LIMIT_KEYS, plunge_feed_max_mm_min=300.0))
+               settings=JobSettings(plunge_feed_max_mm_min=300.0))
 
 
 def _chain_ratio(job, result) -> float:
@@ -127,8 +128,8 @@ def _chain_ratio(job, result) -> float:
 
     program = read_program(job.program, job.reader_options())
     smp = result.samples
-    _, eng, _ = engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                       clearance_mm=float(job.limits["air_clearance_mm"]))
+    _, eng, _ = engage(program, job.stock(), dict(job.tools), job.settings.ds_mm, job.allow,
+                       clearance_mm=job.settings.air_clearance_mm)
     model = ControllerModel.from_machine(job.machine)
     emitted = read_text(result.text, "emitted.nc")
     v = execute_program(emitted, model).speed_at(*emitted_positions(program.toolpath, emitted.toolpath, smp.move,
@@ -183,8 +184,8 @@ def _baseline_ratio(job, result) -> float:
     base = result.trace["feed_baseline_mm_min"]
     cut = np.isfinite(base)
     feeds[smp.move[cut]] = base[cut]
-    _, eng, _ = engage(program, job.stock(), dict(job.tools), float(job.limits["ds_mm"]), job.allow,
-                       clearance_mm=float(job.limits["air_clearance_mm"]))
+    _, eng, _ = engage(program, job.stock(), dict(job.tools), job.settings.ds_mm, job.allow,
+                       clearance_mm=job.settings.air_clearance_mm)
     model = ControllerModel.from_machine(job.machine)
     v = execute_program(program, model, feeds / 60.0).speed_at(smp.move, Execution.sample_fractions(smp))  # mm/s
     limits = build_limits(job, smp, eng, program.toolpath, modes=path_modes(program, model))

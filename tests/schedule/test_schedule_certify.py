@@ -38,7 +38,7 @@ def _random_problem(seed: int):
     rng = np.random.default_rng(seed)
     job, text = random_job(rng)
     program = read_text(text, "random.nc")
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    samples = program.toolpath.resample(job.settings.ds_mm)
     eng = random_engagement(rng, samples, job.tools[1])
     return samples, build_limits(job, samples, eng, program.toolpath, modes=path_modes(program, controller_model(job)))
 

@@ -33,7 +33,7 @@ def test_solver_job_key_and_flag(tmp_path):
     shutil.copytree(POCKET, folder)
     toml = folder / "job.toml"
     toml.write_text(toml.read_text() + '\n[limits]\nsolver = "clarabel"\n')
-    assert load_job(folder).limits["solver"] == "clarabel"
+    assert load_job(folder).settings.solver == "clarabel"
     toml.write_text(toml.read_text().replace('solver = "clarabel"', 'solver = "gurobi"'))
     with pytest.raises(ConfigError, match="solver"):
         load_job(folder)

@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output else job.output
     check_outputs({"output": output, "--json": args.json, "--trace": args.trace, "--report": args.report},
                   job.inputs)
-    options = ScheduleOptions.from_choices(solver=args.solver or job.limits["solver"], jobs=args.jobs)
+    options = ScheduleOptions.from_choices(solver=args.solver or job.settings.solver, jobs=args.jobs)
     with Bars(enabled=False if args.quiet else None) as bars:
         result = optimize(job, progress=bars, options=options, trace=bool(args.trace or args.report))
         result.summary["output"] = str(output)

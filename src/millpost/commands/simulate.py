@@ -81,7 +81,7 @@ def _inputs(args: argparse.Namespace):
         check_outputs({"--trace": args.trace, "--stock-stl": args.stock_stl}, job.inputs)
         if args.cell is not None:
             job.cell_mm = args.cell
-        step = args.step if args.step is not None else float(job.limits["ds_mm"])
+        step = args.step if args.step is not None else job.settings.ds_mm
         return job.program, job.stock(), dict(job.tools), step, job.dialect, job.allow
     if args.stock_box is None and args.stock is None:
         raise ConfigError("stock", None, "a bare PROGRAM needs --stock-box or --stock (or give a job)")
@@ -127,9 +127,9 @@ def write_trace(path: str, samples, eng) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..engagement import engage
     from ..gcode import ReaderOptions, read_program
-    from ..job import LIMIT_RANGES
+    from ..settings import RANGES
 
-    lo, hi = LIMIT_RANGES["ds_mm"]
+    lo, hi = RANGES["ds_mm"]
     if args.step is not None and not lo <= args.step <= hi:
         raise ConfigError("step", args.step, f"must be in [{lo:g}, {hi:g}] mm")
     if not 1 <= args.slices <= 64:

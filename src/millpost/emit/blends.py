@@ -128,7 +128,7 @@ def emit_within(job: Job, program: Program, samples: Samples, limit_mm_s: np.nda
     emissions, every arc still over lowers the whole run it lies on (between the controller's stops) to
     the run's lowest limit (`run_limit`), and the summary says so."""
     tp = program.toolpath
-    step = float(job.limits["feed_step"])
+    step = job.settings.feed_step
     accel = tuple(job.machine.axes[a].amax_mm_s2 for a in "xyz")
     feeds_mm_s = blend_limit(samples, limit_mm_s, zones)
     stubborn = 0

@@ -110,7 +110,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     from ..gcode import read_program
     from ..limits import feed_cap_mm_s
     program = read_program(job.program, job.reader_options())
-    samples = program.toolpath.resample(float(job.limits["ds_mm"]))
+    samples = program.toolpath.resample(job.settings.ds_mm)
     if len(samples) != n:
         raise MillpostError(f"the trace has {n} samples but {job.program} resamples to {len(samples)}: "
                             "trace and job do not match")
