@@ -8,7 +8,8 @@
     spindle_rpm = 18000               # optional: a spindle switched by hand turns at this speed (rpm)
                                       # where the program leaves it off (with --allow spindle-off;
                                       # without it: the program's S word in force)
-    [stock]                           # box = [[xmin,ymin,zmin],[xmax,ymax,zmax]] (mm) or file = "x.stl|.step|.py"
+    [stock]                           # box = [[xmin,ymin,zmin],[xmax,ymax,zmax]] (mm) or file = "x.stl|.step|.py";
+                                      # optional where the program states its blank (Heidenhain BLK FORM)
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
     [limits]                          # optional: settings.JobSettings (deflection_mm, feed_max_mm_min,
@@ -88,14 +89,17 @@ def load_job(path: str | Path) -> Job:
     output = base / str(data["output"]) if "output" in data else program.with_name(
         f"{program.stem}.millpost{program.suffix}")
     material, machine, described = _material_machine(data, base, f)
-    box, stock_file, cell = _stock(_need(data, "stock", f), base, f)
+    dialect = _dialect(data.get("dialect"), f)
+    if "stock" in data:
+        box, stock_file, cell = _stock(data["stock"], base, f)
+    else:
+        box, stock_file, cell = _program_blank(program, dialect, f), None, None
     tools, tool_files = _tools(_table(_need(data, "tools", f), "tools", f), base, f)
     settings = JobSettings.from_table(_table(data.get("limits", {}), "limits", f), f)
     spindle_rpm = data.get("spindle_rpm")
     lo, hi = SPINDLE_RPM_RANGE
     if spindle_rpm is not None and not (is_number(spindle_rpm) and lo <= spindle_rpm <= hi):
         raise ConfigError("spindle_rpm", spindle_rpm, f"must be a number in [{lo:g}, {hi:g}] rpm", file=f)
-    dialect = _dialect(data.get("dialect"), f)
     inputs = (path, program, *described, *([stock_file] if stock_file else []), *tool_files)
     return Job(path, program, output, material, machine, tools, box, stock_file, cell, dialect, settings,
                _allowed(data.get("safety", {}), f), inputs, None if spindle_rpm is None else float(spindle_rpm))
@@ -157,6 +161,18 @@ def _stock(stock: object, base: Path, f: str) -> tuple[Box | None, Path | None, 
         raise ConfigError("stock.cell_mm", cell, f"must be a number in [{CELL_RANGE_MM[0]:g}, {CELL_RANGE_MM[1]:g}] mm",
                           file=f)
     return box, file, cell
+
+
+def _program_blank(program: Path, dialect: str | None, f: str) -> Box:
+    """The stock of a job with no [stock] table: the blank its program states (`Dialect.blank`, as a
+    Heidenhain program's BLK FORM), a box in mm."""
+    text = program.read_bytes().decode("utf-8", errors="replace")
+    read = dialects.get(dialect) if dialect else dialects.detect(text)
+    box = read.blank(text, str(program)) if read.blank is not None else None
+    if box is None:
+        raise ConfigError("stock", None, f"is required: the program states no blank (as a Heidenhain BLK FORM) "
+                          f"to take as the stock", file=f)
+    return box
 
 
 def _tools(table: dict, base: Path, f: str) -> tuple[dict[int, Tool], list[Path]]:

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from millpost.cli import main
+from millpost.errors import ConfigError
 from millpost.gcode import ReaderOptions, read_program
 from millpost.gcode.convert import same_path
+from millpost.job import load_job
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_jobs" / "slotting"
 PROGRAM = """0 BEGIN PGM SLOTS MM
@@ -88,3 +90,20 @@ def test_optimize_a_klartext_program(tmp_path, program):
     assert not np.allclose(a.toolpath.feed_mm_min, b.toolpath.feed_mm_min, equal_nan=True)
     drilled = a.cycle != 0
     assert np.array_equal(a.toolpath.feed_mm_min[drilled], b.toolpath.feed_mm_min[drilled], equal_nan=True)
+
+
+def test_a_job_without_stock_takes_the_programs_blank(tmp_path):
+    """BLK FORM 0.1/0.2 is the blank the control shows and simulates (TNC 640 manual, "Defining a
+    workpiece blank"): a job with no [stock] takes it as its stock box."""
+    job = tmp_path / "job"
+    shutil.copytree(SAMPLE, job)
+    (job / "program.h").write_text(PROGRAM)
+    toml = (job / "job.toml").read_text().replace('program = "program.nc"', 'program = "program.h"')
+    lines = toml.splitlines()
+    start = lines.index("[stock]")
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("[")), len(lines))
+    (job / "job.toml").write_text("\n".join(lines[:start] + lines[end:]) + "\n")
+    assert load_job(job).stock_box == ((0.0, 0.0, -10.0), (60.0, 40.0, 0.0))
+    (job / "program.h").write_text("G21 G90\nG1 X10 F100\nM2\n")
+    with pytest.raises(ConfigError, match="no blank"):
+        load_job(job)

@@ -59,6 +59,8 @@ class Dialect:
     its bytes. fixed_feed(line): the source line's moves run at a feed written elsewhere (a Heidenhain
     cycle call runs at its cycle's Q206): they keep their programmed feed. write(program) writes an
     interpreted program in such a language (`convert` uses it in place of its RS-274 writer).
+    blank(text, file): the blank the program states (Heidenhain's BLK FORM) as ((xmin, ymin, zmin),
+    (xmax, ymax, zmax)) in mm, or None; a job with no [stock] takes it as its stock.
     """
 
     name: str
@@ -90,6 +92,8 @@ class Dialect:
     translate: Callable[[str, str], str] | None = field(default=None, compare=False, repr=False)
     set_feed: Callable[[str, str | None], str] | None = field(default=None, compare=False, repr=False)
     fixed_feed: Callable[[str], bool] | None = field(default=None, compare=False, repr=False)
+    blank: Callable[[str, str], tuple[tuple[float, float, float], tuple[float, float, float]] | None] | None = field(
+        default=None, compare=False, repr=False)
     write: Callable[..., str] | None = field(default=None, compare=False, repr=False)
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:

@@ -1007,6 +1007,6 @@ def set_feed(line: str, f: str | None) -> str:
 # G98/G99 on every drilling cycle; Klartext is written by `heidenhain_write` (the RS-274 fields unused).
 HEIDENHAIN = Dialect(
     "heidenhain", comment="semicolon", g43_without_h=True,
-    translate=translate, set_feed=set_feed, fixed_feed=fixed_feed, write=_write,
+    translate=translate, set_feed=set_feed, fixed_feed=fixed_feed, write=_write, blank=blank,
     markers=(r"BEGIN\s+PGM", r"TOOL\s+CALL", r"BLK\s+FORM", r"^\s*\d+\s+L\s", r"\bFMAX\b", r"END\s+PGM",
              r"^\s*%\w+\s+G7[01]\s*\*", r"\s\*\s*$"))
