@@ -170,7 +170,7 @@ def _program_blank(program: Path, dialect: str | None, f: str) -> Box:
     read = dialects.get(dialect) if dialect else dialects.detect(text)
     box = read.blank(text, str(program)) if read.blank is not None else None
     if box is None:
-        raise ConfigError("stock", None, f"is required: the program states no blank (as a Heidenhain BLK FORM) "
+        raise ConfigError("stock", None, "is required: the program states no blank (as a Heidenhain BLK FORM) "
                           f"to take as the stock", file=f)
     return box
 
