@@ -171,7 +171,7 @@ def _program_blank(program: Path, dialect: str | None, f: str) -> Box:
     box = read.blank(text, str(program)) if read.blank is not None else None
     if box is None:
         raise ConfigError("stock", None, "is required: the program states no blank (as a Heidenhain BLK FORM) "
-                          f"to take as the stock", file=f)
+                          "to take as the stock", file=f)
     return box
 
 
