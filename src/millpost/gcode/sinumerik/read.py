@@ -382,9 +382,9 @@ class Translator:
         if kw in ("IF", "WHILE", "LOOP", "REPEAT"):
             self.labels += 1
             self.flow.append((kw, self.labels, src, i))
-            return {"IF": f"o{self.labels} if [{cond if kw == 'IF' else ''}]",
-                    "WHILE": f"o{self.labels} while [{cond if kw == 'WHILE' else ''}]",
-                    "LOOP": f"o{self.labels} while [1]", "REPEAT": f"o{self.labels} do"}[kw]
+            if kw == "LOOP":
+                return f"o{self.labels} while [1]"
+            return f"o{self.labels} do" if kw == "REPEAT" else f"o{self.labels} {kw.lower()} [{cond}]"
         opener = {"ELSE": "IF", "ENDIF": "IF", "ENDWHILE": "WHILE", "ENDLOOP": "LOOP", "UNTIL": "REPEAT"}[kw]
         if not self.flow or self.flow[-1][0] != opener:
             raise src.error(f"{kw} without {opener}", i, kw, f"{kw} closing the innermost open {opener}"
@@ -393,8 +393,9 @@ class Translator:
         if kw == "ELSE":
             return f"o{label} else"
         self.flow.pop()
-        return {"ENDIF": f"o{label} endif", "ENDWHILE": f"o{label} endwhile", "ENDLOOP": f"o{label} endwhile",
-                "UNTIL": f"o{label} while [[{cond}] EQ 0]"}[kw]
+        if kw == "UNTIL":
+            return f"o{label} while [[{cond}] EQ 0]"
+        return f"o{label} endif" if kw == "ENDIF" else f"o{label} endwhile"
 
     def define(self, src: Line, i: int, end: int) -> str:
         """DEF REAL/INT/BOOL name[=value], ...: each variable set (0 when no value is given)."""

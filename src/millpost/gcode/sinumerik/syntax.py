@@ -204,15 +204,15 @@ class Expr:
             return f"#[{R_BASE}+{inner}]", k + 1
         if text[j:j + 1] == "(":
             return self.function(name, i, j)
-        if name in self.names:
-            return self.names[name], i + len(name)
         if name == "$PI":
             return "3.141592653589793", i + len(name)
-        if name in ("TRUE", "FALSE"):
-            return ("1" if name == "TRUE" else "0"), i + len(name)
         if name.startswith("$"):
             raise src.error(f"system variable {name} is the controller's state, which millpost does not model", i,
                             name, "numbers, R parameters and DEF variables")
+        if name in self.names:
+            return self.names[name], i + len(name)
+        if name in ("TRUE", "FALSE"):
+            return ("1" if name == "TRUE" else "0"), i + len(name)
         raise src.error(f"unknown variable {name}", i, name, "an R parameter, a DEF variable defined earlier, a number")
 
     def function(self, name: str, i: int, j: int) -> tuple[str, int]:

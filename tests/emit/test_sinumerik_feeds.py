@@ -1,0 +1,62 @@
+"""A Sinumerik program optimized is written back in Sinumerik with only F words changed
+(`Dialect.set_feed`), and reads back to the same path."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from millpost.emit.write import FeedPlan, write_feeds
+from millpost.gcode import ReaderOptions, read_text
+from millpost.gcode.convert import same_path
+from millpost.gcode.sinumerik.write import set_feed
+
+PROGRAM = """%_N_SLOT_MPF
+; slot and pocket wall
+N10 G90 G94 G17 G710
+N20 T="FLAT6" D1
+N30 M6
+N40 S9000 M3
+N50 G0 X-5 Y8 Z2
+N60 G1 Z-1.5 F300.
+N70 G1 X65 F700. ; slot
+N80 G2 X75 Y18 CR=10
+N90 G1 Y=AC(30) F=R0+650
+N100 G4 F2
+N110 X0
+N120 M30
+"""
+
+
+@pytest.mark.parametrize("line, f, written", [
+    ("N70 G1 X65 F700. ; slot", "612.5", "N70 G1 X65 F612.5 ; slot"),
+    ("N80 G2 X75 Y18 CR=10", "700", "N80 G2 X75 Y18 CR=10 F700"),
+    ("N80 G2 X75 Y18 CR=10 ; arc", "700", "N80 G2 X75 Y18 CR=10 F700 ; arc"),
+    ("N80 G2 X75 Y18 CR=10   ; arc", "700", "N80 G2 X75 Y18 CR=10 F700   ; arc"),
+    ("N90 G1 Y=AC(30) F=R0+650", "800", "N90 G1 Y=AC(30) F800"),
+    ("N90 G1 F300 X5", None, "N90 G1 X5"),
+    ("N90 G1X5F300", "310", "N90 G1X5F310"),
+    ('N95 MSG("F100 ; no") G1 X1 F100', "200", 'N95 MSG("F100 ; no") G1 X1 F200'),
+])
+def test_set_feed_changes_only_the_f_word(line, f, written):
+    assert set_feed(line, f) == written
+
+
+def test_optimized_program_keeps_every_byte_but_f_and_its_path():
+    """Feeds changed on two moves (the slot slower, the arc with its own F, in the program's "700." style),
+    the rest kept."""
+    opts = ReaderOptions(dialect="sinumerik")
+    program = read_text(PROGRAM, "slot.mpf", opts)
+    tp = program.toolpath
+    assert tp.line.tolist() == [7, 8, 9, 10, 11, 13]
+    feeds = tp.feed_mm_min.copy()
+    feeds[2], feeds[3] = 450.0, 525.0
+    out = write_feeds(program, FeedPlan(feeds, {}))
+    before, after = PROGRAM.splitlines(), out.splitlines()
+    changed = [n for n, (a, b) in enumerate(zip(before, after), 1) if a != b]
+    assert len(after) == len(before) and changed == [9, 10]
+    assert after[8] == "N70 G1 X65 F450. ; slot" and after[9] == "N80 G2 X75 Y18 CR=10 F525"
+    again = read_text(out, "slot.mpf", opts)
+    assert same_path(program, again) == []
+    assert np.allclose(again.toolpath.feed_mm_min[1:], [300, 450, 525, 650, 650])
+    assert write_feeds(program, FeedPlan(tp.feed_mm_min.copy(), {})) == PROGRAM

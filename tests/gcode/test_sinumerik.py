@@ -1,0 +1,186 @@
+"""Reading Siemens SINUMERIK 840D sl / 828D programs (millpost.gcode.sinumerik).
+
+Semantics from the SINUMERIK 840D sl / 828D programming manuals: "Fundamentals" (FB) and "Job
+planning" (AV), cited per test. Each program is compared with the same motion written by hand in
+RS-274 (read to the same moves within 1e-6 mm), or with closed-form arc centres and end points.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from millpost.errors import ParseError
+from millpost.gcode import ReaderOptions, dialects, read_text
+from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID
+
+
+def sin(text: str):
+    return read_text(text, "part.mpf", ReaderOptions(dialect="sinumerik"))
+
+
+def ngc(text: str):
+    return read_text(text, "part.ngc", ReaderOptions(dialect="linuxcnc"))
+
+
+def assert_same_moves(a, b, tol: float = 1e-6) -> None:
+    ta, tb = a.toolpath, b.toolpath
+    assert len(ta) == len(tb)
+    assert ta.kind.tolist() == tb.kind.tolist()
+    assert np.allclose(ta.start, tb.start, atol=tol) and np.allclose(ta.end, tb.end, atol=tol)
+    assert np.allclose(ta.center, tb.center, atol=tol, equal_nan=True)
+    assert np.allclose(ta.feed_mm_min, tb.feed_mm_min, rtol=1e-9, equal_nan=True)
+
+
+FUSION_STYLE = """%_N_PART_MPF
+;$PATH=/_N_MPF_DIR
+; T1  D=10 CR=0 - ZMIN=-3 - flat end mill
+N10 G90 G94 G40 G17 G710
+N20 T="FLAT10" D1
+N30 M6
+N40 S6000 M3 M8
+N50 G54
+N60 CYCLE832(0.01,_SEMIFIN,1)
+N70 G0 X-10 Y0 Z15
+N80 G0 Z2
+N90 G1 Z-3 F300.
+N100 G1 X50 F1200. ; first pass
+N110 G2 X60 Y10 I0 J10
+N120 G3 X50 Y20 CR=10
+N130 G1 X0
+N140 G0 Z15
+N150 M9
+N160 M5
+N170 M30
+"""
+FUSION_NGC = """(part)
+G90 G94 G40 G17 G21
+T1
+M6 G43
+S6000 M3 M8
+G54
+G64 P0.01
+G0 X-10 Y0 Z15
+G0 Z2
+G1 Z-3 F300.
+G1 X50 F1200.
+G2 X60 Y10 I0 J10
+G3 X50 Y20 R10
+G1 X0
+G0 Z15
+M9
+M5
+M30
+"""
+
+
+def test_a_cam_posted_program_reads_as_its_rs274_equivalent():
+    """FB "Fundamentals of NC programming": ';' comments, N block numbers; G710 metric with feeds in
+    mm/min; T="name" with D1 and M6 (FB "Tool change"); CYCLE832 (high speed settings) is a tolerance."""
+    a = sin(FUSION_STYLE)
+    b = ngc(FUSION_NGC)
+    assert a.dialect == "sinumerik" and a.source == FUSION_STYLE
+    assert_same_moves(a, b)
+    assert a.toolpath.line.tolist() == list(range(10, 18))
+    assert a.tools == [1] and a.spindle_rpm == [6000.0]
+
+
+def test_detected_from_the_text():
+    """G710, N numbers with ';' comments, T="..", CYCLE832 mark a Sinumerik program; plain RS-274 is not one."""
+    assert dialects.detect(FUSION_STYLE).name == "sinumerik"
+    assert read_text(FUSION_STYLE, "part.mpf").dialect == "sinumerik"
+    assert dialects.detect(FUSION_NGC).name != "sinumerik"
+    assert dialects.detect("N10 G0 X0 Y0 (start)\nN20 G1 X10 F100\nN30 M30\n").name != "sinumerik"
+
+
+def test_cr_sign_picks_the_arc_over_180_degrees():
+    """FB "Circular interpolation with radius and end point (CR)": CR=+r the arc of at most 180°,
+    CR=-r the one over 180°. From (0,0) to (10,0) with r=10, G2: centres (5, ∓√75)."""
+    for r, cy in ((10, -math.sqrt(75)), (-10, math.sqrt(75))):
+        p = sin(f"N10 G17 G90 G0 X0 Y0 Z0\nN20 G2 X10 Y0 CR={r} F100\nN30 M30\n")
+        arc = p.toolpath
+        assert arc.kind[1] == ARC_CW
+        assert np.allclose(arc.center[1, :2], [5.0, cy], atol=1e-9)
+        sweep = arc.lengths()[1] / 10.0
+        assert math.isclose(sweep, 2 * math.asin(0.5) if r > 0 else 2 * math.pi - 2 * math.asin(0.5), rel_tol=1e-9)
+
+
+def test_ijk_incremental_by_default_and_ac_absolute():
+    """FB "Circular interpolation with center and end point": I, J, K are incremental from the start
+    point by default; I=AC(..) gives the centre in absolute coordinates."""
+    a = sin("N10 G90 G0 X10 Y0\nN20 G3 X-10 Y0 I=AC(0) J=AC(0) F500\nN30 G3 X10 Y0 I10 J0\n")
+    b = ngc("G90 G0 X10 Y0\nG3 X-10 Y0 I-10 J0 F500\nG3 X10 Y0 I10 J0\n")
+    assert_same_moves(a, b)
+    assert np.allclose(a.toolpath.center[1:, :2], 0.0)
+
+
+def test_ac_in_g91_and_ic_in_g90_are_per_word():
+    """FB "Absolute dimensions (G90, AC)" / "Incremental dimensions (G91, IC)": X=AC(..) is absolute
+    in a G91 block, X=IC(..) incremental in a G90 block; only that word."""
+    a = sin("N10 G90 G0 X1 Y2 Z3\nN20 G1 X=IC(4) Y10 F100\nN30 G91 X=AC(0) Y-1\nN40 X2 Z=AC(-1)\n")
+    b = ngc("G90 G0 X1 Y2 Z3\nG1 X5 Y10 F100\nX0 Y9\nX2 Z-1\n")
+    assert_same_moves(a, b)
+
+
+def test_g4_f_is_seconds_and_g4_s_spindle_revolutions():
+    """FB "Dwell time (G4)": G4 F<s> waits seconds; G4 S<n> waits n revolutions of the spindle
+    (at S1200: 30 revolutions = 1.5 s). The dwell's F does not change the feed."""
+    p = sin("N10 G0 X0 Y0\nN20 S1200 M3\nN30 G1 X10 F100\nN40 G4 F2.5\nN50 G4 S30\nN60 X20\n")
+    dwells = [e.value for e in p.events if e.kind == "dwell"]
+    assert dwells == pytest.approx([2.5, 1.5])
+    assert p.toolpath.feed_mm_min[-1] == pytest.approx(100.0)
+
+
+def test_g700_takes_inches_and_inch_per_minute():
+    """FB "Inch or metric dimensions (G70/G700, G71/G710)": G700 geometry and feed in inches."""
+    p = sin("N10 G700 G90 G0 X0 Y0\nN20 G1 X1 F10\n")
+    assert np.allclose(p.toolpath.end[-1], [25.4, 0, 0])
+    assert p.toolpath.feed_mm_min[-1] == pytest.approx(254.0)
+
+
+def test_r_parameters_and_arithmetic_run_in_block_order():
+    """FB "Arithmetic parameters (R)" / "Value assignments": R1=5 R2=R1*2 in one block gives R2 = 10;
+    X=R2+5 is computed; functions SIN, SQRT, POT, TRUNC."""
+    p = sin("N10 R1=5 R2=R1*2\nN20 G0 X=R2+5 Y=SQRT(POT(3)+16) Z=TRUNC(-2.7)\nN30 X=R1*SIN(30)\n")
+    assert np.allclose(p.toolpath.end, [[15, 5, -2], [2.5, 5, -2]])
+
+
+def test_def_variables_and_if_else():
+    """AV "Definition of user variables (DEF)", "Program jumps: IF-ELSE-ENDIF"."""
+    p = sin("N10 DEF REAL DEPTH=-2, STEP\nN20 STEP=0.5\nN30 IF DEPTH<-1\nN40 G0 X1\nN50 ELSE\nN60 G0 X2\n"
+            "N70 ENDIF\nN80 G0 Z=DEPTH+STEP\n")
+    assert np.allclose(p.toolpath.end, [[1, 0, 0], [1, 0, -1.5]])
+
+
+def test_while_loop_and_repeat_until():
+    """AV "Program loop with condition at start of loop (WHILE)" and "... at end of loop (REPEAT)"."""
+    p = sin("N10 R1=0\nN20 WHILE R1<3\nN30 G1 X=R1 F100\nN40 R1=R1+1\nN50 ENDWHILE\n"
+            "N60 REPEAT\nN70 G1 Y=R1 F100\nN80 R1=R1-1\nN90 UNTIL R1<=1\n")
+    assert np.allclose(p.toolpath.end[:, :2], [[0, 0], [1, 0], [2, 0], [2, 3], [2, 2]])
+
+
+def test_msg_and_notes_are_events():
+    """FB "Messages (MSG)": a message, no motion."""
+    p = sin('N10 MSG("roughing (pass 1)")\nN20 G0 X1\n')
+    assert any(e.kind == "comment" and "roughing" in str(e.value) for e in p.events)
+
+
+@pytest.mark.parametrize("line, column, word", [
+    ("N20 TRAORI", 5, "TRAORI"),
+    ("N20 CYCLE800(1,\"TC1\",0,57,0,0,0,0,0,0,0,0,0,-1)", 5, "CYCLE800"),
+    ("N20 POCKET3(10,0,1,-5)", 5, "POCKET3"),
+    ("N20 SPOS=90", 5, "SPOS=90"),
+    ("N20 G70 X1", 5, "G70"),
+    ("N20 G1 X10 FOO", 12, "FOO"),
+    ("N20 G1 X=$AA_IW[X]", 10, "$AA_IW"),
+    ("N20 WHILE R1<3", 5, "WHILE"),
+])
+def test_refused_with_file_line_and_column(line, column, word):
+    """Out of reach (5-axis, swivel, pocket cycles, spindle positioning, G70's mixed units, unknown
+    commands, system variables, an unclosed loop) is refused where it is written."""
+    with pytest.raises(ParseError) as e:
+        sin(f"N10 G0 X0\n{line}\nN30 M30\n")
+    assert (e.value.file, e.value.line, e.value.column) == ("part.mpf", 2, column)
+    assert e.value.word.startswith(word)
