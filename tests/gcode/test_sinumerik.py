@@ -140,6 +140,14 @@ def test_g700_takes_inches_and_inch_per_minute():
     assert p.toolpath.feed_mm_min[-1] == pytest.approx(254.0)
 
 
+def test_g70_takes_feeds_in_the_programmed_unit_with_a_note():
+    """FB "Inch or metric dimensions": G70 sets the geometry only; the feed's unit is the basic
+    system's, taken to be the programmed one (a note says so)."""
+    p = sin("N10 G70 G90 G0 X0 Y0\nN20 G1 X1 F10\n")
+    assert np.allclose(p.toolpath.end[-1], [25.4, 0, 0]) and p.toolpath.feed_mm_min[-1] == pytest.approx(254.0)
+    assert any(e.kind == "comment" and "basic system" in str(e.value) for e in p.events)
+
+
 def test_r_parameters_and_arithmetic_run_in_block_order():
     """FB "Arithmetic parameters (R)" / "Value assignments": R1=5 R2=R1*2 in one block gives R2 = 10;
     X=R2+5 is computed; functions SIN, SQRT, POT, TRUNC."""
@@ -172,13 +180,13 @@ def test_msg_and_notes_are_events():
     ("N20 CYCLE800(1,\"TC1\",0,57,0,0,0,0,0,0,0,0,0,-1)", 5, "CYCLE800"),
     ("N20 POCKET3(10,0,1,-5)", 5, "POCKET3"),
     ("N20 SPOS=90", 5, "SPOS=90"),
-    ("N20 G70 X1", 5, "G70"),
+    ("N20 G33 Z-10 K1.5", 5, "G33"),
     ("N20 G1 X10 FOO", 12, "FOO"),
     ("N20 G1 X=$AA_IW[X]", 10, "$AA_IW"),
     ("N20 WHILE R1<3", 5, "WHILE"),
 ])
 def test_refused_with_file_line_and_column(line, column, word):
-    """Out of reach (5-axis, swivel, pocket cycles, spindle positioning, G70's mixed units, unknown
+    """Out of reach (5-axis, swivel, pocket cycles, spindle positioning, thread cutting, unknown
     commands, system variables, an unclosed loop) is refused where it is written."""
     with pytest.raises(ParseError) as e:
         sin(f"N10 G0 X0\n{line}\nN30 M30\n")

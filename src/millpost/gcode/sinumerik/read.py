@@ -4,8 +4,10 @@ Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programmin
 "Job planning" manual (AV). What a line means, and its NGC:
 
 - ``;`` comments stay ``;`` comments; ``N10`` / ``:10`` block numbers stay N numbers; ``/`` block skip.
-- Units (FB "Inch/metric dimensions"): G71/G710 → G21, G700 → G20 (geometry and feeds in inches);
-  G70 (inch geometry, feed in the basic system's unit) is refused: F would need converting.
+- Units (FB "Inch/metric dimensions"): G710 → G21, G700 → G20 (geometry and feeds). G70/G71 set the
+  geometry only, F staying in the machine's basic system, which the program cannot tell: it is taken
+  to be the programmed one (as CAM posts intend: Fusion writes G70 with feeds in inch/min), said in a
+  note; G70 → G20, G71 → G21.
 - G90/G91 modal; per word ``X=AC(..)`` / ``X=IC(..)`` (FB "Absolute/incremental dimensions") through
   the current position (#5420..#5422, program units). G94/G95/G93, G17/G18/G19, G40-G42, G0-G3.
 - Arcs (FB "Circular interpolation"): I/J/K incremental from the start (``I=AC(..)``: absolute), or
@@ -167,8 +169,11 @@ class Translator:
                 b.words.append(f"G{code}")
             elif code in _WORK_OFFSETS:
                 b.words.append(_WORK_OFFSETS[code])
-            elif code in (71, 710, 700):
-                b.words.append("G20" if code == 700 else "G21")
+            elif code in (70, 71, 700, 710):
+                b.words.append("G20" if code in (70, 700) else "G21")
+                if code in (70, 71):
+                    b.notes.append(f"G{code}: feeds taken in {'inch' if code == 70 else 'mm'}/min, the basic system "
+                                   "assumed to be the programmed one")
             elif code in _PATH_G:
                 b.words.append(_PATH_G[code])
             elif code == 641:
@@ -183,9 +188,7 @@ class Translator:
             elif code == 4:
                 b.words.append("G4")
             else:
-                why = "inch geometry with feeds in the basic system's unit (write G700, which also takes F in "\
-                      "inch/min)" if code == 70 else "not read by millpost's Sinumerik reader"
-                raise b.src.error(f"G{code}: {why}", t.start, b.src.text[t.start:t.end],
+                raise b.src.error(f"G{code} is not read by millpost's Sinumerik reader", t.start, b.src.text[t.start:t.end],
                                   "G0-G4, G9, G17-G19, G25/G26, G40-G42, G53-G57, G60, G64, G641-G645, G70/G71, "
                                   "G74/G75, G90/G91, G93-G95, G500, G505-G508, G601-G603, G700/G710")
 
