@@ -4,7 +4,8 @@ The output is written from the interpreted moves and events, not by editing text
 come out expanded (every controller runs lines), arcs as centre-format IJK relative to the start
 (every dialect reads them; no R ambiguity), numbers in the target's format, units as programmed,
 feeds in units per minute (G93/G95 converted to the equivalent G94 feed), and N numbers where the
-dialect numbers its lines.
+dialect numbers its lines. A dialect of another language (Sinumerik) rewrites that RS-274 text in its
+own (`Dialect.from_ngc`).
 
 What depends on the machine rather than the program is re-posted as the source wrote it, so the
 controller resolves it the same way: tool length compensation (G43 H / G43.1 / G43.2 / G49, where
@@ -227,7 +228,8 @@ def convert(program: Program, dialect: Dialect) -> str:
         emit(dialect.end_code)
     if dialect.percent:
         out.append("%")
-    return "\n".join(out) + "\n"
+    text = "\n".join(out) + "\n"
+    return dialect.from_ngc(text) if dialect.from_ngc else text
 
 
 def _tool_length(program: Program, src: Block | None, line: int, dialect: Dialect, tool: int, inch: bool, g) -> str:

@@ -56,7 +56,8 @@ class Dialect:
     source's file, line and column. set_feed(line, f) writes a feed back into one source line: the F
     word's number text `f` (in the line's units, as the RS-274 writer formatted it) in place of the
     line's F, added where it has none, or the F removed when `f` is None; the rest of the line keeps
-    its bytes.
+    its bytes. from_ngc(text) writes `convert`'s RS-274 output (in this dialect's comment, number and
+    N-number style) in the dialect's own language, line for line.
     """
 
     name: str
@@ -87,6 +88,7 @@ class Dialect:
     feed_mode_resets_f: bool = False
     translate: Callable[[str, str], str] | None = field(default=None, compare=False, repr=False)
     set_feed: Callable[[str, str | None], str] | None = field(default=None, compare=False, repr=False)
+    from_ngc: Callable[[str], str] | None = field(default=None, compare=False, repr=False)
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from ..dialects import Dialect
 from .read import translate
-from .write import set_feed
+from .write import from_ngc, set_feed
 
 SINUMERIK = Dialect(
     "sinumerik", comment="semicolon", end_code="M30", line_numbers=10, canned_cycles=False,
-    translate=translate, set_feed=set_feed,
+    translate=translate, set_feed=set_feed, from_ngc=from_ngc,
+    tool_length_codes=frozenset({"G43", "G49"}), g43_without_h=True,
     markers=(r"\bG710\b", r"\bG700\b", r"^\s*N\d+\b[^;(]*;", r"\bCYCLE8\d\d?\s*\(", r"\bMSG\s*\(", r'\bT\s*=\s*"',
              r"^\s*(N\d+\s+)?R\d+\s*=", r"\bCYCLE832\b", r"_N_\w+_(MPF|SPF)", r"\bSUPA\b", r"\bG64[1-5]\b",
              r"^\s*(N\d+\s+)?(SOFT|BRISK|FFWON)\b", r"\bWORKPIECE\s*\(", r"\b[XYZIJK]\s*=\s*(AC|IC)\s*\(", r"\bCR\s*="),

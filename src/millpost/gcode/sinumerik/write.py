@@ -1,8 +1,11 @@
-"""Writing Sinumerik: a feed back into a source line (`set_feed`)."""
+"""Writing Sinumerik: a feed back into a source line (`set_feed`), and `convert`'s RS-274 output in
+Sinumerik's words (`from_ngc`)."""
 
 from __future__ import annotations
 
 import re
+
+from ...errors import MillpostError
 
 from .syntax import Line, skip, tokens, value_end
 from .read import _BLOCK_NUMBER, _LABEL, _split_comment
@@ -43,3 +46,50 @@ def set_feed(line: str, f: str | None) -> str:
     code = line[:end].rstrip(" \t")
     gap = line[len(code):end]
     return f"{code} F{f}" + (gap or (" " if comment else "")) + comment
+
+
+_NGC_WORD = re.compile(r"([A-Z])(-?(?:\d+\.?\d*|\.\d+))")
+# RS-274 codes → Sinumerik (FB "Inch/metric dimensions", "Settable zero offset", "Exact stop",
+# "Dwell time"); the reader maps them back (`read`)
+_G = {"20": "G700", "21": "G710", "49": "D0", "58": "G505", "59": "G506", "59.1": "G507", "59.2": "G508",
+      "59.3": "G500", "61": "G60", "61.1": "G60"}
+
+
+def from_ngc(text: str) -> str:
+    """`convert`'s RS-274 program (N numbers, ';' comments) in Sinumerik words, line for line: G710/G700
+    units, D1/D0 for G43/G49 (the loaded tool's edge), G4 F<s>, G641 ADIS=<P> for G64 P, TURN= for
+    an arc's P, G505-G508/G500 for G58-G59.3."""
+    out = []
+    for line in text.split("\n"):
+        code, sep, comment = line.partition(";")
+        words = _NGC_WORD.findall(code)
+        out.append(" ".join(_block(words, line)) + (" " if words and sep else "") + sep + comment)
+    return "\n".join(out)
+
+
+def _block(words: list[tuple[str, str]], line: str) -> list[str]:
+    codes = {v for L, v in words if L == "G"}
+    if codes & {"28", "30"}:
+        raise MillpostError(f"convert: {line.strip()!r}: a return to G28/G30's stored position has no Sinumerik "
+                            "equivalent (G74/G75 go to machine data, not to the position the program stored)")
+    out = []
+    for letter, value in words:
+        if letter == "G" and value in _G:
+            out.append(_G[value])
+        elif letter == "G" and value == "43":
+            out.append("D1")
+        elif letter == "G" and value == "64" and any(L == "P" for L, _ in words):
+            out.append("G641")
+        elif letter == "H" and "43" in codes:
+            continue
+        elif letter == "P" and "4" in codes:
+            out.append(f"F{value}")
+        elif letter == "P" and "64" in codes:
+            out.append(f"ADIS={value}")
+        elif letter == "Q" and "64" in codes:
+            continue  # the naive-CAM tolerance: Sinumerik compresses with COMPCAD, which millpost does not model
+        elif letter == "P" and codes & {"2", "3"}:
+            out.append(f"TURN={int(float(value)) - 1}")
+        else:
+            out.append(f"{letter}{value}")
+    return out
