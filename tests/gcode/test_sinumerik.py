@@ -192,3 +192,28 @@ def test_refused_with_file_line_and_column(line, column, word):
         sin(f"N10 G0 X0\n{line}\nN30 M30\n")
     assert (e.value.file, e.value.line, e.value.column) == ("part.mpf", 2, column)
     assert e.value.word.startswith(word)
+
+
+def test_modal_drilling_cycles_run_at_each_position_that_follows():
+    """Cycles manual, "CYCLE81 - Drilling, centering", "CYCLE82 - Drilling, counterboring", and FB
+    "Modal subprogram call (MCALL)": RTP, RFP, SDIS, DP or DPR (DPR from RFP); rapid to RFP+SDIS, feed to
+    the depth, (DTB seconds of dwell,) rapid back to RTP; MCALL alone ends the modal call. The same holes
+    written as G98 G81/G82 from Z = RTP."""
+    a = sin("N10 G90 G17 G710\nN20 G0 X0 Y0 Z10\nN30 F120.\nN40 MCALL CYCLE81(10, 0, 2, -6, )\nN50 X5 Y5\n"
+            "N60 X15\nN70 MCALL\nN80 G0 X30 Y0\nN90 CYCLE82(10, 0, 2, , 4, 0.5)\nN100 X40\nN110 M30\n")
+    b = ngc("G90 G17 G21\nG0 X0 Y0 Z10\nF120.\n(mcall)\nG98 G81 X5 Y5 R2 Z-6\nX15\nG80\nG0 X30 Y0\n"
+            "G98 G82 R2 Z-4 P0.5\nG0 X40\nM30\n")
+    assert_same_moves(a, b)
+    assert a.toolpath.line.tolist() == b.toolpath.line.tolist()
+    assert [e.value for e in a.events if e.kind == "dwell"] == pytest.approx([0.5])
+
+
+def test_deep_hole_cycle_is_g83_or_g73_and_what_g83_cannot_make_is_refused():
+    """Cycles manual, "CYCLE83 - Deep-hole drilling": VARI=1 chip removal (G83), VARI=0 chip breaking
+    (G73), infeed FDPR; a degression DAM is refused (G83 pecks are equal)."""
+    a = sin("N10 G0 X0 Y0 Z10\nN20 F100\nN30 CYCLE83(10, 0, 2, -12, , , 3, 0, , 0, 1, 1)\n")
+    b = ngc("G0 X0 Y0 Z10\nF100\nG98 G83 R2 Z-12 Q3\n")
+    assert_same_moves(a, b)
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z10\nN20 CYCLE83(10, 0, 2, -12, , , 3, 1, , 0, 1, 1)\n")
+    assert (e.value.line, e.value.word) == (2, "1") and "DAM" in str(e.value)

@@ -36,6 +36,7 @@ import re
 from dataclasses import dataclass, field
 
 from ..lexer import source_lines
+from .cycles import CYCLES, cycle_words
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens, value_end
 
 _WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G59", 507: "G59.1", 508: "G59.2",
@@ -54,7 +55,7 @@ _REFUSED = {
     "ROT": "rotation frame", "AROT": "rotation frame", "PROC": "subprogram definition", "G33": "thread cutting",
     "COMPCAD": "spline compression", "COMPCURV": "spline compression", "BSPLINE": "spline interpolation",
     "POLY": "polynomial interpolation", "OFFN": "contour offset", "CIP": "circle through an intermediate point",
-    "CT": "tangential circle", "MCALL": "modal subprogram call", "REPEATB": "program section repetition",
+    "CT": "tangential circle", "REPEATB": "program section repetition",
     "GOTO": "jump", "GOTOF": "jump", "GOTOB": "jump", "GOTOC": "jump", "FOR": "FOR loop", "CASE": "CASE jump",
     "CALL": "subprogram call", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
     "RET": "subprogram return", "SUPA": "", "AC": "", "IC": "",
@@ -92,6 +93,7 @@ class Translator:
         self.length_at_change = False  # a D given before the M6: G43 goes with the M6
         self.names: dict[str, str] = {}
         self.motion = 0  # the modal G0-G3
+        self.mcall: list[str] | None = None  # the modal drilling cycle's words (MCALL CYCLE8x), None: off
         self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
         self.labels = 0
@@ -148,12 +150,14 @@ class Translator:
             else:
                 self.keyword(b, t)
         moves = any(t.kind == "word" and t.name in "XYZ" for t in b.toks)
-        if self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
+        if self.mcall and moves and not any(t.kind == "keyword" and t.name == "MCALL" for t in b.toks):
+            self.at_hole(b)
+        elif self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
             b.words.insert(0, f"G{self.motion}")
         if moves or {74, 75} & set(b.g):
             self.restore_motion = bool({74, 75} & set(b.g))
         for note in b.notes:
-            b.words.append(f"({note})")
+            b.words.append("(" + note.replace("(", "[").replace(")", "]") + ")")
         return " ".join(b.words)
 
     def modes(self, b: _Block) -> None:
@@ -338,22 +342,52 @@ class Translator:
         b.words.append(f"{key}={value}")
         b.assigned[key] = value
 
+    def at_hole(self, b: _Block) -> None:
+        """A position block under MCALL: the move to the hole and the modal cycle (the hole's Z is the
+        cycle's, so a Z word is refused; the positioning is at rapid, as the canned cycle's)."""
+        z = b.word("Z")
+        if z is not None:
+            raise b.src.error("Z in a position block of a modal drilling cycle", z.start, b.src.text[z.start:z.end],
+                              "X and Y only (the cycle's planes set Z)")
+        b.words = [w for w in b.words if w not in ("G0", "G1")] + self.mcall
+        self.restore_motion = True
+
+    def drill(self, b: _Block, t: Token) -> None:
+        """CYCLE81-83: modal after MCALL (run at each following position), else at the current point."""
+        words = cycle_words(b.src, t, lambda at: self.expr(b, at))
+        modal = any(x.kind == "keyword" and x.name == "MCALL" for x in b.toks)
+        if modal:
+            self.mcall = words
+            b.notes.append(f"MCALL {t.name}: at each position that follows")
+        else:
+            b.words.extend(words)
+            self.restore_motion = True
+        b.notes.append(f"{t.name}: retract to the start level [RTP when positioned there]")
+
     def call(self, b: _Block, t: Token) -> None:
-        if t.name == "MSG":
+        if t.name in CYCLES:
+            self.drill(b, t)
+        elif t.name == "MSG":
             text = t.value.strip()
             text = text[1:-1] if len(text) >= 2 and text[0] == text[-1] == '"' else text
-            b.notes.append("MSG," + text.replace("(", "[").replace(")", "]"))
+            b.notes.append("MSG," + text)
         elif t.name == "CYCLE832":
             tol = t.value.split(",")[0].strip()
             b.words.append(f"G64 P{tol}" if _SIMPLE.fullmatch(tol) and float(tol) > 0 else "G64")
-            b.notes.append(f"CYCLE832({t.value})".replace("(", "[").replace(")", "]"))
+            b.notes.append(f"CYCLE832({t.value})")
         elif t.name in _NOTE_CALLS:
             b.notes.append(f"{t.name}: noted")
         else:
             self.refuse(b, t)
 
     def keyword(self, b: _Block, t: Token) -> None:
-        if t.name in _NOTE_KEYWORDS:
+        if t.name == "MCALL":
+            if not any(x.kind == "call" for x in b.toks):
+                if self.mcall is not None:
+                    b.words.append("G80")
+                    self.restore_motion = True
+                self.mcall = None
+        elif t.name in _NOTE_KEYWORDS:
             b.notes.append(t.name)
         elif t.name == "SUPA":
             if "G53" not in b.words:
