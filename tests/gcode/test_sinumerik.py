@@ -217,3 +217,25 @@ def test_deep_hole_cycle_is_g83_or_g73_and_what_g83_cannot_make_is_refused():
     with pytest.raises(ParseError) as e:
         sin("N10 G0 X0 Y0 Z10\nN20 CYCLE83(10, 0, 2, -12, , , 3, 1, , 0, 1, 1)\n")
     assert (e.value.line, e.value.word) == (2, "1") and "DAM" in str(e.value)
+
+
+def test_jumps_forward_and_backward_to_labels():
+    """AV "Program jumps to jump markers (GOTOB, GOTOF, GOTO)" and "Conditional program jumps (IF)":
+    a backward jump repeats the blocks from its label, a forward jump skips to its label."""
+    p = sin("N10 R1=0\nN20 G0 X0 Y0 Z5\nLOOP1:\nN40 G1 X=R1*10 F100\nN50 R1=R1+1\nN60 IF R1<3 GOTOB LOOP1\n"
+            "N70 IF R1==3 GOTOF SKIP\nN80 G1 Y50\nSKIP: ; here\nN100 G1 Y10\nN110 GOTOF END1\nN120 G1 Y99\n"
+            "END1:\nN140 M30\n")
+    assert np.allclose(p.toolpath.end[1:, :2], [[0, 0], [10, 0], [20, 0], [20, 10]])
+    assert p.toolpath.line.tolist()[1:] == [4, 4, 4, 10]
+
+
+@pytest.mark.parametrize("text, line, column, word", [
+    ("N10 GOTOF NOWHERE\nN20 M30\n", 1, 11, "NOWHERE"),
+    ("N10 GOTOF LL1\nLL1: G0 X1\n", 2, 6, "G0 X1"),
+    ("N10 G0 X1\nN20 G1 X2 F10 GOTOB N10\n", 2, 15, "GOTOB"),
+])
+def test_jumps_that_cannot_be_laid_out_are_refused(text, line, column, word):
+    """A label that is not there, a label sharing its line with a block, a jump inside a block."""
+    with pytest.raises(ParseError) as e:
+        sin(text)
+    assert (e.value.line, e.value.column) == (line, column) and e.value.word.startswith(word)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 from ..lexer import source_lines
 from .cycles import CYCLES, cycle_words
+from .jumps import Jumps, plan
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens, value_end
 
 _WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G59", 507: "G59.1", 508: "G59.2",
@@ -56,11 +57,13 @@ _REFUSED = {
     "COMPCAD": "spline compression", "COMPCURV": "spline compression", "BSPLINE": "spline interpolation",
     "POLY": "polynomial interpolation", "OFFN": "contour offset", "CIP": "circle through an intermediate point",
     "CT": "tangential circle", "REPEATB": "program section repetition",
-    "GOTO": "jump", "GOTOF": "jump", "GOTOB": "jump", "GOTOC": "jump", "FOR": "FOR loop", "CASE": "CASE jump",
+    "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
+    "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
     "CALL": "subprogram call", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
     "RET": "subprogram return", "SUPA": "", "AC": "", "IC": "",
 }
-_FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF")
+_FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF", "GOTOF",
+                  "GOTOB", "GOTO", "GOTOC")
 _LABEL = re.compile(r"([A-Za-z_][A-Za-z_][A-Za-z0-9_]*)[ \t]*:(?!=)")
 _BLOCK_NUMBER = re.compile(r"(?:[Nn][ \t]*(\d+)|:[ \t]*(\d+))(?![\d.])")
 _SIMPLE = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
@@ -97,9 +100,11 @@ class Translator:
         self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
         self.labels = 0
+        self.jumps = Jumps()
 
     def text(self, text: str) -> str:
         lines = source_lines(text)
+        self.jumps = plan(lines, self.file)
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
             kw, _, src, col = self.flow[-1]
@@ -125,6 +130,9 @@ class Translator:
         m = _LABEL.match(text, i)
         if m and i < code_end:
             i = skip(text, m.end())
+        if src.line in self.jumps.at_label:
+            head = [h for h in head if h == "/"]
+            head.append(self.jumps.at_label[src.line])
         first = re.match(r"[A-Za-z_]+", text[i:code_end])
         if first and first.group(0).upper() in _FLOW_KEYWORDS:
             body = self.flow_statement(src, first.group(0).upper(), i, code_end)
@@ -408,12 +416,16 @@ class Translator:
         rest = skip(src.text, i + len(kw))
         if kw == "DEF":
             return self.define(src, rest, end)
+        if kw.startswith("GOTO"):
+            return self.jump(src, "1")
         if kw in ("IF", "WHILE", "UNTIL"):
             cond, j = Expr(src, self.names).read(rest)
-            if skip(src.text, j) != end:
-                word = src.text[skip(src.text, j):end]
-                why = " (a jump: GOTOF/GOTOB are not read)" if word.upper().startswith("GOTO") else ""
-                raise src.error(f"unexpected text after the condition{why}", j, word[:40], "a condition alone")
+            j = skip(src.text, j)
+            if kw == "IF" and src.text[j:j + 4].upper() == "GOTO" and src.line in self.jumps.at_jump:
+                return self.jump(src, cond)
+            if j != end:
+                raise src.error("unexpected text after the condition", j, src.text[j:end][:40], "a condition alone, "
+                                "or IF <condition> GOTOF/GOTOB <label>")
         elif rest != end:
             raise src.error(f"unexpected text after {kw}", rest, src.text[rest:end][:40], f"{kw} alone on its line")
         if kw in ("IF", "WHILE", "LOOP", "REPEAT"):
@@ -433,6 +445,11 @@ class Translator:
         if kw == "UNTIL":
             return f"o{label} while [[{cond}] EQ 0]"
         return f"o{label} endif" if kw == "ENDIF" else f"o{label} endwhile"
+
+    def jump(self, src: Line, cond: str) -> str:
+        """[IF cond] GOTOx label: the structure `jumps.plan` laid out (forward: skip while not cond)."""
+        kind, label = self.jumps.at_jump[src.line]
+        return f"o{label} if [[{cond}] EQ 0]" if kind == "if" else f"o{label} while [{cond}]"
 
     def define(self, src: Line, i: int, end: int) -> str:
         """DEF REAL/INT/BOOL name[=value], ...: each variable set (0 when no value is given)."""
