@@ -239,3 +239,30 @@ def test_jumps_that_cannot_be_laid_out_are_refused(text, line, column, word):
     with pytest.raises(ParseError) as e:
         sin(text)
     assert (e.value.line, e.value.column) == (line, column) and e.value.word.startswith(word)
+
+
+def test_opening_angle_from_end_point_or_centre():
+    """FB "Circular interpolation with opening angle and center point (AR)": G3 X10 Y0 AR=90 from the
+    origin has its centre on the chord's bisector at (5, 5) (left of the chord for G3, a < 180°);
+    AR=270 puts it at (5, -5); G2 I5 J0 AR=90 from (10, 0) ends at the start turned 90° clockwise about
+    (15, 0): (15, 5)."""
+    p = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 G3 X10 Y0 AR=90 F100\nN30 G2 I5 J0 AR=90\nN40 G0 X0 Y0\n"
+            "N50 G91 G3 X10 AR=270\n")
+    tp = p.toolpath
+    assert tp.kind.tolist() == [RAPID, ARC_CCW, ARC_CW, RAPID, ARC_CCW]
+    assert np.allclose(tp.center[[1, 2, 4], :2], [[5, 5], [15, 0], [5, -5]], atol=1e-9)
+    assert np.allclose(tp.end[[1, 2, 4], :2], [[10, 0], [15, 5], [10, 0]], atol=1e-9)
+    assert tp.lengths()[4] == pytest.approx(1.5 * math.pi * math.sqrt(50), rel=1e-9)
+
+
+def test_trans_and_atrans_move_the_frame_the_moves_are_read_in():
+    """FB "Programmable zero offset (TRANS, ATRANS)": TRANS replaces the offset, ATRANS adds to it,
+    TRANS alone clears it; the moves are in the workpiece frame, as the same moves written there."""
+    a = sin("N10 G90 G0 X0 Y0 Z5\nN20 TRANS X100 Y50\nN30 G1 X0 Y0 F100\nN40 ATRANS X10 Z-1\nN50 X0 Y=AC(1)\n"
+            "N60 G91 X1\nN70 G90 CYCLE81(5, 0, 1, -3)\nN80 TRANS\nN90 G0 X0 Y0\nN100 ROT\n")
+    b = ngc("G90 G0 X0 Y0 Z5\n(trans)\nG1 X100 Y50 F100\n(atrans)\nX110 Y51\nG91 X1\nG90 G98 G81 R0 Z-4\n(trans)\n"
+            "G0 X0 Y0\n(rot)\n")
+    assert_same_moves(a, b)
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0\nN20 ROT RPL=30\n")
+    assert (e.value.line, e.value.column) == (2, 5)

@@ -13,7 +13,8 @@ SINUMERIK = Dialect(
     tool_length_codes=frozenset({"G43", "G49"}), g43_without_h=True,
     markers=(r"\bG710\b", r"\bG700\b", r"^\s*N\d+\b[^;(]*;", r"\bCYCLE8\d\d?\s*\(", r"\bMSG\s*\(", r'\bT\s*=\s*"',
              r"^\s*(N\d+\s+)?R\d+\s*=", r"\bCYCLE832\b", r"_N_\w+_(MPF|SPF)", r"\bSUPA\b", r"\bG64[1-5]\b",
-             r"^\s*(N\d+\s+)?(SOFT|BRISK|FFWON)\b", r"\bWORKPIECE\s*\(", r"\b[XYZIJK]\s*=\s*(AC|IC)\s*\(", r"\bCR\s*="),
+             r"^\s*(N\d+\s+)?(SOFT|BRISK|FFWON)\b", r"\bWORKPIECE\s*\(", r"\b[XYZIJK]\s*=\s*(AC|IC)\s*\(", r"\b(CR|AR)\s*=",
+             r"^\s*(N\d+\s+)?A?TRANS\b", r"\bGOTO[FB]\b"),
 )
 
 __all__ = ["SINUMERIK"]

@@ -40,9 +40,10 @@ def arguments(src: Line, t: Token) -> list[tuple[str, int]]:
     return out
 
 
-def cycle_words(src: Line, t: Token, expr: Callable[[int], tuple[str, int]]) -> list[str]:
+def cycle_words(src: Line, t: Token, expr: Callable[[int], tuple[str, int]], frame_z: str | None) -> list[str]:
     """The canned-cycle words (G98 G8x R.. Z.. P.. Q..) of a CYCLE8x call; `expr(offset)` translates
-    the expression at that offset of the line."""
+    the expression at that offset of the line; `frame_z`: the programmable Z offset's parameter, added
+    to the planes (None: no offset)."""
     code = CYCLES[t.name]
     names = _NAMES[code]
     args = arguments(src, t)
@@ -64,6 +65,10 @@ def cycle_words(src: Line, t: Token, expr: Callable[[int], tuple[str, int]]) -> 
     if "DP" not in values and "DPR" not in values:
         raise src.error(f"{t.name} without a depth", t.start, t.name, "DP (absolute) or DPR (relative to RFP)")
     rfp, sdis = values["RFP"], values.get("SDIS", "0")
+    if frame_z:
+        rfp = f"[{rfp}+{frame_z}]"
+        if "DP" in values:
+            values["DP"] = f"[{values['DP']}+{frame_z}]"
     depth = f"[{rfp}-ABS[{values['DPR']}]]" if "DPR" in values else values["DP"]
     words = [f"R[{rfp}+ABS[{sdis}]]", _word("Z", depth)]
     if code in (82, 83) and "DTB" in values:

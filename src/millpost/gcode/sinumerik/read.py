@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 from ..lexer import source_lines
 from .cycles import CYCLES, cycle_words
+from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, frame_words
 from .jumps import Jumps, plan
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens, value_end
 
@@ -52,8 +53,7 @@ _NOTE_CALLS = {"WORKPIECE"}
 _REFUSED = {
     "TRAORI": "5-axis transformation", "TRACYL": "cylinder surface transformation", "TRANSMIT": "end face "
     "transformation", "CYCLE800": "swivel plane", "SPOS": "spindle positioning", "SPOSA": "spindle positioning",
-    "SCALE": "scaling frame", "ASCALE": "scaling frame", "MIRROR": "mirroring frame", "AMIRROR": "mirroring frame",
-    "ROT": "rotation frame", "AROT": "rotation frame", "PROC": "subprogram definition", "G33": "thread cutting",
+    "PROC": "subprogram definition", "G33": "thread cutting",
     "COMPCAD": "spline compression", "COMPCURV": "spline compression", "BSPLINE": "spline interpolation",
     "POLY": "polynomial interpolation", "OFFN": "contour offset", "CIP": "circle through an intermediate point",
     "CT": "tangential circle", "REPEATB": "program section repetition",
@@ -96,15 +96,18 @@ class Translator:
         self.length_at_change = False  # a D given before the M6: G43 goes with the M6
         self.names: dict[str, str] = {}
         self.motion = 0  # the modal G0-G3
+        self.plane = 17
         self.mcall: list[str] | None = None  # the modal drilling cycle's words (MCALL CYCLE8x), None: off
         self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
         self.labels = 0
         self.jumps = Jumps()
+        self.framed = False  # the program sets a programmable offset: absolute values get #2000.. added
 
     def text(self, text: str) -> str:
         lines = source_lines(text)
         self.jumps = plan(lines, self.file)
+        self.framed = re.search(r"^[^;]*\bA?TRANS\b", text, re.IGNORECASE | re.MULTILINE) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
             kw, _, src, col = self.flow[-1]
@@ -149,9 +152,16 @@ class Translator:
             if t.kind == "word" and t.name == "G":
                 code = _g_number(b.src, t)
                 b.g[code] = t
+        if b.toks[0].kind == "keyword" and b.toks[0].name in FRAMES:
+            return self.frame(b)
         self.modes(b)
+        if b.word("AR") is not None:
+            self.opening_angle(b)
         for t in b.toks:
-            if t.kind == "word":
+            if t.kind == "word" and b.word("AR") is not None and t.name in ("X", "Y", "Z", "I", "J", "K", "AR"):
+                if t.name not in PLANES[self.plane][0] + PLANES[self.plane][1] + ("AR",):
+                    self.address(b, t)
+            elif t.kind == "word":
                 self.address(b, t)
             elif t.kind == "call":
                 self.call(b, t)
@@ -177,6 +187,8 @@ class Translator:
                 self.absolute = False
             if code in (0, 1, 2, 3):
                 self.motion = code
+            if code in (17, 18, 19):
+                self.plane = code
             if code in _SAME_G:
                 b.words.append(f"G{code}")
             elif code in _WORK_OFFSETS:
@@ -260,15 +272,17 @@ class Translator:
         return f"[{out}]"
 
     def coordinate(self, b: _Block, t: Token, axis: int) -> str:
-        """An axis value; AC()/IC() written in the other distance mode go through the current position."""
+        """An axis value in the workpiece frame: the programmable offset (TRANS/ATRANS, #2000..) added to
+        an absolute value; AC()/IC() written in the other distance mode go through the current position."""
         mode = re.match(r"(AC|IC)[ \t]*\(", t.value, re.IGNORECASE) if t.eq else None
-        if not mode:
-            return self.value(b, t)
-        inner = self.inner(b, t, mode)
-        if (mode.group(1).upper() == "AC") == self.absolute:
-            return f"[{inner}]"
+        absolute = self.absolute if not mode else mode.group(1).upper() == "AC"
+        value = self.inner(b, t, mode) if mode else self.value(b, t)
+        if absolute and self.framed and not self.machine_block(b):
+            value = f"[{value}+#{FRAME_BASE + axis}]"
+        if absolute == self.absolute:
+            return value if not mode or value.startswith("[") else f"[{value}]"
         pos = f"#{5420 + axis}"
-        return f"[[{inner}]-{pos}]" if self.absolute is False else f"[{pos}+[{inner}]]"
+        return f"[{value}-{pos}]" if absolute else f"[{pos}+[{value}]]"
 
     def centre(self, b: _Block, t: Token, axis: int) -> str:
         """An arc centre offset, incremental from the start (I=AC(..): the absolute centre)."""
@@ -276,7 +290,14 @@ class Translator:
         if not mode:
             return self.value(b, t)
         inner = self.inner(b, t, mode)
-        return f"[[{inner}]-#{5420 + axis}]" if mode.group(1).upper() == "AC" else f"[{inner}]"
+        if mode.group(1).upper() == "IC":
+            return f"[{inner}]"
+        frame = f"+#{FRAME_BASE + axis}" if self.framed else ""
+        return f"[[{inner}]{frame}-#{5420 + axis}]"
+
+    def machine_block(self, b: _Block) -> bool:
+        """G53/SUPA/G74/G75: machine coordinates, no frame."""
+        return bool({53, 74, 75} & set(b.g)) or any(t.kind == "keyword" and t.name == "SUPA" for t in b.toks)
 
     def inner(self, b: _Block, t: Token, mode: re.Match) -> str:
         start = t.end - len(t.value) + mode.end()
@@ -350,6 +371,39 @@ class Translator:
         b.words.append(f"{key}={value}")
         b.assigned[key] = value
 
+    def frame(self, b: _Block) -> str:
+        """TRANS/ATRANS X Y Z (alone in their block), or a frame cleared (`geometry.frame_words`)."""
+        kind, rest = b.toks[0], b.toks[1:]
+        if kind.name not in ("TRANS", "ATRANS") and rest:
+            raise b.src.error(f"{kind.name} with values: rotation, scaling and mirroring frames are not modelled",
+                              kind.start, b.src.text[kind.start:rest[-1].end],
+                              "TRANS/ATRANS offsets, or ROT/SCALE/MIRROR alone (frame cleared)")
+        for t in rest:
+            if not (t.kind == "word" and t.name in "XYZ"):
+                raise b.src.error(f"{kind.name} takes axis offsets only, in a block of its own", t.start,
+                                  b.src.text[t.start:t.end], f"{kind.name} X.. Y.. Z..")
+        words = frame_words(kind.name, {t.name: self.value(b, t) for t in rest})
+        if words is None:
+            raise b.src.error(f"{kind.name} alone does not say which frame", kind.start, kind.name,
+                              "TRANS/ATRANS X.. Y.. Z.., or TRANS/ROT/SCALE/MIRROR alone (frame cleared)")
+        return " ".join(words)
+
+    def opening_angle(self, b: _Block) -> None:
+        """G2/G3 with AR=: from its end point or from its centre, not both (`geometry.arc_by_angle`)."""
+        ar = b.word("AR")
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        if self.motion not in (2, 3):
+            raise b.src.error("AR= outside a G2/G3 arc", ar.start, b.src.text[ar.start:ar.end], "G2 or G3 with AR=")
+        ends = {t.name: self.coordinate(b, t, "XYZ".index(t.name)) for t in b.toks
+                if t.kind == "word" and t.name in (p1, p2)}
+        centre = {t.name: self.centre(b, t, "IJK".index(t.name)) for t in b.toks
+                  if t.kind == "word" and t.name in (c1, c2)}
+        if bool(ends) == bool(centre):
+            raise b.src.error("AR= needs the end point or the centre, and not both", ar.start,
+                              b.src.text[ar.start:ar.end], f"G{self.motion} {p1}.. {p2}.. AR=.. or G{self.motion} "
+                              f"{c1}.. {c2}.. AR=..")
+        b.words.extend(arc_by_angle(self.plane, self.value(b, ar), self.motion == 3, self.absolute, ends, centre))
+
     def at_hole(self, b: _Block) -> None:
         """A position block under MCALL: the move to the hole and the modal cycle (the hole's Z is the
         cycle's, so a Z word is refused; the positioning is at rapid, as the canned cycle's)."""
@@ -362,7 +416,9 @@ class Translator:
 
     def drill(self, b: _Block, t: Token) -> None:
         """CYCLE81-83: modal after MCALL (run at each following position), else at the current point."""
-        words = cycle_words(b.src, t, lambda at: self.expr(b, at))
+        if self.plane != 17:
+            raise b.src.error(f"{t.name} outside G17", t.start, t.name, "drilling along Z (G17)")
+        words = cycle_words(b.src, t, lambda at: self.expr(b, at), f"#{FRAME_BASE + 2}" if self.framed else None)
         modal = any(x.kind == "keyword" and x.name == "MCALL" for x in b.toks)
         if modal:
             self.mcall = words
