@@ -453,6 +453,9 @@ class Translator:
                 self.mcall = None
         elif t.name in _NOTE_KEYWORDS:
             b.notes.append(t.name)
+        elif t.name in FRAMES:
+            raise b.src.error(f"{t.name} must be in a block of its own", t.start, t.name, f"{t.name} X.. Y.. Z.. alone "
+                              "on its line (FB: frame instructions take a block of their own)")
         elif t.name == "SUPA":
             if "G53" not in b.words:
                 b.words.append("G53")
@@ -473,12 +476,12 @@ class Translator:
         if kw == "DEF":
             return self.define(src, rest, end)
         if kw.startswith("GOTO"):
-            return self.jump(src, "1")
+            return self.jump(src, "1", i)
         if kw in ("IF", "WHILE", "UNTIL"):
             cond, j = Expr(src, self.names).read(rest)
             j = skip(src.text, j)
-            if kw == "IF" and src.text[j:j + 4].upper() == "GOTO" and src.line in self.jumps.at_jump:
-                return self.jump(src, cond)
+            if kw == "IF" and src.text[j:j + 4].upper() == "GOTO":
+                return self.jump(src, cond, j)
             if j != end:
                 raise src.error("unexpected text after the condition", j, src.text[j:end][:40], "a condition alone, "
                                 "or IF <condition> GOTOF/GOTOB <label>")
@@ -502,8 +505,11 @@ class Translator:
             return f"o{label} while [[{cond}] EQ 0]"
         return f"o{label} endif" if kw == "ENDIF" else f"o{label} endwhile"
 
-    def jump(self, src: Line, cond: str) -> str:
+    def jump(self, src: Line, cond: str, at: int) -> str:
         """[IF cond] GOTOx label: the structure `jumps.plan` laid out (forward: skip while not cond)."""
+        if src.line not in self.jumps.at_jump:
+            raise src.error("a jump without its label", at, src.text[at:at + 20].strip(), "GOTOF/GOTOB/GOTO <label>, "
+                            "the only text after IF <condition>")
         kind, label = self.jumps.at_jump[src.line]
         return f"o{label} if [[{cond}] EQ 0]" if kind == "if" else f"o{label} while [{cond}]"
 
