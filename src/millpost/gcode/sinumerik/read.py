@@ -107,7 +107,7 @@ class Translator:
     def text(self, text: str) -> str:
         lines = source_lines(text)
         self.jumps = plan(lines, self.file)
-        self.framed = re.search(r"^[^;]*\bA?TRANS\b", text, re.IGNORECASE | re.MULTILINE) is not None
+        self.framed = re.search(r"^[^;\n]*\bA?TRANS\b", text, re.IGNORECASE | re.MULTILINE) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
             kw, _, src, col = self.flow[-1]
