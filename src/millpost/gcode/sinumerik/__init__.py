@@ -14,7 +14,8 @@ SINUMERIK = Dialect(
     markers=(r"\bG710\b", r"\bG700\b", r"^\s*N\d+\b[^;(]*;", r"\bCYCLE8\d\d?\s*\(", r"\bMSG\s*\(", r'\bT\s*=\s*"',
              r"^\s*(N\d+\s+)?R\d+\s*=", r"\bCYCLE832\b", r"_N_\w+_(MPF|SPF)", r"\bSUPA\b", r"\bG64[1-5]\b",
              r"^\s*(N\d+\s+)?(SOFT|BRISK|FFWON)\b", r"\bWORKPIECE\s*\(", r"\b[XYZIJK]\s*=\s*(AC|IC)\s*\(", r"\b(CR|AR)\s*=",
-             r"^\s*(N\d+\s+)?A?TRANS\b", r"\bGOTO[FB]\b"),
+             r"^\s*(N\d+\s+)?A?TRANS\b", r"\bGOTO[FB]\b", r"\bG4\s*F", r"\bTURN\s*=", r"\bG50[05]\b",
+             r"sinumerik|siemens|\b8[24]0D\b"),
 )
 
 __all__ = ["SINUMERIK"]
