@@ -45,16 +45,18 @@ _WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G
                  500: "G59.3"}
 _SAME_G = {0, 1, 2, 3, 17, 18, 19, 40, 41, 42, 53, 90, 91, 93, 94, 95}
 _PATH_G = {60: "G61", 64: "G64", 642: "G64", 643: "G64", 644: "G64", 645: "G64"}
-_NOTE_G = {9: "exact stop in this block", 601: "exact stop fine", 602: "exact stop coarse",
+_NOTE_G = {9: "exact stop in this block", 450: "compensated corners: arcs", 451: "compensated corners: intersection",
+           601: "exact stop fine", 602: "exact stop coarse",
            603: "exact stop at interpolator end"}
 _NOTE_KEYWORDS = {"SOFT", "BRISK", "DRIVE", "FFWON", "FFWOF", "CFC", "CFTCP", "CFIN", "STOPRE", "TRAFOOF", "G9",
-                  "UPATH", "SPATH", "DYNNORM", "DYNPOS", "DYNROUGH", "DYNSEMIFIN", "DYNFINISH", "COMPOF"}
+                  "UPATH", "SPATH", "DYNNORM", "DYNPOS", "DYNROUGH", "DYNSEMIFIN", "DYNFINISH", "COMPOF", "COMPON",
+                  "COMPCAD", "COMPCURV", "FNORM", "ORIWKS", "ORIMKS", "ORIAXES", "ORIVECT"}
 _NOTE_CALLS = {"WORKPIECE"}
 _REFUSED = {
     "TRAORI": "5-axis transformation", "TRACYL": "cylinder surface transformation", "TRANSMIT": "end face "
     "transformation", "CYCLE800": "swivel plane", "SPOS": "spindle positioning", "SPOSA": "spindle positioning",
     "PROC": "subprogram definition", "G33": "thread cutting",
-    "COMPCAD": "spline compression", "COMPCURV": "spline compression", "BSPLINE": "spline interpolation",
+    "BSPLINE": "spline interpolation",
     "POLY": "polynomial interpolation", "OFFN": "contour offset", "CIP": "circle through an intermediate point",
     "CT": "tangential circle", "REPEATB": "program section repetition",
     "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
@@ -240,8 +242,8 @@ class Translator:
             self.tool(b, t)
         elif name == "D":
             self.edge(b, t)
-        elif name in ("ADIS", "ADISPOS", "FP"):
-            if name == "ADISPOS" or (name == "ADIS" and 641 not in b.g):
+        elif name in ("ADIS", "ADISPOS", "FP", "DISC"):
+            if name in ("ADISPOS", "DISC") or (name == "ADIS" and 641 not in b.g):
                 b.notes.append(f"{name}={t.value}")
         elif name == "H":
             b.notes.append(f"H{t.value}: auxiliary function")
@@ -439,8 +441,8 @@ class Translator:
             tol = t.value.split(",")[0].strip()
             b.words.append(f"G64 P{tol}" if _SIMPLE.fullmatch(tol) and float(tol) > 0 else "G64")
             b.notes.append(f"CYCLE832({t.value})")
-        elif t.name in _NOTE_CALLS:
-            b.notes.append(f"{t.name}: noted")
+        elif t.name in _NOTE_CALLS or t.name == "CYCLE800" and not t.value.strip():
+            b.notes.append(f"{t.name}: noted" if t.name in _NOTE_CALLS else "CYCLE800: swivel reset")
         else:
             self.refuse(b, t)
 
