@@ -8,12 +8,18 @@ RS-274 (read to the same moves within 1e-6 mm), or with closed-form arc centres 
 from __future__ import annotations
 
 import math
+import os
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from millpost.emit.write import FeedPlan, write_feeds
 from millpost.errors import ParseError
-from millpost.gcode import ReaderOptions, dialects, read_text
+from millpost.gcode import ReaderOptions, dialects, read_program, read_text
+from millpost.gcode.convert import same_path
+from millpost.gcode.lexer import source_lines
 from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID
 
 
@@ -266,3 +272,27 @@ def test_trans_and_atrans_move_the_frame_the_moves_are_read_in():
     with pytest.raises(ParseError) as e:
         sin("N10 G0 X0\nN20 ROT RPL=30\n")
     assert (e.value.line, e.value.column) == (2, 5)
+
+
+REAL = os.environ.get("MILLPOST_SINUMERIK_PROGRAMS")
+REAL_FILES = sorted(p for p in Path(REAL).rglob("*") if p.suffix.lower() in (".mpf", ".spf", ".nc")) if REAL else []
+
+
+@pytest.mark.skipif(not REAL_FILES, reason="set MILLPOST_SINUMERIK_PROGRAMS to a folder of real Sinumerik programs")
+@pytest.mark.parametrize("path", REAL_FILES, ids=[p.name for p in REAL_FILES])
+def test_real_programs_read_or_refused_and_written_back_with_only_f_changed(path):
+    """A real program is read (or refused at file:line:column); read, its feeds scaled by 0.8 are
+    written back changing only F words, and it reads back to the same path."""
+    try:
+        program = read_program(path, ReaderOptions(dialect="sinumerik"))
+    except ParseError as err:
+        assert err.file == str(path) and err.line >= 1 and err.column >= 1, str(err)
+        return
+    source = program.source
+    assert len(source_lines(program.text)) >= len(source_lines(source))
+    out = write_feeds(program, FeedPlan(program.toolpath.feed_mm_min * 0.8, {}))
+    f_word = re.compile(r"\bF\s*=?\s*[-+]?[\w.]+")
+    for a, b in zip(source_lines(source), source_lines(out)):
+        assert f_word.sub("", a).split() == f_word.sub("", b).split(), (a, b)
+    again = read_text(out, str(path), ReaderOptions(dialect="sinumerik"))
+    assert same_path(program, again) == []
