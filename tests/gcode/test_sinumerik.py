@@ -296,3 +296,18 @@ def test_real_programs_read_or_refused_and_written_back_with_only_f_changed(path
         assert f_word.sub("", a).split() == f_word.sub("", b).split(), (a, b)
     again = read_text(out, str(path), ReaderOptions(dialect="sinumerik"))
     assert same_path(program, again) == []
+
+
+def test_circle_through_an_intermediate_point():
+    """FB "Circular interpolation with intermediate and end points (CIP)": from (0,0) through (5,5) to
+    (10,0) is the clockwise half circle about (5,0); CIP stays modal (through (15,-5) to (20,0):
+    counterclockwise about (15,0)); in G91 the points are from the start; out of the plane refused."""
+    p = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 CIP X10 Y0 I1=5 J1=5 F100\nN30 X20 Y0 I1=15 J1=-5\n"
+            "N40 G91 CIP X10 Y0 I1=5 J1=5\nN50 G90 G1 X0\n")
+    tp = p.toolpath
+    assert tp.kind.tolist() == [RAPID, ARC_CW, ARC_CCW, ARC_CW, FEED]
+    assert np.allclose(tp.center[1:4, :2], [[5, 0], [15, 0], [25, 0]], atol=1e-9)
+    assert np.allclose(tp.lengths()[1:4], 5 * math.pi)
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z0\nN20 CIP X10 Y0 Z-1 I1=5 J1=5 F100\n")
+    assert (e.value.line, e.value.column, e.value.word) == (2, 16, "Z-1")

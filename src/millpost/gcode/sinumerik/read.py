@@ -11,7 +11,9 @@ Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programmin
 - G90/G91 modal; per word ``X=AC(..)`` / ``X=IC(..)`` (FB "Absolute/incremental dimensions") through
   the current position (#5420..#5422, program units). G94/G95/G93, G17/G18/G19, G40-G42, G0-G3.
 - Arcs (FB "Circular interpolation"): I/J/K incremental from the start (``I=AC(..)``: absolute), or
-  ``CR=`` (radius; negative: the arc over 180°) → R; ``TURN=n`` → P(n+1).
+  ``CR=`` (radius; negative: the arc over 180°) → R; ``TURN=n`` → P(n+1); ``AR=`` and ``CIP`` through
+  the start point (`geometry`, `Translator.circle_through`). ``CT`` (tangential) is refused: the
+  tangent is the previous path's, which the translation cannot see.
 - Work offsets (FB "Settable zero offset"): G54-G57 → G54-G57, G505-G508 → G58, G59, G59.1, G59.2,
   G500 (settable offsets off) → G59.3; G53 / SUPA → G53 (that block in machine coordinates).
 - Tools (FB "Tool change"): ``T1`` / ``T=1`` / ``T="name"`` (names numbered by first appearance unless
@@ -57,7 +59,7 @@ _REFUSED = {
     "transformation", "CYCLE800": "swivel plane", "SPOS": "spindle positioning", "SPOSA": "spindle positioning",
     "PROC": "subprogram definition", "G33": "thread cutting",
     "BSPLINE": "spline interpolation",
-    "POLY": "polynomial interpolation", "OFFN": "contour offset", "CIP": "circle through an intermediate point",
+    "POLY": "polynomial interpolation", "OFFN": "contour offset",
     "CT": "tangential circle", "REPEATB": "program section repetition",
     "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
     "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
@@ -99,6 +101,7 @@ class Translator:
         self.names: dict[str, str] = {}
         self.motion = 0  # the modal G0-G3
         self.plane = 17
+        self.cip = False  # CIP is the modal motion
         self.mcall: list[str] | None = None  # the modal drilling cycle's words (MCALL CYCLE8x), None: off
         self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
@@ -157,13 +160,11 @@ class Translator:
         if b.toks[0].kind == "keyword" and b.toks[0].name in FRAMES:
             return self.frame(b)
         self.modes(b)
-        if b.word("AR") is not None:
-            self.opening_angle(b)
+        taken = self.special_arc(b)
         for t in b.toks:
-            if t.kind == "word" and b.word("AR") is not None and t.name in ("X", "Y", "Z", "I", "J", "K", "AR"):
-                if t.name not in PLANES[self.plane][0] + PLANES[self.plane][1] + ("AR",):
-                    self.address(b, t)
-            elif t.kind == "word":
+            if t.name in taken:
+                continue
+            if t.kind == "word":
                 self.address(b, t)
             elif t.kind == "call":
                 self.call(b, t)
@@ -389,6 +390,51 @@ class Translator:
             raise b.src.error(f"{kind.name} alone does not say which frame", kind.start, kind.name,
                               "TRANS/ATRANS X.. Y.. Z.., or TRANS/ROT/SCALE/MIRROR alone (frame cleared)")
         return " ".join(words)
+
+    def special_arc(self, b: _Block) -> set[str]:
+        """An arc by opening angle (AR=) or through an intermediate point (CIP, modal until G0-G3): its
+        words written; the names of the tokens it took."""
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        if {0, 1, 2, 3} & set(b.g):
+            self.cip = False
+        if b.word("AR") is not None:
+            self.opening_angle(b)
+            return {p1, p2, c1, c2, "AR"}
+        if any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) or self.cip and any(
+                t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.circle_through(b)
+            self.cip = True
+            return {p1, p2, f"{c1}1", f"{c2}1", "CIP"}
+        return set()
+
+    def circle_through(self, b: _Block) -> None:
+        """CIP (FB "Circular interpolation with intermediate and end points (CIP)"): the circle through the
+        start, the intermediate point (I1=, J1=, K1=: absolute in G90, from the start in G91) and the end,
+        in the active plane; clockwise (G2) when the three points turn clockwise. The centre, relative to
+        the start P0 with B = P1 - P0 and C = P2 - P0: ((Cy|B|² - By|C|²), (Bx|C|² - Cx|B|²)) / 2(BxCy - ByCx)."""
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        normal = next(a for a in "XYZ" if a not in (p1, p2))
+        off_plane = [t for t in b.toks if t.kind == "word" and t.name in (normal, "IJK"["XYZ".index(normal)] + "1")]
+        if off_plane:
+            t = off_plane[0]
+            raise b.src.error("CIP out of the active plane: a circle in space is not modelled", t.start,
+                              b.src.text[t.start:t.end], f"{p1}, {p2} and {c1}1=, {c2}1= only (G{self.plane})")
+        rel = {}
+        for name, axis in ((p1, p1), (p2, p2), (f"{c1}1", p1), (f"{c2}1", p2)):
+            t = b.word(name)
+            k = "XYZ".index(axis)
+            v = self.coordinate(b, t, k) if t is not None else None
+            rel[name] = "0" if v is None else f"[{v}-#{5420 + k}]" if self.absolute else v
+        if b.word(f"{c1}1") is None and b.word(f"{c2}1") is None:
+            raise b.src.error("CIP without its intermediate point", 0, b.src.text.strip()[:40],
+                              f"{c1}1= and {c2}1= (the intermediate point)")
+        bx, by, cx, cy = rel[f"{c1}1"], rel[f"{c2}1"], rel[p1], rel[p2]
+        cross = f"[{bx}*{cy}-{by}*{cx}]"
+        bb, cc = f"[{bx}*{bx}+{by}*{by}]", f"[{cx}*{cx}+{cy}*{cy}]"
+        b.words.append(f"G[2+[{cross} GT 0]]")
+        b.words.extend(f"{a}{self.coordinate(b, b.word(a), 'XYZ'.index(a))}" for a in (p1, p2) if b.word(a))
+        b.words.append(f"{c1}[[{cy}*{bb}-{by}*{cc}]/[2*{cross}]]")
+        b.words.append(f"{c2}[[{bx}*{cc}-{cx}*{bb}]/[2*{cross}]]")
 
     def opening_angle(self, b: _Block) -> None:
         """G2/G3 with AR=: from its end point or from its centre, not both (`geometry.arc_by_angle`)."""
