@@ -41,7 +41,7 @@ from ..lexer import source_lines
 from .cycles import CYCLES, cycle_words
 from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, frame_words
 from .jumps import Jumps, plan
-from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens, value_end
+from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
 
 _WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G59", 507: "G59.1", 508: "G59.2",
                  500: "G59.3"}
@@ -64,7 +64,7 @@ _REFUSED = {
     "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
     "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
     "CALL": "subprogram call", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
-    "RET": "subprogram return", "SUPA": "", "AC": "", "IC": "",
+    "RET": "subprogram return"
 }
 _FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF", "GOTOF",
                   "GOTOB", "GOTO", "GOTOC")
@@ -122,7 +122,7 @@ class Translator:
 
     def line(self, src: Line) -> str:
         """The NGC of one source line."""
-        code_end, comment = _split_comment(src)
+        code_end, comment = split_comment(src)
         text = src.text
         i = skip(text, 0)
         if text[i:i + 1] == "%":
@@ -147,7 +147,7 @@ class Translator:
             if body.startswith("o") and head:
                 head = [h for h in head if h == "/"]  # an O-word line takes no N number
         else:
-            toks = tokens(src, i, code_end, lambda s, k: value_end(s, k))
+            toks = tokens(src, i, code_end)
             body = self.block(_Block(src, toks)) if toks else ""
         return " ".join(w for w in (*head, body) if w) + (f" {comment}" if comment and (head or body) else comment)
 
@@ -588,7 +588,7 @@ class Translator:
         return " ".join(out)
 
 
-def _split_comment(src: Line) -> tuple[int, str]:
+def split_comment(src: Line) -> tuple[int, str]:
     """(end of the code, the ';' comment as written or '') — a ';' in a string is not a comment."""
     i, text = 0, src.text
     while i < len(text):

@@ -15,7 +15,6 @@ ASIN ACOS ATAN2 SQRT POT ABS TRUNC ROUND LN EXP MINVAL MAXVAL``, R parameters (`
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
 from dataclasses import dataclass
 
 from ...errors import ParseError
@@ -86,9 +85,8 @@ def closing(src: Line, i: int) -> int:
     raise src.error("unbalanced parenthesis", i, src.text[i:i + 20], "a closing )")
 
 
-def tokens(src: Line, start: int, end: int, value_end: Callable[[Line, int], int]) -> list[Token]:
-    """The words, calls and keywords of text[start:end]; `value_end(src, i)` finds where the value
-    expression that starts at `i` ends."""
+def tokens(src: Line, start: int, end: int) -> list[Token]:
+    """The words, calls and keywords of text[start:end]."""
     text, out, i = src.text, [], skip(src.text, start)
     while i < end:
         m = _NUMWORD.match(text, i)
@@ -256,7 +254,7 @@ def _trunc(a: str) -> str:
     return f"[FIX[ABS[{a}]]*[[[{a}] GE 0]*2-1]]"
 
 
-def value_end(src: Line, i: int, names: dict[str, str] | None = None) -> int:
+def value_end(src: Line, i: int) -> int:
     """Where the value written at `i` ends: a string, a call such as AC(...), or an expression."""
     text = src.text
     if text[i:i + 1] == '"':
@@ -264,7 +262,7 @@ def value_end(src: Line, i: int, names: dict[str, str] | None = None) -> int:
     m = re.compile(r"(AC|IC)[ \t]*\(", re.IGNORECASE).match(text, i)
     if m:
         return closing(src, m.end() - 1) + 1
-    return Expr(src, _Any() if names is None else names).read(i)[1]
+    return Expr(src, _Any()).read(i)[1]
 
 
 class _Any(dict):

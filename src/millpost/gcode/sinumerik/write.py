@@ -7,15 +7,15 @@ import re
 
 from ...errors import MillpostError
 
-from .syntax import Line, skip, tokens, value_end
-from .read import _BLOCK_NUMBER, _LABEL, _split_comment
+from .syntax import Line, skip, tokens
+from .read import _BLOCK_NUMBER, _LABEL, split_comment
 
 
 def feed_span(line: str) -> tuple[int, int] | None:
     """[start, end) of the line's F word (``F300``, ``F=R1*2``), None without one; a dwell's F
     (G4 F<seconds>) is not a feed."""
     src = Line(line, 0, "<line>")
-    end, _ = _split_comment(src)
+    end, _ = split_comment(src)
     i = skip(line, 0)
     if line[i:i + 1] == "/":
         i = skip(line, i + 1)
@@ -23,7 +23,7 @@ def feed_span(line: str) -> tuple[int, int] | None:
         m = pattern.match(line, i)
         if m:
             i = skip(line, m.end())
-    toks = tokens(src, i, end, lambda s, k: value_end(s, k))
+    toks = tokens(src, i, end)
     if any(t.kind == "word" and t.name == "G" and t.value.lstrip("0") == "4" for t in toks):
         return None
     found = [t for t in toks if t.kind == "word" and t.name == "F"]
@@ -42,7 +42,7 @@ def set_feed(line: str, f: str | None) -> str:
         return cut + (" " if cut and line[end:].strip() and not line[end:].startswith((" ", "\t")) else "") + line[end:]
     if f is None:
         return line
-    end, comment = _split_comment(Line(line, 0, "<line>"))
+    end, comment = split_comment(Line(line, 0, "<line>"))
     code = line[:end].rstrip(" \t")
     gap = line[len(code):end]
     return f"{code} F{f}" + (gap or (" " if comment else "")) + comment
