@@ -591,6 +591,9 @@ class Translator:
 def split_comment(src: Line) -> tuple[int, str]:
     """(end of the code, the ';' comment as written or '') — a ';' in a string is not a comment."""
     i, text = 0, src.text
+    if '"' not in text:
+        i = text.find(";")
+        return (len(text), "") if i < 0 else (i, text[i:])
     while i < len(text):
         if text[i] == '"':
             end = text.find('"', i + 1)

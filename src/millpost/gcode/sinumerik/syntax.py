@@ -22,6 +22,7 @@ from ...errors import ParseError
 R_BASE = 1000  # R<n> is NGC parameter #<R_BASE + n>
 R_COUNT = 1000  # R0 ... R999
 _NUMWORD = re.compile(r"([A-Za-z])[ \t]*([-+]?(?:\d+\.?\d*|\.\d+))")
+_BLANKS = re.compile(r"[ \t]*")
 _NAME = re.compile(r"[A-Za-z_$][A-Za-z0-9_$]*")
 _NUMBER = re.compile(r"(?:\d+\.?\d*|\.\d+)(?:EX[-+]?\d+)?", re.IGNORECASE)
 _SYMBOLS = ("==", "<>", "<=", ">=", "<", ">", "+", "-", "*", "/")
@@ -57,9 +58,8 @@ class Line:
 
 
 def skip(text: str, i: int) -> int:
-    while i < len(text) and text[i] in " \t":
-        i += 1
-    return i
+    """The first index from `i` that is not a space or tab."""
+    return _BLANKS.match(text, i).end()
 
 
 def string_end(src: Line, i: int) -> int:
