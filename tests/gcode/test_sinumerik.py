@@ -175,6 +175,15 @@ def test_while_loop_and_repeat_until():
     assert np.allclose(p.toolpath.end[:, :2], [[0, 0], [1, 0], [2, 0], [2, 3], [2, 2]])
 
 
+def test_a_loop_without_end_is_refused_at_its_lines():
+    """AV "Endless program loop (LOOP)": LOOP ... ENDLOOP runs until a jump leaves it; a jump out of a
+    loop cannot be laid out as structure, so the loop is read as written and stops at the reader's cap
+    on repeated lines, naming a line of the loop."""
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z5\nN20 LOOP\nN30 G91 G1 X1 F1000\nN40 ENDLOOP\n")
+    assert e.value.line in (2, 3, 4) and "loop" in str(e.value).lower()
+
+
 def test_msg_and_notes_are_events():
     """FB "Messages (MSG)": a message, no motion."""
     p = sin('N10 MSG("roughing (pass 1)")\nN20 G0 X1\n')
@@ -190,6 +199,8 @@ def test_msg_and_notes_are_events():
     ("N20 G1 X10 FOO", 12, "FOO"),
     ("N20 G1 X=$AA_IW[X]", 10, "$AA_IW"),
     ("N20 WHILE R1<3", 5, "WHILE"),
+    ("N20 REPEAT LBL1 P=2", 12, "LBL1"),
+    ("N20 X1 L100", 8, "L100"),
 ])
 def test_refused_with_file_line_and_column(line, column, word):
     """Out of reach (5-axis, swivel, pocket cycles, spindle positioning, thread cutting, unknown
