@@ -227,10 +227,16 @@ def test_modal_drilling_cycles_run_at_each_position_that_follows():
 
 def test_deep_hole_cycle_is_g83_or_g73_and_what_g83_cannot_make_is_refused():
     """Cycles manual, "CYCLE83 - Deep-hole drilling": VARI=1 chip removal (G83), VARI=0 chip breaking
-    (G73), infeed FDPR; a degression DAM is refused (G83 pecks are equal)."""
+    (G73), infeed FDPR or RFP - FDEP (as Fusion 360's 840D post writes it); a degression DAM, or a dwell
+    at the depth (_DTD), is refused (G83 pecks are equal and do not dwell)."""
     a = sin("N10 G0 X0 Y0 Z10\nN20 F100\nN30 CYCLE83(10, 0, 2, -12, , , 3, 0, , 0, 1, 1)\n")
     b = ngc("G0 X0 Y0 Z10\nF100\nG98 G83 R2 Z-12 Q3\n")
     assert_same_moves(a, b)
+    fusion = sin("N10 G0 X0 Y0 Z10\nN20 F100\nN30 MCALL CYCLE83(10, 0, 2, -12, , -3, , 0, , , 1, 1, , 3, 0, 0, 0)\n"
+                 "N40 X0 Y0\nN50 MCALL\n")
+    assert_same_moves(fusion, ngc("G0 X0 Y0 Z10\nF100\n(mcall)\nG98 G83 X0 Y0 R2 Z-12 Q3\nG80\n"))
+    with pytest.raises(ParseError, match="_DTD"):
+        sin("N10 G0 X0 Y0 Z10\nN20 CYCLE83(10, 0, 2, -12, , -3, , 0, , , 1, 1, , 3, 0, 0.5, 0)\n")
     with pytest.raises(ParseError) as e:
         sin("N10 G0 X0 Y0 Z10\nN20 CYCLE83(10, 0, 2, -12, , , 3, 1, , 0, 1, 1)\n")
     assert (e.value.line, e.value.word) == (2, "1") and "DAM" in str(e.value)

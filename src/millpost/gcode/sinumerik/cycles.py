@@ -4,14 +4,15 @@ Parameters (SINUMERIK 840D sl/828D "Cycles" programming manual, "Drilling cycles
 plane (absolute), RFP reference plane (absolute), SDIS safety distance (above RFP, unsigned), DP final
 depth (absolute) or DPR (relative to RFP, unsigned; DPR wins when both are given), DTB dwell at the
 bottom (s). CYCLE83: FDEP first depth (absolute) or FDPR (relative to RFP), DAM degression, DTB, DTS,
-FRF feed factor of the first infeed, VARI 0 chip breaking (G73) / 1 chip removal (G83).
+FRF feed factor of the first infeed, VARI 0 chip breaking (G73) / 1 chip removal (G83), DTB/_DTD dwell
+at the depth (s). _MDEP, _VRT (chip-breaking retract: G73's own) and _DIS1 are not read.
 
 The cycle approaches RFP+SDIS at rapid (the canned cycle's R), drills to the depth at the feed in force
 and retracts at rapid. The retract goes to the level where the cycle started (G98: the Z of the first
 hole of a MCALL sequence), which is RTP when the program positioned there before the call, as CAM
 posts do (Fusion, NX); a note says so. Pecks (CYCLE83) are counted from R, as G83 does, a peck of
-FDPR (RFP - FDEP); a degression (DAM), a first-infeed feed factor other than 1, or a dwell at the
-start are refused: G83 cannot make them.
+FDPR (RFP - FDEP); a degression (DAM), a first-infeed feed factor other than 1, or a dwell (at the
+start or at the depth) are refused: G83 cannot make them.
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ def cycle_words(src: Line, t: Token, expr: Callable[[int], tuple[str, int]], fra
             values["DP"] = f"[{values['DP']}+{frame_z}]"
     depth = f"[{rfp}-ABS[{values['DPR']}]]" if "DPR" in values else values["DP"]
     words = [f"R[{rfp}+ABS[{sdis}]]", _word("Z", depth)]
-    if code in (82, 83) and "DTB" in values:
+    if code == 82 and "DTB" in values:
         words.append(_word("P", values["DTB"]))
     if code == 83:
         words.insert(0, _peck_code(src, t, args, values))
@@ -93,7 +94,7 @@ def _word(letter: str, value: str) -> str:
 
 def _peck_code(src: Line, t: Token, args: list[tuple[str, int]], values: dict[str, str]) -> str:
     """G83 (VARI=1, chip removal) or G73 (VARI=0, chip breaking); what G83 cannot make is refused."""
-    for name, neutral in (("DAM", "0"), ("FRF", "1"), ("DTS", "0")):
+    for name, neutral in (("DAM", "0"), ("FRF", "1"), ("DTS", "0"), ("DTB", "0"), ("_DTD", "0")):
         if values.get(name, neutral) not in (neutral, f"{neutral}.", f"{neutral}.0"):
             at = args[_NAMES[83].index(name)][1]
             raise src.error(f"CYCLE83 with {name}={values[name]}: G83 cannot make it", at, values[name],
