@@ -60,3 +60,20 @@ def test_optimized_program_keeps_every_byte_but_f_and_its_path():
     assert same_path(program, again) == []
     assert np.allclose(again.toolpath.feed_mm_min[1:], [300, 450, 525, 650, 650])
     assert write_feeds(program, FeedPlan(tp.feed_mm_min.copy(), {})) == PROGRAM
+
+
+def test_a_cycle_calls_block_takes_no_feed():
+    """FB "Subprogram call": a cycle call stands in a block of its own, so a new feed for an immediate
+    CYCLE81 goes into the F line before it when there is one, else is refused (not written as an invalid
+    block)."""
+    from millpost.errors import MillpostError
+    opts = ReaderOptions(dialect="sinumerik")
+    program = read_text("N10 G0 X0 Y0 Z10\nN20 F100\nN30 CYCLE81(10, 0, 2, -6)\nN40 M30\n", "c.mpf", opts)
+    feeds = program.toolpath.feed_mm_min.copy()
+    feeds[program.toolpath.kind != 0] = 80.0
+    assert write_feeds(program, FeedPlan(feeds, {})).splitlines()[1] == "N20 F80"  # the F line before takes it
+    program = read_text("N10 G0 X0 Y0 Z10\nN20 G1 X1 F100\nN30 CYCLE81(10, 0, 2, -6)\nN40 M30\n", "c.mpf", opts)
+    feeds = program.toolpath.feed_mm_min.copy()
+    feeds[program.toolpath.line == 3] = 80.0
+    with pytest.raises(MillpostError, match="CYCLE81 takes a block of its own"):
+        write_feeds(program, FeedPlan(feeds, {}))

@@ -7,13 +7,15 @@ import re
 
 from ...errors import MillpostError
 
+from .cycles import CYCLES
 from .syntax import Line, skip, tokens
 from .read import _BLOCK_NUMBER, _LABEL, split_comment
 
 
 def feed_span(line: str) -> tuple[int, int] | None:
     """[start, end) of the line's F word (``F300``, ``F=R1*2``), None without one; a dwell's F
-    (G4 F<seconds>) is not a feed."""
+    (G4 F<seconds>) is not a feed. A cycle call takes a block of its own (FB "Subprogram call"): its
+    feed cannot be written into it (MillpostError)."""
     src = Line(line, 0, "<line>")
     end, _ = split_comment(src)
     i = skip(line, 0)
@@ -26,6 +28,11 @@ def feed_span(line: str) -> tuple[int, int] | None:
     toks = tokens(src, i, end)
     if any(t.kind == "word" and t.name == "G" and t.value.lstrip("0") == "4" for t in toks):
         return None
+    call = next((t for t in toks if t.kind == "call" and t.name in CYCLES), None)
+    if call is not None:
+        raise MillpostError(f"{line.strip()!r}: {call.name} takes a block of its own: a new feed for its drilling "
+                            "cannot be written into it (program the F on the block before the call, or call it "
+                            "with MCALL and the positions after)")
     found = [t for t in toks if t.kind == "word" and t.name == "F"]
     return (found[-1].start, found[-1].end) if found else None
 
