@@ -28,6 +28,10 @@ Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programmin
   LOOP/ENDLOOP, REPEAT/UNTIL (AV "Program jumps and branches", "Program section repetitions")
   → O-word if/while/do.
 
+The translation keeps what it needs of the modal state (G90/G91 for AC/IC, the plane, G0-G3/CIP, MCALL,
+the last S) in the order of the text: a loop or backward jump whose body changes one of them before
+a line that depends on it reads that line with the state the text shows there.
+
 Anything else is refused with its file:line:column (5-axis transformations, swivel CYCLE800, shop-floor
 and pocket cycles, SPOS, subprogram calls, polar coordinates, system variables, ...).
 """
