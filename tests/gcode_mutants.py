@@ -208,7 +208,11 @@ def _alarm(signum, frame):
 def check(text: str, name: str, linuxcnc: bool, seconds: float | None = None) -> tuple[str, str]:
     """Read a mutant: ("accepted" | "refused" | "uncaught" | "nonfinite" | "hang", detail). With
     `seconds`, a read using more CPU time than that is stopped and reported as a hang (Unix only)."""
-    options = ReaderOptions.linuxcnc() if linuxcnc else ReaderOptions()
+    return check_with(text, name, ReaderOptions.linuxcnc() if linuxcnc else ReaderOptions(), seconds)
+
+
+def check_with(text: str, name: str, options: ReaderOptions, seconds: float | None = None) -> tuple[str, str]:
+    """`check` with the reader's options given (a dialect forced)."""
     if seconds:
         old = signal.signal(signal.SIGPROF, _alarm)
         signal.setitimer(signal.ITIMER_PROF, seconds)

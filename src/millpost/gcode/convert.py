@@ -4,7 +4,8 @@ The output is written from the interpreted moves and events, not by editing text
 come out expanded (every controller runs lines), arcs as centre-format IJK relative to the start
 (every dialect reads them; no R ambiguity), numbers in the target's format, units as programmed,
 feeds in units per minute (G93/G95 converted to the equivalent G94 feed), and N numbers where the
-dialect numbers its lines.
+dialect numbers its lines. A dialect of another language writes itself (`Dialect.write`: Heidenhain
+Klartext from the moves, Sinumerik by rewriting this RS-274 text in its own words).
 
 What depends on the machine rather than the program is re-posted as the source wrote it, so the
 controller resolves it the same way: tool length compensation (G43 H / G43.1 / G43.2 / G49, where
@@ -93,7 +94,13 @@ def convert(program: Program, dialect: Dialect) -> str:
     blocks = SourceBlocks(program)
     _frame_setting(program, blocks)
     if dialect.write is not None:  # a language other than RS-274 writes itself
-        return dialect.write(program)
+        return dialect.write(program, blocks)
+    return write_rs274(program, dialect, blocks)
+
+
+def write_rs274(program: Program, dialect: Dialect, blocks: SourceBlocks) -> str:
+    """The program's moves and events as RS-274 in `dialect`'s style (`convert`, after its refusals)."""
+    tp = program.toolpath
     block = blocks.__getitem__
     out: list[str] = []
     seq = [0]

@@ -10,9 +10,14 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from ..errors import MillpostError
 from ..registry import plugins
+
+if TYPE_CHECKING:
+    from .convert import SourceBlocks
+    from .interpret import Program
 
 MARKER_CAP = 3
 
@@ -57,8 +62,9 @@ class Dialect:
     word's number text `f` (in the line's units, as the RS-274 writer formatted it) in place of the
     line's F, added where it has none, or the F removed when `f` is None; the rest of the line keeps
     its bytes. fixed_feed(line): the source line's moves run at a feed written elsewhere (a Heidenhain
-    cycle call runs at its cycle's Q206): they keep their programmed feed. write(program) writes an
-    interpreted program in such a language (`convert` uses it in place of its RS-274 writer).
+    cycle call runs at its cycle's Q206): they keep their programmed feed. write(program, blocks)
+    writes an interpreted program (and its lexed source blocks) in such a language: `convert` uses it in
+    place of its RS-274 writer, from whose text it may start (`convert.write_rs274`).
     blank(text, file): the blank the program states (Heidenhain's BLK FORM) as ((xmin, ymin, zmin),
     (xmax, ymax, zmax)) in mm, or None; a job with no [stock] takes it as its stock.
     """
@@ -94,7 +100,7 @@ class Dialect:
     fixed_feed: Callable[[str], bool] | None = field(default=None, compare=False, repr=False)
     blank: Callable[[str, str], tuple[tuple[float, float, float], tuple[float, float, float]] | None] | None = field(
         default=None, compare=False, repr=False)
-    write: Callable[..., str] | None = field(default=None, compare=False, repr=False)
+    write: Callable[[Program, SourceBlocks], str] | None = field(default=None, compare=False, repr=False)
 
     def number(self, value: float, inch: bool, decimals: int | None = None) -> str:
         """Format a coordinate or feed in this dialect's style (no '-0', no exponent)."""

@@ -62,9 +62,9 @@ def _refuse(program: Program, line: int, message: str, expected: str) -> ParseEr
 class _Writer:
     """The state of one conversion: the blocks written, the axes known, the feed and tool in force."""
 
-    def __init__(self, program: Program) -> None:
+    def __init__(self, program: Program, blocks: SourceBlocks) -> None:
         self.program, self.out = program, _Out()
-        self.blocks = SourceBlocks(program)
+        self.blocks = blocks
         self.known = [False, False, False]
         self.last: list[str | None] = [None, None, None]  # the coordinate text last written per axis
         self.feed: float | None = None
@@ -202,9 +202,9 @@ class _Writer:
         self.out(f"C {words} DR{sign}{self._f(i)}")
 
 
-def write(program: Program) -> str:
-    """The program as Klartext (see the module docstring), in mm."""
-    w = _Writer(program)
+def write(program: Program, blocks: SourceBlocks) -> str:
+    """The program (and its lexed source blocks) as Klartext (see the module docstring), in mm."""
+    w = _Writer(program, blocks)
     name = "".join(c for c in Path(program.path).stem.upper() if c.isalnum() or c in "_-") or "MILLPOST"
     w.out(f"BEGIN PGM {name} MM")
     w.out(f"; converted by millpost from {program.path} [{program.dialect} to heidenhain]")  # as `convert` words it

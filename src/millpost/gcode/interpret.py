@@ -469,6 +469,8 @@ class Interpreter:
                     start_flow().statement(raw, *control)
                     self.control_flow = True
                 continue
+            if "#542" in raw:
+                self.position_parameters()
             block = lex_line(raw, line_no, self.file, self.params)
             if block.percent:
                 percent_seen += 1
@@ -499,6 +501,12 @@ class Interpreter:
                     self.event(line_no, "comment", c)
             for key, value in block.assigns:
                 self.params[key] = value
+
+    def position_parameters(self) -> None:
+        """#5420-#5422 (LinuxCNC): the current point in program coordinates and units, set before a
+        line that reads them."""
+        for axis, value in enumerate(self.pos):
+            self.params[5420 + axis] = float(value) / self.scale
 
     def modal(self) -> tuple:
         """The modal state a move records: rpm, plane, tool, block, inch, feed mode, G91, G90.1."""

@@ -1,0 +1,620 @@
+"""Sinumerik 840D sl / 828D part programs → RS-274/NGC, line for line (`Dialect.translate`).
+
+Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programming manual (FB) and
+"Job planning" manual (AV). What a line means, and its NGC:
+
+- ``;`` comments stay ``;`` comments; ``N10`` / ``:10`` block numbers stay N numbers; ``/`` block skip.
+- Units (FB "Inch/metric dimensions"): G710 → G21, G700 → G20 (geometry and feeds). G70/G71 set the
+  geometry only, F staying in the machine's basic system, which the program cannot tell: it is taken
+  to be the programmed one (as CAM posts intend: Fusion writes G70 with feeds in inch/min), said in a
+  note; G70 → G20, G71 → G21.
+- G90/G91 modal; per word ``X=AC(..)`` / ``X=IC(..)`` (FB "Absolute/incremental dimensions") through
+  the current position (#5420..#5422, program units). G94/G95/G93, G17/G18/G19, G40-G42, G0-G3.
+- Arcs (FB "Circular interpolation"): I/J/K incremental from the start (``I=AC(..)``: absolute), or
+  ``CR=`` (radius; negative: the arc over 180°) → R; ``TURN=n`` → P(n+1); ``AR=`` and ``CIP`` through
+  the start point (`geometry`, `Translator.circle_through`). ``CT`` (tangential) is refused: the
+  tangent is the previous path's, which the translation cannot see.
+- Work offsets (FB "Settable zero offset"): G54-G57 → G54-G57, G505-G508 → G58, G59, G59.1, G59.2,
+  G500 (settable offsets off) → G59.3; G53 / SUPA → G53 (that block in machine coordinates).
+- Tools (FB "Tool change"): ``T1`` / ``T=1`` / ``T="name"`` (names numbered by first appearance unless
+  all digits), M6; D<n> (the edge's length and radius: on) → G43 at the tool change, D0 → G49.
+- Path modes (FB "Exact stop", "Continuous-path mode"): G60 → G61, G64/G642-G645 → G64, G641 ADIS=d →
+  G64 P<d>, CYCLE832(tol, ...) → G64 P<tol>; G9, G601-G603, SOFT, BRISK, FFWON/FFWOF, CFC/CFTCP/CFIN,
+  STOPRE, WORKPIECE(...) are kept as notes (no effect on the path).
+- Dwell (FB "Dwell time"): G4 F<s> → G4 P<s>; G4 S<revolutions> → seconds at the last programmed S.
+- G74/G75 (reference / fixed point) → a G0 in machine coordinates of the named axes.
+- M30, M2, M17 (end) → M30/M2; M0 M1 M3-M9 as written; ``MSG("text")`` → ``(MSG,text)``.
+- R parameters and DEF variables, expressions in any value (`syntax`); IF/ELSE/ENDIF, WHILE/ENDWHILE,
+  LOOP/ENDLOOP, REPEAT/UNTIL (AV "Program jumps and branches", "Program section repetitions")
+  → O-word if/while/do.
+
+The translation keeps what it needs of the modal state (G90/G91 for AC/IC, the plane, G0-G3/CIP, MCALL,
+the last S) in the order of the text: a loop or backward jump whose body changes one of them before
+a line that depends on it reads that line with the state the text shows there.
+
+Anything else is refused with its file:line:column (5-axis transformations, swivel CYCLE800, shop-floor
+and pocket cycles, SPOS, subprogram calls, polar coordinates, system variables, ...).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from ..lexer import source_lines
+from .cycles import CYCLES, cycle_words
+from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, frame_words
+from .jumps import Jumps, plan
+from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
+
+_WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G59", 507: "G59.1", 508: "G59.2",
+                 500: "G59.3"}
+_SAME_G = {0, 1, 2, 3, 17, 18, 19, 40, 41, 42, 53, 90, 91, 93, 94, 95}
+_PATH_G = {60: "G61", 64: "G64", 642: "G64", 643: "G64", 644: "G64", 645: "G64"}
+_NOTE_G = {9: "exact stop in this block", 450: "compensated corners: arcs", 451: "compensated corners: intersection",
+           601: "exact stop fine", 602: "exact stop coarse",
+           603: "exact stop at interpolator end"}
+_NOTE_KEYWORDS = {"SOFT", "BRISK", "DRIVE", "FFWON", "FFWOF", "CFC", "CFTCP", "CFIN", "STOPRE", "TRAFOOF", "G9",
+                  "UPATH", "SPATH", "DYNNORM", "DYNPOS", "DYNROUGH", "DYNSEMIFIN", "DYNFINISH", "COMPOF", "COMPON",
+                  "COMPCAD", "COMPCURV", "FNORM", "ORIWKS", "ORIMKS", "ORIAXES", "ORIVECT"}
+_NOTE_CALLS = {"WORKPIECE"}
+_REFUSED = {
+    "TRAORI": "5-axis transformation", "TRACYL": "cylinder surface transformation", "TRANSMIT": "end face "
+    "transformation", "CYCLE800": "swivel plane", "SPOS": "spindle positioning", "SPOSA": "spindle positioning",
+    "PROC": "subprogram definition", "G33": "thread cutting",
+    "BSPLINE": "spline interpolation",
+    "POLY": "polynomial interpolation", "OFFN": "contour offset",
+    "CT": "tangential circle", "REPEATB": "program section repetition",
+    "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
+    "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
+    "CALL": "subprogram call", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
+    "RET": "subprogram return"
+}
+_FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF", "GOTOF",
+                  "GOTOB", "GOTO", "GOTOC")
+_LABEL = re.compile(r"([A-Za-z_][A-Za-z_][A-Za-z0-9_]*)[ \t]*:(?!=)")
+_BLOCK_NUMBER = re.compile(r"(?:[Nn][ \t]*(\d+)|:[ \t]*(\d+))(?![\d.])")
+_SIMPLE = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
+
+
+@dataclass
+class _Block:
+    """The NGC words of one source block, and what its words need from each other."""
+
+    src: Line
+    toks: list[Token]
+    g: dict[int, Token] = field(default_factory=dict)
+    words: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    assigned: dict[str, str] = field(default_factory=dict)  # parameter → its new value's expression
+
+    def word(self, name: str) -> Token | None:
+        return next((t for t in self.toks if t.kind == "word" and t.name == name), None)
+
+
+class Translator:
+    """The modal state the translation needs (G90/G91, motion, S, tools, control structures)."""
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+        self.absolute = True
+        self.spindle: str | None = None  # the last S value (NGC text), for G4 S
+        self.tools: dict[str, int] = {}
+        self.tool_pending = False  # a T selected and no M6 since
+        self.length_at_change = False  # a D given before the M6: G43 goes with the M6
+        self.names: dict[str, str] = {}
+        self.motion = 0  # the modal G0-G3
+        self.plane = 17
+        self.cip = False  # CIP is the modal motion
+        self.mcall: list[str] | None = None  # the modal drilling cycle's words (MCALL CYCLE8x), None: off
+        self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
+        self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
+        self.labels = 0
+        self.jumps = Jumps()
+        self.framed = False  # the program sets a programmable offset: absolute values get #2000.. added
+
+    def text(self, text: str) -> str:
+        lines = source_lines(text)
+        self.jumps = plan(lines, self.file)
+        self.framed = re.search(r"^[^;\n]*\bA?TRANS\b", text, re.IGNORECASE | re.MULTILINE) is not None
+        out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
+        if self.flow:
+            kw, _, src, col = self.flow[-1]
+            raise src.error(f"{kw} without its end", col, kw, {"IF": "ENDIF", "WHILE": "ENDWHILE", "LOOP": "ENDLOOP",
+                                                              "REPEAT": "UNTIL"}[kw])
+        return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+
+    def line(self, src: Line) -> str:
+        """The NGC of one source line."""
+        code_end, comment = split_comment(src)
+        text = src.text
+        i = skip(text, 0)
+        if text[i:i + 1] == "%":
+            return f";{text}"
+        head = []
+        if text[i:i + 1] == "/":
+            head.append("/")
+            i = skip(text, i + 1)
+        m = _BLOCK_NUMBER.match(text, i)
+        if m:
+            head.append(f"N{m.group(1) or m.group(2)}")
+            i = skip(text, m.end())
+        m = _LABEL.match(text, i)
+        if m and i < code_end:
+            i = skip(text, m.end())
+        if src.line in self.jumps.at_label:
+            head = [h for h in head if h == "/"]
+            head.append(self.jumps.at_label[src.line])
+        first = re.match(r"[A-Za-z_]+", text[i:code_end])
+        if first and first.group(0).upper() in _FLOW_KEYWORDS:
+            body = self.flow_statement(src, first.group(0).upper(), i, code_end)
+            if body.startswith("o") and head:
+                head = [h for h in head if h == "/"]  # an O-word line takes no N number
+        else:
+            toks = tokens(src, i, code_end)
+            body = self.block(_Block(src, toks)) if toks else ""
+        return " ".join(w for w in (*head, body) if w) + (f" {comment}" if comment and (head or body) else comment)
+
+    # --- blocks -------------------------------------------------------------------------------
+    def block(self, b: _Block) -> str:
+        for t in b.toks:
+            if t.kind == "word" and t.name == "G":
+                code = _g_number(b.src, t)
+                b.g[code] = t
+        if b.toks[0].kind == "keyword" and b.toks[0].name in FRAMES:
+            return self.frame(b)
+        self.modes(b)
+        taken = self.special_arc(b)
+        for t in b.toks:
+            if t.name in taken:
+                continue
+            if t.kind == "word":
+                self.address(b, t)
+            elif t.kind == "call":
+                self.call(b, t)
+            else:
+                self.keyword(b, t)
+        moves = any(t.kind == "word" and t.name in "XYZ" for t in b.toks)
+        if self.mcall and moves and not any(t.kind == "keyword" and t.name == "MCALL" for t in b.toks):
+            self.at_hole(b)
+        elif self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
+            b.words.insert(0, f"G{self.motion}")
+        if moves or {74, 75} & set(b.g):
+            self.restore_motion = bool({74, 75} & set(b.g))
+        for note in b.notes:
+            b.words.append("(" + note.replace("(", "[").replace(")", "]") + ")")
+        return " ".join(b.words)
+
+    def modes(self, b: _Block) -> None:
+        """The block's G codes: modal state first (G90/G91 apply to the block's own words)."""
+        for code, t in b.g.items():
+            if code == 90:
+                self.absolute = True
+            elif code == 91:
+                self.absolute = False
+            if code in (0, 1, 2, 3):
+                self.motion = code
+            if code in (17, 18, 19):
+                self.plane = code
+            if code in _SAME_G:
+                b.words.append(f"G{code}")
+            elif code in _WORK_OFFSETS:
+                b.words.append(_WORK_OFFSETS[code])
+            elif code in (70, 71, 700, 710):
+                b.words.append("G20" if code in (70, 700) else "G21")
+                if code in (70, 71):
+                    b.notes.append(f"G{code}: feeds taken in {'inch' if code == 70 else 'mm'}/min, the basic system "
+                                   "assumed to be the programmed one")
+            elif code in _PATH_G:
+                b.words.append(_PATH_G[code])
+            elif code == 641:
+                adis = b.word("ADIS")
+                b.words.append(f"G64 P{self.value(b, adis)}" if adis else "G64")
+            elif code in _NOTE_G:
+                b.notes.append(f"G{code}: {_NOTE_G[code]}")
+            elif code in (25, 26):
+                b.notes.append(f"G{code}: spindle speed limit")
+            elif code in (74, 75):
+                b.words.append("G53 G0")
+            elif code == 4:
+                b.words.append("G4")
+            else:
+                raise b.src.error(f"G{code} is not read by millpost's Sinumerik reader", t.start, b.src.text[t.start:t.end],
+                                  "G0-G4, G9, G17-G19, G25/G26, G40-G42, G53-G57, G60, G64, G641-G645, G70/G71, "
+                                  "G74/G75, G90/G91, G93-G95, G500, G505-G508, G601-G603, G700/G710")
+
+    def address(self, b: _Block, t: Token) -> None:
+        name, src = t.name, b.src
+        if name == "G":
+            return
+        if name in "XYZ":
+            b.words.append(name + self.coordinate(b, t, "XYZ".index(name)))
+        elif name in "IJK":
+            b.words.append(name + self.centre(b, t, "IJK".index(name)))
+        elif name in "ABC":
+            b.words.append(name + self.value(b, t))
+        elif name == "CR":
+            b.words.append("R" + self.value(b, t))
+        elif name == "TURN":
+            b.words.append(f"P[{self.value(b, t)}+1]")
+        elif name == "F":
+            self.feed(b, t)
+        elif name in ("S", "S1"):
+            self.speed(b, t)
+        elif name in ("M", "M1") and t.eq or name == "M":
+            self.m_code(b, t)
+        elif name == "T":
+            self.tool(b, t)
+        elif name == "D":
+            self.edge(b, t)
+        elif name in ("ADIS", "ADISPOS", "FP", "DISC"):
+            if name in ("ADISPOS", "DISC") or (name == "ADIS" and 641 not in b.g):
+                b.notes.append(f"{name}={t.value}")
+        elif name == "H":
+            b.notes.append(f"H{t.value}: auxiliary function")
+        elif t.eq and re.fullmatch(r"R\d+", name) or name in self.names:
+            self.assign(b, t)
+        else:
+            raise src.error(f"address {name} is not read by millpost's Sinumerik reader"
+                            + (f" ({_REFUSED[name]})" if _REFUSED.get(name) else ""), t.start,
+                            src.text[t.start:t.end], "X Y Z A B C I J K CR TURN F S M T D G H, R parameters, DEF "
+                            "variables, ADIS/ADISPOS")
+
+    def expr(self, b: _Block, text_start: int) -> tuple[str, int]:
+        out, end = Expr(b.src, self.names).read(text_start)
+        for key, new in b.assigned.items():  # values assigned earlier in this block are already set
+            out = re.sub(re.escape(key) + r"(?![\d>])", f"[{new}]", out)
+        return out, end
+
+    def value(self, b: _Block, t: Token) -> str:
+        """A word's value as an NGC word value: the number as written, or [expression]."""
+        if _SIMPLE.fullmatch(t.value.strip()):
+            return t.value.strip()
+        start = t.end - len(t.value)
+        if t.value.startswith('"'):
+            raise b.src.error(f"{t.name} takes a number, not a string", start, t.value, f"{t.name}=<number>")
+        out, end = self.expr(b, start)
+        if end != t.end:
+            raise b.src.error(f"unexpected text in the value of {t.name}", end, b.src.text[end:t.end], "an expression")
+        return f"[{out}]"
+
+    def coordinate(self, b: _Block, t: Token, axis: int) -> str:
+        """An axis value in the workpiece frame: the programmable offset (TRANS/ATRANS, #2000..) added to
+        an absolute value; AC()/IC() written in the other distance mode go through the current position."""
+        mode = re.match(r"(AC|IC)[ \t]*\(", t.value, re.IGNORECASE) if t.eq else None
+        absolute = self.absolute if not mode else mode.group(1).upper() == "AC"
+        value = self.inner(b, t, mode) if mode else self.value(b, t)
+        if absolute and self.framed and not self.machine_block(b):
+            value = f"[{value}+#{FRAME_BASE + axis}]"
+        if absolute == self.absolute:
+            return value if not mode or value.startswith("[") else f"[{value}]"
+        pos = f"#{5420 + axis}"
+        return f"[{value}-{pos}]" if absolute else f"[{pos}+[{value}]]"
+
+    def centre(self, b: _Block, t: Token, axis: int) -> str:
+        """An arc centre offset, incremental from the start (I=AC(..): the absolute centre)."""
+        mode = re.match(r"(AC|IC)[ \t]*\(", t.value, re.IGNORECASE) if t.eq else None
+        if not mode:
+            return self.value(b, t)
+        inner = self.inner(b, t, mode)
+        if mode.group(1).upper() == "IC":
+            return f"[{inner}]"
+        frame = f"+#{FRAME_BASE + axis}" if self.framed else ""
+        return f"[[{inner}]{frame}-#{5420 + axis}]"
+
+    def machine_block(self, b: _Block) -> bool:
+        """G53/SUPA/G74/G75: machine coordinates, no frame."""
+        return bool({53, 74, 75} & set(b.g)) or any(t.kind == "keyword" and t.name == "SUPA" for t in b.toks)
+
+    def inner(self, b: _Block, t: Token, mode: re.Match) -> str:
+        start = t.end - len(t.value) + mode.end()
+        out, end = self.expr(b, start)
+        if b.src.text[skip(b.src.text, end):skip(b.src.text, end) + 1] != ")" or skip(b.src.text, end) + 1 != t.end:
+            raise b.src.error(f"unexpected text in {mode.group(1)}(...)", end, b.src.text[end:t.end],
+                              f"{mode.group(1)}(<expression>)")
+        return out
+
+    def feed(self, b: _Block, t: Token) -> None:
+        """F: the feed (kept as written), or with G4 the dwell in seconds."""
+        if 4 in b.g:
+            b.words.append(f"P{self.value(b, t)}")
+        else:
+            b.words.append(f"F{self.value(b, t)}")
+
+    def speed(self, b: _Block, t: Token) -> None:
+        if 25 in b.g or 26 in b.g:
+            return
+        if 4 in b.g:
+            if self.spindle is None:
+                raise b.src.error("dwell in spindle revolutions before any spindle speed", t.start, t.value,
+                                  "G4 F<seconds>, or an S word before this G4 S")
+            b.words.append(f"P[60*[{self.value(b, t)}]/[{self.spindle}]]")
+            return
+        self.spindle = self.value(b, t)
+        b.words.append(f"S{self.spindle}")
+
+    def m_code(self, b: _Block, t: Token) -> None:
+        value = self.value(b, t)
+        if not value.isdigit():
+            raise b.src.error("M function with a computed value", t.start, t.value, "M<integer>")
+        code = int(value)
+        if code == 17:
+            b.words.append("M2")
+            b.notes.append("M17: end")
+            return
+        b.words.append(f"M{code}")
+        if code == 6:
+            self.tool_pending = False
+            if self.length_at_change:
+                b.words.append("G43")
+                self.length_at_change = False
+
+    def tool(self, b: _Block, t: Token) -> None:
+        if t.value.startswith('"'):
+            name = t.value[1:-1]
+            number = int(name) if name.isdigit() else self.tools.setdefault(name, len(self.tools) + 1)
+            b.words.append(f"T{number}")
+            b.notes.append(f"tool {name} = T{number}")
+        else:
+            b.words.append(f"T{self.value(b, t)}")
+        self.tool_pending = True
+
+    def edge(self, b: _Block, t: Token) -> None:
+        """D<n>: the tool's edge offsets on (length: G43), D0: off (G49)."""
+        value = self.value(b, t)
+        if value in ("0", "00"):
+            b.words.append("G49")
+        elif self.tool_pending and not any(x.kind == "word" and x.name == "M" and x.value == "6" for x in b.toks):
+            self.length_at_change = True
+        elif "G43" not in b.words:
+            b.words.append("G43")
+
+    def assign(self, b: _Block, t: Token) -> None:
+        r = re.fullmatch(r"R(\d+)", t.name)
+        if r and int(r.group(1)) >= R_COUNT:
+            raise b.src.error(f"R parameter {t.name} out of range", t.start, t.name, f"R0 ... R{R_COUNT - 1}")
+        key = f"#{R_BASE + int(r.group(1))}" if r else self.names[t.name]
+        value = self.value(b, t)
+        b.words.append(f"{key}={value}")
+        b.assigned[key] = value
+
+    def frame(self, b: _Block) -> str:
+        """TRANS/ATRANS X Y Z (alone in their block), or a frame cleared (`geometry.frame_words`)."""
+        kind, rest = b.toks[0], b.toks[1:]
+        if kind.name not in ("TRANS", "ATRANS") and rest:
+            raise b.src.error(f"{kind.name} with values: rotation, scaling and mirroring frames are not modelled",
+                              kind.start, b.src.text[kind.start:rest[-1].end],
+                              "TRANS/ATRANS offsets, or ROT/SCALE/MIRROR alone (frame cleared)")
+        for t in rest:
+            if not (t.kind == "word" and t.name in "XYZ"):
+                raise b.src.error(f"{kind.name} takes axis offsets only, in a block of its own", t.start,
+                                  b.src.text[t.start:t.end], f"{kind.name} X.. Y.. Z..")
+        words = frame_words(kind.name, {t.name: self.value(b, t) for t in rest})
+        if words is None:
+            raise b.src.error(f"{kind.name} alone does not say which frame", kind.start, kind.name,
+                              "TRANS/ATRANS X.. Y.. Z.., or TRANS/ROT/SCALE/MIRROR alone (frame cleared)")
+        return " ".join(words)
+
+    def special_arc(self, b: _Block) -> set[str]:
+        """An arc by opening angle (AR=) or through an intermediate point (CIP, modal until G0-G3): its
+        words written; the names of the tokens it took."""
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        if {0, 1, 2, 3} & set(b.g):
+            self.cip = False
+        if b.word("AR") is not None:
+            self.opening_angle(b)
+            return {p1, p2, c1, c2, "AR"}
+        if any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) or self.cip and any(
+                t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.circle_through(b)
+            self.cip = True
+            return {p1, p2, f"{c1}1", f"{c2}1", "CIP"}
+        return set()
+
+    def circle_through(self, b: _Block) -> None:
+        """CIP (FB "Circular interpolation with intermediate and end points (CIP)"): the circle through the
+        start, the intermediate point (I1=, J1=, K1=: absolute in G90, from the start in G91) and the end,
+        in the active plane; clockwise (G2) when the three points turn clockwise. The centre, relative to
+        the start P0 with B = P1 - P0 and C = P2 - P0: ((Cy|B|² - By|C|²), (Bx|C|² - Cx|B|²)) / 2(BxCy - ByCx)."""
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        normal = next(a for a in "XYZ" if a not in (p1, p2))
+        off_plane = [t for t in b.toks if t.kind == "word" and t.name in (normal, "IJK"["XYZ".index(normal)] + "1")]
+        if off_plane:
+            t = off_plane[0]
+            raise b.src.error("CIP out of the active plane: a circle in space is not modelled", t.start,
+                              b.src.text[t.start:t.end], f"{p1}, {p2} and {c1}1=, {c2}1= only (G{self.plane})")
+        rel = {}
+        for name, axis in ((p1, p1), (p2, p2), (f"{c1}1", p1), (f"{c2}1", p2)):
+            t = b.word(name)
+            k = "XYZ".index(axis)
+            v = self.coordinate(b, t, k) if t is not None else None
+            rel[name] = "0" if v is None else f"[{v}-#{5420 + k}]" if self.absolute else v
+        if b.word(f"{c1}1") is None and b.word(f"{c2}1") is None:
+            raise b.src.error("CIP without its intermediate point", 0, b.src.text.strip()[:40],
+                              f"{c1}1= and {c2}1= (the intermediate point)")
+        bx, by, cx, cy = rel[f"{c1}1"], rel[f"{c2}1"], rel[p1], rel[p2]
+        cross = f"[{bx}*{cy}-{by}*{cx}]"
+        bb, cc = f"[{bx}*{bx}+{by}*{by}]", f"[{cx}*{cx}+{cy}*{cy}]"
+        b.words.append(f"G[2+[{cross} GT 0]]")
+        b.words.extend(f"{a}{self.coordinate(b, b.word(a), 'XYZ'.index(a))}" for a in (p1, p2) if b.word(a))
+        b.words.append(f"{c1}[[{cy}*{bb}-{by}*{cc}]/[2*{cross}]]")
+        b.words.append(f"{c2}[[{bx}*{cc}-{cx}*{bb}]/[2*{cross}]]")
+
+    def opening_angle(self, b: _Block) -> None:
+        """G2/G3 with AR=: from its end point or from its centre, not both (`geometry.arc_by_angle`)."""
+        ar = b.word("AR")
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        if self.motion not in (2, 3):
+            raise b.src.error("AR= outside a G2/G3 arc", ar.start, b.src.text[ar.start:ar.end], "G2 or G3 with AR=")
+        ends = {t.name: self.coordinate(b, t, "XYZ".index(t.name)) for t in b.toks
+                if t.kind == "word" and t.name in (p1, p2)}
+        centre = {t.name: self.centre(b, t, "IJK".index(t.name)) for t in b.toks
+                  if t.kind == "word" and t.name in (c1, c2)}
+        if bool(ends) == bool(centre):
+            raise b.src.error("AR= needs the end point or the centre, and not both", ar.start,
+                              b.src.text[ar.start:ar.end], f"G{self.motion} {p1}.. {p2}.. AR=.. or G{self.motion} "
+                              f"{c1}.. {c2}.. AR=..")
+        b.words.extend(arc_by_angle(self.plane, self.value(b, ar), self.motion == 3, self.absolute, ends, centre))
+
+    def at_hole(self, b: _Block) -> None:
+        """A position block under MCALL: the move to the hole and the modal cycle (the hole's Z is the
+        cycle's, so a Z word is refused; the positioning is at rapid, as the canned cycle's)."""
+        z = b.word("Z")
+        if z is not None:
+            raise b.src.error("Z in a position block of a modal drilling cycle", z.start, b.src.text[z.start:z.end],
+                              "X and Y only (the cycle's planes set Z)")
+        b.words = [w for w in b.words if w not in ("G0", "G1")] + self.mcall
+        self.restore_motion = True
+
+    def drill(self, b: _Block, t: Token) -> None:
+        """CYCLE81-83: modal after MCALL (run at each following position), else at the current point."""
+        if self.plane != 17:
+            raise b.src.error(f"{t.name} outside G17", t.start, t.name, "drilling along Z (G17)")
+        words = cycle_words(b.src, t, lambda at: self.expr(b, at), f"#{FRAME_BASE + 2}" if self.framed else None)
+        modal = any(x.kind == "keyword" and x.name == "MCALL" for x in b.toks)
+        if modal:
+            self.mcall = words
+            b.notes.append(f"MCALL {t.name}: at each position that follows")
+        else:
+            b.words.extend(words)
+            self.restore_motion = True
+        b.notes.append(f"{t.name}: retract to the start level [RTP when positioned there]")
+
+    def call(self, b: _Block, t: Token) -> None:
+        if t.name in CYCLES:
+            self.drill(b, t)
+        elif t.name == "MSG":
+            text = t.value.strip()
+            text = text[1:-1] if len(text) >= 2 and text[0] == text[-1] == '"' else text
+            b.notes.append("MSG," + text)
+        elif t.name == "CYCLE832":
+            tol = t.value.split(",")[0].strip()
+            b.words.append(f"G64 P{tol}" if _SIMPLE.fullmatch(tol) and float(tol) > 0 else "G64")
+            b.notes.append(f"CYCLE832({t.value})")
+        elif t.name in _NOTE_CALLS or t.name == "CYCLE800" and not t.value.strip():
+            b.notes.append(f"{t.name}: noted" if t.name in _NOTE_CALLS else "CYCLE800: swivel reset")
+        else:
+            self.refuse(b, t)
+
+    def keyword(self, b: _Block, t: Token) -> None:
+        if t.name == "MCALL":
+            if not any(x.kind == "call" for x in b.toks):
+                if self.mcall is not None:
+                    b.words.append("G80")
+                    self.restore_motion = True
+                self.mcall = None
+        elif t.name in _NOTE_KEYWORDS:
+            b.notes.append(t.name)
+        elif t.name in FRAMES:
+            raise b.src.error(f"{t.name} must be in a block of its own", t.start, t.name, f"{t.name} X.. Y.. Z.. alone "
+                              "on its line (FB: frame instructions take a block of their own)")
+        elif t.name == "SUPA":
+            if "G53" not in b.words:
+                b.words.append("G53")
+        else:
+            self.refuse(b, t)
+
+    def refuse(self, b: _Block, t: Token) -> None:
+        why = _REFUSED.get(t.name) or ("a cycle or subprogram call" if t.kind == "call" else "an unknown command or "
+                                       "a subprogram call")
+        raise b.src.error(f"{t.name}: {why}, which millpost does not read", t.start,
+                          b.src.text[t.start:t.end][:40], "moves, arcs, tool and spindle words, R parameters, "
+                          "IF/WHILE/LOOP/REPEAT, CYCLE832, MSG")
+
+    # --- control flow -------------------------------------------------------------------------
+    def flow_statement(self, src: Line, kw: str, i: int, end: int) -> str:
+        """IF/ELSE/ENDIF, WHILE/ENDWHILE, LOOP/ENDLOOP, REPEAT/UNTIL as O words; DEF as assignments."""
+        rest = skip(src.text, i + len(kw))
+        if kw == "DEF":
+            return self.define(src, rest, end)
+        if kw.startswith("GOTO"):
+            return self.jump(src, "1", i)
+        if kw in ("IF", "WHILE", "UNTIL"):
+            cond, j = Expr(src, self.names).read(rest)
+            j = skip(src.text, j)
+            if kw == "IF" and src.text[j:j + 4].upper() == "GOTO":
+                return self.jump(src, cond, j)
+            if j != end:
+                raise src.error("unexpected text after the condition", j, src.text[j:end][:40], "a condition alone, "
+                                "or IF <condition> GOTOF/GOTOB <label>")
+        elif rest != end:
+            raise src.error(f"unexpected text after {kw}", rest, src.text[rest:end][:40], f"{kw} alone on its line")
+        if kw in ("IF", "WHILE", "LOOP", "REPEAT"):
+            self.labels += 1
+            self.flow.append((kw, self.labels, src, i))
+            if kw == "LOOP":
+                return f"o{self.labels} while [1]"
+            return f"o{self.labels} do" if kw == "REPEAT" else f"o{self.labels} {kw.lower()} [{cond}]"
+        opener = {"ELSE": "IF", "ENDIF": "IF", "ENDWHILE": "WHILE", "ENDLOOP": "LOOP", "UNTIL": "REPEAT"}[kw]
+        if not self.flow or self.flow[-1][0] != opener:
+            raise src.error(f"{kw} without {opener}", i, kw, f"{kw} closing the innermost open {opener}"
+                            if not self.flow else f"the end of {self.flow[-1][0]} first")
+        label = self.flow[-1][1]
+        if kw == "ELSE":
+            return f"o{label} else"
+        self.flow.pop()
+        if kw == "UNTIL":
+            return f"o{label} while [[{cond}] EQ 0]"
+        return f"o{label} endif" if kw == "ENDIF" else f"o{label} endwhile"
+
+    def jump(self, src: Line, cond: str, at: int) -> str:
+        """[IF cond] GOTOx label: the structure `jumps.plan` laid out (forward: skip while not cond)."""
+        if src.line not in self.jumps.at_jump:
+            raise src.error("a jump without its label", at, src.text[at:at + 20].strip(), "GOTOF/GOTOB/GOTO <label>, "
+                            "the only text after IF <condition>")
+        kind, label = self.jumps.at_jump[src.line]
+        return f"o{label} if [[{cond}] EQ 0]" if kind == "if" else f"o{label} while [{cond}]"
+
+    def define(self, src: Line, i: int, end: int) -> str:
+        """DEF REAL/INT/BOOL name[=value], ...: each variable set (0 when no value is given)."""
+        m = re.match(r"(REAL|INT|BOOL)\b", src.text[i:end], re.IGNORECASE)
+        if not m:
+            raise src.error("DEF of a type millpost does not model", i, src.text[i:end][:20], "DEF REAL, DEF INT or "
+                            "DEF BOOL")
+        out, k = [], skip(src.text, i + m.end())
+        while k < end:
+            name = re.match(r"[A-Za-z_][A-Za-z0-9_]*", src.text[k:end])
+            if not name:
+                raise src.error("expected a variable name", k, src.text[k:end][:20], "DEF REAL NAME[=value], ...")
+            var, k = name.group(0).upper(), skip(src.text, k + name.end())
+            if re.fullmatch(r"R\d+", var) or src.text[k:k + 1] == "[":
+                raise src.error("a DEF name must not be an R parameter nor an array", k, var, "a plain name")
+            value = "0"
+            if src.text[k:k + 1] == "=":
+                value, k = Expr(src, self.names).read(k + 1)
+                k = skip(src.text, k)
+            self.names[var] = f"#<_v_{var.lower()}>"
+            out.append(f"{self.names[var]}={value if _SIMPLE.fullmatch(value) else f'[{value}]'}")
+            if src.text[k:k + 1] == ",":
+                k = skip(src.text, k + 1)
+            elif k < end:
+                raise src.error("unexpected text in DEF", k, src.text[k:end][:20], "',' or the end of the line")
+        return " ".join(out)
+
+
+def split_comment(src: Line) -> tuple[int, str]:
+    """(end of the code, the ';' comment as written or '') — a ';' in a string is not a comment."""
+    i, text = 0, src.text
+    if '"' not in text:
+        i = text.find(";")
+        return (len(text), "") if i < 0 else (i, text[i:])
+    while i < len(text):
+        if text[i] == '"':
+            end = text.find('"', i + 1)
+            i = len(text) if end < 0 else end + 1
+            continue
+        if text[i] == ";":
+            return i, text[i:]
+        i += 1
+    return len(text), ""
+
+
+def _g_number(src: Line, t: Token) -> int:
+    if not re.fullmatch(r"\d+", t.value):
+        raise src.error("G code with a computed or fractional value", t.start, src.text[t.start:t.end], "G<integer>")
+    return int(t.value)
+
+
+def translate(text: str, file: str) -> str:
+    """A Sinumerik program as RS-274/NGC, line for line (`Dialect.translate`)."""
+    return Translator(file).text(text)

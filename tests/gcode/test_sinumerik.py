@@ -1,0 +1,330 @@
+"""Reading Siemens SINUMERIK 840D sl / 828D programs (millpost.gcode.sinumerik).
+
+Semantics from the SINUMERIK 840D sl / 828D programming manuals: "Fundamentals" (FB) and "Job
+planning" (AV), cited per test. Each program is compared with the same motion written by hand in
+RS-274 (read to the same moves within 1e-6 mm), or with closed-form arc centres and end points.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from millpost.emit.write import FeedPlan, write_feeds
+from millpost.errors import ParseError
+from millpost.gcode import ReaderOptions, dialects, read_program, read_text
+from millpost.gcode.convert import same_path
+from millpost.gcode.lexer import source_lines
+from millpost.toolpath import ARC_CCW, ARC_CW, FEED, RAPID
+
+
+def sin(text: str):
+    return read_text(text, "part.mpf", ReaderOptions(dialect="sinumerik"))
+
+
+def ngc(text: str):
+    return read_text(text, "part.ngc", ReaderOptions(dialect="linuxcnc"))
+
+
+def assert_same_moves(a, b, tol: float = 1e-6) -> None:
+    ta, tb = a.toolpath, b.toolpath
+    assert len(ta) == len(tb)
+    assert ta.kind.tolist() == tb.kind.tolist()
+    assert np.allclose(ta.start, tb.start, atol=tol) and np.allclose(ta.end, tb.end, atol=tol)
+    assert np.allclose(ta.center, tb.center, atol=tol, equal_nan=True)
+    assert np.allclose(ta.feed_mm_min, tb.feed_mm_min, rtol=1e-9, equal_nan=True)
+
+
+FUSION_STYLE = """%_N_PART_MPF
+;$PATH=/_N_MPF_DIR
+; T1  D=10 CR=0 - ZMIN=-3 - flat end mill
+N10 G90 G94 G40 G17 G710
+N20 T="FLAT10" D1
+N30 M6
+N40 S6000 M3 M8
+N50 G54
+N60 CYCLE832(0.01,_SEMIFIN,1)
+N70 G0 X-10 Y0 Z15
+N80 G0 Z2
+N90 G1 Z-3 F300.
+N100 G1 X50 F1200. ; first pass
+N110 G2 X60 Y10 I0 J10
+N120 G3 X50 Y20 CR=10
+N130 G1 X0
+N140 G0 Z15
+N150 M9
+N160 M5
+N170 M30
+"""
+FUSION_NGC = """(part)
+G90 G94 G40 G17 G21
+T1
+M6 G43
+S6000 M3 M8
+G54
+G64 P0.01
+G0 X-10 Y0 Z15
+G0 Z2
+G1 Z-3 F300.
+G1 X50 F1200.
+G2 X60 Y10 I0 J10
+G3 X50 Y20 R10
+G1 X0
+G0 Z15
+M9
+M5
+M30
+"""
+
+
+def test_a_cam_posted_program_reads_as_its_rs274_equivalent():
+    """FB "Fundamentals of NC programming": ';' comments, N block numbers; G710 metric with feeds in
+    mm/min; T="name" with D1 and M6 (FB "Tool change"); CYCLE832 (high speed settings) is a tolerance."""
+    a = sin(FUSION_STYLE)
+    b = ngc(FUSION_NGC)
+    assert a.dialect == "sinumerik" and a.source == FUSION_STYLE
+    assert_same_moves(a, b)
+    assert a.toolpath.line.tolist() == list(range(10, 18))
+    assert a.tools == [1] and a.spindle_rpm == [6000.0]
+
+
+def test_detected_from_the_text():
+    """G710, N numbers with ';' comments, T="..", CYCLE832 mark a Sinumerik program; plain RS-274 is not one."""
+    assert dialects.detect(FUSION_STYLE).name == "sinumerik"
+    assert read_text(FUSION_STYLE, "part.mpf").dialect == "sinumerik"
+    assert dialects.detect(FUSION_NGC).name != "sinumerik"
+    assert dialects.detect("N10 G0 X0 Y0 (start)\nN20 G1 X10 F100\nN30 M30\n").name != "sinumerik"
+
+
+def test_cr_sign_picks_the_arc_over_180_degrees():
+    """FB "Circular interpolation with radius and end point (CR)": CR=+r the arc of at most 180°,
+    CR=-r the one over 180°. From (0,0) to (10,0) with r=10, G2: centres (5, ∓√75)."""
+    for r, cy in ((10, -math.sqrt(75)), (-10, math.sqrt(75))):
+        p = sin(f"N10 G17 G90 G0 X0 Y0 Z0\nN20 G2 X10 Y0 CR={r} F100\nN30 M30\n")
+        arc = p.toolpath
+        assert arc.kind[1] == ARC_CW
+        assert np.allclose(arc.center[1, :2], [5.0, cy], atol=1e-9)
+        sweep = arc.lengths()[1] / 10.0
+        assert math.isclose(sweep, 2 * math.asin(0.5) if r > 0 else 2 * math.pi - 2 * math.asin(0.5), rel_tol=1e-9)
+
+
+def test_ijk_incremental_by_default_and_ac_absolute():
+    """FB "Circular interpolation with center and end point": I, J, K are incremental from the start
+    point by default; I=AC(..) gives the centre in absolute coordinates."""
+    a = sin("N10 G90 G0 X10 Y0\nN20 G3 X-10 Y0 I=AC(0) J=AC(0) F500\nN30 G3 X10 Y0 I10 J0\n")
+    b = ngc("G90 G0 X10 Y0\nG3 X-10 Y0 I-10 J0 F500\nG3 X10 Y0 I10 J0\n")
+    assert_same_moves(a, b)
+    assert np.allclose(a.toolpath.center[1:, :2], 0.0)
+
+
+def test_ac_in_g91_and_ic_in_g90_are_per_word():
+    """FB "Absolute dimensions (G90, AC)" / "Incremental dimensions (G91, IC)": X=AC(..) is absolute
+    in a G91 block, X=IC(..) incremental in a G90 block; only that word."""
+    a = sin("N10 G90 G0 X1 Y2 Z3\nN20 G1 X=IC(4) Y10 F100\nN30 G91 X=AC(0) Y-1\nN40 X2 Z=AC(-1)\n")
+    b = ngc("G90 G0 X1 Y2 Z3\nG1 X5 Y10 F100\nX0 Y9\nX2 Z-1\n")
+    assert_same_moves(a, b)
+
+
+def test_g4_f_is_seconds_and_g4_s_spindle_revolutions():
+    """FB "Dwell time (G4)": G4 F<s> waits seconds; G4 S<n> waits n revolutions of the spindle
+    (at S1200: 30 revolutions = 1.5 s). The dwell's F does not change the feed."""
+    p = sin("N10 G0 X0 Y0\nN20 S1200 M3\nN30 G1 X10 F100\nN40 G4 F2.5\nN50 G4 S30\nN60 X20\n")
+    dwells = [e.value for e in p.events if e.kind == "dwell"]
+    assert dwells == pytest.approx([2.5, 1.5])
+    assert p.toolpath.feed_mm_min[-1] == pytest.approx(100.0)
+
+
+def test_g700_takes_inches_and_inch_per_minute():
+    """FB "Inch or metric dimensions (G70/G700, G71/G710)": G700 geometry and feed in inches."""
+    p = sin("N10 G700 G90 G0 X0 Y0\nN20 G1 X1 F10\n")
+    assert np.allclose(p.toolpath.end[-1], [25.4, 0, 0])
+    assert p.toolpath.feed_mm_min[-1] == pytest.approx(254.0)
+
+
+def test_g70_takes_feeds_in_the_programmed_unit_with_a_note():
+    """FB "Inch or metric dimensions": G70 sets the geometry only; the feed's unit is the basic
+    system's, taken to be the programmed one (a note says so)."""
+    p = sin("N10 G70 G90 G0 X0 Y0\nN20 G1 X1 F10\n")
+    assert np.allclose(p.toolpath.end[-1], [25.4, 0, 0]) and p.toolpath.feed_mm_min[-1] == pytest.approx(254.0)
+    assert any(e.kind == "comment" and "basic system" in str(e.value) for e in p.events)
+
+
+def test_r_parameters_and_arithmetic_run_in_block_order():
+    """FB "Arithmetic parameters (R)" / "Value assignments": R1=5 R2=R1*2 in one block gives R2 = 10;
+    X=R2+5 is computed; functions SIN, SQRT, POT, TRUNC."""
+    p = sin("N10 R1=5 R2=R1*2\nN20 G0 X=R2+5 Y=SQRT(POT(3)+16) Z=TRUNC(-2.7)\nN30 X=R1*SIN(30)\n")
+    assert np.allclose(p.toolpath.end, [[15, 5, -2], [2.5, 5, -2]])
+
+
+def test_def_variables_and_if_else():
+    """AV "Definition of user variables (DEF)", "Program jumps: IF-ELSE-ENDIF"."""
+    p = sin("N10 DEF REAL DEPTH=-2, STEP\nN20 STEP=0.5\nN30 IF DEPTH<-1\nN40 G0 X1\nN50 ELSE\nN60 G0 X2\n"
+            "N70 ENDIF\nN80 G0 Z=DEPTH+STEP\n")
+    assert np.allclose(p.toolpath.end, [[1, 0, 0], [1, 0, -1.5]])
+
+
+def test_while_loop_and_repeat_until():
+    """AV "Program loop with condition at start of loop (WHILE)" and "... at end of loop (REPEAT)"."""
+    p = sin("N10 R1=0\nN20 WHILE R1<3\nN30 G1 X=R1 F100\nN40 R1=R1+1\nN50 ENDWHILE\n"
+            "N60 REPEAT\nN70 G1 Y=R1 F100\nN80 R1=R1-1\nN90 UNTIL R1<=1\n")
+    assert np.allclose(p.toolpath.end[:, :2], [[0, 0], [1, 0], [2, 0], [2, 3], [2, 2]])
+
+
+def test_a_loop_without_end_is_refused_at_its_lines():
+    """AV "Endless program loop (LOOP)": LOOP ... ENDLOOP runs until a jump leaves it; a jump out of a
+    loop cannot be laid out as structure, so the loop is read as written and stops at the reader's cap
+    on repeated lines, naming a line of the loop."""
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z5\nN20 LOOP\nN30 G91 G1 X1 F1000\nN40 ENDLOOP\n")
+    assert e.value.line in (2, 3, 4) and "loop" in str(e.value).lower()
+
+
+def test_msg_and_notes_are_events():
+    """FB "Messages (MSG)": a message, no motion."""
+    p = sin('N10 MSG("roughing (pass 1)")\nN20 G0 X1\n')
+    assert any(e.kind == "comment" and "roughing" in str(e.value) for e in p.events)
+
+
+@pytest.mark.parametrize("line, column, word", [
+    ("N20 TRAORI", 5, "TRAORI"),
+    ("N20 CYCLE800(1,\"TC1\",0,57,0,0,0,0,0,0,0,0,0,-1)", 5, "CYCLE800"),
+    ("N20 POCKET3(10,0,1,-5)", 5, "POCKET3"),
+    ("N20 SPOS=90", 5, "SPOS=90"),
+    ("N20 G33 Z-10 K1.5", 5, "G33"),
+    ("N20 G1 X10 FOO", 12, "FOO"),
+    ("N20 G1 X=$AA_IW[X]", 10, "$AA_IW"),
+    ("N20 WHILE R1<3", 5, "WHILE"),
+    ("N20 REPEAT LBL1 P=2", 12, "LBL1"),
+    ("N20 X1 L100", 8, "L100"),
+])
+def test_refused_with_file_line_and_column(line, column, word):
+    """Out of reach (5-axis, swivel, pocket cycles, spindle positioning, thread cutting, unknown
+    commands, system variables, an unclosed loop) is refused where it is written."""
+    with pytest.raises(ParseError) as e:
+        sin(f"N10 G0 X0\n{line}\nN30 M30\n")
+    assert (e.value.file, e.value.line, e.value.column) == ("part.mpf", 2, column)
+    assert e.value.word.startswith(word)
+
+
+def test_modal_drilling_cycles_run_at_each_position_that_follows():
+    """Cycles manual, "CYCLE81 - Drilling, centering", "CYCLE82 - Drilling, counterboring", and FB
+    "Modal subprogram call (MCALL)": RTP, RFP, SDIS, DP or DPR (DPR from RFP); rapid to RFP+SDIS, feed to
+    the depth, (DTB seconds of dwell,) rapid back to RTP; MCALL alone ends the modal call. The same holes
+    written as G98 G81/G82 from Z = RTP."""
+    a = sin("N10 G90 G17 G710\nN20 G0 X0 Y0 Z10\nN30 F120.\nN40 MCALL CYCLE81(10, 0, 2, -6, )\nN50 X5 Y5\n"
+            "N60 X15\nN70 MCALL\nN80 G0 X30 Y0\nN90 CYCLE82(10, 0, 2, , 4, 0.5)\nN100 X40\nN110 M30\n")
+    b = ngc("G90 G17 G21\nG0 X0 Y0 Z10\nF120.\n(mcall)\nG98 G81 X5 Y5 R2 Z-6\nX15\nG80\nG0 X30 Y0\n"
+            "G98 G82 R2 Z-4 P0.5\nG0 X40\nM30\n")
+    assert_same_moves(a, b)
+    assert a.toolpath.line.tolist() == b.toolpath.line.tolist()
+    assert [e.value for e in a.events if e.kind == "dwell"] == pytest.approx([0.5])
+
+
+def test_deep_hole_cycle_is_g83_or_g73_and_what_g83_cannot_make_is_refused():
+    """Cycles manual, "CYCLE83 - Deep-hole drilling": VARI=1 chip removal (G83), VARI=0 chip breaking
+    (G73), infeed FDPR or RFP - FDEP (as Fusion 360's 840D post writes it); a degression DAM, or a dwell
+    at the depth (_DTD), is refused (G83 pecks are equal and do not dwell)."""
+    a = sin("N10 G0 X0 Y0 Z10\nN20 F100\nN30 CYCLE83(10, 0, 2, -12, , , 3, 0, , 0, 1, 1)\n")
+    b = ngc("G0 X0 Y0 Z10\nF100\nG98 G83 R2 Z-12 Q3\n")
+    assert_same_moves(a, b)
+    fusion = sin("N10 G0 X0 Y0 Z10\nN20 F100\nN30 MCALL CYCLE83(10, 0, 2, -12, , -3, , 0, , , 1, 1, , 3, 0, 0, 0)\n"
+                 "N40 X0 Y0\nN50 MCALL\n")
+    assert_same_moves(fusion, ngc("G0 X0 Y0 Z10\nF100\n(mcall)\nG98 G83 X0 Y0 R2 Z-12 Q3\nG80\n"))
+    with pytest.raises(ParseError, match="_DTD"):
+        sin("N10 G0 X0 Y0 Z10\nN20 CYCLE83(10, 0, 2, -12, , -3, , 0, , , 1, 1, , 3, 0, 0.5, 0)\n")
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z10\nN20 CYCLE83(10, 0, 2, -12, , , 3, 1, , 0, 1, 1)\n")
+    assert (e.value.line, e.value.word) == (2, "1") and "DAM" in str(e.value)
+
+
+def test_jumps_forward_and_backward_to_labels():
+    """AV "Program jumps to jump markers (GOTOB, GOTOF, GOTO)" and "Conditional program jumps (IF)":
+    a backward jump repeats the blocks from its label, a forward jump skips to its label."""
+    p = sin("N10 R1=0\nN20 G0 X0 Y0 Z5\nLOOP1:\nN40 G1 X=R1*10 F100\nN50 R1=R1+1\nN60 IF R1<3 GOTOB LOOP1\n"
+            "N70 IF R1==3 GOTOF SKIP\nN80 G1 Y50\nSKIP: ; here\nN100 G1 Y10\nN110 GOTOF END1\nN120 G1 Y99\n"
+            "END1:\nN140 M30\n")
+    assert np.allclose(p.toolpath.end[1:, :2], [[0, 0], [10, 0], [20, 0], [20, 10]])
+    assert p.toolpath.line.tolist()[1:] == [4, 4, 4, 10]
+
+
+@pytest.mark.parametrize("text, line, column, word", [
+    ("N10 GOTOF NOWHERE\nN20 M30\n", 1, 11, "NOWHERE"),
+    ("N10 GOTOF LL1\nLL1: G0 X1\n", 2, 6, "G0 X1"),
+    ("N10 G0 X1\nN20 G1 X2 F10 GOTOB N10\n", 2, 15, "GOTOB"),
+])
+def test_jumps_that_cannot_be_laid_out_are_refused(text, line, column, word):
+    """A label that is not there, a label sharing its line with a block, a jump inside a block."""
+    with pytest.raises(ParseError) as e:
+        sin(text)
+    assert (e.value.line, e.value.column) == (line, column) and e.value.word.startswith(word)
+
+
+def test_opening_angle_from_end_point_or_centre():
+    """FB "Circular interpolation with opening angle and center point (AR)": G3 X10 Y0 AR=90 from the
+    origin has its centre on the chord's bisector at (5, 5) (left of the chord for G3, a < 180°);
+    AR=270 puts it at (5, -5); G2 I5 J0 AR=90 from (10, 0) ends at the start turned 90° clockwise about
+    (15, 0): (15, 5)."""
+    p = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 G3 X10 Y0 AR=90 F100\nN30 G2 I5 J0 AR=90\nN40 G0 X0 Y0\n"
+            "N50 G91 G3 X10 AR=270\n")
+    tp = p.toolpath
+    assert tp.kind.tolist() == [RAPID, ARC_CCW, ARC_CW, RAPID, ARC_CCW]
+    assert np.allclose(tp.center[[1, 2, 4], :2], [[5, 5], [15, 0], [5, -5]], atol=1e-9)
+    assert np.allclose(tp.end[[1, 2, 4], :2], [[10, 0], [15, 5], [10, 0]], atol=1e-9)
+    assert tp.lengths()[4] == pytest.approx(1.5 * math.pi * math.sqrt(50), rel=1e-9)
+
+
+def test_trans_and_atrans_move_the_frame_the_moves_are_read_in():
+    """FB "Programmable zero offset (TRANS, ATRANS)": TRANS replaces the offset, ATRANS adds to it,
+    TRANS alone clears it; the moves are in the workpiece frame, as the same moves written there."""
+    a = sin("N10 G90 G0 X0 Y0 Z5\nN20 TRANS X100 Y50\nN30 G1 X0 Y0 F100\nN40 ATRANS X10 Z-1\nN50 X0 Y=AC(1)\n"
+            "N60 G91 X1\nN70 G90 CYCLE81(5, 0, 1, -3)\nN80 TRANS\nN90 G0 X0 Y0\nN100 ROT\n")
+    b = ngc("G90 G0 X0 Y0 Z5\n(trans)\nG1 X100 Y50 F100\n(atrans)\nX110 Y51\nG91 X1\nG90 G98 G81 R0 Z-4\n(trans)\n"
+            "G0 X0 Y0\n(rot)\n")
+    assert_same_moves(a, b)
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0\nN20 ROT RPL=30\n")
+    assert (e.value.line, e.value.column) == (2, 5)
+
+
+REAL = os.environ.get("MILLPOST_SINUMERIK_PROGRAMS")
+REAL_FILES = sorted(p for p in Path(REAL).rglob("*") if p.suffix.lower() in (".mpf", ".spf", ".nc")) if REAL else []
+
+
+@pytest.mark.skipif(not REAL_FILES, reason="set MILLPOST_SINUMERIK_PROGRAMS to a folder of real Sinumerik programs")
+@pytest.mark.parametrize("path", REAL_FILES, ids=[p.name for p in REAL_FILES])
+def test_real_programs_read_or_refused_and_written_back_with_only_f_changed(path):
+    """A real program is read (or refused at file:line:column); read, its feeds scaled by 0.8 are
+    written back changing only F words, and it reads back to the same path."""
+    try:
+        program = read_program(path, ReaderOptions(dialect="sinumerik"))
+    except ParseError as err:
+        assert err.file == str(path) and err.line >= 1 and err.column >= 1, str(err)
+        return
+    source = program.source
+    assert len(source_lines(program.text)) >= len(source_lines(source))
+    out = write_feeds(program, FeedPlan(program.toolpath.feed_mm_min * 0.8, {}))
+    f_word = re.compile(r"\bF\s*=?\s*[-+]?[\w.]+")
+    for a, b in zip(source_lines(source), source_lines(out)):
+        assert f_word.sub("", a).split() == f_word.sub("", b).split(), (a, b)
+    again = read_text(out, str(path), ReaderOptions(dialect="sinumerik"))
+    assert same_path(program, again) == []
+
+
+def test_circle_through_an_intermediate_point():
+    """FB "Circular interpolation with intermediate and end points (CIP)": from (0,0) through (5,5) to
+    (10,0) is the clockwise half circle about (5,0); CIP stays modal (through (15,-5) to (20,0):
+    counterclockwise about (15,0)); in G91 the points are from the start; out of the plane refused."""
+    p = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 CIP X10 Y0 I1=5 J1=5 F100\nN30 X20 Y0 I1=15 J1=-5\n"
+            "N40 G91 CIP X10 Y0 I1=5 J1=5\nN50 G90 G1 X0\n")
+    tp = p.toolpath
+    assert tp.kind.tolist() == [RAPID, ARC_CW, ARC_CCW, ARC_CW, FEED]
+    assert np.allclose(tp.center[1:4, :2], [[5, 0], [15, 0], [25, 0]], atol=1e-9)
+    assert np.allclose(tp.lengths()[1:4], 5 * math.pi)
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z0\nN20 CIP X10 Y0 Z-1 I1=5 J1=5 F100\n")
+    assert (e.value.line, e.value.column, e.value.word) == (2, 16, "Z-1")
