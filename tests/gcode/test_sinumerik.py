@@ -328,3 +328,15 @@ def test_circle_through_an_intermediate_point():
     with pytest.raises(ParseError) as e:
         sin("N10 G0 X0 Y0 Z0\nN20 CIP X10 Y0 Z-1 I1=5 J1=5 F100\n")
     assert (e.value.line, e.value.column, e.value.word) == (2, 16, "Z-1")
+
+
+def test_a_plain_program_with_g710_is_sinumerik():
+    """G710 (FB "Inch/metric dimensions") is read by no RS-274 dialect: one such word settles the
+    dialect even in a program that otherwise looks plain (`;` comments, M30 as Fanuc posts end), as a
+    dataset's slotting program opens with `G90 G94 G710`; an RS-274 comment naming it does not."""
+    text = ("G90 G94 G710\n; slot, 10 mm end mill\nT1 D1\nM6\nS3000 M3\nG0 X-10 Y0 Z5\nG1 Z-3 F100\n"
+            "G1 X100 F300\nG0 Z50\nM30\n")
+    assert dialects.detect(text).name == "sinumerik"
+    tp = read_text(text, "slot.mpf").toolpath
+    assert tp.end[-2].tolist() == [100.0, 0.0, -3.0] and tp.feed_mm_min[-2] == 300.0
+    assert dialects.detect("(post for G710 controls)\nG21 G90\nG1 X10 F100\nM30\n").name != "sinumerik"

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from .interpret import Program
 
 MARKER_CAP = 3
+DECISIVE = 1000  # the score of a text holding a decisive marker: more than any count of plain markers
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,8 @@ class Dialect:
     line_numbers: N-number step when writing a program from scratch (0: none).
     comment: "paren" or "semicolon". dwell_ms: dwell P in milliseconds (Fanuc).
     percent: wrap programs in % lines (tape format) with an O number.
+    markers / decisive: regular expressions that find this dialect in a text (`score`, `detect`);
+    a decisive one is code no other dialect reads (G710, BEGIN PGM), so one match settles it.
     tool_length_codes: the tool length compensation codes the controller runs (G43 H from its tool
     table, G43.1 dynamic, G43.2 additional, G49 cancel); `convert` refuses the others.
 
@@ -80,6 +83,7 @@ class Dialect:
     percent: bool = False
     end_code: str = "M2"
     markers: tuple[str, ...] = ()
+    decisive: tuple[str, ...] = ()
     tool_length_codes: frozenset[str] = frozenset({"G43", "G43.1", "G43.2", "G49"})
     starts_g98: bool = True
     g76_lathe: bool = False
@@ -124,9 +128,13 @@ class Dialect:
     def score(self, text: str) -> int:
         """How strongly the text looks like this dialect's: markers found in the first 200 lines, each
         counted at most MARKER_CAP times (a common code written on every line, such as Mach3's G00 that
-        Fanuc posts write too, cannot outweigh several distinct markers of another dialect)."""
+        Fanuc posts write too, cannot outweigh several distinct markers of another dialect); a decisive
+        marker (what no other dialect reads: Sinumerik's G710, Heidenhain's BEGIN PGM) counts DECISIVE."""
         head = "\n".join(text.splitlines()[:200])
-        return sum(min(MARKER_CAP, len(re.findall(m, head, flags=re.IGNORECASE | re.MULTILINE))) for m in self.markers)
+        flags = re.IGNORECASE | re.MULTILINE
+        code = re.sub(r"\([^()\n]*\)", "", head)  # a decisive marker is code, never in an RS-274 comment
+        return (sum(min(MARKER_CAP, len(re.findall(m, head, flags=flags))) for m in self.markers)
+                + DECISIVE * sum(re.search(m, code, flags=flags) is not None for m in self.decisive))
 
 
 GRBL = Dialect("grbl", canned_cycles=False, end_code="M30", tool_length_codes=frozenset({"G43.1", "G49"}),

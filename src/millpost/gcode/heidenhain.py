@@ -1008,5 +1008,5 @@ def set_feed(line: str, f: str | None) -> str:
 HEIDENHAIN = Dialect(
     "heidenhain", comment="semicolon", g43_without_h=True,
     translate=translate, set_feed=set_feed, fixed_feed=fixed_feed, write=_write, blank=blank,
-    markers=(r"BEGIN\s+PGM", r"TOOL\s+CALL", r"BLK\s+FORM", r"^\s*\d+\s+L\s", r"\bFMAX\b", r"END\s+PGM",
-             r"^\s*%\w+\s+G7[01]\s*\*", r"\s\*\s*$"))
+    decisive=(r"BEGIN\s+PGM", r"TOOL\s+CALL", r"BLK\s+FORM", r"^\s*%\w+\s+G7[01]\s*\*"),  # no RS-274 dialect reads them
+    markers=(r"^\s*\d+\s+L\s", r"\bFMAX\b", r"END\s+PGM", r"\s\*\s*$"))
