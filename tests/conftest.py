@@ -53,6 +53,8 @@ SLOW = {
     "tests/gcode/test_convert.py::test_round_trip_through_own_dialect_and_grbl": "the corpus in every dialect: 23 s",
     "tests/gcode/test_convert_semantics.py::test_corpus_machine_motion_survives_every_dialect": "rs274: 22 s",
     "tests/gcode/test_fuzz.py::test_mutants_are_read_or_refused_never_crash": "3000 seeded mutants: 39 s",
+    "tests/gcode/test_sinumerik_fuzz.py::test_mutants_are_read_or_refused_never_crash": "3000 seeded mutants: 25 s",
+    "tests/gcode/test_heidenhain_fuzz.py::test_mutants_are_read_or_refused_never_crash": "1500 seeded mutants: 15 s",
     "tests/gcode/test_gcode_reader.py::test_fuzz_never_crashes": "400 hypothesis examples: 17 s",
     "tests/gcode/test_reader_strict.py::test_loops_pecks_and_repeats_are_capped": "programs run to the caps: 17 s",
     "tests/gcode/test_cutter_comp.py::test_random_contours_match_rs274": "random contours through rs274: 13 s",

@@ -1,6 +1,7 @@
 """Seeded mutation fuzzing of the Heidenhain reader: every mutant of the Klartext and ISO programs
 of the tests is read, with finite moves, or refused with a MillpostError (a ParseError naming the
-file, a line of the program and a column); never another exception."""
+file, a line of the program and a column); never another exception. 1 500 mutants here;
+benchmarks/fuzz_dialects.py runs 100 000."""
 
 from __future__ import annotations
 
@@ -94,11 +95,6 @@ def run(count: int, start: int = 0) -> dict[str, int]:
 def test_mutants_are_read_or_refused_never_crash():
     counts = run(1500)
     assert counts.get("refused", 0) > 200 and counts.get("accepted", 0) > 200, counts
-
-
-@pytest.mark.slow
-def test_many_mutants():
-    run(100_000, start=10_000)
 
 
 REAL = os.environ.get("MILLPOST_HEIDENHAIN_DIR")

@@ -1,13 +1,11 @@
 """Seeded mutation fuzzing of the Sinumerik reader: every mutant of Sinumerik programs (posted and
 hand-written styles) is read or refused with a ParseError/MillpostError naming the file and line;
-never an uncaught exception, a non-finite number or a hang. A few thousand mutants here; the slow
-test runs 100 000."""
+never an uncaught exception, a non-finite number or a hang. A few thousand mutants here;
+benchmarks/fuzz_dialects.py runs 100 000."""
 
 from __future__ import annotations
 
 import random
-
-import pytest
 
 import gcode_mutants
 from millpost.errors import MillpostError, ParseError
@@ -124,11 +122,6 @@ def test_the_programs_mutated_are_read():
 
 def test_mutants_are_read_or_refused_never_crash():
     run(3000)
-
-
-@pytest.mark.slow
-def test_a_hundred_thousand_mutants():
-    run(100_000)
 
 
 def test_refusals_name_file_line_and_column():
