@@ -340,3 +340,35 @@ def test_a_plain_program_with_g710_is_sinumerik():
     tp = read_text(text, "slot.mpf").toolpath
     assert tp.end[-2].tolist() == [100.0, 0.0, -3.0] and tp.feed_mm_min[-2] == 300.0
     assert dialects.detect("(post for G710 controls)\nG21 G90\nG1 X10 F100\nM30\n").name != "sinumerik"
+
+
+def test_tangential_arc_after_a_line_and_after_an_arc():
+    """FB "Circular interpolation with tangential transition (CT)": after the line along +X to (10,0),
+    CT to (20,10) is the quarter circle about (10,10), counter-clockwise; CT (modal) on to (30,0), its start
+    direction +Y, is the clockwise 270° arc about (30,10); after G2 CR=10 to (40,10) about (40,0) (end
+    direction +X) CT to (50,0) turns clockwise about (40,0)."""
+    a = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 G1 X10 F100\nN30 CT X20 Y10\nN40 X30 Y0\nN50 G2 X40 Y10 CR=10\n"
+            "N60 CT X50 Y0\n")
+    b = ngc("G17 G90 G0 X0 Y0 Z0\nG1 X10 F100\nG3 X20 Y10 I0 J10\nG2 X30 Y0 I10 J0\nG2 X40 Y10 R10\n"
+            "G2 X50 Y0 I0 J-10\n")
+    assert_same_moves(a, b)
+    assert a.toolpath.kind.tolist()[2:] == [ARC_CCW, ARC_CW, ARC_CW, ARC_CW]
+
+
+def test_tangential_arc_in_g18_and_g19_and_incremental():
+    """FB "Circular interpolation with tangential transition (CT)": the tangent is the previous element's
+    in the active plane (G18: Z/X, G19: Y/Z); in G91 the end point is from the start."""
+    a = sin("N10 G18 G90 G0 X0 Y0 Z0\nN20 G1 Z10 F100\nN30 CT Z20 X10\nN40 G19 G1 Y0 Z30\nN50 G91 CT Y10 Z10\n")
+    b = ngc("G18 G90 G0 X0 Y0 Z0\nG1 Z10 F100\nG3 Z20 X10 K0 I10\nG19 G1 Y0 Z30\nG91 G2 Y10 Z10 J10 K0\n")
+    assert_same_moves(a, b)
+
+
+@pytest.mark.parametrize("text, line, column, word", [
+    ("N10 CT X10 Y10 F100\n", 1, 5, "CT"),
+    ("N10 G1 X0 Y0 F100\nN20 G1 X10\nN30 CT X20 Y10 I5\n", 3, 16, "I5"),
+])
+def test_tangential_arc_refusals(text, line, column, word):
+    """FB "CT": the arc is set by the tangent and the end point alone; a CT needs a path element before it."""
+    with pytest.raises(ParseError) as e:
+        sin(text)
+    assert (e.value.file, e.value.line, e.value.column) == ("part.mpf", line, column) and word in str(e.value)

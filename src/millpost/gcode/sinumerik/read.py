@@ -12,8 +12,10 @@ Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programmin
   the current position (#5420..#5422, program units). G94/G95/G93, G17/G18/G19, G40-G42, G0-G3.
 - Arcs (FB "Circular interpolation"): I/J/K incremental from the start (``I=AC(..)``: absolute), or
   ``CR=`` (radius; negative: the arc over 180°) → R; ``TURN=n`` → P(n+1); ``AR=`` and ``CIP`` through
-  the start point (`geometry`, `Translator.circle_through`). ``CT`` (tangential) is refused: the
-  tangent is the previous path's, which the translation cannot see.
+  the start point (`geometry`, `Translator.circle_through`). ``CT`` (FB "Circular interpolation with
+  tangential transition", modal): in a program with CT every path move in the plane sets its end
+  direction in #<_sin_tx>/#<_sin_ty>/#<_sin_tz>, from which the CT line computes its centre
+  (`geometry.tangent_arc`); in G17, G18 and G19.
 - Work offsets (FB "Settable zero offset"): G54-G57 → G54-G57, G505-G508 → G58, G59, G59.1, G59.2,
   G500 (settable offsets off) → G59.3; G53 / SUPA → G53 (that block in machine coordinates).
 - Tools (FB "Tool change"): ``T1`` / ``T=1`` / ``T="name"`` (names numbered by first appearance unless
@@ -43,7 +45,7 @@ from dataclasses import dataclass, field
 
 from ..lexer import source_lines
 from .cycles import CYCLES, cycle_words
-from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, frame_words
+from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, tangent_arc
 from .jumps import Jumps, plan
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
 
@@ -64,7 +66,7 @@ _REFUSED = {
     "PROC": "subprogram definition", "G33": "thread cutting",
     "BSPLINE": "spline interpolation",
     "POLY": "polynomial interpolation", "OFFN": "contour offset",
-    "CT": "tangential circle", "REPEATB": "program section repetition",
+    "REPEATB": "program section repetition",
     "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
     "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
     "CALL": "subprogram call", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
@@ -106,6 +108,9 @@ class Translator:
         self.motion = 0  # the modal G0-G3
         self.plane = 17
         self.cip = False  # CIP is the modal motion
+        self.ct = False  # CT is the modal motion
+        self.tangent = False  # a path move has set the tangent parameters (#<_sin_tx>..) before this line
+        self.tracks_tangent = False  # the program has CT: path moves set the tangent parameters
         self.mcall: list[str] | None = None  # the modal drilling cycle's words (MCALL CYCLE8x), None: off
         self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
@@ -117,6 +122,7 @@ class Translator:
         lines = source_lines(text)
         self.jumps = plan(lines, self.file)
         self.framed = re.search(r"^[^;\n]*\bA?TRANS\b", text, re.IGNORECASE | re.MULTILINE) is not None
+        self.tracks_tangent = re.search(r"^[^;\n]*\bCT\b", text, re.IGNORECASE | re.MULTILINE) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
             kw, _, src, col = self.flow[-1]
@@ -179,6 +185,7 @@ class Translator:
             self.at_hole(b)
         elif self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
             b.words.insert(0, f"G{self.motion}")
+        self.track_tangent(b)
         if moves or {74, 75} & set(b.g):
             self.restore_motion = bool({74, 75} & set(b.g))
         for note in b.notes:
@@ -400,14 +407,20 @@ class Translator:
         words written; the names of the tokens it took."""
         (p1, p2), (c1, c2) = PLANES[self.plane]
         if {0, 1, 2, 3} & set(b.g):
-            self.cip = False
+            self.cip = self.ct = False
+        ct = next((t for t in b.toks if t.kind == "keyword" and t.name == "CT"), None)
+        if ct is not None or self.ct and not any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) and any(
+                t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.tangential(b, ct)
+            self.ct, self.cip = True, False
+            return {p1, p2, "CT"}
         if b.word("AR") is not None:
             self.opening_angle(b)
             return {p1, p2, c1, c2, "AR"}
         if any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) or self.cip and any(
                 t.kind == "word" and t.name in "XYZ" for t in b.toks):
             self.circle_through(b)
-            self.cip = True
+            self.cip, self.ct = True, False
             return {p1, p2, f"{c1}1", f"{c2}1", "CIP"}
         return set()
 
@@ -439,6 +452,36 @@ class Translator:
         b.words.extend(f"{a}{self.coordinate(b, b.word(a), 'XYZ'.index(a))}" for a in (p1, p2) if b.word(a))
         b.words.append(f"{c1}[[{cy}*{bb}-{by}*{cc}]/[2*{cross}]]")
         b.words.append(f"{c2}[[{bx}*{cc}-{cx}*{bb}]/[2*{cross}]]")
+
+    def tangential(self, b: _Block, ct: Token | None) -> None:
+        """CT (FB "Circular interpolation with tangential transition (CT)", modal like G2/G3/CIP): the arc
+        from the current point to the end point, tangent at its start to the previous path element, whose
+        end direction the tangent parameters hold (`track_tangent`); `geometry.tangent_arc`."""
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        at = ct or next(t for t in b.toks if t.kind == "word" and t.name in "XYZ")
+        if not self.tangent:
+            raise b.src.error("CT with no path element before it to be tangent to", at.start, at.name,
+                              "a G1/G2/G3/CIP/CT move before the CT")
+        extra = [t for t in b.toks if t.kind == "word" and t.name in (c1, c2, "CR", "AR", "TURN", "I1", "J1", "K1")]
+        if extra:
+            t = extra[0]
+            raise b.src.error(f"{t.name} in a CT block: the tangent alone sets the arc", t.start,
+                              b.src.text[t.start:t.end], f"CT {p1}.. {p2}.. (the end point only)")
+        ends = {a: self.coordinate(b, b.word(a), "XYZ".index(a)) for a in (p1, p2) if b.word(a)}
+        b.words.extend(tangent_arc(self.plane, ends, self.absolute))
+
+    def track_tangent(self, b: _Block) -> None:
+        """After a path move in the active plane (G0-G3, CIP, CT), its end direction in the plane's axes,
+        set in #<_sin_tx>/#<_sin_ty>/#<_sin_tz> for a CT that follows (`geometry.end_tangent`). Moves
+        along the plane's normal alone, cycles and machine-coordinate moves leave it as it was."""
+        (p1, p2), _ = PLANES[self.plane]
+        in_plane = any(t.kind == "word" and t.name in (p1, p2) for t in b.toks)
+        cycle = any(w.startswith("G8") for w in b.words) or any(t.kind == "call" and t.name in CYCLES for t in b.toks)
+        if not self.tracks_tangent or not in_plane or cycle or self.machine_block(b):
+            return
+        b.words.extend(end_tangent(self.plane, b.words, self.absolute, self.motion if not (self.cip or self.ct)
+                                   else None))
+        self.tangent = True
 
     def opening_angle(self, b: _Block) -> None:
         """G2/G3 with AR=: from its end point or from its centre, not both (`geometry.arc_by_angle`)."""
