@@ -42,11 +42,13 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from ..lexer import source_lines
 from .cycles import CYCLES, cycle_words
 from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, tangent_arc
 from .jumps import Jumps, plan
+from .subprograms import END, MAX_DEPTH, Registry, call_of, find, label, proc_header, quoted_call
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
 
 _WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G59", 507: "G59.1", 508: "G59.2",
@@ -74,6 +76,8 @@ _REFUSED = {
 }
 _FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF", "GOTOF",
                   "GOTOB", "GOTO", "GOTOC")
+# keywords that are commands, never a subprogram's name
+_NOT_CALLS = _NOTE_KEYWORDS | set(FRAMES) | set(_REFUSED) | {"MCALL", "SUPA", "CIP", "CT"}
 _LABEL = re.compile(r"([A-Za-z_][A-Za-z_][A-Za-z0-9_]*)[ \t]*:(?!=)")
 _BLOCK_NUMBER = re.compile(r"(?:[Nn][ \t]*(\d+)|:[ \t]*(\d+))(?![\d.])")
 _SIMPLE = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
@@ -97,8 +101,11 @@ class _Block:
 class Translator:
     """The modal state the translation needs (G90/G91, motion, S, tools, control structures)."""
 
-    def __init__(self, file: str) -> None:
+    def __init__(self, file: str, registry: Registry | None = None, sub: str | None = None) -> None:
         self.file = file
+        self.subs = registry or Registry()  # the subprograms called, shared with theirs
+        self.sub_name = sub  # the subprogram this translator reads (None: the main program)
+        self.fed = sub is None  # an F word has been read (a subprogram's feed moves need their own F)
         self.absolute = True
         self.spindle: str | None = None  # the last S value (NGC text), for G4 S
         self.tools: dict[str, int] = {}
@@ -119,16 +126,24 @@ class Translator:
         self.framed = False  # the program sets a programmable offset: absolute values get #2000.. added
 
     def text(self, text: str) -> str:
+        """The program's NGC, line for line, and after it the subprograms it calls (`subprograms`)."""
+        out = self.lines(text)
+        if self.subs.lines:
+            return "\n".join(out + self.subs.lines) + "\n"
+        return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+
+    def lines(self, text: str) -> list[str]:
+        """The NGC of each line of a program or subprogram."""
         lines = source_lines(text)
-        self.jumps = plan(lines, self.file)
-        self.framed = re.search(r"^[^;\n]*\bA?TRANS\b", text, re.IGNORECASE | re.MULTILINE) is not None
-        self.tracks_tangent = re.search(r"^[^;\n]*\bCT\b", text, re.IGNORECASE | re.MULTILINE) is not None
+        self.jumps = plan(lines, self.file, label(self.sub_name)[1:-1] + "_jump" if self.sub_name else "jump")
+        self.framed = self.framed or re.search(r"^[^;\n]*\bA?TRANS\b", text, re.I | re.M) is not None
+        self.tracks_tangent = self.tracks_tangent or re.search(r"^[^;\n]*\bCT\b", text, re.I | re.M) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
             kw, _, src, col = self.flow[-1]
             raise src.error(f"{kw} without its end", col, kw, {"IF": "ENDIF", "WHILE": "ENDWHILE", "LOOP": "ENDLOOP",
                                                               "REPEAT": "UNTIL"}[kw])
-        return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+        return out
 
     def line(self, src: Line) -> str:
         """The NGC of one source line."""
@@ -152,13 +167,22 @@ class Translator:
             head = [h for h in head if h == "/"]
             head.append(self.jumps.at_label[src.line])
         first = re.match(r"[A-Za-z_]+", text[i:code_end])
+        code = text[i:code_end].strip()
+        if self.sub_name and proc_header(src):
+            return f";{text}"
         if first and first.group(0).upper() in _FLOW_KEYWORDS:
             body = self.flow_statement(src, first.group(0).upper(), i, code_end)
-            if body.startswith("o") and head:
-                head = [h for h in head if h == "/"]  # an O-word line takes no N number
+        elif quoted_call(code):
+            body = self.subprogram(src, quoted_call(code), None, i)
+        elif self.sub_name and END.fullmatch(code):
+            body = f"o{label(self.sub_name)} return"
         else:
             toks = tokens(src, i, code_end)
-            body = self.block(_Block(src, toks)) if toks else ""
+            called = call_of(toks) if toks and toks[0].name not in _NOT_CALLS else None
+            body = (self.subprogram(src, called[0], called[1], i) if called else
+                    self.block(_Block(src, toks)) if toks else "")
+        if body.startswith("o") and head:
+            head = [h for h in head if h == "/"]  # an O-word line takes no N number
         return " ".join(w for w in (*head, body) if w) + (f" {comment}" if comment and (head or body) else comment)
 
     # --- blocks -------------------------------------------------------------------------------
@@ -186,6 +210,7 @@ class Translator:
         elif self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
             b.words.insert(0, f"G{self.motion}")
         self.track_tangent(b)
+        self.own_feed(b)
         if moves or {74, 75} & set(b.g):
             self.restore_motion = bool({74, 75} & set(b.g))
         for note in b.notes:
@@ -345,6 +370,9 @@ class Translator:
         if not value.isdigit():
             raise b.src.error("M function with a computed value", t.start, t.value, "M<integer>")
         code = int(value)
+        if self.sub_name and code in (2, 17, 30):
+            raise b.src.error(f"M{code} ends the subprogram: in a block of its own", t.start, b.src.text[t.start:t.end],
+                              f"M{code} alone on its line")
         if code == 17:
             b.words.append("M2")
             b.notes.append("M17: end")
@@ -564,6 +592,73 @@ class Translator:
                           b.src.text[t.start:t.end][:40], "moves, arcs, tool and spindle words, R parameters, "
                           "IF/WHILE/LOOP/REPEAT, CYCLE832, MSG")
 
+    # --- subprograms ---------------------------------------------------------------------------
+    def subprogram(self, src: Line, name: str, runs: Token | None, at: int) -> str:
+        """A call by name (`subprograms`): the subprogram translated at its first call, in this call's
+        modal state, which its end state then replaces; the NGC call (through a repeating sub with P)."""
+        if runs is not None and not (runs.value.isdigit() and 1 <= int(runs.value) <= 9999):
+            raise src.error("P of a subprogram call is its number of runs", runs.start, src.text[runs.start:runs.end],
+                            "P1 ... P9999")
+        if name in self.subs.stack or name == self.sub_name:
+            raise src.error(f"subprogram {name} calls itself (recursion is not read)", at, name, "calls that end")
+        if len(self.subs.stack) + 1 >= MAX_DEPTH:
+            raise src.error(f"subprograms nested more than {MAX_DEPTH - 1} deep", at, name, "fewer levels")
+        state = (self.absolute, self.plane)
+        if name not in self.subs.state:
+            path = find(name, self.file)
+            if path is None:
+                raise src.error(f"subprogram {name} not found: no {name}.SPF nor _N_{name}_SPF beside the program "
+                                f"(in {path_folder(self.file)})", at, name, f"the file {name}.SPF beside the program")
+            self.subs.state[name] = (state, self.run_subprogram(name, path))
+        first, end = self.subs.state[name]
+        if end[6] and not self.framed:
+            raise src.error(f"subprogram {name} sets a frame (TRANS/ATRANS) and this program has none: not modelled",
+                            at, name, "TRANS/ATRANS in the main program too, or none")
+        if first != state:
+            raise src.error(f"subprogram {name} called in another mode than at its first call ({_mode(state)}, "
+                            f"first {_mode(first)}): its translation is the first call's", at, name, _mode(first))
+        self.absolute, self.plane, self.motion, self.cip, self.ct = end[:5]
+        self.tangent = self.tangent or end[5]
+        n = int(runs.value) if runs is not None else 1
+        return f"o{label(name) if n == 1 else self.subs.repeated(name, n)} call"
+
+    def run_subprogram(self, name: str, path: Path) -> tuple:
+        """Translate the subprogram file (its errors name it) and append it; its modal state at the end."""
+        data = path.read_bytes()
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError:
+            text = data.decode("latin-1")
+        child = Translator(str(path), self.subs, name)
+        child.absolute, child.plane, child.motion, child.cip, child.ct = (self.absolute, self.plane, self.motion,
+                                                                         self.cip, self.ct)
+        child.tangent, child.framed, child.tracks_tangent = self.tangent, self.framed, self.tracks_tangent
+        child.spindle, child.tools, child.names, child.labels, child.mcall = (self.spindle, self.tools, self.names,
+                                                                              self.labels, self.mcall)
+        self.subs.stack.append(name)
+        body = child.lines(text)
+        self.subs.stack.pop()
+        self.subs.add(name, body)
+        self.labels, self.mcall = child.labels, child.mcall
+        return child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed
+
+    def own_feed(self, b: _Block) -> None:
+        """In a subprogram, a feed move before any F word of it is refused (`subprograms`: its moves keep
+        their programmed feeds, which the caller's F, changed by optimizing, would not be)."""
+        if self.fed:
+            return
+        if b.word("F") is not None and 4 not in b.g:
+            self.fed = True
+            return
+        moves = any(t.kind == "word" and t.name in "XYZ" for t in b.toks)
+        feeding = moves and (self.motion in (1, 2, 3) or self.cip or self.ct or self.mcall) and not (
+            0 in b.g) or any(t.kind == "call" and t.name in CYCLES for t in b.toks)
+        if feeding:
+            t = b.toks[0]
+            raise b.src.error("a feed move of a subprogram before any F of its own: its feed would be the caller's",
+                              t.start, b.src.text[t.start:t.end], "an F word in the subprogram before its first "
+                              "feed move (its moves keep the feeds its file programs)")
+
     # --- control flow -------------------------------------------------------------------------
     def flow_statement(self, src: Line, kw: str, i: int, end: int) -> str:
         """IF/ELSE/ENDIF, WHILE/ENDWHILE, LOOP/ENDLOOP, REPEAT/UNTIL as O words; DEF as assignments."""
@@ -650,6 +745,14 @@ def split_comment(src: Line) -> tuple[int, str]:
             return i, text[i:]
         i += 1
     return len(text), ""
+
+
+def path_folder(file: str) -> str:
+    return str(Path(file).parent)
+
+
+def _mode(state: tuple) -> str:
+    return f"G{90 if state[0] else 91} G{state[1]}"
 
 
 def _g_number(src: Line, t: Token) -> int:
