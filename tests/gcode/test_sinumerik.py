@@ -372,3 +372,63 @@ def test_tangential_arc_refusals(text, line, column, word):
     with pytest.raises(ParseError) as e:
         sin(text)
     assert (e.value.file, e.value.line, e.value.column) == ("part.mpf", line, column) and word in str(e.value)
+
+
+def _files(folder: Path, **files: str) -> Path:
+    for name, text in files.items():
+        (folder / name.replace("__", ".")).write_text(text)
+    return folder / "MAIN.MPF"
+
+
+def read_sin(path: Path):
+    return read_program(path, ReaderOptions(dialect="sinumerik"))
+
+
+def test_subprogram_calls_by_name_with_runs_by_l_number_and_by_call(tmp_path):
+    """FB "Subprogram technique" ("Subprogram call", "Program repetition P"): PART1 P2 runs PART1.SPF
+    twice, L12 runs _N_L12_SPF, CALL "PART1" once more; M17 and RET return; a PROC header is read.
+    The same moves as the RS-274 written out by hand."""
+    main = _files(tmp_path, MAIN__MPF="N10 G17 G90 G0 X0 Y0 Z5\nN20 G1 Z-1 F200\nN30 PART1 P2\nN40 L12\n"
+                  'N50 CALL "PART1"\nN60 G1 X0 Y0 F500\nN70 M30\n',
+                  PART1__SPF="PROC PART1\nN10 G91 G1 X10 F300\nN20 Y10\nN30 G90\nN40 M17\n",
+                  _N_L12_SPF="G1 X50 F400\nIF R1 == 0\nG1 Y0\nENDIF\nRET\n")
+    a = read_sin(main)
+    b = ngc("G17 G90 G0 X0 Y0 Z5\nG1 Z-1 F200\nG91 X10 F300\nY10\nX10\nY10\nG90 G1 X50 F400\nY0\n"
+            "G91 X10 F300\nY10\nG90 G1 X0 Y0 F500\nM30\n")
+    assert_same_moves(a, b)
+    assert a.toolpath.line.tolist()[:3] == [1, 2, 10]  # a subprogram's moves: lines past the program's (7)
+
+
+def test_subprograms_nest_and_lower_case_spf_is_found(tmp_path):
+    """FB "Subprogram technique" ("Nesting depth"): a subprogram calls another; part2.spf in lower case."""
+    main = _files(tmp_path, MAIN__MPF="G0 X0 Y0 Z0\nPART1\nM30\n", PART1__SPF="G1 X5 F100\nPART2 P3\nM17\n",
+                  part2__spf="G91 G1 Y1 F100\nG90\nM17\n")
+    assert_same_moves(read_sin(main), ngc("G0 X0 Y0 Z0\nG1 X5 F100\nG91 Y1\nY1\nY1\nG90\nM30\n"))
+
+
+@pytest.mark.parametrize("files, where, word", [
+    ({"MAIN__MPF": "G0 X0 Y0\nN20 PART9 P2\nM30\n"}, ("MAIN.MPF", 2, 5), "PART9"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "PROC PART1(REAL DEPTH)\nM17\n"}, ("PART1.SPF", 1, 11), "("),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X1 F100\nPART1\nM17\n"}, ("PART1.SPF", 2, 1), "PART1"),
+    ({"MAIN__MPF": "G0 X0\nPART1 P0\nM30\n", "PART1__SPF": "M17\n"}, ("MAIN.MPF", 2, 7), "P0"),
+    ({"MAIN__MPF": "G1 X0 F100\nPART1\nM30\n", "PART1__SPF": "G0 Z1\nG1 X5\nM17\n"}, ("PART1.SPF", 2, 1), "G1"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X5 F100 M17\n"}, ("PART1.SPF", 1, 12), "M17"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X5 F100\nSPOS=0\nM17\n"}, ("PART1.SPF", 2, 1), "SPOS"),
+])
+def test_subprogram_refusals_name_the_file_line_and_column(tmp_path, files, where, word):
+    """FB "Subprogram technique": a missing file is refused at the call naming the file looked for; an
+    error in a subprogram names the subprogram's file and line; recursion, PROC parameters, P0, a
+    subprogram's feed move before its own F (its feeds are not written back), M17 with other words."""
+    with pytest.raises(ParseError) as e:
+        read_sin(_files(tmp_path, **files))
+    assert (Path(e.value.file).name, e.value.line, e.value.column) == where and word in str(e.value)
+    if where[0] == "MAIN.MPF" and word == "PART9":
+        assert "PART9.SPF" in str(e.value)
+
+
+def test_an_error_the_interpreter_finds_in_a_subprogram_names_its_file_and_line(tmp_path):
+    """A subprogram's lines run past the program's end: an interpreter error there names the .SPF line."""
+    main = _files(tmp_path, MAIN__MPF="G0 X0 Y0 Z0\nPART1\nM30\n", PART1__SPF="G1 X5 F100\nG1 X=1/R1\nM17\n")
+    with pytest.raises(ParseError) as e:
+        read_sin(main)
+    assert (Path(e.value.file).name, e.value.line) == ("PART1.SPF", 2)

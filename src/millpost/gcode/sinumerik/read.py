@@ -48,7 +48,7 @@ from ..lexer import source_lines
 from .cycles import CYCLES, cycle_words
 from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, tangent_arc
 from .jumps import Jumps, plan
-from .subprograms import END, MAX_DEPTH, Registry, call_of, find, label, proc_header, quoted_call
+from .subprograms import END, MAX_DEPTH, Registry, Translation, call_of, find, label, proc_header, quoted_call
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
 
 _WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G59", 507: "G59.1", 508: "G59.2",
@@ -129,7 +129,9 @@ class Translator:
         """The program's NGC, line for line, and after it the subprograms it calls (`subprograms`)."""
         out = self.lines(text)
         if self.subs.lines:
-            return "\n".join(out + self.subs.lines) + "\n"
+            ngc = Translation("\n".join(out + self.subs.lines) + "\n")
+            ngc.origins = {len(out) + k + 1: where for k, where in self.subs.origins.items()}
+            return ngc
         return "\n".join(out) + ("\n" if text.endswith("\n") else "")
 
     def lines(self, text: str) -> list[str]:
@@ -638,7 +640,7 @@ class Translator:
         self.subs.stack.append(name)
         body = child.lines(text)
         self.subs.stack.pop()
-        self.subs.add(name, body)
+        self.subs.add(name, str(path), body)
         self.labels, self.mcall = child.labels, child.mcall
         return child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed
 

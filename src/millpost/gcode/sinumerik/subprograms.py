@@ -79,11 +79,14 @@ class Registry:
     their appended NGC lines, the modal state each was translated in, and the call stack."""
 
     lines: list[str] = field(default_factory=list)
+    origins: dict[int, tuple[str, int]] = field(default_factory=dict)  # index in lines → (file, line)
     state: dict[str, tuple] = field(default_factory=dict)  # name → (G90?, plane) of its translation
     wrappers: set[tuple[str, int]] = field(default_factory=set)
     stack: list[str] = field(default_factory=list)
 
-    def add(self, name: str, body: list[str]) -> None:
+    def add(self, name: str, file: str, body: list[str]) -> None:
+        start = len(self.lines) + 1
+        self.origins.update({start + k: (file, k + 1) for k in range(len(body))})
         self.lines += [f"o{label(name)} sub", *body, f"o{label(name)} endsub"]
 
     def repeated(self, name: str, runs: int) -> str:
@@ -96,3 +99,10 @@ class Registry:
             self.lines += [f"o{outer} sub", f"o{loop} repeat [{runs}]", f"o{inner} call", f"o{loop} endrepeat",
                            f"o{outer} endsub"]
         return outer
+
+
+class Translation(str):
+    """A translation's NGC text, with `origins`: NGC line → (file, line) of the subprogram line it
+    translates (`Dialect.translate`: an error the interpreter finds there names that file and line)."""
+
+    origins: dict[int, tuple[str, int]]
