@@ -34,8 +34,11 @@ The translation keeps what it needs of the modal state (G90/G91 for AC/IC, the p
 the last S) in the order of the text: a loop or backward jump whose body changes one of them before
 a line that depends on it reads that line with the state the text shows there.
 
+- Subprogram calls (FB "Subprogram technique"): ``NAME [P n]``, ``L<n> [P n]``, ``CALL "NAME"`` in a
+  block of their own run NAME.SPF beside the program, appended as an O-sub (`subprograms`).
+
 Anything else is refused with its file:line:column (5-axis transformations, swivel CYCLE800, shop-floor
-and pocket cycles, SPOS, subprogram calls, polar coordinates, system variables, ...).
+and pocket cycles, SPOS, subprogram parameters, PCALL/EXTCALL, polar coordinates, system variables, ...).
 """
 
 from __future__ import annotations
@@ -71,7 +74,7 @@ _REFUSED = {
     "REPEATB": "program section repetition",
     "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
     "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
-    "CALL": "subprogram call", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
+    "CALL": "a subprogram call other than CALL \"NAME\" alone", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
     "RET": "subprogram return"
 }
 _FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF", "GOTOF",

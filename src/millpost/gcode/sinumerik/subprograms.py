@@ -4,7 +4,7 @@ program (``PART1.SPF``, ``_N_PART1_SPF``, any letter case). It is translated by 
 the modal state of its first call, and appended after the program's lines as ``o<sin_part1> sub`` …
 ``endsub`` (``M17``, ``RET``, ``M2``, ``M30`` alone in a block: ``return``); a call with P runs a
 wrapper sub that repeats it. Subprograms may call subprograms (`MAX_DEPTH` levels); recursion is
-refused. ``PROC NAME`` as the first block of the file is read; a PROC with parameters is refused.
+refused. A ``PROC NAME`` header is read; a PROC with parameters or attributes (SAVE) is refused.
 
 Feeds: the moves of a subprogram keep their programmed feeds (they are written in the subprogram's file,
 which millpost does not rewrite), so a subprogram must set its own feed: a feed move before any F word
@@ -21,7 +21,7 @@ from .syntax import Line, Token
 
 MAX_DEPTH = 16  # the main program and 15 subprogram levels (FB: "Nesting depth")
 _CALL = re.compile(r'CALL[ \t]*"([A-Za-z_][A-Za-z0-9_]*)"[ \t]*$', re.IGNORECASE)
-_PROC = re.compile(r"[ \t]*(?:[Nn][ \t]*\d+[ \t]*)?PROC[ \t]+([A-Za-z_][A-Za-z0-9_]*)[ \t]*(\(?)", re.IGNORECASE)
+_PROC = re.compile(r"[ \t]*(?:[Nn][ \t]*\d+[ \t]*)?PROC[ \t]+([A-Za-z_][A-Za-z0-9_]*)[ \t]*([^;]*)", re.IGNORECASE)
 END = re.compile(r"(M0*17|M0*2|M30|RET)", re.IGNORECASE)
 
 
@@ -67,9 +67,10 @@ def proc_header(src: Line) -> bool:
     m = _PROC.match(src.text)
     if not m:
         return False
-    if m.group(2):
-        raise src.error("PROC with parameters: subprogram parameters are not read", m.start(2), src.text[m.start(2):][:30],
-                        f"PROC {m.group(1)} without a parameter list")
+    rest = m.group(2).rstrip()
+    if rest:
+        what = "parameters: subprogram parameters are" if rest.startswith("(") else "attributes (SAVE, ...) are"
+        raise src.error(f"PROC with {what} not read", m.start(2), rest[:30], f"PROC {m.group(1)} alone")
     return True
 
 
