@@ -119,7 +119,7 @@ class Translator:
         self.plane = 17
         self.cip = False  # CIP is the modal motion
         self.ct = False  # CT is the modal motion
-        self.tangent = False  # a path move has set the tangent parameters (#<_sin_tx>..) before this line
+        self.tangent: set[str] = set()  # the axes whose tangent parameter (#<_sin_tx>..) a move has set
         self.tracks_tangent = False  # the program has CT: path moves set the tangent parameters
         self.mcall: list[str] | None = None  # the modal drilling cycle's words (MCALL CYCLE8x), None: off
         self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
@@ -492,9 +492,9 @@ class Translator:
         end direction the tangent parameters hold (`track_tangent`); `geometry.tangent_arc`."""
         (p1, p2), (c1, c2) = PLANES[self.plane]
         at = ct or next(t for t in b.toks if t.kind == "word" and t.name in "XYZ")
-        if not self.tangent:
-            raise b.src.error("CT with no path element before it to be tangent to", at.start, at.name,
-                              "a G1/G2/G3/CIP/CT move before the CT")
+        if not {p1, p2} <= self.tangent:
+            raise b.src.error(f"CT with no path element in the {p1}/{p2} plane before it to be tangent to", at.start,
+                              at.name, f"a G1/G2/G3/CIP/CT move along {p1}/{p2} before the CT")
         extra = [t for t in b.toks if t.kind == "word" and t.name in (c1, c2, "CR", "AR", "TURN", "I1", "J1", "K1")]
         if extra:
             t = extra[0]
@@ -514,7 +514,7 @@ class Translator:
             return
         b.words.extend(end_tangent(self.plane, b.words, self.absolute, self.motion if not (self.cip or self.ct)
                                    else None))
-        self.tangent = True
+        self.tangent |= {p1, p2}
 
     def opening_angle(self, b: _Block) -> None:
         """G2/G3 with AR=: from its end point or from its centre, not both (`geometry.arc_by_angle`)."""
@@ -623,7 +623,7 @@ class Translator:
             raise src.error(f"subprogram {name} called in another mode than at its first call ({_mode(state)}, "
                             f"first {_mode(first)}): its translation is the first call's", at, name, _mode(first))
         self.absolute, self.plane, self.motion, self.cip, self.ct = end[:5]
-        self.tangent = self.tangent or end[5]
+        self.tangent |= end[5]
         n = int(runs.value) if runs is not None else 1
         return f"o{label(name) if n == 1 else self.subs.repeated(name, n)} call"
 
@@ -637,7 +637,7 @@ class Translator:
         child = Translator(str(path), self.subs, name)
         child.absolute, child.plane, child.motion, child.cip, child.ct = (self.absolute, self.plane, self.motion,
                                                                          self.cip, self.ct)
-        child.tangent, child.framed, child.tracks_tangent = self.tangent, self.framed, self.tracks_tangent
+        child.tangent, child.framed, child.tracks_tangent = set(self.tangent), self.framed, self.tracks_tangent
         child.spindle, child.tools, child.names, child.labels, child.mcall = (self.spindle, self.tools, self.names,
                                                                               self.labels, self.mcall)
         self.subs.stack.append(name)
