@@ -363,6 +363,15 @@ def test_tangential_arc_in_g18_and_g19_and_incremental():
     assert_same_moves(a, b)
 
 
+def test_tangential_arc_in_a_loop_takes_the_tangent_of_each_run():
+    """FB "CT" with AV "Program section repetitions" (WHILE): each run's CT is tangent to the line before
+    it in that run (the tangent is computed as the program runs, not from the text)."""
+    a = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 R1=0\nN30 WHILE R1<2\nN40 G91 G1 X=10+R1 F100\nN50 CT X10 Y10\n"
+            "N60 G1 Y10\nN70 R1=R1+1\nN80 ENDWHILE\n")
+    b = ngc("G17 G90 G0 X0 Y0 Z0\nG91 G1 X10 F100\nG3 X10 Y10 I0 J10\nG1 Y10\nX11\nG3 X10 Y10 I0 J10\nG1 Y10\n")
+    assert_same_moves(a, b)
+
+
 @pytest.mark.parametrize("text, line, column, word", [
     ("N10 CT X10 Y10 F100\n", 1, 5, "CT"),
     ("N10 G1 X0 Y0 F100\nN20 G1 X10\nN30 CT X20 Y10 I5\n", 3, 16, "I5"),
@@ -414,6 +423,9 @@ def test_subprograms_nest_and_lower_case_spf_is_found(tmp_path):
     ({"MAIN__MPF": "G1 X0 F100\nPART1\nM30\n", "PART1__SPF": "G0 Z1\nG1 X5\nM17\n"}, ("PART1.SPF", 2, 1), "G1"),
     ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X5 F100 M17\n"}, ("PART1.SPF", 1, 12), "M17"),
     ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X5 F100\nSPOS=0\nM17\n"}, ("PART1.SPF", 2, 1), "SPOS"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nG91\nN40 PART1\nM30\n", "PART1__SPF": "G0 X1\nM17\n"}, ("MAIN.MPF", 4, 5),
+     "G90 G17"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "PROC PART1 SAVE\nM17\n"}, ("PART1.SPF", 1, 12), "SAVE"),
 ])
 def test_subprogram_refusals_name_the_file_line_and_column(tmp_path, files, where, word):
     """FB "Subprogram technique": a missing file is refused at the call naming the file looked for; an
