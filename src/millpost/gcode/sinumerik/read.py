@@ -74,8 +74,8 @@ _REFUSED = {
     "REPEATB": "program section repetition",
     "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
     "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
-    "CALL": "a subprogram call other than CALL \"NAME\" alone", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
-    "RET": "subprogram return"
+    "CALL": "a subprogram call other than CALL \"NAME\" alone", "PCALL": "subprogram call with its path",
+    "EXTCALL": "external subprogram call", "RET": "a subprogram return outside a subprogram, or with other words"
 }
 _FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF", "GOTOF",
                   "GOTOB", "GOTO", "GOTOC")
