@@ -444,3 +444,9 @@ def test_an_error_the_interpreter_finds_in_a_subprogram_names_its_file_and_line(
     with pytest.raises(ParseError) as e:
         read_sin(main)
     assert (Path(e.value.file).name, e.value.line) == ("PART1.SPF", 2)
+
+
+def test_subprograms_after_the_end_are_not_noted_as_unexecuted(tmp_path):
+    """The subprograms appended after M30 run when called: no "after program end" note names them."""
+    main = _files(tmp_path, MAIN__MPF="G0 X0 Y0 Z0\nPART1\nM30\n", PART1__SPF="G1 X5 F100\nM17\n")
+    assert not any("after program end" in n for n in read_sin(main).notes)
