@@ -340,3 +340,113 @@ def test_a_plain_program_with_g710_is_sinumerik():
     tp = read_text(text, "slot.mpf").toolpath
     assert tp.end[-2].tolist() == [100.0, 0.0, -3.0] and tp.feed_mm_min[-2] == 300.0
     assert dialects.detect("(post for G710 controls)\nG21 G90\nG1 X10 F100\nM30\n").name != "sinumerik"
+
+
+def test_tangential_arc_after_a_line_and_after_an_arc():
+    """FB "Circular interpolation with tangential transition (CT)": after the line along +X to (10,0),
+    CT to (20,10) is the quarter circle about (10,10), counter-clockwise; CT (modal) on to (30,0), its start
+    direction +Y, is the clockwise 270° arc about (30,10); after G2 CR=10 to (40,10) about (40,0) (end
+    direction +X) CT to (50,0) turns clockwise about (40,0)."""
+    a = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 G1 X10 F100\nN30 CT X20 Y10\nN40 X30 Y0\nN50 G2 X40 Y10 CR=10\n"
+            "N60 CT X50 Y0\n")
+    b = ngc("G17 G90 G0 X0 Y0 Z0\nG1 X10 F100\nG3 X20 Y10 I0 J10\nG2 X30 Y0 I10 J0\nG2 X40 Y10 R10\n"
+            "G2 X50 Y0 I0 J-10\n")
+    assert_same_moves(a, b)
+    assert a.toolpath.kind.tolist()[2:] == [ARC_CCW, ARC_CW, ARC_CW, ARC_CW]
+
+
+def test_tangential_arc_in_g18_and_g19_and_incremental():
+    """FB "Circular interpolation with tangential transition (CT)": the tangent is the previous element's
+    in the active plane (G18: Z/X, G19: Y/Z); in G91 the end point is from the start."""
+    a = sin("N10 G18 G90 G0 X0 Y0 Z0\nN20 G1 Z10 F100\nN30 CT Z20 X10\nN40 G19 G1 Y0 Z30\nN50 G91 CT Y10 Z10\n")
+    b = ngc("G18 G90 G0 X0 Y0 Z0\nG1 Z10 F100\nG3 Z20 X10 K0 I10\nG19 G1 Y0 Z30\nG91 G2 Y10 Z10 J10 K0\n")
+    assert_same_moves(a, b)
+
+
+def test_tangential_arc_in_a_loop_takes_the_tangent_of_each_run():
+    """FB "CT" with AV "Program section repetitions" (WHILE): each run's CT is tangent to the line before
+    it in that run (the tangent is computed as the program runs, not from the text)."""
+    a = sin("N10 G17 G90 G0 X0 Y0 Z0\nN20 R1=0\nN30 WHILE R1<2\nN40 G91 G1 X=10+R1 F100\nN50 CT X10 Y10\n"
+            "N60 G1 Y10\nN70 R1=R1+1\nN80 ENDWHILE\n")
+    b = ngc("G17 G90 G0 X0 Y0 Z0\nG91 G1 X10 F100\nG3 X10 Y10 I0 J10\nG1 Y10\nX11\nG3 X10 Y10 I0 J10\nG1 Y10\n")
+    assert_same_moves(a, b)
+
+
+@pytest.mark.parametrize("text, line, column, word", [
+    ("N10 CT X10 Y10 F100\n", 1, 5, "CT"),
+    ("N10 G1 X0 Y0 F100\nN20 G1 X10\nN30 CT X20 Y10 I5\n", 3, 16, "I5"),
+])
+def test_tangential_arc_refusals(text, line, column, word):
+    """FB "CT": the arc is set by the tangent and the end point alone; a CT needs a path element before it."""
+    with pytest.raises(ParseError) as e:
+        sin(text)
+    assert (e.value.file, e.value.line, e.value.column) == ("part.mpf", line, column) and word in str(e.value)
+
+
+def _files(folder: Path, **files: str) -> Path:
+    for name, text in files.items():
+        (folder / name.replace("__", ".")).write_text(text)
+    return folder / "MAIN.MPF"
+
+
+def read_sin(path: Path):
+    return read_program(path, ReaderOptions(dialect="sinumerik"))
+
+
+def test_subprogram_calls_by_name_with_runs_by_l_number_and_by_call(tmp_path):
+    """FB "Subprogram technique" ("Subprogram call", "Program repetition P"): PART1 P2 runs PART1.SPF
+    twice, L12 runs _N_L12_SPF, CALL "PART1" once more; M17 and RET return; a PROC header is read.
+    The same moves as the RS-274 written out by hand."""
+    main = _files(tmp_path, MAIN__MPF="N10 G17 G90 G0 X0 Y0 Z5\nN20 G1 Z-1 F200\nN30 PART1 P2\nN40 L12\n"
+                  'N50 CALL "PART1"\nN60 G1 X0 Y0 F500\nN70 M30\n',
+                  PART1__SPF="PROC PART1\nN10 G91 G1 X10 F300\nN20 Y10\nN30 G90\nN40 M17\n",
+                  _N_L12_SPF="G1 X50 F400\nIF R1 == 0\nG1 Y0\nENDIF\nRET\n")
+    a = read_sin(main)
+    b = ngc("G17 G90 G0 X0 Y0 Z5\nG1 Z-1 F200\nG91 X10 F300\nY10\nX10\nY10\nG90 G1 X50 F400\nY0\n"
+            "G91 X10 F300\nY10\nG90 G1 X0 Y0 F500\nM30\n")
+    assert_same_moves(a, b)
+    assert a.toolpath.line.tolist()[:3] == [1, 2, 10]  # a subprogram's moves: lines past the program's (7)
+
+
+def test_subprograms_nest_and_lower_case_spf_is_found(tmp_path):
+    """FB "Subprogram technique" ("Nesting depth"): a subprogram calls another; part2.spf in lower case."""
+    main = _files(tmp_path, MAIN__MPF="G0 X0 Y0 Z0\nPART1\nM30\n", PART1__SPF="G1 X5 F100\nPART2 P3\nM17\n",
+                  part2__spf="G91 G1 Y1 F100\nG90\nM17\n")
+    assert_same_moves(read_sin(main), ngc("G0 X0 Y0 Z0\nG1 X5 F100\nG91 Y1\nY1\nY1\nG90\nM30\n"))
+
+
+@pytest.mark.parametrize("files, where, word", [
+    ({"MAIN__MPF": "G0 X0 Y0\nN20 PART9 P2\nM30\n"}, ("MAIN.MPF", 2, 5), "PART9"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "PROC PART1(REAL DEPTH)\nM17\n"}, ("PART1.SPF", 1, 11), "("),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X1 F100\nPART1\nM17\n"}, ("PART1.SPF", 2, 1), "PART1"),
+    ({"MAIN__MPF": "G0 X0\nPART1 P0\nM30\n", "PART1__SPF": "M17\n"}, ("MAIN.MPF", 2, 7), "P0"),
+    ({"MAIN__MPF": "G1 X0 F100\nPART1\nM30\n", "PART1__SPF": "G0 Z1\nG1 X5\nM17\n"}, ("PART1.SPF", 2, 1), "G1"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X5 F100 M17\n"}, ("PART1.SPF", 1, 12), "M17"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "G1 X5 F100\nSPOS=0\nM17\n"}, ("PART1.SPF", 2, 1), "SPOS"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nG91\nN40 PART1\nM30\n", "PART1__SPF": "G0 X1\nM17\n"}, ("MAIN.MPF", 4, 5),
+     "G90 G17"),
+    ({"MAIN__MPF": "G0 X0\nPART1\nM30\n", "PART1__SPF": "PROC PART1 SAVE\nM17\n"}, ("PART1.SPF", 1, 12), "SAVE"),
+])
+def test_subprogram_refusals_name_the_file_line_and_column(tmp_path, files, where, word):
+    """FB "Subprogram technique": a missing file is refused at the call naming the file looked for; an
+    error in a subprogram names the subprogram's file and line; recursion, PROC parameters, P0, a
+    subprogram's feed move before its own F (its feeds are not written back), M17 with other words."""
+    with pytest.raises(ParseError) as e:
+        read_sin(_files(tmp_path, **files))
+    assert (Path(e.value.file).name, e.value.line, e.value.column) == where and word in str(e.value)
+    if where[0] == "MAIN.MPF" and word == "PART9":
+        assert "PART9.SPF" in str(e.value)
+
+
+def test_an_error_the_interpreter_finds_in_a_subprogram_names_its_file_and_line(tmp_path):
+    """A subprogram's lines run past the program's end: an interpreter error there names the .SPF line."""
+    main = _files(tmp_path, MAIN__MPF="G0 X0 Y0 Z0\nPART1\nM30\n", PART1__SPF="G1 X5 F100\nG1 X=1/R1\nM17\n")
+    with pytest.raises(ParseError) as e:
+        read_sin(main)
+    assert (Path(e.value.file).name, e.value.line) == ("PART1.SPF", 2)
+
+
+def test_subprograms_after_the_end_are_not_noted_as_unexecuted(tmp_path):
+    """The subprograms appended after M30 run when called: no "after program end" note names them."""
+    main = _files(tmp_path, MAIN__MPF="G0 X0 Y0 Z0\nPART1\nM30\n", PART1__SPF="G1 X5 F100\nM17\n")
+    assert not any("after program end" in n for n in read_sin(main).notes)

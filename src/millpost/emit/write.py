@@ -644,8 +644,9 @@ def whole_moves(program: Program, fragments: list) -> list:
     cycle runs (its block's words are the cycle's, not a move's end point), and of each move whose line
     computes a word (`computed`), merged into one over the whole move at their lowest feed (such moves
     are written with one F, see the module docstring). A translated program's move whose source line
-    cannot carry its feed (`Dialect.fixed_feed`: a Heidenhain cycle call, whose feed is its cycle's Q206)
-    keeps its programmed feed."""
+    cannot carry its feed (`Dialect.fixed_feed`: a Heidenhain cycle call, whose feed is its cycle's Q206),
+    and one on a line past the source's end (a subroutine the translation appends, such as a Sinumerik
+    subprogram read from its own file, which is not written), keeps its programmed feed."""
     out, whole = [], {}
     lines, move_line = source_lines(program.text), program.toolpath.line
     suspect = {int(move_line[f.move]) for f in fragments}
@@ -655,7 +656,7 @@ def whole_moves(program: Program, fragments: list) -> list:
     fixed_feed = dialects.get(program.dialect).fixed_feed if program.source is not None else None
     if fixed_feed is not None:
         source = source_lines(program.source)
-        fixed = {n for n in suspect if 0 < n <= len(source) and fixed_feed(source[n - 1])}
+        fixed = {n for n in suspect if n > len(source) or 0 < n and fixed_feed(source[n - 1])}
         programmed = program.toolpath.feed_mm_s
     for f in fragments:
         if not (program.compensated[f.move] or program.cycle[f.move] or int(move_line[f.move]) in computed_lines):

@@ -29,8 +29,15 @@ def read_text(text: str, name: str = "<string>", options: ReaderOptions | None =
     dialect = dialects.get(options.dialect) if options.dialect else dialects.detect(text)
     interp = Interpreter(options, name, dialect)
     ngc = dialect.translate(text, name) if dialect.translate else text
-    interp.run(ngc)
-    program = interp.finish(name, ngc)
+    try:
+        interp.run(ngc)
+        program = interp.finish(name, ngc)
+    except ParseError as e:
+        origin = getattr(ngc, "origins", {}).get(e.line)  # a line a translation added from another file
+        if origin is None:
+            raise
+        raise ParseError(e.reason, file=origin[0], line=origin[1], column=e.column, word=e.word,
+                         expected=e.expected) from e
     if dialect.translate:
         program.source = text
     return program

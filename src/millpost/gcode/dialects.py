@@ -60,8 +60,10 @@ class Dialect:
     A language other than RS-274 (Sinumerik, Heidenhain Klartext) is read through its translation:
     translate(text, file) gives an RS-274/NGC program the interpreter runs, line for line (its line k is
     the translation of source line k, so every move, event and error keeps its source line; lines past
-    the source's last may hold subroutines the translation adds, with no F words). Refusals name the
-    source's file, line and column. set_feed(line, f) writes a feed back into one source line: the F
+    the source's last may hold subroutines the translation adds: their moves keep their programmed feeds,
+    as they are not written back; a translation whose added lines come from other files (Sinumerik
+    subprograms) is a str with `origins`, added line → (file, line), and an error the interpreter finds
+    on such a line names that file and line). Refusals name the source's file, line and column. set_feed(line, f) writes a feed back into one source line: the F
     word's number text `f` (in the line's units, as the RS-274 writer formatted it) in place of the
     line's F, added where it has none, or the F removed when `f` is None; the rest of the line keeps
     its bytes. fixed_feed(line): the source line's moves run at a feed written elsewhere (a Heidenhain

@@ -454,7 +454,8 @@ class Interpreter:
                 line_no = source.line
             if self.ended:
                 if raw.strip() and raw.strip() != "%":
-                    self.notes.append(f"line {line_no}: after program end (M2/M30): not executed")
+                    if (control_of(raw) or ("", ""))[1] != "sub":  # subroutines after the end run when called
+                        self.notes.append(f"line {line_no}: after program end (M2/M30): not executed")
                     break
                 continue
             if source is not None and source.repeats > MAX_REPEATED_LINES:

@@ -54,3 +54,52 @@ def arc_by_angle(plane: int, angle: str, ccw: bool, absolute: bool, ends: dict[s
     if absolute:
         e1, e2 = f"{start[p1]}+{e1}", f"{start[p2]}+{e2}"
     return [f"{p1}[{e1}]", f"{p2}[{e2}]", f"{c1}{i}", f"{c2}{j}"]
+
+
+TANGENT = {"X": "#<_sin_tx>", "Y": "#<_sin_ty>", "Z": "#<_sin_tz>"}  # the last path element's end direction
+
+
+def _deltas(plane: int, ends: dict[str, str], absolute: bool) -> tuple[str, str]:
+    """The move's displacement along the plane's two axes (`ends`: axis → NGC value as programmed)."""
+    (p1, p2), _ = PLANES[plane]
+    return tuple("0" if a not in ends else f"[{ends[a]}-#{_POSITION[a]}]" if absolute else ends[a]
+                 for a in (p1, p2))
+
+
+def tangent_arc(plane: int, ends: dict[str, str], absolute: bool) -> list[str]:
+    """The words of a CT arc: with D the displacement, T the previous element's end direction and N = T
+    turned +90° in the plane, the centre is start + s·N with s = |D|² / (2 N·D) (equidistant from both
+    ends, on the start's normal); counter-clockwise (G3) when N·D > 0, the centre left of T."""
+    (p1, p2), (c1, c2) = PLANES[plane]
+    d1, d2 = _deltas(plane, ends, absolute)
+    n1, n2 = f"[-{TANGENT[p2]}]", TANGENT[p1]
+    nd = f"[{n1}*{d1}+{n2}*{d2}]"
+    s = f"[[{d1}*{d1}+{d2}*{d2}]/[2*{nd}]]"
+    return [f"G[2+[{nd} GT 0]]", *(f"{a}{ends[a]}" for a in (p1, p2) if a in ends), f"{c1}[{s}*{n1}]",
+            f"{c2}[{s}*{n2}]"]
+
+
+def end_tangent(plane: int, words: list[str], absolute: bool, motion: int | None) -> list[str]:
+    """Assignments of the plane's tangent parameters to a move's end direction, from its NGC `words`:
+    a line's displacement; an arc's radius at the end (end - centre, the centre from its centre words or
+    its R) turned +90° for G3, -90° for G2. `motion` None: a CIP/CT arc, its direction in its G[2+[c]]."""
+    (p1, p2), (c1, c2) = PLANES[plane]
+
+    def word(letter: str) -> str | None:
+        return next((w[len(letter):] for w in words if w.startswith(letter) and not w[len(letter):][:1].isalpha()
+                     and w[len(letter):][:1] not in ("", "=")), None)
+
+    d1, d2 = _deltas(plane, {a: v for a in (p1, p2) if (v := word(a)) is not None}, absolute)
+    if motion in (0, 1):
+        return [f"{TANGENT[p1]}={d1}", f"{TANGENT[p2]}={d2}"]
+    ccw = str(int(motion == 3)) if motion is not None else next(w[4:-1] for w in words if w.startswith("G[2+"))
+    radius = word("R")
+    if radius is not None and word(c1) is None and word(c2) is None:
+        dd = f"[{d1}*{d1}+{d2}*{d2}]"
+        h = f"[SQRT[ABS[[{radius}]*[{radius}]/{dd}-0.25]]]"
+        side = f"[[2*{ccw}-1]*[{radius}]/ABS[{radius}]]"
+        i, j = f"[{d1}/2-{side}*{h}*{d2}]", f"[{d2}/2+{side}*{h}*{d1}]"
+    else:
+        i, j = word(c1) or "0", word(c2) or "0"
+    sign = f"[2*{ccw}-1]"
+    return [f"{TANGENT[p1]}=[-{sign}*[{d2}-{j}]]", f"{TANGENT[p2]}=[{sign}*[{d1}-{i}]]"]

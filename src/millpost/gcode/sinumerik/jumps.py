@@ -28,8 +28,9 @@ class Jumps:
     at_jump: dict[int, tuple[str, str]] = field(default_factory=dict)
 
 
-def plan(lines: list[str], file: str) -> Jumps:
-    """Where each jump and its label go in the translation."""
+def plan(lines: list[str], file: str, prefix: str = "jump") -> Jumps:
+    """Where each jump and its label go in the translation (O labels <prefix1>, <prefix2>, ...: a
+    subprogram's differ from its caller's)."""
     labels: dict[str, list[int]] = {}
     found = []
     for n, raw in enumerate(lines, 1):
@@ -56,7 +57,7 @@ def plan(lines: list[str], file: str) -> Jumps:
         if to in out.at_label or to in out.at_jump or n in out.at_label:
             raise src.error("a second jump to the same place (or a jump from a label's own line)", jump.start(),
                             jump.group(0), "one jump per label")
-        label = f"<jump{k}>"
+        label = f"<{prefix}{k}>"
         out.at_label[to] = f"o{label} endif" if to > n else f"o{label} do"
         out.at_jump[n] = ("if" if to > n else "while", label)
         code = lines[to - 1].split(";", 1)[0]

@@ -12,8 +12,10 @@ Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programmin
   the current position (#5420..#5422, program units). G94/G95/G93, G17/G18/G19, G40-G42, G0-G3.
 - Arcs (FB "Circular interpolation"): I/J/K incremental from the start (``I=AC(..)``: absolute), or
   ``CR=`` (radius; negative: the arc over 180°) → R; ``TURN=n`` → P(n+1); ``AR=`` and ``CIP`` through
-  the start point (`geometry`, `Translator.circle_through`). ``CT`` (tangential) is refused: the
-  tangent is the previous path's, which the translation cannot see.
+  the start point (`geometry`, `Translator.circle_through`). ``CT`` (FB "Circular interpolation with
+  tangential transition", modal): in a program with CT every path move in the plane sets its end
+  direction in #<_sin_tx>/#<_sin_ty>/#<_sin_tz>, from which the CT line computes its centre
+  (`geometry.tangent_arc`); in G17, G18 and G19.
 - Work offsets (FB "Settable zero offset"): G54-G57 → G54-G57, G505-G508 → G58, G59, G59.1, G59.2,
   G500 (settable offsets off) → G59.3; G53 / SUPA → G53 (that block in machine coordinates).
 - Tools (FB "Tool change"): ``T1`` / ``T=1`` / ``T="name"`` (names numbered by first appearance unless
@@ -32,19 +34,24 @@ The translation keeps what it needs of the modal state (G90/G91 for AC/IC, the p
 the last S) in the order of the text: a loop or backward jump whose body changes one of them before
 a line that depends on it reads that line with the state the text shows there.
 
+- Subprogram calls (FB "Subprogram technique"): ``NAME [P n]``, ``L<n> [P n]``, ``CALL "NAME"`` in a
+  block of their own run NAME.SPF beside the program, appended as an O-sub (`subprograms`).
+
 Anything else is refused with its file:line:column (5-axis transformations, swivel CYCLE800, shop-floor
-and pocket cycles, SPOS, subprogram calls, polar coordinates, system variables, ...).
+and pocket cycles, SPOS, subprogram parameters, PCALL/EXTCALL, polar coordinates, system variables, ...).
 """
 
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from ..lexer import source_lines
 from .cycles import CYCLES, cycle_words
-from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, frame_words
+from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, tangent_arc
 from .jumps import Jumps, plan
+from .subprograms import END, MAX_DEPTH, Registry, Translation, call_of, find, label, proc_header, quoted_call
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
 
 _WORK_OFFSETS = {54: "G54", 55: "G55", 56: "G56", 57: "G57", 505: "G58", 506: "G59", 507: "G59.1", 508: "G59.2",
@@ -64,14 +71,16 @@ _REFUSED = {
     "PROC": "subprogram definition", "G33": "thread cutting",
     "BSPLINE": "spline interpolation",
     "POLY": "polynomial interpolation", "OFFN": "contour offset",
-    "CT": "tangential circle", "REPEATB": "program section repetition",
+    "REPEATB": "program section repetition",
     "GOTO": "a jump inside a block (write it alone or after IF)", "GOTOF": "a jump inside a block (write it alone or "
     "after IF)", "GOTOB": "a jump inside a block (write it alone or after IF)", "GOTOC": "a jump inside a block", "FOR": "FOR loop", "CASE": "CASE jump",
-    "CALL": "subprogram call", "PCALL": "subprogram call", "EXTCALL": "external subprogram call",
-    "RET": "subprogram return"
+    "CALL": "a subprogram call other than CALL \"NAME\" alone", "PCALL": "subprogram call with its path",
+    "EXTCALL": "external subprogram call", "RET": "a subprogram return outside a subprogram, or with other words"
 }
 _FLOW_KEYWORDS = ("IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "LOOP", "ENDLOOP", "REPEAT", "UNTIL", "DEF", "GOTOF",
                   "GOTOB", "GOTO", "GOTOC")
+# keywords that are commands, never a subprogram's name
+_NOT_CALLS = _NOTE_KEYWORDS | set(FRAMES) | set(_REFUSED) | {"MCALL", "SUPA", "CIP", "CT"}
 _LABEL = re.compile(r"([A-Za-z_][A-Za-z_][A-Za-z0-9_]*)[ \t]*:(?!=)")
 _BLOCK_NUMBER = re.compile(r"(?:[Nn][ \t]*(\d+)|:[ \t]*(\d+))(?![\d.])")
 _SIMPLE = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)")
@@ -95,8 +104,11 @@ class _Block:
 class Translator:
     """The modal state the translation needs (G90/G91, motion, S, tools, control structures)."""
 
-    def __init__(self, file: str) -> None:
+    def __init__(self, file: str, registry: Registry | None = None, sub: str | None = None) -> None:
         self.file = file
+        self.subs = registry or Registry()  # the subprograms called, shared with theirs
+        self.sub_name = sub  # the subprogram this translator reads (None: the main program)
+        self.fed = sub is None  # an F word has been read (a subprogram's feed moves need their own F)
         self.absolute = True
         self.spindle: str | None = None  # the last S value (NGC text), for G4 S
         self.tools: dict[str, int] = {}
@@ -106,6 +118,9 @@ class Translator:
         self.motion = 0  # the modal G0-G3
         self.plane = 17
         self.cip = False  # CIP is the modal motion
+        self.ct = False  # CT is the modal motion
+        self.tangent: set[str] = set()  # the axes whose tangent parameter (#<_sin_tx>..) a move has set
+        self.tracks_tangent = False  # the program has CT: path moves set the tangent parameters
         self.mcall: list[str] | None = None  # the modal drilling cycle's words (MCALL CYCLE8x), None: off
         self.restore_motion = False  # a G74/G75 block wrote G0: the next move names the modal motion again
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
@@ -114,15 +129,26 @@ class Translator:
         self.framed = False  # the program sets a programmable offset: absolute values get #2000.. added
 
     def text(self, text: str) -> str:
+        """The program's NGC, line for line, and after it the subprograms it calls (`subprograms`)."""
+        out = self.lines(text)
+        if self.subs.lines:
+            ngc = Translation("\n".join(out + self.subs.lines) + "\n")
+            ngc.origins = {len(out) + k + 1: where for k, where in self.subs.origins.items()}
+            return ngc
+        return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+
+    def lines(self, text: str) -> list[str]:
+        """The NGC of each line of a program or subprogram."""
         lines = source_lines(text)
-        self.jumps = plan(lines, self.file)
-        self.framed = re.search(r"^[^;\n]*\bA?TRANS\b", text, re.IGNORECASE | re.MULTILINE) is not None
+        self.jumps = plan(lines, self.file, label(self.sub_name)[1:-1] + "_jump" if self.sub_name else "jump")
+        self.framed = self.framed or re.search(r"^[^;\n]*\bA?TRANS\b", text, re.I | re.M) is not None
+        self.tracks_tangent = self.tracks_tangent or re.search(r"^[^;\n]*\bCT\b", text, re.I | re.M) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
             kw, _, src, col = self.flow[-1]
             raise src.error(f"{kw} without its end", col, kw, {"IF": "ENDIF", "WHILE": "ENDWHILE", "LOOP": "ENDLOOP",
                                                               "REPEAT": "UNTIL"}[kw])
-        return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+        return out
 
     def line(self, src: Line) -> str:
         """The NGC of one source line."""
@@ -146,13 +172,22 @@ class Translator:
             head = [h for h in head if h == "/"]
             head.append(self.jumps.at_label[src.line])
         first = re.match(r"[A-Za-z_]+", text[i:code_end])
+        code = text[i:code_end].strip()
+        if self.sub_name and proc_header(src):
+            return f";{text}"
         if first and first.group(0).upper() in _FLOW_KEYWORDS:
             body = self.flow_statement(src, first.group(0).upper(), i, code_end)
-            if body.startswith("o") and head:
-                head = [h for h in head if h == "/"]  # an O-word line takes no N number
+        elif quoted_call(code):
+            body = self.subprogram(src, quoted_call(code), None, i)
+        elif self.sub_name and END.fullmatch(code):
+            body = f"o{label(self.sub_name)} return"
         else:
             toks = tokens(src, i, code_end)
-            body = self.block(_Block(src, toks)) if toks else ""
+            called = call_of(toks) if toks and toks[0].name not in _NOT_CALLS else None
+            body = (self.subprogram(src, called[0], called[1], i) if called else
+                    self.block(_Block(src, toks)) if toks else "")
+        if body.startswith("o") and head:
+            head = [h for h in head if h == "/"]  # an O-word line takes no N number
         return " ".join(w for w in (*head, body) if w) + (f" {comment}" if comment and (head or body) else comment)
 
     # --- blocks -------------------------------------------------------------------------------
@@ -179,6 +214,8 @@ class Translator:
             self.at_hole(b)
         elif self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
             b.words.insert(0, f"G{self.motion}")
+        self.track_tangent(b)
+        self.own_feed(b)
         if moves or {74, 75} & set(b.g):
             self.restore_motion = bool({74, 75} & set(b.g))
         for note in b.notes:
@@ -338,6 +375,9 @@ class Translator:
         if not value.isdigit():
             raise b.src.error("M function with a computed value", t.start, t.value, "M<integer>")
         code = int(value)
+        if self.sub_name and code in (2, 17, 30):
+            raise b.src.error(f"M{code} ends the subprogram: in a block of its own", t.start, b.src.text[t.start:t.end],
+                              f"M{code} alone on its line")
         if code == 17:
             b.words.append("M2")
             b.notes.append("M17: end")
@@ -400,14 +440,20 @@ class Translator:
         words written; the names of the tokens it took."""
         (p1, p2), (c1, c2) = PLANES[self.plane]
         if {0, 1, 2, 3} & set(b.g):
-            self.cip = False
+            self.cip = self.ct = False
+        ct = next((t for t in b.toks if t.kind == "keyword" and t.name == "CT"), None)
+        if ct is not None or self.ct and not any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) and any(
+                t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.tangential(b, ct)
+            self.ct, self.cip = True, False
+            return {p1, p2, "CT"}
         if b.word("AR") is not None:
             self.opening_angle(b)
             return {p1, p2, c1, c2, "AR"}
         if any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) or self.cip and any(
                 t.kind == "word" and t.name in "XYZ" for t in b.toks):
             self.circle_through(b)
-            self.cip = True
+            self.cip, self.ct = True, False
             return {p1, p2, f"{c1}1", f"{c2}1", "CIP"}
         return set()
 
@@ -439,6 +485,36 @@ class Translator:
         b.words.extend(f"{a}{self.coordinate(b, b.word(a), 'XYZ'.index(a))}" for a in (p1, p2) if b.word(a))
         b.words.append(f"{c1}[[{cy}*{bb}-{by}*{cc}]/[2*{cross}]]")
         b.words.append(f"{c2}[[{bx}*{cc}-{cx}*{bb}]/[2*{cross}]]")
+
+    def tangential(self, b: _Block, ct: Token | None) -> None:
+        """CT (FB "Circular interpolation with tangential transition (CT)", modal like G2/G3/CIP): the arc
+        from the current point to the end point, tangent at its start to the previous path element, whose
+        end direction the tangent parameters hold (`track_tangent`); `geometry.tangent_arc`."""
+        (p1, p2), (c1, c2) = PLANES[self.plane]
+        at = ct or next(t for t in b.toks if t.kind == "word" and t.name in "XYZ")
+        if not {p1, p2} <= self.tangent:
+            raise b.src.error(f"CT with no path element in the {p1}/{p2} plane before it to be tangent to", at.start,
+                              at.name, f"a G1/G2/G3/CIP/CT move along {p1}/{p2} before the CT")
+        extra = [t for t in b.toks if t.kind == "word" and t.name in (c1, c2, "CR", "AR", "TURN", "I1", "J1", "K1")]
+        if extra:
+            t = extra[0]
+            raise b.src.error(f"{t.name} in a CT block: the tangent alone sets the arc", t.start,
+                              b.src.text[t.start:t.end], f"CT {p1}.. {p2}.. (the end point only)")
+        ends = {a: self.coordinate(b, b.word(a), "XYZ".index(a)) for a in (p1, p2) if b.word(a)}
+        b.words.extend(tangent_arc(self.plane, ends, self.absolute))
+
+    def track_tangent(self, b: _Block) -> None:
+        """After a path move in the active plane (G0-G3, CIP, CT), its end direction in the plane's axes,
+        set in #<_sin_tx>/#<_sin_ty>/#<_sin_tz> for a CT that follows (`geometry.end_tangent`). Moves
+        along the plane's normal alone, cycles and machine-coordinate moves leave it as it was."""
+        (p1, p2), _ = PLANES[self.plane]
+        in_plane = any(t.kind == "word" and t.name in (p1, p2) for t in b.toks)
+        cycle = any(w.startswith("G8") for w in b.words) or any(t.kind == "call" and t.name in CYCLES for t in b.toks)
+        if not self.tracks_tangent or not in_plane or cycle or self.machine_block(b):
+            return
+        b.words.extend(end_tangent(self.plane, b.words, self.absolute, self.motion if not (self.cip or self.ct)
+                                   else None))
+        self.tangent |= {p1, p2}
 
     def opening_angle(self, b: _Block) -> None:
         """G2/G3 with AR=: from its end point or from its centre, not both (`geometry.arc_by_angle`)."""
@@ -520,6 +596,73 @@ class Translator:
         raise b.src.error(f"{t.name}: {why}, which millpost does not read", t.start,
                           b.src.text[t.start:t.end][:40], "moves, arcs, tool and spindle words, R parameters, "
                           "IF/WHILE/LOOP/REPEAT, CYCLE832, MSG")
+
+    # --- subprograms ---------------------------------------------------------------------------
+    def subprogram(self, src: Line, name: str, runs: Token | None, at: int) -> str:
+        """A call by name (`subprograms`): the subprogram translated at its first call, in this call's
+        modal state, which its end state then replaces; the NGC call (through a repeating sub with P)."""
+        if runs is not None and not (runs.value.isdigit() and 1 <= int(runs.value) <= 9999):
+            raise src.error("P of a subprogram call is its number of runs", runs.start, src.text[runs.start:runs.end],
+                            "P1 ... P9999")
+        if name in self.subs.stack or name == self.sub_name:
+            raise src.error(f"subprogram {name} calls itself (recursion is not read)", at, name, "calls that end")
+        if len(self.subs.stack) + 1 >= MAX_DEPTH:
+            raise src.error(f"subprograms nested more than {MAX_DEPTH - 1} deep", at, name, "fewer levels")
+        state = (self.absolute, self.plane)
+        if name not in self.subs.state:
+            path = find(name, self.file)
+            if path is None:
+                raise src.error(f"subprogram {name} not found: no {name}.SPF nor _N_{name}_SPF beside the program "
+                                f"(in {path_folder(self.file)})", at, name, f"the file {name}.SPF beside the program")
+            self.subs.state[name] = (state, self.run_subprogram(name, path))
+        first, end = self.subs.state[name]
+        if end[6] and not self.framed:
+            raise src.error(f"subprogram {name} sets a frame (TRANS/ATRANS) and this program has none: not modelled",
+                            at, name, "TRANS/ATRANS in the main program too, or none")
+        if first != state:
+            raise src.error(f"subprogram {name} called in another mode than at its first call ({_mode(state)}, "
+                            f"first {_mode(first)}): its translation is the first call's", at, name, _mode(first))
+        self.absolute, self.plane, self.motion, self.cip, self.ct = end[:5]
+        self.tangent |= end[5]
+        n = int(runs.value) if runs is not None else 1
+        return f"o{label(name) if n == 1 else self.subs.repeated(name, n)} call"
+
+    def run_subprogram(self, name: str, path: Path) -> tuple:
+        """Translate the subprogram file (its errors name it) and append it; its modal state at the end."""
+        data = path.read_bytes()
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError:
+            text = data.decode("latin-1")
+        child = Translator(str(path), self.subs, name)
+        child.absolute, child.plane, child.motion, child.cip, child.ct = (self.absolute, self.plane, self.motion,
+                                                                         self.cip, self.ct)
+        child.tangent, child.framed, child.tracks_tangent = set(self.tangent), self.framed, self.tracks_tangent
+        child.spindle, child.tools, child.names, child.labels, child.mcall = (self.spindle, self.tools, self.names,
+                                                                              self.labels, self.mcall)
+        self.subs.stack.append(name)
+        body = child.lines(text)
+        self.subs.stack.pop()
+        self.subs.add(name, str(path), body)
+        self.labels, self.mcall = child.labels, child.mcall
+        return child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed
+
+    def own_feed(self, b: _Block) -> None:
+        """In a subprogram, a feed move before any F word of it is refused (`subprograms`: its moves keep
+        their programmed feeds, which the caller's F, changed by optimizing, would not be)."""
+        if self.fed:
+            return
+        if b.word("F") is not None and 4 not in b.g:
+            self.fed = True
+            return
+        moves = any(t.kind == "word" and t.name in "XYZ" for t in b.toks)
+        feeding = moves and (self.motion in (1, 2, 3) or self.cip or self.ct or self.mcall) and not (
+            0 in b.g) or any(t.kind == "call" and t.name in CYCLES for t in b.toks)
+        if feeding:
+            t = b.toks[0]
+            raise b.src.error("a feed move of a subprogram before any F of its own: its feed would be the caller's",
+                              t.start, b.src.text[t.start:t.end], "an F word in the subprogram before its first "
+                              "feed move (its moves keep the feeds its file programs)")
 
     # --- control flow -------------------------------------------------------------------------
     def flow_statement(self, src: Line, kw: str, i: int, end: int) -> str:
@@ -607,6 +750,14 @@ def split_comment(src: Line) -> tuple[int, str]:
             return i, text[i:]
         i += 1
     return len(text), ""
+
+
+def path_folder(file: str) -> str:
+    return str(Path(file).parent)
+
+
+def _mode(state: tuple) -> str:
+    return f"G{90 if state[0] else 91} G{state[1]}"
 
 
 def _g_number(src: Line, t: Token) -> int:
