@@ -58,18 +58,18 @@ class Dialect:
     (LinuxCNC); path_modes: the controller has G61/G61.1/G64 path control modes (grbl has not).
 
     A language other than RS-274 (Sinumerik, Heidenhain Klartext) is read through its translation:
-    translate(text, file) gives an RS-274/NGC program the interpreter runs, line for line (its line k is
-    the translation of source line k, so every move, event and error keeps its source line; lines past
-    the source's last may hold subroutines the translation adds: their moves keep their programmed feeds,
-    as they are not written back; a translation whose added lines come from other files (Sinumerik
-    subprograms) is a str with `origins`, added line → (file, line), and an error the interpreter finds
-    on such a line names that file and line). Refusals name the source's file, line and column. set_feed(line, f) writes a feed back into one source line: the F
-    word's number text `f` (in the line's units, as the RS-274 writer formatted it) in place of the
-    line's F, added where it has none, or the F removed when `f` is None; the rest of the line keeps
-    its bytes. fixed_feed(line): the source line's moves run at a feed written elsewhere (a Heidenhain
-    cycle call runs at its cycle's Q206): they keep their programmed feed. write(program, blocks)
-    writes an interpreted program (and its lexed source blocks) in such a language: `convert` uses it in
-    place of its RS-274 writer, from whose text it may start (`convert.write_rs274`).
+    translate(text, file) gives an RS-274/NGC program the interpreter runs, line for line (its line k is the
+    translation of source line k, so every move, event and error keeps its source line; lines past the
+    source's last may hold subroutines the translation adds: their moves keep their programmed feeds, as
+    they are not written back; a translation whose added lines come from other files (Sinumerik subprograms)
+    is a str with `origins`, added line → (file, line), and an error the interpreter finds on such a line
+    names that file and line). Refusals name the source's file, line and column. set_feed(line, f) writes a
+    feed back into one source line: the F word's number text `f` (in the line's units, as the RS-274 writer
+    formatted it) in place of the line's F, added where it has none, or the F removed when `f` is None; the
+    rest of the line keeps its bytes. fixed_feed(line): the source line's moves run at a feed written
+    elsewhere (a Heidenhain cycle call runs at its cycle's Q206): they keep their programmed feed.
+    write(program, blocks) writes an interpreted program (and its lexed source blocks) in such a language:
+    `convert` uses it in place of its RS-274 writer, from whose text it may start (`convert.write_rs274`).
     blank(text, file): the blank the program states (Heidenhain's BLK FORM) as ((xmin, ymin, zmin),
     (xmax, ymax, zmax)) in mm, or None; a job with no [stock] takes it as its stock.
     """
