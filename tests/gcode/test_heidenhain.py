@@ -601,3 +601,30 @@ def test_tool_oversizes_are_refused():
         with pytest.raises(ParseError, match="oversize") as e:
             _read(base.format(word))
         assert e.value.word == word
+
+
+def test_tools_called_by_name_are_numbered_as_sinumerik_numbers_them():
+    """§ 6.3 (TOOL CALL: tool number or tool name in quotes, as hyperMILL and NX post): a job describes
+    tools by number, so each name gets the next number by first appearance (a name of digits: that
+    number), the rule of Sinumerik's T="name"; a note says which number each name got."""
+    text = """0 BEGIN PGM T MM
+1 TOOL DEF "DRILL 5 (HSS)"
+2 TOOL CALL "MILL_D10" Z S8000 F500
+3 L X+0 Y+0 Z+5 R0 FMAX
+4 TOOL CALL "DRILL 5 (HSS)" Z S3000
+5 L X+10 FMAX
+6 TOOL CALL "MILL_D10" Z S8000
+7 TOOL CALL "7" Z S1000
+8 L Z+10 FMAX
+9 END PGM T MM
+"""
+    program = _read(text)
+    assert program.tools == [2, 1, 7]
+    notes = [str(e.value) for e in program.events if e.kind == "comment" and "tool " in str(e.value)]
+    assert notes[:2] == ["tool DRILL 5 [HSS] = T1", "tool MILL_D10 = T2"]
+    sin = read_text('N10 T="DRILL 5 (HSS)"\nN20 T="MILL_D10" M6\nN30 G0 X0\nN40 T="7" M6\nN50 X1\n', "t.mpf",
+                    ReaderOptions(dialect="sinumerik"))
+    assert sin.tools == [2, 7]
+    with pytest.raises(ParseError, match="a tool name in quotes") as e:
+        _read('0 BEGIN PGM T MM\n1 TOOL CALL "MILL Z S100\n2 END PGM T MM\n', "p.h")
+    assert (e.value.line, e.value.column) == (2, 13)

@@ -18,7 +18,7 @@ degrees, feeds in units per minute, dwells in seconds.
 
 Refused, with file:line:column and why: tilted working planes (PLANE, CYCL DEF 19), TCPM (M128,
 FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, feed per tooth or
-revolution (FZ, FU), tool axes other than Z, tools called by name, FN functions other than
+revolution (FZ, FU), tool axes other than Z, FN functions other than
 arithmetic (FN 9 jumps, FN 18 system data ...), and any block this reader does not know.
 """
 
@@ -31,6 +31,7 @@ from ..errors import MillpostError, ParseError
 from .dialects import Dialect
 from . import heidenhain_iso as iso
 from .heidenhain_write import write as _write
+from .tool_names import tool_note, tool_number
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
 _BLOCK_NUMBER = re.compile(r"[ \t]*\d+(?=[ \t]|$)[ \t]*")
@@ -73,6 +74,7 @@ class _State:
     cycle: int = 0  # the drilling cycle defined (200, 203, 205; 0: none)
     cycle_q: dict[int, float | str | None] = field(default_factory=dict)  # its parameters as written
     cycle_at: dict[int, tuple[int, int]] = field(default_factory=dict)  # their lines and columns
+    tools: dict[str, int] = field(default_factory=dict)  # tools called by name → their numbers (`tool_names`)
 
 
 def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
@@ -271,15 +273,32 @@ def blank(text: str, file: str = "<string>") -> tuple[tuple[float, float, float]
     return tuple(p[0] for p in pairs), tuple(p[1] for p in pairs)
 
 
-def _tool_call(st: _State, code: str, start: int, n: int) -> str:
-    """TOOL CALL n Z S.. F.. DL+0 DR+0 (§ 6.3): tool change, spindle speed, the feed (modal, and FAUTO's);
-    without a tool number (TOOL CALL Z S..) only the spindle speed changes."""
+_TOOL_NAME = re.compile(r'\s*"([^"]*)("?)')
+
+
+def _tool_number(st: _State, code: str, start: int, n: int) -> tuple[str | None, str | None, _Tokens]:
+    """The tool a TOOL CALL/TOOL DEF names (§ 6.3: by number, or by name in quotes, as hyperMILL and NX
+    post), the note saying which number a name got (`tool_names`: the same rule as Sinumerik's
+    ``T="name"``), and the block's words after it."""
+    named = _TOOL_NAME.match(code, start)
+    if named:
+        name = named.group(1).strip()
+        if not name or not named.group(2):
+            raise _error(st, n, named.start(1), named.group().strip(), "a tool name in quotes",
+                         'TOOL CALL "<name>" Z S..')
+        number = tool_number(name, st.tools)
+        return str(number), _comment(tool_note(name, number)), _split(code, named.end(), 0, n)
     tokens = _split(code, start, 0, n)
-    if tokens.words and tokens.words[0][0].startswith('"'):
-        text, col = tokens.words[0]
-        raise _error(st, n, col, text, "a tool called by name: the job describes tools by number",
-                     "TOOL CALL <number> Z S..")
-    words = [f"T{tokens.words.pop(0)[0]} M6 G43"] if tokens.words and tokens.words[0][0].isdigit() else []
+    if tokens.words and tokens.words[0][0].isdigit():
+        return tokens.words.pop(0)[0], None, tokens
+    return None, None, tokens
+
+
+def _tool_call(st: _State, code: str, start: int, n: int) -> str:
+    """TOOL CALL n|"name" Z S.. F.. DL+0 DR+0 (§ 6.3): tool change, spindle speed, the feed (modal, and
+    FAUTO's); without a tool (TOOL CALL Z S..) only the spindle speed changes."""
+    number, note, tokens = _tool_number(st, code, start, n)
+    words = [f"T{number} M6 G43"] if number else []
     axis = [w for w in tokens.words if re.fullmatch(r"[XYZ]", w[0])]
     if axis and axis[0][0] != "Z":
         raise _error(st, n, axis[0][1], axis[0][0], "tool axis other than Z is not supported", "Z")
@@ -294,20 +313,19 @@ def _tool_call(st: _State, code: str, start: int, n: int) -> str:
             raise _error(st, n, col, m.group(), "a length or radius oversize (DL, DR, DR2) moves the cut and is "
                          "not modelled", "DL+0 DR+0, or the tool's size in the job")
     _no_more(st, tokens, "TOOL CALL n Z S.. F.. DL+0 DR+0")
-    return " ".join(words)
+    return " ".join([*words, *([note] if note else [])])
 
 
 def _tool_def(st: _State, code: str, start: int, n: int) -> str:
-    """TOOL DEF n (L.. R..) (§ 6.3): the next tool, prepared, not changed (its length and radius, as
-    older TNCs define them in the program, are the job's tool description's business)."""
-    tokens = _split(code, start, 0, n)
-    if not tokens.words or not tokens.words[0][0].isdigit():
+    """TOOL DEF n|"name" (L.. R..) (§ 6.3): the next tool, prepared, not changed (its length and radius,
+    as older TNCs define them in the program, are the job's tool description's business)."""
+    number, note, tokens = _tool_number(st, code, start, n)
+    if number is None:
         text, col = tokens.words[0] if tokens.words else ("", start + 1)
-        raise _error(st, n, col, text, "malformed TOOL DEF", "TOOL DEF <number> (L.. R..)")
-    number = tokens.words.pop(0)[0]
+        raise _error(st, n, col, text, "malformed TOOL DEF", 'TOOL DEF <number>|"<name>" (L.. R..)')
     tokens.take(re.compile(rf"[LR]{_NUMBER}$"))
     _no_more(st, tokens, "TOOL DEF <number> L.. R..")
-    return f"T{number}"
+    return " ".join([f"T{number}", *([note] if note else [])])
 
 
 def _cycl_def(st: _State, code: str, start: int, n: int) -> str:
