@@ -628,3 +628,87 @@ def test_tools_called_by_name_are_numbered_as_sinumerik_numbers_them():
     with pytest.raises(ParseError, match="a tool name in quotes") as e:
         _read('0 BEGIN PGM T MM\n1 TOOL CALL "MILL Z S100\n2 END PGM T MM\n', "p.h")
     assert (e.value.line, e.value.column) == (2, 13)
+
+
+# arcs in the ZX and YZ planes ("Circle center CC": the plane is that of the two coordinates given)
+PLANES = """0 BEGIN PGM P MM
+1 TOOL CALL 1 Z S1000
+2 L X+10 Y+0 Z+0 R0 FMAX
+3 CC X+0 Z+0
+4 C X+0 Z+10 DR+ F300
+5 C X+10 Z+0 DR-
+6 CR X+0 Z-10 R+10 DR-
+7 CC Y+0 Z+0
+8 L X+0 Y+10 Z+0
+9 C Y+0 Z+10 DR+
+10 C Y+10 Z+0 X+5 DR-
+11 CC X+0 Y+0
+12 C X+5 Y-10 DR-
+13 END PGM P MM
+"""
+
+PLANES_NGC = """G21 G90 G17
+T1 M6 G43 S1000
+G0 X10 Y0 Z0
+(CC)
+G18 G3 X0 Z10 I-10 K0 F300
+G18 G2 X10 Z0 I0 K-10
+G18 G2 X0 Z-10 R10
+(CC)
+G1 X0 Y10 Z0
+G19 G3 Y0 Z10 J-10 K0
+G19 G2 X5 Y10 Z0 J0 K-10
+(CC)
+G17 G2 X5 Y-10 I-5 J-10
+M2
+"""
+
+
+def test_arcs_in_the_zx_and_yz_planes_closed_form():
+    """"Circle center CC" (§ 7.4): CC X.. Z.. is the centre in the ZX plane, CC Y.. Z.. in YZ, and the
+    C/CR blocks after it arc in that plane (the third axis: a helix). DR+ turns positively about the
+    plane's normal (counter-clockwise looking against +Y in ZX: Z towards X, as RS-274's G3 in G18),
+    so DR+ from X+10 Z+0 about the origin to X+0 Z+10 is three quarters, through X+0 Z-10, and DR- back
+    retraces it (through X-7.07 Z-7.07 halfway). Same moves as the program written by hand in RS-274."""
+    a = _read(PLANES)
+    b = read_text(PLANES_NGC, "t.ngc", ReaderOptions(dialect="linuxcnc"))
+    ta, tb = a.toolpath, b.toolpath
+    assert len(ta) == len(tb) and np.abs(ta.end - tb.end).max() < 1e-6
+    assert np.array_equal(ta.kind, tb.kind) and np.array_equal(ta.plane, tb.plane)
+    arcs = ta.kind >= ARC_CW
+    assert np.abs(ta.center[arcs] - tb.center[arcs]).max() < 1e-6
+    assert same_path(a, b, 1e-6) == []
+    at = {int(ln): i for i, ln in enumerate(ta.line)}
+    lengths = ta.lengths()
+    assert lengths[at[5]] == pytest.approx(1.5 * math.pi * 10, rel=1e-9)
+    third = ta.points(np.array([at[5]]), np.array([1 / 3]))[0]
+    assert np.allclose(third, [0, 0, -10], atol=1e-6)  # DR+ in ZX: from +X through -Z
+    half = ta.points(np.array([at[6]]), np.array([0.5]))[0]
+    assert np.allclose(half, [-10 / math.sqrt(2), 0, -10 / math.sqrt(2)], atol=1e-6)
+    assert lengths[at[7]] == pytest.approx(math.pi * 10 / 2, rel=1e-9)
+    # CR in ZX: R+ the arc under 180°, DR- (X towards Z) from X+10 Z+0 to X+0 Z-10: about X+10 Z-10
+    assert np.allclose(ta.center[at[7]], [10, 0, -10], atol=1e-6)
+    # DR+ in YZ: Y towards Z, from Y+10 Z+0 about the origin to Y+0 Z+10 is the quarter through Y+7.07 Z+7.07
+    half = ta.points(np.array([at[10]]), np.array([0.5]))[0]
+    assert np.allclose(half, [0, 10 / math.sqrt(2), 10 / math.sqrt(2)], atol=1e-6)
+    # the helix: a quarter clockwise in YZ, X rising from 0 to 5 along the way
+    mid = ta.points(np.array([at[11]]), np.array([0.5]))[0]
+    assert np.allclose(mid, [2.5, 10 / math.sqrt(2), 10 / math.sqrt(2)], atol=1e-6)
+    assert tuple(ta.plane[[at[5], at[10], at[13]]]) == (1, 2, 0)
+
+
+@pytest.mark.parametrize("block, word, column", [
+    ("CT X+5 Z+5", "CT", 3),
+    ("LP PR+5 PA+90", "LP", 3),
+    ("CP PA+90 DR+", "CP", 3),
+    ("C X+0 Z-10 DR+ RL", "C", 3),
+    ("CC X+1 Y+2 Z+3", "CC", 3),
+])
+def test_other_plane_arcs_out_of_reach_are_refused(block, word, column):
+    """Tangent (CT) and polar (LP, CP) arcs after a CC outside XY, and compensation on an arc outside
+    the working plane, are refused where they are written."""
+    text = f"0 BEGIN PGM T MM\n1 L X+10 Y+0 Z+0 R0 FMAX\n2 CC X+0 Z+0\n3 {block}\n4 END PGM T MM\n"
+    with pytest.raises(ParseError) as e:
+        _read(text, "part.h")
+    assert (e.value.file, e.value.line, e.value.column) == ("part.h", 4, column)
+    assert word in e.value.word
