@@ -189,15 +189,17 @@ def test_blank_box_in_mm():
     ("TOOL CALL 1 X S5000", "X", 15),
     ("L X+10 G+5", "G+5", 10),
     ("SPLINE X+1", "SPLINE", 3),
+    ("APPR LCT X+10 Y+20 Z-10 R10 RR F100", "APPR LCT", 3),
+    ("DEP LT LEN12.5 F100", "DEP LT", 3),
 ])
 def test_refused_with_file_line_column(block, word, column):
-    """Tilted planes, TCPM, SL cycles, FK, feed per tooth, other tool axes and unknown words are
-    refused where they are written."""
+    """Tilted planes, TCPM, SL cycles, FK, APPR/DEP ("Approaching and departing a contour"), feed per
+    tooth, other tool axes and unknown words are refused where they are written."""
     text = f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 R0 FMAX\n2 {block}\n3 END PGM T MM\n"
     with pytest.raises(ParseError) as e:
         _read(text, "part.h")
     assert (e.value.file, e.value.line, e.value.column) == ("part.h", 3, column)
-    assert word in e.value.word
+    assert word in e.value.word and len(e.value.word) < 15
     assert str(e.value).startswith("part.h:3:")
 
 

@@ -18,9 +18,10 @@ in named parameters the translation assigns on the same line (``#<_hh_x>``, ``#<
 degrees, feeds in units per minute, dwells in seconds.
 
 Refused, with file:line:column and why: tilted working planes (PLANE, CYCL DEF 19), TCPM (M128,
-FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, feed per tooth or
-revolution (FZ, FU), tool axes other than Z, FN functions other than
-arithmetic (FN 9 jumps, FN 18 system data ...), and any block this reader does not know.
+FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, APPR/DEP approach
+and departure, feed per tooth or revolution (FZ, FU), tool axes other than Z, CT/LP/CP after a CC
+outside XY, FN functions other than arithmetic (FN 9 jumps, FN 18 system data ...), and any block
+this reader does not know.
 """
 
 from __future__ import annotations
@@ -56,6 +57,8 @@ _REFUSED = [
      "the contour as L/C blocks"),
     (re.compile(r"F(?:L|LT|C|CT|POL|SELECT|PL|LN)\b"), "FK free contour programming is not supported",
      "the contour as L/C/CR/CT blocks"),
+    (re.compile(r"(?:APPR|DEP)\b(?:[ \t]+P?[A-Z]+\b)?"), "approach and departure functions (APPR/DEP LT, LN, CT, LCT) are not "
+     "supported", "the approach and departure as L/C/CT blocks"),
 ]
 
 
