@@ -190,7 +190,7 @@ def test_blank_box_in_mm():
     ("L X+10 G+5", "G+5", 10),
     ("SPLINE X+1", "SPLINE", 3),
     ("APPR LCT X+10 Y+20 Z-10 R10 RR F100", "APPR LCT", 3),
-    ("DEP LT LEN12.5 F100", "DEP LT", 3),
+    ("DEP CT CCA180 R+2 F100", "DEP CT", 3),
 ])
 def test_refused_with_file_line_column(block, word, column):
     """Tilted planes, TCPM, SL cycles, FK, APPR/DEP ("Approaching and departing a contour"), feed per
@@ -714,3 +714,38 @@ def test_other_plane_arcs_out_of_reach_are_refused(block, word, column):
         _read(text, "part.h")
     assert (e.value.file, e.value.line, e.value.column) == ("part.h", 4, column)
     assert word in e.value.word
+
+
+def test_dep_lt_continues_the_last_element_by_len():
+    """"Approaching and departing a contour", DEP LT: from the last contour point PE a straight line of
+    length LEN continuing the last contour element tangentially, to PN (after a line: along it; after
+    an arc: along its end tangent). Same moves as the program written by hand in RS-274."""
+    text = """0 BEGIN PGM D MM
+1 L X+0 Y+0 Z-5 R0 FMAX
+2 L X+30 Y+20 F100
+3 DEP LT LEN+13 F200
+4 L X+40 Y+0 FMAX
+5 CC X+40 Y+10
+6 C X+50 Y+10 DR+ F100
+7 DEP LT LEN5
+8 END PGM D MM
+"""
+    k = 13 / math.hypot(30, 20)
+    ngc = f"""G21 G90 G17
+G0 X0 Y0 Z-5
+G1 X30 Y20 F100
+G1 X{30 + 30 * k:.12f} Y{20 + 20 * k:.12f} F200
+G0 X40 Y0
+(CC)
+G3 X50 Y10 I0 J10 F100
+G1 X50 Y15
+M2
+"""
+    a, b = _read(text), read_text(ngc, "t.ngc", ReaderOptions(dialect="linuxcnc"))
+    assert np.abs(a.toolpath.end - b.toolpath.end).max() < 1e-6 and same_path(a, b, 1e-6) == []
+    assert np.allclose(a.toolpath.feed_mm_min, b.toolpath.feed_mm_min, equal_nan=True)
+    for block, message in (("L X+5 RL F100\n3 DEP LT LEN5", "radius compensation"),
+                           ("DEP LT F100", "one LEN"), ("DEP LN LEN5", "approach and departure")):
+        with pytest.raises(ParseError, match=message) as e:
+            _read(f"0 BEGIN PGM D MM\n1 L X+0 Y+0 Z-5 R0 FMAX\n2 {block}\n9 END PGM D MM\n", "d.h")
+        assert e.value.line in (3, 4) and e.value.column >= 1

@@ -26,7 +26,7 @@ TOKENS = ["L", "C", "CC", "CR", "CT", "RND R1", "CHF 1", "LP PR+3", "CP PA+90 DR
           "X+", "IX-", "Q1", "DR-", "R-", "LBL 1", "CALL LBL 1 REP 2", "LBL 0", "CYCL CALL", "FN 4: Q1 = +1 / +0",
           "*", "~", ";", "(", "=", "G02", "I+5", "%X G71 *", "TOOL CALL 2 Z S100", "BLK FORM 0.1 Z", "1e5", "-",
           "+", ".", "Q200=", "END PGM X MM", "PLANE SPATIAL", "\t", "ä", "CC X+0 Z+0", "CC Y+1 Z-1", "Z+",
-          'TOOL CALL "T 1"', '"']
+          'TOOL CALL "T 1"', '"', "DEP LT LEN+5", "LEN"]
 
 
 def mutant(seed: int) -> str:

@@ -5,7 +5,8 @@ ISO programs (``%NAME G71 *``) go to `heidenhain_iso`, and `convert` writes Klar
 Section numbers cite the HEIDENHAIN TNC 640 user's manual "Klartext programming" (ID 892903):
 § 3.2 program structure (BEGIN PGM / BLK FORM / END PGM), § 6 tools (TOOL CALL, TOOL DEF),
 § 7 contours with Cartesian (L, CC, C, CR, CT, RND, CHF; C and CR in the ZX and YZ planes after
-a CC X.. Z.. or CC Y.. Z..) and polar (LP, CP) coordinates,
+a CC X.. Z.. or CC Y.. Z..) and polar (LP, CP) coordinates, "Approaching and departing a contour"
+(DEP LT),
 § 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas); the cycles
 manual for CYCL DEF 7 (datum shift), 9 (dwell), 32 (tolerance), 200/203/205 (drilling).
 
@@ -19,7 +20,7 @@ degrees, feeds in units per minute, dwells in seconds.
 
 Refused, with file:line:column and why: tilted working planes (PLANE, CYCL DEF 19), TCPM (M128,
 FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, APPR/DEP approach
-and departure, feed per tooth or revolution (FZ, FU), tool axes other than Z, CT/LP/CP after a CC
+and departure other than DEP LT, feed per tooth or revolution (FZ, FU), tool axes other than Z, CT/LP/CP after a CC
 outside XY, FN functions other than arithmetic (FN 9 jumps, FN 18 system data ...), and any block
 this reader does not know.
 """
@@ -57,8 +58,8 @@ _REFUSED = [
      "the contour as L/C blocks"),
     (re.compile(r"F(?:L|LT|C|CT|POL|SELECT|PL|LN)\b"), "FK free contour programming is not supported",
      "the contour as L/C/CR/CT blocks"),
-    (re.compile(r"(?:APPR|DEP)\b(?:[ \t]+P?[A-Z]+\b)?"), "approach and departure functions (APPR/DEP LT, LN, CT, LCT) are not "
-     "supported", "the approach and departure as L/C/CT blocks"),
+    (re.compile(r"(?:APPR|DEP(?![ \t]+LT\b))\b(?:[ \t]+P?[A-Z]+\b)?"), "approach and departure functions (APPR LT, LN, CT, LCT; DEP LN, CT, LCT) "
+     "are not supported", "the approach and departure as L/C/CT blocks (DEP LT is read)"),
 ]
 
 
@@ -1036,8 +1037,35 @@ def _cp(st: _State, code: str, start: int, n: int) -> str:
                      "CP PA.. Z.. DR+|DR- F..")
 
 
+_LEN = re.compile(rf"LEN({_NUMBER}|[-+]?Q[LR]?\d+)$")
+
+
+def _dep_lt(st: _State, code: str, start: int, n: int) -> str:
+    """DEP LT LEN.. F.. M.. ("Departing on a straight line with tangential connection"): from the last
+    contour point PE a straight line LEN long continuing the last contour element's direction, to PN,
+    at the block's feed; radius compensation ends there. Refused with compensation in force (where the
+    control puts the compensated path's end is not modelled), with a Z (the move to PN, then along
+    the tool axis) and after a CC outside XY (the direction is tracked in XY)."""
+    _xy_pole(st, code, start, n)
+    _known_xy(st, code, start, n)
+    tokens = _split(code, code.upper().index("LT", start) + 2, 0, n)
+    length = tokens.take(_LEN)
+    if st.comp != "R0" or len(length) != 1:
+        text, col = tokens.words[0] if tokens.words and len(length) != 1 else ("DEP LT", start - 2)
+        raise _error(st, n, col, text, "DEP LT needs one LEN" if len(length) != 1 else "DEP LT with radius "
+                     "compensation (RL/RR) in force", "L .. R0 before it, and DEP LT LEN.. F..")
+    for m, col in tokens.take(re.compile(r"R[0LR]$")):
+        raise _error(st, n, col, m.group(), "DEP takes no radius compensation (it ends it)", "DEP LT LEN.. F..")
+    feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
+    _no_more(st, tokens, "DEP LT LEN.. F.. M..")
+    norm = "SQRT[#<_hh_tx>**2+#<_hh_ty>**2]"
+    x, y = (f"[#<_hh_{a}>+{_value(length[0][0].group(1))}*#<_hh_t{a}>/{norm}]" for a in "xy")
+    return " ".join([*_pre(words), "G1", f"X{x}", f"Y{y}", *([feed] if feed else []), *_post(words),
+                     f"#<_hh_x>={x}", f"#<_hh_y>={y}"])
+
+
 _HANDLERS = {
-    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
+    "DEP": _dep_lt, "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
     "LP": _lp, "CP": _cp, "RND": _rnd_chf, "CHF": _rnd_chf,
 }
 _PREFIXED = [
