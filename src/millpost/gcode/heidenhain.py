@@ -5,9 +5,8 @@ ISO programs (``%NAME G71 *``) go to `heidenhain_iso`, and `convert` writes Klar
 Section numbers cite the HEIDENHAIN TNC 640 user's manual "Klartext programming" (ID 892903):
 § 3.2 program structure (BEGIN PGM / BLK FORM / END PGM), § 6 tools (TOOL CALL, TOOL DEF),
 § 7 contours with Cartesian (L, CC, C, CR, CT, RND, CHF; C and CR in the ZX and YZ planes after
-a CC X.. Z.. or CC Y.. Z..) and polar (LP, CP) coordinates, "Approaching and departing a contour"
-(DEP LT),
-§ 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas); the cycles
+a CC X.. Z.. or CC Y.. Z..) and polar (LP, CP) coordinates, and DEP LT ("Approaching and departing
+a contour"), § 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas); the cycles
 manual for CYCL DEF 7 (datum shift), 9 (dwell), 32 (tolerance), 200/203/205 (drilling).
 
 The translation is line for line (`Dialect.translate`): NGC line k runs what Klartext block k does.
@@ -20,9 +19,9 @@ degrees, feeds in units per minute, dwells in seconds.
 
 Refused, with file:line:column and why: tilted working planes (PLANE, CYCL DEF 19), TCPM (M128,
 FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, APPR/DEP approach
-and departure other than DEP LT, feed per tooth or revolution (FZ, FU), tool axes other than Z, CT/LP/CP after a CC
-outside XY, FN functions other than arithmetic (FN 9 jumps, FN 18 system data ...), and any block
-this reader does not know.
+and departure other than DEP LT, feed per tooth or revolution (FZ, FU), tool axes other than Z,
+CT/LP/CP after a CC outside XY, arcs outside XY with RL/RR, FN functions other than arithmetic
+(FN 9 jumps, FN 18 system data ...), and any block this reader does not know.
 """
 
 from __future__ import annotations
