@@ -749,3 +749,25 @@ M2
         with pytest.raises(ParseError, match=message) as e:
             _read(f"0 BEGIN PGM D MM\n1 L X+0 Y+0 Z-5 R0 FMAX\n2 {block}\n9 END PGM D MM\n", "d.h")
         assert e.value.line in (3, 4) and e.value.column >= 1
+
+
+def test_xy_contour_with_compensation_after_a_zx_arc():
+    """In a program with arcs outside XY every arc names its plane: an XY arc that turns RL on, a ZX
+    arc, then RR and an RND in XY read as G17/G18 arcs (compensation only in XY)."""
+    text = """0 BEGIN PGM T MM
+1 TOOL CALL 1 Z S1000
+2 L X+0 Y+0 Z+0 R0 FMAX
+3 CC X+10 Y+0
+4 C X+20 Y+0 DR+ RL F100
+5 L X+30 Y+0 R0
+6 CC X+30 Z+5
+7 C X+35 Z+5 DR-
+8 L Z+0
+9 L X+40 Y+0 RR
+10 RND R2
+11 L X+40 Y+10
+12 END PGM T MM
+"""
+    tp = read_text(text, "t.h", ReaderOptions(dialect="heidenhain", tool_diameters_mm={1: 4.0})).toolpath
+    assert tp.line.tolist() == [3, 5, 6, 8, 9, 10, 11, 12]
+    assert tp.plane.tolist() == [0, 0, 0, 1, 1, 0, 0, 0] and tp.kind[3] == ARC_CW  # L Z+0 after it: still G18

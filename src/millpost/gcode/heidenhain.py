@@ -214,7 +214,7 @@ def _begin(st: _State, code: str, start: int, n: int) -> str:
         raise _error(st, n, start + 1, code[start:].strip(), "malformed BEGIN PGM", "BEGIN PGM <name> MM|INCH")
     st.inch = words[2].upper() == "INCH"
     return (f"{'G20' if st.inch else 'G21'} G90 G17 G94 G40 #<_hh_x>=0 #<_hh_y>=0 #<_hh_z>=0 #<_hh_ccx>=0 "
-            f"#<_hh_ccy>=0 #<_hh_tx>=0 #<_hh_ty>=0 #<_hh_dx>=0 #<_hh_dy>=0 #<_hh_dz>=0 ({_comment(words[1])[1:-1]})")
+            f"#<_hh_ccy>=0 #<_hh_ccz>=0 #<_hh_tx>=0 #<_hh_ty>=0 #<_hh_dx>=0 #<_hh_dy>=0 #<_hh_dz>=0 ({_comment(words[1])[1:-1]})")
 
 
 def _end(st: _State, code: str, start: int, n: int) -> str:
@@ -684,7 +684,7 @@ def _arc_line(st: _State, tokens: _Tokens, motion: str, targets: dict[str, str],
     feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
     _no_more(st, tokens, expected)
     keyword = expected.split()[0]
-    plane_word = _plane(st, plane, tokens.line, tokens.column, keyword)
+    plane_word = [w for w in _plane(st, plane, tokens.line, tokens.column, keyword) if w not in words]
     end = {plane[0]: _AXIS_PARAM[plane[0]], plane[1]: _AXIS_PARAM[plane[1]], **targets}
     coords = [f"{a}{end[a]}" for a in "XYZ" if a in end]
     return " ".join([*plane_word, *_pre(words), motion, *coords, *centre, *([feed] if feed else []),
@@ -978,7 +978,8 @@ def _rnd_chf(st: _State, code: str, start: int, n: int) -> str:
     _no_more(st, tokens, f"{keyword} <size> F..")
     motion = "G[#<_hh_rdir>]" if keyword == "RND" else "G1"
     if keyword == "RND":
-        motion = " ".join([*_plane(st, _XY, n, start - len(keyword) + 1, keyword), motion])
+        plane = [w for w in _plane(st, _XY, n, start - len(keyword) + 1, keyword) if w not in words]
+        motion = " ".join([*plane, motion])
     centre = ["I[#<_hh_rcx>-#<_hh_r1x>]", "J[#<_hh_rcy>-#<_hh_r1y>]"] if keyword == "RND" else []
     return " ".join([*_pre(words), motion, "X#<_hh_r2x>", "Y#<_hh_r2y>", *centre, *([feed] if feed else []),
                      *_post(words)])
