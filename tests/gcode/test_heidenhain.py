@@ -189,15 +189,17 @@ def test_blank_box_in_mm():
     ("TOOL CALL 1 X S5000", "X", 15),
     ("L X+10 G+5", "G+5", 10),
     ("SPLINE X+1", "SPLINE", 3),
+    ("APPR LCT X+10 Y+20 Z-10 R10 RR F100", "APPR LCT", 3),
+    ("DEP CT CCA180 R+2 F100", "DEP CT", 3),
 ])
 def test_refused_with_file_line_column(block, word, column):
-    """Tilted planes, TCPM, SL cycles, FK, feed per tooth, other tool axes and unknown words are
-    refused where they are written."""
+    """Tilted planes, TCPM, SL cycles, FK, APPR/DEP ("Approaching and departing a contour"), feed per
+    tooth, other tool axes and unknown words are refused where they are written."""
     text = f"0 BEGIN PGM T MM\n1 L X+0 Y+0 Z+5 R0 FMAX\n2 {block}\n3 END PGM T MM\n"
     with pytest.raises(ParseError) as e:
         _read(text, "part.h")
     assert (e.value.file, e.value.line, e.value.column) == ("part.h", 3, column)
-    assert word in e.value.word
+    assert word in e.value.word and len(e.value.word) < 15
     assert str(e.value).startswith("part.h:3:")
 
 
@@ -601,3 +603,171 @@ def test_tool_oversizes_are_refused():
         with pytest.raises(ParseError, match="oversize") as e:
             _read(base.format(word))
         assert e.value.word == word
+
+
+def test_tools_called_by_name_are_numbered_as_sinumerik_numbers_them():
+    """§ 6.3 (TOOL CALL: tool number or tool name in quotes, as hyperMILL and NX post): a job describes
+    tools by number, so each name gets the next number by first appearance (a name of digits: that
+    number), the rule of Sinumerik's T="name"; a note says which number each name got."""
+    text = """0 BEGIN PGM T MM
+1 TOOL DEF "DRILL 5 (HSS)"
+2 TOOL CALL "MILL_D10" Z S8000 F500
+3 L X+0 Y+0 Z+5 R0 FMAX
+4 TOOL CALL "DRILL 5 (HSS)" Z S3000
+5 L X+10 FMAX
+6 TOOL CALL "MILL_D10" Z S8000
+7 TOOL CALL "7" Z S1000
+8 L Z+10 FMAX
+9 END PGM T MM
+"""
+    program = _read(text)
+    assert program.tools == [2, 1, 7]
+    notes = [str(e.value) for e in program.events if e.kind == "comment" and "tool " in str(e.value)]
+    assert notes[:2] == ["tool DRILL 5 [HSS] = T1", "tool MILL_D10 = T2"]
+    sin = read_text('N10 T="DRILL 5 (HSS)"\nN20 T="MILL_D10" M6\nN30 G0 X0\nN40 T="7" M6\nN50 X1\n', "t.mpf",
+                    ReaderOptions(dialect="sinumerik"))
+    assert sin.tools == [2, 7]
+    with pytest.raises(ParseError, match="a tool name in quotes") as e:
+        _read('0 BEGIN PGM T MM\n1 TOOL CALL "MILL Z S100\n2 END PGM T MM\n', "p.h")
+    assert (e.value.line, e.value.column) == (2, 13)
+
+
+# arcs in the ZX and YZ planes ("Circle center CC": the plane is that of the two coordinates given)
+PLANES = """0 BEGIN PGM P MM
+1 TOOL CALL 1 Z S1000
+2 L X+10 Y+0 Z+0 R0 FMAX
+3 CC X+0 Z+0
+4 C X+0 Z+10 DR+ F300
+5 C X+10 Z+0 DR-
+6 CR X+0 Z-10 R+10 DR-
+7 CC Y+0 Z+0
+8 L X+0 Y+10 Z+0
+9 C Y+0 Z+10 DR+
+10 C Y+10 Z+0 X+5 DR-
+11 CC X+0 Y+0
+12 C X+5 Y-10 DR-
+13 END PGM P MM
+"""
+
+PLANES_NGC = """G21 G90 G17
+T1 M6 G43 S1000
+G0 X10 Y0 Z0
+(CC)
+G18 G3 X0 Z10 I-10 K0 F300
+G18 G2 X10 Z0 I0 K-10
+G18 G2 X0 Z-10 R10
+(CC)
+G1 X0 Y10 Z0
+G19 G3 Y0 Z10 J-10 K0
+G19 G2 X5 Y10 Z0 J0 K-10
+(CC)
+G17 G2 X5 Y-10 I-5 J-10
+M2
+"""
+
+
+def test_arcs_in_the_zx_and_yz_planes_closed_form():
+    """"Circle center CC" (§ 7.4): CC X.. Z.. is the centre in the ZX plane, CC Y.. Z.. in YZ, and the
+    C/CR blocks after it arc in that plane (the third axis: a helix). DR+ turns positively about the
+    plane's normal (counter-clockwise looking against +Y in ZX: Z towards X, as RS-274's G3 in G18),
+    so DR+ from X+10 Z+0 about the origin to X+0 Z+10 is three quarters, through X+0 Z-10, and DR- back
+    retraces it (through X-7.07 Z-7.07 halfway). Same moves as the program written by hand in RS-274."""
+    a = _read(PLANES)
+    b = read_text(PLANES_NGC, "t.ngc", ReaderOptions(dialect="linuxcnc"))
+    ta, tb = a.toolpath, b.toolpath
+    assert len(ta) == len(tb) and np.abs(ta.end - tb.end).max() < 1e-6
+    assert np.array_equal(ta.kind, tb.kind) and np.array_equal(ta.plane, tb.plane)
+    arcs = ta.kind >= ARC_CW
+    assert np.abs(ta.center[arcs] - tb.center[arcs]).max() < 1e-6
+    assert same_path(a, b, 1e-6) == []
+    at = {int(ln): i for i, ln in enumerate(ta.line)}
+    lengths = ta.lengths()
+    assert lengths[at[5]] == pytest.approx(1.5 * math.pi * 10, rel=1e-9)
+    third = ta.points(np.array([at[5]]), np.array([1 / 3]))[0]
+    assert np.allclose(third, [0, 0, -10], atol=1e-6)  # DR+ in ZX: from +X through -Z
+    half = ta.points(np.array([at[6]]), np.array([0.5]))[0]
+    assert np.allclose(half, [-10 / math.sqrt(2), 0, -10 / math.sqrt(2)], atol=1e-6)
+    assert lengths[at[7]] == pytest.approx(math.pi * 10 / 2, rel=1e-9)
+    # CR in ZX: R+ the arc under 180°, DR- (X towards Z) from X+10 Z+0 to X+0 Z-10: about X+10 Z-10
+    assert np.allclose(ta.center[at[7]], [10, 0, -10], atol=1e-6)
+    # DR+ in YZ: Y towards Z, from Y+10 Z+0 about the origin to Y+0 Z+10 is the quarter through Y+7.07 Z+7.07
+    half = ta.points(np.array([at[10]]), np.array([0.5]))[0]
+    assert np.allclose(half, [0, 10 / math.sqrt(2), 10 / math.sqrt(2)], atol=1e-6)
+    # the helix: a quarter clockwise in YZ, X rising from 0 to 5 along the way
+    mid = ta.points(np.array([at[11]]), np.array([0.5]))[0]
+    assert np.allclose(mid, [2.5, 10 / math.sqrt(2), 10 / math.sqrt(2)], atol=1e-6)
+    assert tuple(ta.plane[[at[5], at[10], at[13]]]) == (1, 2, 0)
+
+
+@pytest.mark.parametrize("block, word, column", [
+    ("CT X+5 Z+5", "CT", 3),
+    ("LP PR+5 PA+90", "LP", 3),
+    ("CP PA+90 DR+", "CP", 3),
+    ("C X+0 Z-10 DR+ RL", "C", 3),
+    ("CC X+1 Y+2 Z+3", "CC", 3),
+])
+def test_other_plane_arcs_out_of_reach_are_refused(block, word, column):
+    """Tangent (CT) and polar (LP, CP) arcs after a CC outside XY, and compensation on an arc outside
+    the working plane, are refused where they are written."""
+    text = f"0 BEGIN PGM T MM\n1 L X+10 Y+0 Z+0 R0 FMAX\n2 CC X+0 Z+0\n3 {block}\n4 END PGM T MM\n"
+    with pytest.raises(ParseError) as e:
+        _read(text, "part.h")
+    assert (e.value.file, e.value.line, e.value.column) == ("part.h", 4, column)
+    assert word in e.value.word
+
+
+def test_dep_lt_continues_the_last_element_by_len():
+    """"Approaching and departing a contour", DEP LT: from the last contour point PE a straight line of
+    length LEN continuing the last contour element tangentially, to PN (after a line: along it; after
+    an arc: along its end tangent). Same moves as the program written by hand in RS-274."""
+    text = """0 BEGIN PGM D MM
+1 L X+0 Y+0 Z-5 R0 FMAX
+2 L X+30 Y+20 F100
+3 DEP LT LEN+13 F200
+4 L X+40 Y+0 FMAX
+5 CC X+40 Y+10
+6 C X+50 Y+10 DR+ F100
+7 DEP LT LEN5
+8 END PGM D MM
+"""
+    k = 13 / math.hypot(30, 20)
+    ngc = f"""G21 G90 G17
+G0 X0 Y0 Z-5
+G1 X30 Y20 F100
+G1 X{30 + 30 * k:.12f} Y{20 + 20 * k:.12f} F200
+G0 X40 Y0
+(CC)
+G3 X50 Y10 I0 J10 F100
+G1 X50 Y15
+M2
+"""
+    a, b = _read(text), read_text(ngc, "t.ngc", ReaderOptions(dialect="linuxcnc"))
+    assert np.abs(a.toolpath.end - b.toolpath.end).max() < 1e-6 and same_path(a, b, 1e-6) == []
+    assert np.allclose(a.toolpath.feed_mm_min, b.toolpath.feed_mm_min, equal_nan=True)
+    for block, message in (("L X+5 RL F100\n3 DEP LT LEN5", "radius compensation"),
+                           ("DEP LT F100", "one LEN"), ("DEP LN LEN5", "approach and departure")):
+        with pytest.raises(ParseError, match=message) as e:
+            _read(f"0 BEGIN PGM D MM\n1 L X+0 Y+0 Z-5 R0 FMAX\n2 {block}\n9 END PGM D MM\n", "d.h")
+        assert e.value.line in (3, 4) and e.value.column >= 1
+
+
+def test_xy_contour_with_compensation_after_a_zx_arc():
+    """In a program with arcs outside XY every arc names its plane: an XY arc that turns RL on, a ZX
+    arc, then RR and an RND in XY read as G17/G18 arcs (compensation only in XY)."""
+    text = """0 BEGIN PGM T MM
+1 TOOL CALL 1 Z S1000
+2 L X+0 Y+0 Z+0 R0 FMAX
+3 CC X+10 Y+0
+4 C X+20 Y+0 DR+ RL F100
+5 L X+30 Y+0 R0
+6 CC X+30 Z+5
+7 C X+35 Z+5 DR-
+8 L Z+0
+9 L X+40 Y+0 RR
+10 RND R2
+11 L X+40 Y+10
+12 END PGM T MM
+"""
+    tp = read_text(text, "t.h", ReaderOptions(dialect="heidenhain", tool_diameters_mm={1: 4.0})).toolpath
+    assert tp.line.tolist() == [3, 5, 6, 8, 9, 10, 11, 12]
+    assert tp.plane.tolist() == [0, 0, 0, 1, 1, 0, 0, 0] and tp.kind[3] == ARC_CW  # L Z+0 after it: still G18

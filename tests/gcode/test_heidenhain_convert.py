@@ -72,8 +72,23 @@ def test_inch_program_is_written_in_mm():
     assert same_path(program, _read(text, "out.h", "heidenhain")) == []
 
 
+def test_arcs_in_g18_and_g19_are_written_as_cc_in_their_plane():
+    """G18/G19 arcs (and a helix along the normal) as CC with the plane's two coordinates and C (TNC 640
+    manual, "Circle center CC"): read back, the same moves."""
+    program = _read("G21 G90 G17\nG0 X10 Y0 Z0\nG18 G2 X0 Z10 I-10 K0 F100\nG3 X10 Z0 I0 K-10 Y3\n"
+                    "G19 G3 Y-3 Z6 J-3 K3\nG17 G2 X0 Y-3 I-5 J0\nM2\n", "in.ngc", "linuxcnc")
+    text = convert(program, HH)
+    assert "CC X+0 Z+0" in text and "C X+0 Z+10 DR-" in text and "CC Y+0 Z+3" in text
+    back = _read(text, "out.h", "heidenhain")
+    assert same_path(program, back, 1e-6) == []
+    a, b = program.toolpath, back.toolpath
+    assert np.array_equal(a.kind, b.kind) and np.array_equal(a.plane, b.plane)
+    arcs = a.kind >= 2
+    assert np.abs(a.center[arcs] - b.center[arcs]).max() < 1e-9
+
+
 def test_refusals_say_where():
-    program = _read("G21 G90 G18\nG0 X0 Y0 Z0\nG2 X10 Z0 I5 K0 F100\nM2\n", "in.ngc", "linuxcnc")
+    program = _read("G21 G90 G18\nG0 X0 Y0 Z0\nG2 X0 Z0 I5 K0 Y-5 P2 F100\nM2\n", "in.ngc", "linuxcnc")
     with pytest.raises(ParseError, match="outside the XY plane") as e:
         convert(program, HH)
     assert (e.value.file, e.value.line) == ("in.ngc", 3)

@@ -15,9 +15,9 @@ import pytest
 from millpost.errors import MillpostError, ParseError
 from millpost.gcode import ReaderOptions, read_text
 
-from test_heidenhain import CYCLE, ISO, LOOPED, SLOTS
+from test_heidenhain import CYCLE, ISO, LOOPED, PLANES, SLOTS
 
-SEEDS = [SLOTS, LOOPED, ISO, CYCLE.format(peck="+5", second="+19", dwell="+0"),
+SEEDS = [SLOTS, LOOPED, ISO, PLANES, PLANES.replace("TOOL CALL 1", 'TOOL CALL "MILL D10"'), CYCLE.format(peck="+5", second="+19", dwell="+0"),
          "0 BEGIN PGM P MM\n1 FN 0: Q1 = +5\n2 L X+0 Y+0 Z+5 R0 FMAX\n3 CC X+10 Y+10\n4 LP PR+Q1 PA+0 F300\n"
          "5 CP IPA+720 IZ-2 DR+\n6 L X+0 Y+0\n7 RND R2\n8 L Y+20\n9 CHF 1\n10 L X+30\n"
          "11 CYCL DEF 7.0 DATUM SHIFT\n12 CYCL DEF 7.1 IX+5\n13 CR X+40 Y+10 R-12 DR-\n14 CT X+50 Y+0\n"
@@ -25,7 +25,8 @@ SEEDS = [SLOTS, LOOPED, ISO, CYCLE.format(peck="+5", second="+19", dwell="+0"),
 TOKENS = ["L", "C", "CC", "CR", "CT", "RND R1", "CHF 1", "LP PR+3", "CP PA+90 DR+", "FMAX", "F100", "M99", "M30",
           "X+", "IX-", "Q1", "DR-", "R-", "LBL 1", "CALL LBL 1 REP 2", "LBL 0", "CYCL CALL", "FN 4: Q1 = +1 / +0",
           "*", "~", ";", "(", "=", "G02", "I+5", "%X G71 *", "TOOL CALL 2 Z S100", "BLK FORM 0.1 Z", "1e5", "-",
-          "+", ".", "Q200=", "END PGM X MM", "PLANE SPATIAL", "\t", "ä"]
+          "+", ".", "Q200=", "END PGM X MM", "PLANE SPATIAL", "\t", "ä", "CC X+0 Z+0", "CC Y+1 Z-1", "Z+",
+          'TOOL CALL "T 1"', '"', "DEP LT LEN+5", "LEN"]
 
 
 def mutant(seed: int) -> str:

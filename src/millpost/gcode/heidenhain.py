@@ -4,8 +4,9 @@ ISO programs (``%NAME G71 *``) go to `heidenhain_iso`, and `convert` writes Klar
 
 Section numbers cite the HEIDENHAIN TNC 640 user's manual "Klartext programming" (ID 892903):
 § 3.2 program structure (BEGIN PGM / BLK FORM / END PGM), § 6 tools (TOOL CALL, TOOL DEF),
-§ 7 contours with Cartesian (L, CC, C, CR, CT, RND, CHF) and polar (LP, CP) coordinates,
-§ 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas); the cycles
+§ 7 contours with Cartesian (L, CC, C, CR, CT, RND, CHF; C and CR in the ZX and YZ planes after
+a CC X.. Z.. or CC Y.. Z..) and polar (LP, CP) coordinates, and DEP LT ("Approaching and departing
+a contour"), § 8 subprograms and repeats (LBL, CALL LBL REP), § 9 Q parameters (FN, formulas); the cycles
 manual for CYCL DEF 7 (datum shift), 9 (dwell), 32 (tolerance), 200/203/205 (drilling).
 
 The translation is line for line (`Dialect.translate`): NGC line k runs what Klartext block k does.
@@ -17,9 +18,10 @@ in named parameters the translation assigns on the same line (``#<_hh_x>``, ``#<
 degrees, feeds in units per minute, dwells in seconds.
 
 Refused, with file:line:column and why: tilted working planes (PLANE, CYCL DEF 19), TCPM (M128,
-FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, feed per tooth or
-revolution (FZ, FU), tool axes other than Z, tools called by name, FN functions other than
-arithmetic (FN 9 jumps, FN 18 system data ...), and any block this reader does not know.
+FUNCTION TCPM), SL contour cycles (CYCL DEF 20–25), FK free contour programming, APPR/DEP approach
+and departure other than DEP LT, feed per tooth or revolution (FZ, FU), tool axes other than Z,
+CT/LP/CP after a CC outside XY, arcs outside XY with RL/RR, FN functions other than arithmetic
+(FN 9 jumps, FN 18 system data ...), and any block this reader does not know.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from ..errors import MillpostError, ParseError
 from .dialects import Dialect
 from . import heidenhain_iso as iso
 from .heidenhain_write import write as _write
+from .tool_names import tool_note, tool_number
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
 _BLOCK_NUMBER = re.compile(r"[ \t]*\d+(?=[ \t]|$)[ \t]*")
@@ -54,6 +57,8 @@ _REFUSED = [
      "the contour as L/C blocks"),
     (re.compile(r"F(?:L|LT|C|CT|POL|SELECT|PL|LN)\b"), "FK free contour programming is not supported",
      "the contour as L/C/CR/CT blocks"),
+    (re.compile(r"(?:APPR|DEP(?![ \t]+LT\b))\b(?:[ \t]+P?[A-Z]+\b)?"), "approach and departure functions (APPR LT, LN, CT, LCT; DEP LN, CT, LCT) "
+     "are not supported", "the approach and departure as L/C/CT blocks (DEP LT is read)"),
 ]
 
 
@@ -73,6 +78,9 @@ class _State:
     cycle: int = 0  # the drilling cycle defined (200, 203, 205; 0: none)
     cycle_q: dict[int, float | str | None] = field(default_factory=dict)  # its parameters as written
     cycle_at: dict[int, tuple[int, int]] = field(default_factory=dict)  # their lines and columns
+    tools: dict[str, int] = field(default_factory=dict)  # tools called by name → their numbers (`tool_names`)
+    cc_plane: tuple[str, str, str] = ("X", "Y", "G17")  # the plane of the last CC (`_PLANES`)
+    other_planes: bool = False  # the program has a CC outside XY: every arc and cycle names its plane
 
 
 def _error(st: _State, line: int, column: int, word: str, message: str, expected: str) -> ParseError:
@@ -85,6 +93,7 @@ class _Tokens:
 
     words: list[tuple[str, int]]
     line: int
+    column: int = 1  # the block keyword's (for an arc's refusals)
 
     def take(self, pattern: re.Pattern) -> list[tuple[re.Match, int]]:
         """The words matching `pattern` (removed from the block)."""
@@ -141,6 +150,7 @@ def translate(text: str, file: str) -> str:
         return iso.translate(lines, file)
     lines = _comment_continuations(lines)
     st.labels, st.lines = _label_plan(st, lines), lines
+    st.other_planes = any(_OTHER_PLANE.match(raw) for raw in lines)
     first = _next_block(st, 0)
     if first is None or not first[1][first[2]:].upper().startswith("BEGIN PGM"):
         n, code, start = first or (1, "", 0)
@@ -204,7 +214,7 @@ def _begin(st: _State, code: str, start: int, n: int) -> str:
         raise _error(st, n, start + 1, code[start:].strip(), "malformed BEGIN PGM", "BEGIN PGM <name> MM|INCH")
     st.inch = words[2].upper() == "INCH"
     return (f"{'G20' if st.inch else 'G21'} G90 G17 G94 G40 #<_hh_x>=0 #<_hh_y>=0 #<_hh_z>=0 #<_hh_ccx>=0 "
-            f"#<_hh_ccy>=0 #<_hh_tx>=0 #<_hh_ty>=0 #<_hh_dx>=0 #<_hh_dy>=0 #<_hh_dz>=0 ({_comment(words[1])[1:-1]})")
+            f"#<_hh_ccy>=0 #<_hh_ccz>=0 #<_hh_tx>=0 #<_hh_ty>=0 #<_hh_dx>=0 #<_hh_dy>=0 #<_hh_dz>=0 ({_comment(words[1])[1:-1]})")
 
 
 def _end(st: _State, code: str, start: int, n: int) -> str:
@@ -271,15 +281,32 @@ def blank(text: str, file: str = "<string>") -> tuple[tuple[float, float, float]
     return tuple(p[0] for p in pairs), tuple(p[1] for p in pairs)
 
 
-def _tool_call(st: _State, code: str, start: int, n: int) -> str:
-    """TOOL CALL n Z S.. F.. DL+0 DR+0 (§ 6.3): tool change, spindle speed, the feed (modal, and FAUTO's);
-    without a tool number (TOOL CALL Z S..) only the spindle speed changes."""
+_TOOL_NAME = re.compile(r'\s*"([^"]*)("?)')
+
+
+def _tool_number(st: _State, code: str, start: int, n: int) -> tuple[str | None, str | None, _Tokens]:
+    """The tool a TOOL CALL/TOOL DEF names (§ 6.3: by number, or by name in quotes, as hyperMILL and NX
+    post), the note saying which number a name got (`tool_names`: the same rule as Sinumerik's
+    ``T="name"``), and the block's words after it."""
+    named = _TOOL_NAME.match(code, start)
+    if named:
+        name = named.group(1).strip()
+        if not name or not named.group(2):
+            raise _error(st, n, named.start(1), named.group().strip(), "a tool name in quotes",
+                         'TOOL CALL "<name>" Z S..')
+        number = tool_number(name, st.tools)
+        return str(number), _comment(tool_note(name, number)), _split(code, named.end(), 0, n)
     tokens = _split(code, start, 0, n)
-    if tokens.words and tokens.words[0][0].startswith('"'):
-        text, col = tokens.words[0]
-        raise _error(st, n, col, text, "a tool called by name: the job describes tools by number",
-                     "TOOL CALL <number> Z S..")
-    words = [f"T{tokens.words.pop(0)[0]} M6 G43"] if tokens.words and tokens.words[0][0].isdigit() else []
+    if tokens.words and tokens.words[0][0].isdigit():
+        return tokens.words.pop(0)[0], None, tokens
+    return None, None, tokens
+
+
+def _tool_call(st: _State, code: str, start: int, n: int) -> str:
+    """TOOL CALL n|"name" Z S.. F.. DL+0 DR+0 (§ 6.3): tool change, spindle speed, the feed (modal, and
+    FAUTO's); without a tool (TOOL CALL Z S..) only the spindle speed changes."""
+    number, note, tokens = _tool_number(st, code, start, n)
+    words = [f"T{number} M6 G43"] if number else []
     axis = [w for w in tokens.words if re.fullmatch(r"[XYZ]", w[0])]
     if axis and axis[0][0] != "Z":
         raise _error(st, n, axis[0][1], axis[0][0], "tool axis other than Z is not supported", "Z")
@@ -294,20 +321,19 @@ def _tool_call(st: _State, code: str, start: int, n: int) -> str:
             raise _error(st, n, col, m.group(), "a length or radius oversize (DL, DR, DR2) moves the cut and is "
                          "not modelled", "DL+0 DR+0, or the tool's size in the job")
     _no_more(st, tokens, "TOOL CALL n Z S.. F.. DL+0 DR+0")
-    return " ".join(words)
+    return " ".join([*words, *([note] if note else [])])
 
 
 def _tool_def(st: _State, code: str, start: int, n: int) -> str:
-    """TOOL DEF n (L.. R..) (§ 6.3): the next tool, prepared, not changed (its length and radius, as
-    older TNCs define them in the program, are the job's tool description's business)."""
-    tokens = _split(code, start, 0, n)
-    if not tokens.words or not tokens.words[0][0].isdigit():
+    """TOOL DEF n|"name" (L.. R..) (§ 6.3): the next tool, prepared, not changed (its length and radius,
+    as older TNCs define them in the program, are the job's tool description's business)."""
+    number, note, tokens = _tool_number(st, code, start, n)
+    if number is None:
         text, col = tokens.words[0] if tokens.words else ("", start + 1)
-        raise _error(st, n, col, text, "malformed TOOL DEF", "TOOL DEF <number> (L.. R..)")
-    number = tokens.words.pop(0)[0]
+        raise _error(st, n, col, text, "malformed TOOL DEF", 'TOOL DEF <number>|"<name>" (L.. R..)')
     tokens.take(re.compile(rf"[LR]{_NUMBER}$"))
     _no_more(st, tokens, "TOOL DEF <number> L.. R..")
-    return f"T{number}"
+    return " ".join([f"T{number}", *([note] if note else [])])
 
 
 def _cycl_def(st: _State, code: str, start: int, n: int) -> str:
@@ -364,7 +390,7 @@ def _drill(st: _State, n: int, column: int, xy: list[str]) -> str:
     if peck and q[211]:
         raise refuse(211, "a dwell at depth (Q211) with pecking is not supported", "Q211=0")
     code = "G83" if peck else "G82" if q[211] else "G81"
-    words = [f"{'G98' if q[204] > q[200] else 'G99'} {code}", *xy, f"Z{q[203] + q[201]:g}", f"R{q[203] + q[200]:g}"]
+    words = [*_plane(st, _XY, n, column, "CYCL CALL"), f"{'G98' if q[204] > q[200] else 'G99'} {code}", *xy, f"Z{q[203] + q[201]:g}", f"R{q[203] + q[200]:g}"]
     words += [f"Q{q[202]:g}"] if peck else [f"P{q[211]:g}"] if q[211] else []
     retract = "#<_hh_z>" if q[204] > q[200] else f"{q[203] + q[200]:g}"
     feed = f"F{q[206]:g}" if isinstance(q[206], float) else "F#<_q206>"  # Q206=Q2: the parameter's value
@@ -472,6 +498,7 @@ def _contour_words(st: _State, tokens: _Tokens, rapid_ok: bool = True) -> tuple[
     for m, col in tokens.take(re.compile(r"R(0|L|R)$")):
         comp = "R" + m.group(1)
         if comp != st.comp:
+            pre += ["G17"] if st.other_planes and comp != "R0" else []  # compensation in the working plane
             pre.append({"R0": "G40", "RL": "G41", "RR": "G42"}[comp])
             st.comp = comp
     feed = ""
@@ -571,21 +598,44 @@ def _post(words: list[str]) -> list[str]:
     return [w for w in words if not w.startswith("G")]
 
 
+# The planes of CC and the arcs about it (manual, "Circle center CC": the plane of the two coordinates given;
+# CC alone: the working plane, XY for tool axis Z): (first axis, second axis, RS-274 plane). DR+ turns the
+# first axis towards the second (counter-clockwise looking against the positive normal: Z→X in ZX, as
+# G3 in G18, viewed from +Y), so DR+ is G3 and DR- G2 in every plane.
+_XY = ("X", "Y", "G17")
+_PLANES = {frozenset("XY"): _XY, frozenset("XZ"): ("Z", "X", "G18"), frozenset("YZ"): ("Y", "Z", "G19")}
+_OFFSET = {"X": "I", "Y": "J", "Z": "K"}
+_OTHER_PLANE = re.compile(r"^[ \t]*\d*[ \t]*CC\b[^;]*\bI?Z", re.IGNORECASE)
+
+
 def _cc(st: _State, code: str, start: int, n: int) -> str:
-    """CC X.. Y.. (§ 7.4): the circle centre and pole; CC alone: the last programmed position."""
+    """CC X.. Y.. | CC X.. Z.. | CC Y.. Z.. (§ 7.4, "Circle center CC"): the circle centre (and pole) in
+    the plane of the two coordinates; CC alone: the last programmed position in the working plane."""
     tokens = _split(code, start, 0, n)
-    targets = _targets(st, tokens, "XY")
-    _no_more(st, tokens, "CC X.. Y..")
-    if len(targets) == 1:
-        raise _error(st, n, start + 1, "CC", "CC with one coordinate", "CC X.. Y.., or CC alone")
+    targets = _targets(st, tokens, "XYZ")
+    _no_more(st, tokens, "CC X.. Y.., CC X.. Z.. or CC Y.. Z..")
+    if len(targets) in (1, 3):
+        raise _error(st, n, start - 1, "CC", f"CC with {'one coordinate' if len(targets) == 1 else 'X, Y and Z'}",
+                     "CC X.. Y.., CC X.. Z.., CC Y.. Z.., or CC alone")
+    st.cc_plane = _PLANES[frozenset(targets)] if targets else _XY
     if not targets:
-        _known_xy(st, code, start, n)
-    x, y = (targets["X"], targets["Y"]) if targets else ("#<_hh_x>", "#<_hh_y>")
-    return f"#<_hh_ccx>={x} #<_hh_ccy>={y}"
+        _known(st, _XY, code, start, n)
+        targets = {a: _AXIS_PARAM[a] for a in "XY"}
+    return " ".join(f"#<_hh_cc{a.lower()}>={e}" for a, e in targets.items())
+
+
+def _plane(st: _State, plane: tuple[str, str, str], n: int, column: int, keyword: str) -> list[str]:
+    """The plane word of a block that arcs or drills in `plane`: in a program with arcs outside XY every
+    such block names its plane (a subprogram may change it); none otherwise. An arc outside XY with
+    radius compensation on is refused (the compensation is in the working plane)."""
+    if plane != _XY and st.comp != "R0":
+        raise _error(st, n, column, keyword, f"an arc in the {plane[0]}{plane[1]} plane with radius compensation "
+                     "(RL/RR)", "R0 before it")
+    return [plane[2]] if st.other_planes else []
 
 
 def _direction(st: _State, tokens: _Tokens) -> str:
-    """DR+ (counter-clockwise, G3) or DR- (clockwise, G2), § 7.4."""
+    """DR+ (counter-clockwise, G3) or DR- (clockwise, G2), § 7.4 (see `_PLANES`)."""
     found = tokens.take(re.compile(r"DR([-+])$"))
     if len(found) != 1:
         raise _error(st, tokens.line, tokens.words[0][1] if tokens.words else 1, "", "an arc needs one direction",
@@ -593,70 +643,102 @@ def _direction(st: _State, tokens: _Tokens) -> str:
     return "G3" if found[0][0].group(1) == "+" else "G2"
 
 
-def _arc_end(st: _State, code: str, start: int, n: int) -> tuple[dict[str, str], _Tokens]:
-    """The arc's end point and the block's other words; the start point must be known."""
-    _known_xy(st, code, start, n)
+def _arc_end(st: _State, code: str, start: int, n: int,
+             plane: tuple[str, str, str] = _XY) -> tuple[dict[str, str], _Tokens]:
+    """The arc's end point and the block's other words; the start point must be known in `plane`."""
+    _known(st, plane, code, start, n)
     tokens = _split(code, start, 0, n)
+    tokens.column = start - len(code[:start].split()[-1]) + 1
     targets = _targets(st, tokens, "XYZ")
     st.unknown -= set(targets)
     return targets, tokens
 
 
-def _known_xy(st: _State, code: str, start: int, n: int) -> None:
-    if st.unknown & {"X", "Y"}:
+def _xy_pole(st: _State, code: str, start: int, n: int) -> None:
+    """Refuses LP, CP and CT after a CC outside XY (polar coordinates and tangent arcs are read in the
+    working plane XY only)."""
+    if st.cc_plane != _XY:
         keyword = code[:start].split()[-1]
-        raise _error(st, n, start - len(keyword) + 1, keyword, "an arc or CC from an unknown X/Y position (program "
-                     "start or a machine-coordinate move)", "an L block to an absolute X and Y before it")
+        raise _error(st, n, start - len(keyword) + 1, keyword, f"{keyword.upper()} after a CC in the "
+                     f"{st.cc_plane[0]}{st.cc_plane[1]} plane is not supported (polar and tangent arcs in XY only)",
+                     "CC X.. Y.. before it, or C/CR in that plane")
+
+
+def _known_xy(st: _State, code: str, start: int, n: int) -> None:
+    _known(st, _XY, code, start, n)
+
+
+def _known(st: _State, plane: tuple[str, str, str], code: str, start: int, n: int) -> None:
+    """Refuses an arc or CC from a position unknown in `plane`."""
+    if st.unknown & set(plane[:2]):
+        keyword = code[:start].split()[-1]
+        axes = f"{plane[0]}/{plane[1]}"
+        raise _error(st, n, start - len(keyword) + 1, keyword, f"an arc or CC from an unknown {axes} position "
+                     "(program start or a machine-coordinate move)",
+                     f"an L block to an absolute {plane[0]} and {plane[1]} before it")
 
 
 def _arc_line(st: _State, tokens: _Tokens, motion: str, targets: dict[str, str], centre: list[str],
-              tangent: list[str], expected: str) -> str:
+              tangent: list[str], expected: str, plane: tuple[str, str, str] = _XY) -> str:
+    """An arc's NGC line in `plane` (no end point in the plane: back to the start, a full circle)."""
     feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
     _no_more(st, tokens, expected)
-    end = {"X": "#<_hh_x>", "Y": "#<_hh_y>", **targets}  # no end point: back to the start (a full circle)
-    coords = [f"{a}{e}" for a, e in end.items()]
-    return " ".join([*_pre(words), motion, *coords, *centre, *([feed] if feed else []), *_post(words),
-                     *_assigns(targets), *tangent])
+    keyword = expected.split()[0]
+    plane_word = [w for w in _plane(st, plane, tokens.line, tokens.column, keyword) if w not in words]
+    end = {plane[0]: _AXIS_PARAM[plane[0]], plane[1]: _AXIS_PARAM[plane[1]], **targets}
+    coords = [f"{a}{end[a]}" for a in "XYZ" if a in end]
+    return " ".join([*plane_word, *_pre(words), motion, *coords, *centre, *([feed] if feed else []),
+                     *_post(words), *_assigns(targets), *tangent])
 
 
-def _end_tangent(motion: str, targets: dict[str, str], cx: str, cy: str) -> list[str]:
-    """The direction at an arc's end: perpendicular to the radius, turning with the arc."""
-    ex, ey = targets.get("X", "#<_hh_x>"), targets.get("Y", "#<_hh_y>")
+def _end_tangent(motion: str, targets: dict[str, str], cx: str, cy: str,
+                 plane: tuple[str, str, str] = _XY) -> list[str]:
+    """The direction at an arc's end: perpendicular to the radius, turning with the arc; `cx`, `cy` the
+    centre's coordinates along the plane's first and second axis. The XY tangent (for CT) is its
+    projection on XY."""
+    a, b = plane[:2]
+    ea, eb = targets.get(a, _AXIS_PARAM[a]), targets.get(b, _AXIS_PARAM[b])
     sign = "" if motion == "G3" else "-"
-    return [f"#<_hh_tx>=[{sign}[{cy}-{ey}]]", f"#<_hh_ty>=[{sign}[{ex}-{cx}]]"]
+    t = {a: f"[{sign}[{cy}-{eb}]]", b: f"[{sign}[{ea}-{cx}]]"}
+    return [f"#<_hh_tx>={t.get('X', '0')}", f"#<_hh_ty>={t.get('Y', '0')}"]
 
 
 def _c(st: _State, code: str, start: int, n: int) -> str:
-    """C X.. Y.. DR+|DR- (§ 7.4): an arc about CC to the end point (Z too: a helix)."""
-    targets, tokens = _arc_end(st, code, start, n)
+    """C X.. Y.. DR+|DR- (§ 7.4): an arc about CC to the end point in CC's plane (the third axis too: a
+    helix)."""
+    plane = st.cc_plane
+    targets, tokens = _arc_end(st, code, start, n, plane)
     motion = _direction(st, tokens)
-    centre = ["I[#<_hh_ccx>-#<_hh_x>]", "J[#<_hh_ccy>-#<_hh_y>]"]
-    return _arc_line(st, tokens, motion, targets, centre, _end_tangent(motion, targets, "#<_hh_ccx>", "#<_hh_ccy>"),
-                     "C X.. Y.. DR+|DR- F..")
+    a, b = (f"#<_hh_cc{x.lower()}>" for x in plane[:2])
+    centre = [f"{_OFFSET[x]}[{c}-{_AXIS_PARAM[x]}]" for x, c in zip(plane[:2], (a, b))]
+    return _arc_line(st, tokens, motion, targets, centre, _end_tangent(motion, targets, a, b, plane),
+                     "C X.. Y.. DR+|DR- F..", plane)
 
 
 def _cr(st: _State, code: str, start: int, n: int) -> str:
-    """CR X.. Y.. R.. DR+|DR- (§ 7.4): an arc of radius R; R negative: the arc over 180°."""
-    targets, tokens = _arc_end(st, code, start, n)
+    """CR X.. Y.. R.. DR+|DR- (§ 7.4): an arc of radius R in CC's plane; R negative: the arc over 180°."""
+    plane = st.cc_plane
+    targets, tokens = _arc_end(st, code, start, n, plane)
     motion = _direction(st, tokens)
     radius = tokens.take(re.compile(rf"R({_NUMBER}|[-+]?Q\d+)$"))
     if len(radius) != 1:
         raise _error(st, n, start + 1, "CR", "CR needs one radius", "CR X.. Y.. R+.. DR+|DR-")
     r = _value(radius[0][0].group(1))
     # the centre, as the interpreter finds it from R: kept for CT after this arc
-    sx, sy = "#<_hh_x>", "#<_hh_y>"
-    ex, ey = targets.get("X", sx), targets.get("Y", sy)
+    sx, sy = (_AXIS_PARAM[x] for x in plane[:2])
+    ex, ey = targets.get(plane[0], sx), targets.get(plane[1], sy)
     dx, dy, rr = f"[{ex}-{sx}]", f"[{ey}-{sy}]", f"[{r}]"
     d2 = f"[{dx}*{dx}+{dy}*{dy}]"
     h = f"[SQRT[ABS[{_div(f'{rr}*{rr}', d2)}-0.25]]]"
     side = f"[{'' if motion == 'G3' else '-'}{_div(rr, f'ABS[{rr}]')}]"
     cx, cy = f"[{sx}+{dx}/2-{side}*{h}*{dy}]", f"[{sy}+{dy}/2+{side}*{h}*{dx}]"
-    return _arc_line(st, tokens, motion, targets, [f"R{r}"], _end_tangent(motion, targets, cx, cy),
-                     "CR X.. Y.. R.. DR+|DR- F..")
+    return _arc_line(st, tokens, motion, targets, [f"R{r}"], _end_tangent(motion, targets, cx, cy, plane),
+                     "CR X.. Y.. R.. DR+|DR- F..", plane)
 
 
 def _ct(st: _State, code: str, start: int, n: int) -> str:
-    """CT X.. Y.. (§ 7.4): the arc tangent to the previous contour element, to the end point."""
+    """CT X.. Y.. (§ 7.4): the arc tangent to the previous contour element, to the end point (in XY)."""
+    _xy_pole(st, code, start, n)
     targets, tokens = _arc_end(st, code, start, n)
     sx, sy = "#<_hh_x>", "#<_hh_y>"
     ex, ey = targets.get("X", sx), targets.get("Y", sy)
@@ -895,6 +977,9 @@ def _rnd_chf(st: _State, code: str, start: int, n: int) -> str:
     feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
     _no_more(st, tokens, f"{keyword} <size> F..")
     motion = "G[#<_hh_rdir>]" if keyword == "RND" else "G1"
+    if keyword == "RND":
+        plane = [w for w in _plane(st, _XY, n, start - len(keyword) + 1, keyword) if w not in words]
+        motion = " ".join([*plane, motion])
     centre = ["I[#<_hh_rcx>-#<_hh_r1x>]", "J[#<_hh_rcy>-#<_hh_r1y>]"] if keyword == "RND" else []
     return " ".join([*_pre(words), motion, "X#<_hh_r2x>", "Y#<_hh_r2y>", *centre, *([feed] if feed else []),
                      *_post(words)])
@@ -921,6 +1006,7 @@ def _polar(st: _State, code: str, start: int, tokens: _Tokens) -> tuple[dict[str
 
 def _lp(st: _State, code: str, start: int, n: int) -> str:
     """LP PR.. PA.. (Z..) R0|RL|RR F.. M.. (§ 7.5): a straight line to a point in polar coordinates."""
+    _xy_pole(st, code, start, n)
     tokens = _split(code, start, 0, n)
     xy, _ = _polar(st, code, start, tokens)
     targets = {**xy, **_targets(st, tokens, "Z")}
@@ -936,6 +1022,7 @@ def _lp(st: _State, code: str, start: int, n: int) -> str:
 def _cp(st: _State, code: str, start: int, n: int) -> str:
     """CP PA.. (IPA..) (Z..) DR+|DR- (§ 7.5): an arc about the pole CC to the polar angle PA (radius:
     the distance from the pole); IPA beyond ±360° adds whole turns (a helix with IZ)."""
+    _xy_pole(st, code, start, n)
     _known_xy(st, code, start, n)
     tokens = _split(code, start, 0, n)
     motion = _direction(st, tokens)
@@ -950,8 +1037,35 @@ def _cp(st: _State, code: str, start: int, n: int) -> str:
                      "CP PA.. Z.. DR+|DR- F..")
 
 
+_LEN = re.compile(rf"LEN({_NUMBER}|[-+]?Q[LR]?\d+)$")
+
+
+def _dep_lt(st: _State, code: str, start: int, n: int) -> str:
+    """DEP LT LEN.. F.. M.. ("Departing on a straight line with tangential connection"): from the last
+    contour point PE a straight line LEN long continuing the last contour element's direction, to PN,
+    at the block's feed; radius compensation ends there. Refused with compensation in force (where the
+    control puts the compensated path's end is not modelled), with a Z (the move to PN, then along
+    the tool axis) and after a CC outside XY (the direction is tracked in XY)."""
+    _xy_pole(st, code, start, n)
+    _known_xy(st, code, start, n)
+    tokens = _split(code, code.upper().index("LT", start) + 2, 0, n)
+    length = tokens.take(_LEN)
+    if st.comp != "R0" or len(length) != 1:
+        text, col = tokens.words[0] if tokens.words and len(length) != 1 else ("DEP LT", start - 2)
+        raise _error(st, n, col, text, "DEP LT needs one LEN" if len(length) != 1 else "DEP LT with radius "
+                     "compensation (RL/RR) in force", "L .. R0 before it, and DEP LT LEN.. F..")
+    for m, col in tokens.take(re.compile(r"R[0LR]$")):
+        raise _error(st, n, col, m.group(), "DEP takes no radius compensation (it ends it)", "DEP LT LEN.. F..")
+    feed, words, _ = _contour_words(st, tokens, rapid_ok=False)
+    _no_more(st, tokens, "DEP LT LEN.. F.. M..")
+    norm = "SQRT[#<_hh_tx>**2+#<_hh_ty>**2]"
+    x, y = (f"[#<_hh_{a}>+{_value(length[0][0].group(1))}*#<_hh_t{a}>/{norm}]" for a in "xy")
+    return " ".join([*_pre(words), "G1", f"X{x}", f"Y{y}", *([feed] if feed else []), *_post(words),
+                     f"#<_hh_x>={x}", f"#<_hh_y>={y}"])
+
+
 _HANDLERS = {
-    "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
+    "DEP": _dep_lt, "BEGIN": _begin, "END": _end, "L": _l, "CC": _cc, "C": _c, "CR": _cr, "CT": _ct, "STOP": _stop,
     "LP": _lp, "CP": _cp, "RND": _rnd_chf, "CHF": _rnd_chf,
 }
 _PREFIXED = [

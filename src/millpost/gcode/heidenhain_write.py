@@ -2,14 +2,15 @@
 
 The output is written from the interpreted moves and events (as `convert` does for RS-274
 targets): ``BEGIN PGM``, numbered blocks, ``TOOL CALL n Z S..``, ``L`` with signed coordinates and
-``FMAX`` for rapids (FMAX holds for its block only; F is modal), arcs in the XY plane as ``CC``
-(centre) and ``C`` (end point, ``DR+`` counter-clockwise, ``DR-`` clockwise), helices of more
-than one turn as ``CP IPA.. IZ..`` about the pole, dwells as ``CYCL DEF 9`` (seconds), G53 moves
+``FMAX`` for rapids (FMAX holds for its block only; F is modal), arcs as ``CC`` (centre, by the
+two coordinates of the arc's plane: ``CC X.. Y..``, ``CC X.. Z..`` for G18, ``CC Y.. Z..`` for G19)
+and ``C`` (end point, ``DR+`` counter-clockwise, as G3, ``DR-`` clockwise), helices of more than
+one turn in XY as ``CP IPA.. IZ..`` about the pole, dwells as ``CYCL DEF 9`` (seconds), G53 moves
 as ``L .. FMAX M91``, ``END PGM``. A Klartext program has one unit: it is written in mm (inch
 programs converted, feeds in mm/min), so the motion is the same to 1e-4 mm. Tool length
 compensation is the control's on TOOL CALL (G43/G49 are not written).
 
-Refused (file:line:column): arcs outside the XY plane, G28/G30 returns, work offsets other than G54,
+Refused (file:line:column): helices of more than one turn outside the XY plane, G28/G30 returns, work offsets other than G54,
 and actions Klartext has no word for (mist coolant M7, unknown M codes).
 """
 
@@ -21,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParseError
-from ..toolpath import ARC_CCW, ARC_CW, RAPID
+from ..toolpath import ARC_CCW, ARC_CW, PLANE_AXES, RAPID
 from .convert import SourceBlocks
 from .interpret import Event, Program
 
@@ -181,12 +182,19 @@ class _Writer:
         self.out(f"L {' '.join(words)} {'FMAX' if rapid else self._f(i).strip()} M91".replace("  ", " "))
 
     def _arc(self, i: int, line: int) -> None:
+        """An arc as CC (the centre, by the two coordinates of its plane: X Y, X Z for G18, Y Z for G19)
+        and C (DR+ for G3 in every plane: the reader's `heidenhain._PLANES`); a helix of more than one
+        turn in XY as CP IPA.. IZ.. about the pole (refused in the other planes, whose poles Klartext's
+        polar blocks do not take)."""
         tp = self.program.toolpath
-        if int(tp.plane[i]) != 0:
-            raise _refuse(self.program, line, "an arc outside the XY plane (G18/G19)", "arcs in G17")
+        plane = int(tp.plane[i])
+        first, second, _ = PLANE_AXES[plane]
         centre, start, end = tp.center[i], tp.start[i], tp.end[i]
         sign = "+" if int(tp.kind[i]) == ARC_CCW else "-"
-        self.out(f"CC X{_num(centre[0])} Y{_num(centre[1])}")
+        if plane and tp.turns[i]:
+            raise _refuse(self.program, line, "a helix of more than one turn outside the XY plane (G18/G19)",
+                          "one turn at most per arc")
+        self.out("CC " + " ".join(f"{'XYZ'[a]}{_num(centre[a])}" for a in sorted((first, second))))
         if tp.turns[i]:
             a0 = math.atan2(start[1] - centre[1], start[0] - centre[0])
             a1 = math.atan2(end[1] - centre[1], end[0] - centre[0])
@@ -197,7 +205,7 @@ class _Writer:
             self.out(f"CP IPA{_num(sweep, 6)} IZ{_num(end[2] - start[2])} DR{sign}{self._f(i)}")
             self.last = [_num(end[0]), _num(end[1]), _num(end[2]) if self.known[2] else None]
             return
-        self.last[0] = self.last[1] = None  # C takes its end point whole
+        self.last[first] = self.last[second] = None  # C takes its end point whole
         words = " ".join(self._coords(end, range(3)))
         self.out(f"C {words} DR{sign}{self._f(i)}")
 

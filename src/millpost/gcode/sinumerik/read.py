@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..lexer import source_lines
+from ..tool_names import tool_number
 from .cycles import CYCLES, cycle_words
 from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, tangent_arc
 from .jumps import Jumps, plan
@@ -392,7 +393,7 @@ class Translator:
     def tool(self, b: _Block, t: Token) -> None:
         if t.value.startswith('"'):
             name = t.value[1:-1]
-            number = int(name) if name.isdigit() else self.tools.setdefault(name, len(self.tools) + 1)
+            number = tool_number(name, self.tools)
             b.words.append(f"T{number}")
             b.notes.append(f"tool {name} = T{number}")
         else:
