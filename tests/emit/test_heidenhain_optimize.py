@@ -13,40 +13,10 @@ from millpost.gcode import ReaderOptions, read_program
 from millpost.gcode.convert import same_path
 from millpost.job import load_job
 
+from heidenhain_programs import SLOTS
+
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_jobs" / "slotting"
-PROGRAM = """0 BEGIN PGM SLOTS MM
-1 BLK FORM 0.1 Z X+0 Y+0 Z-10
-2 BLK FORM 0.2 X+60 Y+40 Z+0
-3 ; slots and contour, 6 mm 3F flat, Al 6061
-4 TOOL CALL 1 Z S9000
-5 L Z+10 R0 FMAX M3
-6 L X-5 Y+8 FMAX
-7 L Z+2 FMAX
-8 L Z-1.5 F300
-9 L X+65 F700
-10 L Z+2 FMAX
-11 L X-5 Y+20 FMAX
-12 L Z-3 F300
-13 L IX+70 F700
-14 L Z+10 FMAX
-15 L X+30 Y-2 FMAX
-16 L Z+2 FMAX
-17 L Z-4 F300
-18 L X+52 F900
-19 CC X+52 Y+8
-20 C X+62 Y+8 DR+
-21 L Y+32
-22 CR X+52 Y+42 R+10 DR+
-23 L X+8
-24 CT X-2 Y+32
-25 L Y+8
-26 CC X+8 Y+8
-27 C X+8 Y-2 DR+
-28 L X+30
-29 L Z+10 FMAX M5
-30 M30
-31 END PGM SLOTS MM
-"""
+PROGRAM = SLOTS
 
 
 def _f_free(line: str) -> str:
