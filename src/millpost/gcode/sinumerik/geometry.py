@@ -3,8 +3,11 @@
 Frames (FB "Frames: programmable zero offset (TRANS, ATRANS)"): TRANS X Y Z replaces the programmable
 frame by that offset, ATRANS adds to it; TRANS, ROT, SCALE or MIRROR alone clear it. The offset is kept
 in #2000..#2002 (program units) and added to every absolute value of a program that sets one (so the
-moves stay in the workpiece frame the stock is in, which a G52 would leave). Rotation, scaling and
-mirroring with values are refused.
+moves stay in the workpiece frame the stock is in, which a G52 would leave). ROT/AROT (FB "Programmable
+rotation (ROT, AROT)") about Z: the angle in #2003; ROT replaces the frame (offsets cleared), AROT is
+composed after it (about its origin), TRANS clears the rotation, ATRANS offsets are along the rotated
+axes; a point p of the frame is T + R(a)·p in the workpiece. Scaling and mirroring with values are
+refused.
 
 Arcs with an opening angle (FB "Circular interpolation with opening angle and center point (AR)"):
 ``G2/G3 X.. Y.. AR=a`` (end point: centre on the chord's bisector, left of it for G3 when a < 180°) or
@@ -15,24 +18,70 @@ the start point #5420..#5422. In G17 the axes are X, Y (I, J); G18 Z, X (K, I); 
 from __future__ import annotations
 
 FRAME_BASE = 2000  # #2000..#2002: the programmable offset (X, Y, Z)
+ROTATION = 2003  # #2003: the programmable rotation about Z (degrees, counter-clockwise seen from +Z)
 FRAMES = ("TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR")
 PLANES = {17: (("X", "Y"), ("I", "J")), 18: (("Z", "X"), ("K", "I")), 19: (("Y", "Z"), ("J", "K"))}
 _POSITION = {"X": 5420, "Y": 5421, "Z": 5422}
 
 
-def frame_words(kind: str, offsets: dict[str, str]) -> list[str] | None:
-    """The words of a frame block (`offsets`: axis → NGC value); None when it cannot be modelled."""
+def frame_words(kind: str, offsets: dict[str, str], rotated: bool = False) -> list[str] | None:
+    """The words of a TRANS/ATRANS block or a frame cleared (`offsets`: axis → NGC value); None when it
+    cannot be modelled. In a program with rotations (`rotated`), TRANS also clears the rotation (it
+    replaces the whole programmable frame) and ATRANS offsets are along the rotated axes."""
     if kind in ("TRANS", "ROT", "SCALE", "MIRROR") and not offsets:
         offsets, kind = {}, "TRANS"
     if kind not in ("TRANS", "ATRANS"):
         return None
+    if kind == "ATRANS" and rotated:
+        x, y = offsets.get("X", "0"), offsets.get("Y", "0")
+        c, s = f"COS[#{ROTATION}]", f"SIN[#{ROTATION}]"
+        offsets = {**offsets, "X": f"[{c}*[{x}]-{s}*[{y}]]", "Y": f"[{s}*[{x}]+{c}*[{y}]]"}
     words = []
     for k, axis in enumerate("XYZ"):
         old = f"#{FRAME_BASE + k}"
         value = offsets.get(axis, "0" if kind == "TRANS" else None)
         if value is not None:
             words.append(f"{old}={value if kind == 'TRANS' else f'[{old}+{value}]'}")
-    return words
+    return words + ([f"#{ROTATION}=0"] if rotated and kind == "TRANS" else [])
+
+
+def rotation_words(kind: str, angle: str) -> list[str]:
+    """ROT (replaces the programmable frame: offsets cleared, rotation `angle`) or AROT (the rotation
+    composed after the current frame: about its origin, angles added), about Z."""
+    if kind == "AROT":
+        return [f"#{ROTATION}=[#{ROTATION}+{angle}]"]
+    return [f"#{FRAME_BASE + k}=0" for k in range(3)] + [f"#{ROTATION}={angle}"]
+
+
+def _local(axis: int) -> str:
+    """The current point's X (axis 0) or Y (1) in the rotated frame: R(-a)·(P - T)."""
+    c, s = f"COS[#{ROTATION}]", f"SIN[#{ROTATION}]"
+    dx, dy = f"[#5420-#{FRAME_BASE}]", f"[#5421-#{FRAME_BASE + 1}]"
+    return f"[{c}*{dx}+{s}*{dy}]" if axis == 0 else f"[{c}*{dy}-{s}*{dx}]"
+
+
+def rotated_point(targets: dict[str, tuple[str, bool]], absolute: bool) -> list[str]:
+    """The X/Y words of a move programmed in the rotated frame (`targets`: axis → (NGC value, absolute
+    or incremental), missing axes staying at the current point): its end T + R(a)·local in the
+    workpiece frame, written absolute in G90 or from the current point in G91."""
+    local = []
+    for k, axis in enumerate("XY"):
+        value, is_abs = targets.get(axis, ("0", False))
+        local.append(f"[{value}]" if is_abs else f"[{_local(k)}+[{value}]]")
+    c, s = f"COS[#{ROTATION}]", f"SIN[#{ROTATION}]"
+    ends = (f"[#{FRAME_BASE}+{c}*{local[0]}-{s}*{local[1]}]", f"[#{FRAME_BASE + 1}+{s}*{local[0]}+{c}*{local[1]}]")
+    return [f"{a}{e if absolute else f'[{e}-#{5420 + k}]'}" for k, (a, e) in enumerate(zip("XY", ends))]
+
+
+def rotated_centre(centre: dict[str, tuple[str, bool]]) -> list[str]:
+    """The I/J words of an arc centre programmed in the rotated frame (`centre`: I/J → (NGC value,
+    absolute I=AC(..) or offset from the start)): the offset turned by the rotation."""
+    rel = []
+    for k, name in enumerate("IJ"):
+        value, is_abs = centre.get(name, ("0", False))
+        rel.append(f"[[{value}]-{_local(k)}]" if is_abs else f"[{value}]")
+    c, s = f"COS[#{ROTATION}]", f"SIN[#{ROTATION}]"
+    return [f"I[{c}*{rel[0]}-{s}*{rel[1]}]", f"J[{s}*{rel[0]}+{c}*{rel[1]}]"]
 
 
 def arc_by_angle(plane: int, angle: str, ccw: bool, absolute: bool, ends: dict[str, str],

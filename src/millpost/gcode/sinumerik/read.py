@@ -16,6 +16,8 @@ Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programmin
   tangential transition", modal): in a program with CT every path move in the plane sets its end
   direction in #<_sin_tx>/#<_sin_ty>/#<_sin_tz>, from which the CT line computes its centre
   (`geometry.tangent_arc`); in G17, G18 and G19.
+- Frames (FB "Programmable zero offset", "Programmable rotation"): TRANS/ATRANS offsets, ROT/AROT
+  about Z in G17 (`geometry`): in a program with a rotation, X/Y and I/J go through `Translator.rotate`.
 - Work offsets (FB "Settable zero offset"): G54-G57 → G54-G57, G505-G508 → G58, G59, G59.1, G59.2,
   G500 (settable offsets off) → G59.3; G53 / SUPA → G53 (that block in machine coordinates).
 - Tools (FB "Tool change"): ``T1`` / ``T=1`` / ``T="name"`` (names numbered by first appearance unless
@@ -50,7 +52,8 @@ from pathlib import Path
 from ..lexer import source_lines
 from ..tool_names import tool_number
 from .cycles import CYCLES, cycle_words
-from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, tangent_arc
+from .geometry import (FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, rotated_centre,
+                       rotated_point, rotation_words, tangent_arc)
 from .jumps import Jumps, plan
 from .subprograms import END, MAX_DEPTH, Registry, Translation, call_of, find, label, proc_header, quoted_call
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
@@ -128,6 +131,7 @@ class Translator:
         self.labels = 0
         self.jumps = Jumps()
         self.framed = False  # the program sets a programmable offset: absolute values get #2000.. added
+        self.rotated = False  # the program sets a programmable rotation (#2003): X/Y/I/J turned by it
 
     def text(self, text: str) -> str:
         """The program's NGC, line for line, and after it the subprograms it calls (`subprograms`)."""
@@ -142,7 +146,8 @@ class Translator:
         """The NGC of each line of a program or subprogram."""
         lines = source_lines(text)
         self.jumps = plan(lines, self.file, label(self.sub_name)[1:-1] + "_jump" if self.sub_name else "jump")
-        self.framed = self.framed or re.search(r"^[^;\n]*\bA?TRANS\b", text, re.I | re.M) is not None
+        self.rotated = self.rotated or re.search(r"^[^;\n]*\bA?ROT\b[ \t]*[^\s;]", text, re.I | re.M) is not None
+        self.framed = self.framed or self.rotated or re.search(r"^[^;\n]*\bA?TRANS\b", text, re.I | re.M) is not None
         self.tracks_tangent = self.tracks_tangent or re.search(r"^[^;\n]*\bCT\b", text, re.I | re.M) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
@@ -201,6 +206,8 @@ class Translator:
             return self.frame(b)
         self.modes(b)
         taken = self.special_arc(b)
+        if self.rotated and not self.machine_block(b):
+            taken |= self.rotate(b)
         for t in b.toks:
             if t.name in taken:
                 continue
@@ -420,21 +427,60 @@ class Translator:
         b.assigned[key] = value
 
     def frame(self, b: _Block) -> str:
-        """TRANS/ATRANS X Y Z (alone in their block), or a frame cleared (`geometry.frame_words`)."""
+        """TRANS/ATRANS X Y Z (alone in their block), ROT/AROT (`rotation`), or a frame cleared
+        (`geometry.frame_words`)."""
         kind, rest = b.toks[0], b.toks[1:]
+        if kind.name in ("ROT", "AROT") and rest:
+            return self.rotation(b, kind, rest)
         if kind.name not in ("TRANS", "ATRANS") and rest:
             raise b.src.error(f"{kind.name} with values: rotation, scaling and mirroring frames are not modelled",
                               kind.start, b.src.text[kind.start:rest[-1].end],
-                              "TRANS/ATRANS offsets, or ROT/SCALE/MIRROR alone (frame cleared)")
+                              "TRANS/ATRANS offsets, ROT/AROT RPL=.., or ROT/SCALE/MIRROR alone (frame cleared)")
         for t in rest:
             if not (t.kind == "word" and t.name in "XYZ"):
                 raise b.src.error(f"{kind.name} takes axis offsets only, in a block of its own", t.start,
                                   b.src.text[t.start:t.end], f"{kind.name} X.. Y.. Z..")
-        words = frame_words(kind.name, {t.name: self.value(b, t) for t in rest})
+        words = frame_words(kind.name, {t.name: self.value(b, t) for t in rest}, self.rotated)
         if words is None:
             raise b.src.error(f"{kind.name} alone does not say which frame", kind.start, kind.name,
                               "TRANS/ATRANS X.. Y.. Z.., or TRANS/ROT/SCALE/MIRROR alone (frame cleared)")
         return " ".join(words)
+
+    def rotation(self, b: _Block, kind: Token, rest: list[Token]) -> str:
+        """ROT/AROT RPL=a in G17, or ROT/AROT Z a (FB "Programmable rotation (ROT, AROT)"): a rotation about
+        Z by a degrees (counter-clockwise seen from +Z). ROT replaces the programmable frame (its offsets
+        cleared), AROT is composed after it (about its origin). Other axes, and other planes, are refused."""
+        t = rest[0]
+        if len(rest) > 1 or t.kind != "word" or t.name not in ("RPL", "Z") or self.plane != 17:
+            t = rest[1] if len(rest) > 1 and t.kind == "word" and t.name in ("RPL", "Z") else t
+            raise b.src.error(f"{kind.name}: only a rotation about Z in G17 is modelled", t.start,
+                              b.src.text[t.start:t.end], f"G17 and {kind.name} RPL=<degrees> or {kind.name} Z<degrees>"
+                              " alone in the block")
+        return " ".join(rotation_words(kind.name, self.value(b, t)))
+
+    def programmed(self, b: _Block, t: Token, absolute: bool) -> tuple[str, bool]:
+        """A word's value as written (AC(..)/IC(..) unwrapped) and whether it is absolute (`absolute`:
+        the mode without AC/IC)."""
+        mode = re.match(r"(AC|IC)[ \t]*\(", t.value, re.IGNORECASE) if t.eq else None
+        if mode:
+            return self.inner(b, t, mode), mode.group(1).upper() == "AC"
+        return self.value(b, t), absolute
+
+    def rotate(self, b: _Block) -> set[str]:
+        """In a program with a rotation: the block's X/Y end point and I/J centre turned from the rotated
+        frame into the workpiece frame (`geometry.rotated_point`, `rotated_centre`); the tokens taken."""
+        xy = {t.name: self.programmed(b, t, self.absolute) for t in b.toks if t.kind == "word" and t.name in "XY"}
+        ij = {t.name: self.programmed(b, t, False) for t in b.toks if t.kind == "word" and t.name in "IJ"}
+        arc = self.motion in (2, 3)
+        if arc and self.plane != 17 and (xy or ij or b.word("Z") or b.word("K")):
+            t = next(t for t in b.toks if t.kind == "word" and t.name in "XYZIJK")
+            raise b.src.error(f"an arc in G{self.plane} in a program with a rotation about Z: not modelled", t.start,
+                              b.src.text[t.start:t.end], "arcs in G17")
+        if xy:
+            b.words.extend(rotated_point(xy, self.absolute))
+        if ij:
+            b.words.extend(rotated_centre(ij))
+        return set(xy) | set(ij)
 
     def special_arc(self, b: _Block) -> set[str]:
         """An arc by opening angle (AR=) or through an intermediate point (CIP, modal until G0-G3): its
@@ -445,18 +491,28 @@ class Translator:
         ct = next((t for t in b.toks if t.kind == "keyword" and t.name == "CT"), None)
         if ct is not None or self.ct and not any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) and any(
                 t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.not_rotated(b, "CT")
             self.tangential(b, ct)
             self.ct, self.cip = True, False
             return {p1, p2, "CT"}
         if b.word("AR") is not None:
+            self.not_rotated(b, "AR")
             self.opening_angle(b)
             return {p1, p2, c1, c2, "AR"}
         if any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) or self.cip and any(
                 t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.not_rotated(b, "CIP")
             self.circle_through(b)
             self.cip, self.ct = True, False
             return {p1, p2, f"{c1}1", f"{c2}1", "CIP"}
         return set()
+
+    def not_rotated(self, b: _Block, what: str) -> None:
+        """CT, AR= and CIP are refused in a program with a rotation (not modelled there)."""
+        if self.rotated:
+            t = next((t for t in b.toks if t.name == what), b.toks[0])
+            raise b.src.error(f"{what} in a program with ROT/AROT: not modelled", t.start, b.src.text[t.start:t.end],
+                              "G2/G3 with I/J or CR= under a rotation")
 
     def circle_through(self, b: _Block) -> None:
         """CIP (FB "Circular interpolation with intermediate and end points (CIP)"): the circle through the
@@ -617,6 +673,9 @@ class Translator:
                                 f"(in {path_folder(self.file)})", at, name, f"the file {name}.SPF beside the program")
             self.subs.state[name] = (state, self.run_subprogram(name, path))
         first, end = self.subs.state[name]
+        if end[7] and not self.rotated:
+            raise src.error(f"subprogram {name} sets a rotation (ROT/AROT) and this program has none: not modelled",
+                            at, name, "ROT/AROT in the main program too, or none")
         if end[6] and not self.framed:
             raise src.error(f"subprogram {name} sets a frame (TRANS/ATRANS) and this program has none: not modelled",
                             at, name, "TRANS/ATRANS in the main program too, or none")
@@ -639,6 +698,7 @@ class Translator:
         child.absolute, child.plane, child.motion, child.cip, child.ct = (self.absolute, self.plane, self.motion,
                                                                          self.cip, self.ct)
         child.tangent, child.framed, child.tracks_tangent = set(self.tangent), self.framed, self.tracks_tangent
+        child.rotated = self.rotated
         child.spindle, child.tools, child.names, child.labels, child.mcall = (self.spindle, self.tools, self.names,
                                                                               self.labels, self.mcall)
         self.subs.stack.append(name)
@@ -646,7 +706,8 @@ class Translator:
         self.subs.stack.pop()
         self.subs.add(name, str(path), body)
         self.labels, self.mcall = child.labels, child.mcall
-        return child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed
+        return (child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed,
+                child.rotated)
 
     def own_feed(self, b: _Block) -> None:
         """In a subprogram, a feed move before any F word of it is refused (`subprograms`: its moves keep
