@@ -326,15 +326,43 @@ def test_arot_is_composed_after_trans_and_rot_alone_clears():
     assert_same_moves(a, b)
 
 
+def test_scale_multiplies_the_frame_coordinates_and_arc_radii():
+    """FB "Programmable scale factor (SCALE, ASCALE)": SCALE X2 Y2 doubles the contour (end points,
+    I/J, CR) about the frame origin; ASCALE multiplies the current scale; an ATRANS after it moves by
+    the scaled offset; SCALE alone clears. Without arcs in the program the factors may differ."""
+    a = sin("N10 G0 X0 Y0 Z5\nN20 SCALE X2 Y2\nN30 G1 X10 Y0 F100\nN40 G3 X10 Y10 I0 J5\nN50 G2 X0 Y10 CR=5\n"
+            "N60 ATRANS X1\nN70 G1 X0 Y1\nN80 ASCALE X0.5 Y0.5\nN90 X0 Y1\nN100 SCALE\nN110 X3 Y3\n")
+    b = ngc("G0 X0 Y0 Z5\nG1 X20 Y0 F100\nG3 X20 Y20 I0 J10\nG2 X0 Y20 R10\nG1 X2 Y2\nX2 Y1\nX3 Y3\n")
+    assert_same_moves(a, b)
+    c = sin("N10 G0 X0 Y0 Z5\nN20 SCALE X2\nN30 G1 X5 Y5 F100\nN40 TRANS X1 Y1\nN50 ASCALE Y3\nN60 X1 Y1\n")
+    assert_same_moves(c, ngc("G0 X0 Y0 Z5\nG1 X10 Y5 F100\nX2 Y4\n"))
+
+
+def test_mirror_flips_the_axis_and_swaps_the_arc_direction():
+    """FB "Programmable mirroring (MIRROR, AMIRROR)": MIRROR X0 flips X (the value is ignored) and
+    swaps G2/G3 (and G41/G42), also in arc blocks where the direction is modal; AMIRROR Y0 composed
+    after it flips Y too (a half turn: the arcs turn their programmed way again); MIRROR alone clears."""
+    a = sin("N10 G0 X0 Y0 Z5\nN20 MIRROR X0\nN30 G1 X10 Y0 F100\nN40 G2 X20 Y0 I5 J0\nN50 X30 I5\n"
+            "N60 AMIRROR Y0\nN70 G3 X0 Y10 CR=20\nN80 MIRROR\nN90 G1 X5 Y5\n")
+    b = ngc("G0 X0 Y0 Z5\nG1 X-10 Y0 F100\nG3 X-20 Y0 I-5 J0\nX-30 I-5\nG3 X0 Y-10 R20\nG1 X5 Y5\n")
+    assert_same_moves(a, b)
+    ngc_text = dialects.get("sinumerik").translate("N10 MIRROR Y0\nN20 G42 G1 X10 Y10 F100\n", "part.mpf")
+    assert "G[42-[" in ngc_text
+
+
 @pytest.mark.parametrize("text, line, column, word", [
+    ("N10 SCALE X2 Y3\nN20 G2 X10 Y0 CR=5\n", 1, 5, "SCALE X2 Y3"),
+    ("N10 SCALE Z2\n", 1, 11, "Z2"),
+    ("N10 MIRROR Z0\n", 1, 12, "Z0"),
     ("N10 G0 X0\nN20 ROT X30\n", 2, 9, "X30"),
     ("N10 G18\nN20 ROT RPL=30\n", 2, 9, "RPL=30"),
     ("N10 ROT RPL=30\nN20 G0 X0 Y0\nN30 G3 X10 Y0 AR=90 F10\n", 3, 15, "AR=90"),
     ("N10 ROT RPL=30\nN20 G18 G2 X10 Z0 K5 F10\n", 2, 12, "X10"),
 ])
-def test_rotations_not_modelled_are_refused(text, line, column, word):
-    """Rotation about X or Y, a rotation in G18/G19, and arcs by AR/CIP/CT or outside G17 under a
-    rotation are refused where they are written."""
+def test_frames_not_modelled_are_refused(text, line, column, word):
+    """A scale different in X and Y in a program with arcs, Z scaling or mirroring, rotation about X or
+    Y, a rotation in G18/G19, and arcs by AR/CIP/CT or outside G17 under a rotation are refused where
+    they are written."""
     with pytest.raises(ParseError) as e:
         sin(text)
     assert (e.value.line, e.value.column) == (line, column) and e.value.word.startswith(word)
