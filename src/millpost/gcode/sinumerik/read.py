@@ -498,7 +498,7 @@ class Translator:
         scale); G2/G3 and G41/G42 swapped while the frame mirrors (`swap`); the tokens taken."""
         xy = {t.name: self.programmed(b, t, self.absolute) for t in b.toks if t.kind == "word" and t.name in "XY"}
         ij = {t.name: self.programmed(b, t, False) for t in b.toks if t.kind == "word" and t.name in "IJ"}
-        arc = self.motion in (2, 3)
+        arc = self.motion in (2, 3) and not self.mcall and not any(t.kind == "call" for t in b.toks)
         if arc and self.plane != 17 and (xy or ij or b.word("Z") or b.word("K")):
             t = next(t for t in b.toks if t.kind == "word" and t.name in "XYZIJK")
             raise b.src.error(f"an arc in G{self.plane} in a program with ROT/SCALE/MIRROR: not modelled", t.start,
