@@ -242,6 +242,38 @@ def test_deep_hole_cycle_is_g83_or_g73_and_what_g83_cannot_make_is_refused():
     assert (e.value.line, e.value.word) == (2, "1") and "DAM" in str(e.value)
 
 
+def test_tapping_and_boring_cycles_are_g84_g85_g89_g86():
+    """Cycles manual, "CYCLE84 - Tapping without compensating chuck": the feed is |PIT| (or MPIT's ISO
+    coarse pitch, negative: left-hand, G74) times SST (else the S in force), and the programmed F is in
+    force again after the cycle; "CYCLE85 - Boring 1": feed in at FFR, (DTB dwell: G89,) feed out at
+    RFF = FFR, modal with MCALL; "CYCLE86 - Boring 2": feed in, dwell, spindle stop, rapid out (G86)."""
+    a = sin("N10 G0 X0 Y0 Z10 S500 M3\nN20 F200\nN30 CYCLE84(10, 0, 2, -10, , , 3, , 1.5, , 400)\nN40 G1 X10\n"
+            "N50 MCALL CYCLE85(10, 0, 2, -8, , 0.5, 150, 150)\nN60 X20\nN70 X30\nN80 MCALL\nN90 G1 X0\n"
+            "N100 CYCLE86(10, 0, 2, -5, , 1, 3, 0, 0, 0, 90)\nN110 CYCLE84(10, 0, 2, -6, , , , -8)\nN120 G1 X5\n"
+            "N130 CYCLE85(10, 0, 2, , 4, , 100)\n")
+    b = ngc("G0 X0 Y0 Z10 S500 M3\nF200\nG98 G84 R2 Z-10 F600\nG1 X10 F200\n(mcall)\nX20 G98 G89 R2 Z-8 P0.5 F150\n"
+            "X30\nG80 F200\nG1 X0\nG98 G86 R2 Z-5 P1\nG98 G74 R2 Z-6 F625\nG1 X5 F200\nG98 G85 R2 Z-4 F100\n")
+    assert_same_moves(a, b)
+
+
+@pytest.mark.parametrize("call, word", [
+    ("CYCLE84(10, 0, 2, -10, , , 3, , 1.5, , 400, 200)", "200"),
+    ("CYCLE84(10, 0, 2, -10, , , 3, 7)", "7"),
+    ("CYCLE84(10, 0, 2, -10, , , 3, , 1.5, , 400, , , , , 1)", "1"),
+    ("CYCLE84(10, 0, 2, -10)", "CYCLE84"),
+    ("CYCLE85(10, 0, 2, -10, , , 100, 300)", "300"),
+    ("CYCLE86(10, 0, 2, -10, , , 3, 1, 0, 0, 90)", "1"),
+    ("CYCLE86(10, 0, 2, -10, , , 4)", "4"),
+])
+def test_what_g84_g85_g86_cannot_make_is_refused(call, word):
+    """A retract speed SST1 other than SST, a thread size without its ISO pitch, pecking tapping
+    (_VARI), no pitch; a feed out RFF other than FFR; a lift-off (RPA/RPO/RPAP) or a counter-clockwise
+    restart (SDIR=4) after boring: refused at the parameter."""
+    with pytest.raises(ParseError) as e:
+        sin(f"N10 G0 X0 Y0 Z10 S500 M3 F100\nN20 {call}\n")
+    assert e.value.line == 2 and e.value.word == word
+
+
 def test_jumps_forward_and_backward_to_labels():
     """AV "Program jumps to jump markers (GOTOB, GOTOF, GOTO)" and "Conditional program jumps (IF)":
     a backward jump repeats the blocks from its label, a forward jump skips to its label."""

@@ -53,7 +53,7 @@ from pathlib import Path
 
 from ..lexer import source_lines
 from ..tool_names import tool_number
-from .cycles import CYCLES, cycle_words
+from .cycles import CYCLES, FEED_PARAMETER, cycle_words
 from .geometry import (DET, FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, framed_centre,
                        framed_point, matrix_words, rotation, tangent_arc)
 from .jumps import Jumps, plan
@@ -132,6 +132,8 @@ class Translator:
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
         self.labels = 0
         self.jumps = Jumps()
+        self.keeps_feed = False  # the program has CYCLE84/85 (their own feed): F values kept in FEED_PARAMETER
+        self.feed_restore = False  # a cycle's own feed is in force: the next block restores the programmed F
         self.framed = False  # the program sets a programmable offset: absolute values get #2000.. added
         self.linear = False  # the program rotates, scales or mirrors: X/Y/I/J/CR through the matrix #2003..
         self.mirrored = False  # the program mirrors: G2/G3 and G41/G42 written as swapped when DET < 0
@@ -153,6 +155,7 @@ class Translator:
         self.linear = self.linear or _has(r"\bA?(?:ROT|SCALE|MIRROR)\b[ \t]*[^\s;]", text)
         self.mirrored = self.mirrored or _has(r"\bAMIRROR\b|\bMIRROR\b[ \t]*[^\s;]", text)
         self.arcs = self.arcs or _has(r"(?<![A-Z0-9_$])(?:G0*[23](?![\d.])|CIP\b|CT\b)", text)
+        self.keeps_feed = self.keeps_feed or _has(r"\bCYCLE8[45]\b", text)
         self.framed = self.framed or self.linear or _has(r"\bA?TRANS\b", text)
         self.tracks_tangent = self.tracks_tangent or re.search(r"^[^;\n]*\bCT\b", text, re.I | re.M) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
@@ -228,6 +231,7 @@ class Translator:
             self.at_hole(b)
         elif self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
             b.words.insert(0, f"G{self.motion}")
+        self.restore_feed(b)
         self.track_tangent(b)
         self.own_feed(b)
         if moves or {74, 75} & set(b.g):
@@ -371,6 +375,8 @@ class Translator:
             b.words.append(f"P{self.value(b, t)}")
         else:
             b.words.append(f"F{self.value(b, t)}")
+            if self.keeps_feed:
+                b.words.append(f"{FEED_PARAMETER}={self.value(b, t)}")
 
     def speed(self, b: _Block, t: Token) -> None:
         if 25 in b.g or 26 in b.g:
@@ -631,6 +637,19 @@ class Translator:
                               f"{c1}.. {c2}.. AR=..")
         b.words.extend(arc_by_angle(self.plane, self.value(b, ar), self.motion == 3, self.absolute, ends, centre))
 
+    def restore_feed(self, b: _Block) -> None:
+        """A block that runs CYCLE84/85 (their own feed, immediate or at a MCALL position) leaves that
+        feed in force: the next block without an F of its own sets the programmed F again
+        (FEED_PARAMETER); in the order of the text."""
+        programmed = b.word("F") is not None and 4 not in b.g
+        if any(w.startswith("F") for w in b.words) and not programmed:
+            self.feed_restore = True
+        elif programmed:
+            self.feed_restore = False
+        elif self.feed_restore:
+            b.words.append(f"F[{FEED_PARAMETER}]")
+            self.feed_restore = False
+
     def at_hole(self, b: _Block) -> None:
         """A position block under MCALL: the move to the hole and the modal cycle (the hole's Z is the
         cycle's, so a Z word is refused; the positioning is at rapid, as the canned cycle's)."""
@@ -642,10 +661,11 @@ class Translator:
         self.restore_motion = True
 
     def drill(self, b: _Block, t: Token) -> None:
-        """CYCLE81-83: modal after MCALL (run at each following position), else at the current point."""
+        """CYCLE81-86: modal after MCALL (run at each following position), else at the current point."""
         if self.plane != 17:
             raise b.src.error(f"{t.name} outside G17", t.start, t.name, "drilling along Z (G17)")
-        words = cycle_words(b.src, t, lambda at: self.expr(b, at), f"#{FRAME_BASE + 2}" if self.framed else None)
+        words = cycle_words(b.src, t, lambda at: self.expr(b, at), f"#{FRAME_BASE + 2}" if self.framed else None,
+                            self.spindle)
         modal = any(x.kind == "keyword" and x.name == "MCALL" for x in b.toks)
         if modal:
             self.mcall = words
