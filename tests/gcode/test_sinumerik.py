@@ -274,6 +274,23 @@ def test_what_g84_g85_g86_cannot_make_is_refused(call, word):
     assert e.value.line == 2 and e.value.word == word
 
 
+def test_hole_patterns_run_the_modal_cycle_at_each_hole():
+    """Cycles manual, "HOLES1 - Row of holes" (reference point, angle, distance of the first hole,
+    spacing, number) and "HOLES2 - Circle of holes" (centre, radius, start angle, indexing angle 0: a
+    full circle, number) under MCALL: the modal cycle at each hole in order, through the frame."""
+    a = sin("N10 G0 X0 Y0 Z10 F100\nN20 MCALL CYCLE81(10, 0, 2, -5)\nN30 HOLES1(10, 20, 90, 5, 10, 3)\n"
+            "N40 HOLES2(0, 0, 10, 0, 0, 4)\nN50 TRANS X100\nN60 HOLES1(0, 0, 0, 0, 5, 2)\nN70 MCALL\nN80 G1 X0 Y0\n")
+    b = ngc("G0 X0 Y0 Z10 F100\nG98 G81 X10 Y25 R2 Z-5\nX10 Y35\nX10 Y45\nX10 Y0\nX0 Y10\nX-10 Y0\nX0 Y-10\n"
+            "X100 Y0\nX105 Y0\nG80\nG1 X100 Y0\n")
+    assert_same_moves(a, b)
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z10\nN20 HOLES1(10, 20, 90, 5, 10, 3)\n")
+    assert (e.value.line, e.value.column, e.value.word) == (2, 5, "HOLES1")
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z10\nN20 MCALL CYCLE81(10, 0, 2, -5)\nN30 CYCLE801(0, 0, 0, 5, 5, 2, 2)\n")
+    assert (e.value.line, e.value.column) == (3, 5) and e.value.word.startswith("CYCLE801")
+
+
 def test_jumps_forward_and_backward_to_labels():
     """AV "Program jumps to jump markers (GOTOB, GOTOF, GOTO)" and "Conditional program jumps (IF)":
     a backward jump repeats the blocks from its label, a forward jump skips to its label."""

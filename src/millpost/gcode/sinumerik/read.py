@@ -38,6 +38,8 @@ The translation keeps what it needs of the modal state (G90/G91 for AC/IC, the p
 the last S) in the order of the text: a loop or backward jump whose body changes one of them before
 a line that depends on it reads that line with the state the text shows there.
 
+- Drilling cycles CYCLE81-86 (`cycles`), immediate or modal with MCALL at each position that follows,
+  or at each hole of a HOLES1/HOLES2 pattern (`patterns`, an appended O-sub).
 - Subprogram calls (FB "Subprogram technique"): ``NAME [P n]``, ``L<n> [P n]``, ``CALL "NAME"`` in a
   block of their own run NAME.SPF beside the program, appended as an O-sub (`subprograms`).
 
@@ -57,6 +59,7 @@ from .cycles import CYCLES, FEED_PARAMETER, cycle_words
 from .geometry import (DET, FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, framed_centre,
                        framed_point, matrix_words, rotation, tangent_arc)
 from .jumps import Jumps, plan
+from .patterns import HOLE, PATTERNS, pattern_arguments, pattern_sub
 from .subprograms import END, MAX_DEPTH, Registry, Translation, call_of, find, label, proc_header, quoted_call
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
 
@@ -213,6 +216,8 @@ class Translator:
                 b.g[code] = t
         if b.toks[0].kind == "keyword" and b.toks[0].name in FRAMES:
             return self.frame(b)
+        if b.toks[0].kind == "call" and b.toks[0].name in PATTERNS:
+            return self.pattern(b, b.toks[0])
         self.modes(b)
         taken = self.special_arc(b)
         if self.linear and not self.machine_block(b):
@@ -659,6 +664,26 @@ class Translator:
                               "X and Y only (the cycle's planes set Z)")
         b.words = [w for w in b.words if w not in ("G0", "G1")] + self.mcall
         self.restore_motion = True
+
+    def pattern(self, b: _Block, t: Token) -> str:
+        """HOLES1/HOLES2 (`patterns`), alone in their block under MCALL in G90: the modal cycle at each
+        hole, the holes through the frame (TRANS, ROT, ...) as any position; an O-sub appended and called."""
+        if len(b.toks) > 1 or self.mcall is None or not self.absolute:
+            raise b.src.error(f"{t.name} outside a modal drilling cycle, in G91 or with other words", t.start,
+                              t.name, f"MCALL CYCLE8x(..), then {t.name}(..) alone in its block in G90")
+        values = pattern_arguments(b.src, t, lambda at: self.expr(b, at))
+        x, y = HOLE
+        if self.linear:
+            hole = framed_point({"X": (x, True), "Y": (y, True)}, True)
+        else:
+            hole = [f"X[{x}+#{FRAME_BASE}]", f"Y[{y}+#{FRAME_BASE + 1}]"] if self.framed else [f"X{x}", f"Y{y}"]
+        self.labels += 1
+        name = f"<sin_pattern_{self.labels}>"
+        self.subs.lines += pattern_sub(name, hole + self.mcall)
+        self.subs.origins.update({len(self.subs.lines) - k: (self.file, b.src.line) for k in range(7)})
+        self.restore_motion = True
+        self.feed_restore = self.feed_restore or any(w.startswith("F") for w in self.mcall)
+        return f"o{name} call " + " ".join(f"[{v}]" if not v.startswith("[") else v for v in values)
 
     def drill(self, b: _Block, t: Token) -> None:
         """CYCLE81-86: modal after MCALL (run at each following position), else at the current point."""
