@@ -85,7 +85,8 @@ N100 G17 G0 Z10
 N110 M30
 """,
 ]
-# frames (ROT, SCALE, MIRROR): most of their mutants are refused, so they are fuzzed apart (`FRAME_PROGRAMS`)
+# frames (ROT, SCALE, MIRROR), tapping/boring cycles and hole patterns: most of their mutants are refused,
+# so they are fuzzed apart
 FRAME_PROGRAMS = [
     """N10 G90 G17 G710 G0 X0 Y0 Z2
 N20 TRANS X10 Y5
@@ -107,6 +108,22 @@ N170 MCALL
 N180 MIRROR
 N190 G0 Z10
 N200 M30
+""",
+    """N10 G90 G17 G710 T3 D1 M6
+N20 S800 M3
+N30 G0 X0 Y0 Z10
+N40 F150
+N50 CYCLE84(10, 0, 2, -12, , , 3, , 1.25, , 400)
+N60 G1 X5
+N70 MCALL CYCLE85(10, 0, 2, -8, , 0.5, 120, 120)
+N80 HOLES1(10, 20, 30, 5, 10, 3)
+N90 MCALL CYCLE86(10, 0, 2, -5, , 1, 3, 0, 0, 0, 90)
+N100 HOLES2(0, 0, 15, 0, 0, 5)
+N110 X40 Y40
+N120 MCALL
+N130 CYCLE84(10, 0, 2, , 6, , , 8)
+N140 G1 X0 Y0
+N150 M30
 """,
 ]
 SNIPPETS = ["CR=", "AR=", "X=AC(", "I=AC(", "=IC(", "R1=", "R[", "DEF REAL", "IF", "ENDIF", "ELSE", "GOTOF", "GOTOB",
