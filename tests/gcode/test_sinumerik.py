@@ -534,6 +534,23 @@ def test_subprogram_calls_by_name_with_runs_by_l_number_and_by_call(tmp_path):
     assert a.toolpath.line.tolist()[:3] == [1, 2, 10]  # a subprogram's moves: lines past the program's (7)
 
 
+def test_a_subprogram_runs_in_the_callers_frame_and_its_tapping_feed_is_restored(tmp_path):
+    """FB "Programmable rotation", Cycles manual "CYCLE84": a contour subprogram called under ROT runs
+    turned; after a subprogram that ends with CYCLE84 the caller's next move is at the programmed F
+    again (kept where the main program has CYCLE84/85 too: a subprogram with CYCLE84 called from a
+    program without is refused)."""
+    main = _files(tmp_path, MAIN__MPF="N10 G0 X0 Y0 Z5 S500 M3\nN20 ROT RPL=90\nN30 CONTOUR\nN40 ROT\n"
+                  "N50 TAP\nN60 G1 X1 Y1\nN70 CYCLE84(10, 0, 2, -6, , , 3, , 1, , 400)\nN80 M30\n",
+                  CONTOUR__SPF="N10 G1 X10 Y0 F300\nN20 Y5\nN30 M17\n",
+                  TAP__SPF="N10 F250\nN20 CYCLE84(10, 0, 2, -6, , , 3, , 1, , 400)\nN30 M17\n")
+    b = ngc("G0 X0 Y0 Z5 S500 M3\nG1 X0 Y10 F300\nX-5 Y10\nF250\nG98 G84 R2 Z-6 F400\nG1 X1 Y1 F250\nG98 G84 R2 Z-6 F400\n")
+    assert_same_moves(read_sin(main), b)
+    main.write_text("N10 G0 X0 Y0 Z5 S500 M3\nN20 F100\nN30 TAP\nN40 M30\n")
+    with pytest.raises(ParseError, match="CYCLE84/85") as e:
+        read_sin(main)
+    assert (e.value.line, e.value.column) == (3, 5)
+
+
 def test_subprograms_nest_and_lower_case_spf_is_found(tmp_path):
     """FB "Subprogram technique" ("Nesting depth"): a subprogram calls another; part2.spf in lower case."""
     main = _files(tmp_path, MAIN__MPF="G0 X0 Y0 Z0\nPART1\nM30\n", PART1__SPF="G1 X5 F100\nPART2 P3\nM17\n",

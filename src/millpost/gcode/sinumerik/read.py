@@ -760,6 +760,10 @@ class Translator:
                                 f"(in {path_folder(self.file)})", at, name, f"the file {name}.SPF beside the program")
             self.subs.state[name] = (state, self.run_subprogram(name, path))
         first, end = self.subs.state[name]
+        if end[7][2] and not self.keeps_feed:
+            raise src.error(f"subprogram {name} has CYCLE84/85 (their own feed) and this program has none: the "
+                            "programmed F to restore after them is not known", at, name,
+                            "CYCLE84/85 in the main program too, or none")
         if end[7][0] and not self.linear or end[7][1] and not self.mirrored:
             raise src.error(f"subprogram {name} rotates, scales or mirrors and this program does not: not modelled",
                             at, name, "ROT/SCALE/MIRROR in the main program too, or none")
@@ -771,6 +775,7 @@ class Translator:
                             f"first {_mode(first)}): its translation is the first call's", at, name, _mode(first))
         self.absolute, self.plane, self.motion, self.cip, self.ct = end[:5]
         self.tangent |= end[5]
+        self.feed_restore = end[7][3]  # the subprogram ends with a cycle's own feed in force
         n = int(runs.value) if runs is not None else 1
         return f"o{label(name) if n == 1 else self.subs.repeated(name, n)} call"
 
@@ -786,6 +791,7 @@ class Translator:
                                                                          self.cip, self.ct)
         child.tangent, child.framed, child.tracks_tangent = set(self.tangent), self.framed, self.tracks_tangent
         child.linear, child.mirrored, child.arcs = self.linear, self.mirrored, self.arcs
+        child.keeps_feed, child.feed_restore = self.keeps_feed, self.feed_restore
         child.spindle, child.tools, child.names, child.labels, child.mcall = (self.spindle, self.tools, self.names,
                                                                               self.labels, self.mcall)
         self.subs.stack.append(name)
@@ -794,7 +800,7 @@ class Translator:
         self.subs.add(name, str(path), body)
         self.labels, self.mcall = child.labels, child.mcall
         return (child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed,
-                (child.linear, child.mirrored))
+                (child.linear, child.mirrored, child.keeps_feed, child.feed_restore))
 
     def own_feed(self, b: _Block) -> None:
         """In a subprogram, a feed move before any F word of it is refused (`subprograms`: its moves keep
