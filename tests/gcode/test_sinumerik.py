@@ -242,6 +242,55 @@ def test_deep_hole_cycle_is_g83_or_g73_and_what_g83_cannot_make_is_refused():
     assert (e.value.line, e.value.word) == (2, "1") and "DAM" in str(e.value)
 
 
+def test_tapping_and_boring_cycles_are_g84_g85_g89_g86():
+    """Cycles manual, "CYCLE84 - Tapping without compensating chuck": the feed is |PIT| (or MPIT's ISO
+    coarse pitch, negative: left-hand, G74) times SST (else the S in force), and the programmed F is in
+    force again after the cycle; "CYCLE85 - Boring 1": feed in at FFR, (DTB dwell: G89,) feed out at
+    RFF = FFR, modal with MCALL; "CYCLE86 - Boring 2": feed in, dwell, spindle stop, rapid out (G86)."""
+    a = sin("N10 G0 X0 Y0 Z10 S500 M3\nN20 F200\nN30 CYCLE84(10, 0, 2, -10, , , 3, , 1.5, , 400)\nN40 G1 X10\n"
+            "N50 MCALL CYCLE85(10, 0, 2, -8, , 0.5, 150, 150)\nN60 X20\nN70 X30\nN80 MCALL\nN90 G1 X0\n"
+            "N100 CYCLE86(10, 0, 2, -5, , 1, 3, 0, 0, 0, 90)\nN110 CYCLE84(10, 0, 2, -6, , , , -8)\nN120 G1 X5\n"
+            "N130 CYCLE85(10, 0, 2, , 4, , 100)\n")
+    b = ngc("G0 X0 Y0 Z10 S500 M3\nF200\nG98 G84 R2 Z-10 F600\nG1 X10 F200\n(mcall)\nX20 G98 G89 R2 Z-8 P0.5 F150\n"
+            "X30\nG80 F200\nG1 X0\nG98 G86 R2 Z-5 P1\nG98 G74 R2 Z-6 F625\nG1 X5 F200\nG98 G85 R2 Z-4 F100\n")
+    assert_same_moves(a, b)
+
+
+@pytest.mark.parametrize("call, word", [
+    ("CYCLE84(10, 0, 2, -10, , , 3, , 1.5, , 400, 200)", "200"),
+    ("CYCLE84(10, 0, 2, -10, , , 3, 7)", "7"),
+    ("CYCLE84(10, 0, 2, -10, , , 3, , 1.5, , 400, , , , , 1)", "1"),
+    ("CYCLE84(10, 0, 2, -10)", "CYCLE84"),
+    ("CYCLE85(10, 0, 2, -10, , , 100, 300)", "300"),
+    ("CYCLE86(10, 0, 2, -10, , , 3, 1, 0, 0, 90)", "1"),
+    ("CYCLE86(10, 0, 2, -10, , , 4)", "4"),
+])
+def test_what_g84_g85_g86_cannot_make_is_refused(call, word):
+    """A retract speed SST1 other than SST, a thread size without its ISO pitch, pecking tapping
+    (_VARI), no pitch; a feed out RFF other than FFR; a lift-off (RPA/RPO/RPAP) or a counter-clockwise
+    restart (SDIR=4) after boring: refused at the parameter."""
+    with pytest.raises(ParseError) as e:
+        sin(f"N10 G0 X0 Y0 Z10 S500 M3 F100\nN20 {call}\n")
+    assert e.value.line == 2 and e.value.word == word
+
+
+def test_hole_patterns_run_the_modal_cycle_at_each_hole():
+    """Cycles manual, "HOLES1 - Row of holes" (reference point, angle, distance of the first hole,
+    spacing, number) and "HOLES2 - Circle of holes" (centre, radius, start angle, indexing angle 0: a
+    full circle, number) under MCALL: the modal cycle at each hole in order, through the frame."""
+    a = sin("N10 G0 X0 Y0 Z10 F100\nN20 MCALL CYCLE81(10, 0, 2, -5)\nN30 HOLES1(10, 20, 90, 5, 10, 3)\n"
+            "N40 HOLES2(0, 0, 10, 0, 0, 4)\nN50 TRANS X100\nN60 HOLES1(0, 0, 0, 0, 5, 2)\nN70 MCALL\nN80 G1 X0 Y0\n")
+    b = ngc("G0 X0 Y0 Z10 F100\nG98 G81 X10 Y25 R2 Z-5\nX10 Y35\nX10 Y45\nX10 Y0\nX0 Y10\nX-10 Y0\nX0 Y-10\n"
+            "X100 Y0\nX105 Y0\nG80\nG1 X100 Y0\n")
+    assert_same_moves(a, b)
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z10\nN20 HOLES1(10, 20, 90, 5, 10, 3)\n")
+    assert (e.value.line, e.value.column, e.value.word) == (2, 5, "HOLES1")
+    with pytest.raises(ParseError) as e:
+        sin("N10 G0 X0 Y0 Z10\nN20 MCALL CYCLE81(10, 0, 2, -5)\nN30 CYCLE801(0, 0, 0, 5, 5, 2, 2)\n")
+    assert (e.value.line, e.value.column) == (3, 5) and e.value.word.startswith("CYCLE801")
+
+
 def test_jumps_forward_and_backward_to_labels():
     """AV "Program jumps to jump markers (GOTOB, GOTOF, GOTO)" and "Conditional program jumps (IF)":
     a backward jump repeats the blocks from its label, a forward jump skips to its label."""
@@ -286,9 +335,86 @@ def test_trans_and_atrans_move_the_frame_the_moves_are_read_in():
     b = ngc("G90 G0 X0 Y0 Z5\n(trans)\nG1 X100 Y50 F100\n(atrans)\nX110 Y51\nG91 X1\nG90 G98 G81 R0 Z-4\n(trans)\n"
             "G0 X0 Y0\n(rot)\n")
     assert_same_moves(a, b)
+
+
+def _turned(x: float, y: float, degrees: float = 30) -> tuple[float, float]:
+    a = math.radians(degrees)
+    return x * math.cos(a) - y * math.sin(a), x * math.sin(a) + y * math.cos(a)
+
+
+def test_rot_turns_the_moves_about_the_frame_origin():
+    """FB "Programmable rotation (ROT, AROT)": ROT RPL=30 in G17 turns the following moves by 30°
+    counter-clockwise about Z; a square contour with an arc reads as the same contour written with
+    the turned coordinates. Incremental moves and arc centres (I/J, I=AC) turn too, an arc keeps its
+    direction, a move missing an axis word keeps that coordinate of the rotated frame."""
+    a = sin("N10 G17 G90 G0 X0 Y0 Z5\nN20 ROT RPL=30\nN30 G1 X10 Y0 F100\nN40 Y10\nN50 X0\nN60 Y0\n"
+            "N70 G2 X10 Y0 I5 J0\nN80 G91 G1 X5 Y5\nN90 X=AC(0)\nN100 G90 G3 X0 Y10 I=AC(0) J=AC(7.5)\n")
+    moves = [(1, (10, 0)), (1, (10, 10)), (1, (0, 10)), (1, (0, 0)), (2, (10, 0), (5, 0)), (1, (15, 5)),
+             (1, (0, 5)), (3, (0, 10), (0, 2.5))]
+    text = "G17 G90 G0 X0 Y0 Z5\nF100\n"
+    for g, end, *centre in moves:
+        x, y = _turned(*end)
+        text += f"G{g} X{x:.12f} Y{y:.12f}"
+        if centre:
+            i, j = _turned(*centre[0])
+            text += f" I{i:.12f} J{j:.12f}"
+        text += "\n"
+    assert_same_moves(a, ngc(text))
+
+
+def test_arot_is_composed_after_trans_and_rot_alone_clears():
+    """FB "Programmable rotation (ROT, AROT)" and "Frame instructions": TRANS X20 Y10 then AROT RPL=90
+    turns about the translated origin (X10 reads at (20, 20)); a second AROT adds its angle; ATRANS
+    after it moves along the turned axes; ROT with an angle replaces the frame (the offset cleared);
+    ROT alone clears the rotation; ROT Z.. is the same rotation about Z."""
+    a = sin("N10 G0 X0 Y0 Z5\nN20 TRANS X20 Y10\nN30 AROT RPL=90\nN40 G1 X10 Y0 F100\nN50 AROT RPL=-45\n"
+            "N60 ATRANS X1\nN70 X0 Y0\nN80 ROT Z90\nN90 X10 Y0\nN100 ROT\nN110 X10 Y0\n")
+    h = math.sqrt(0.5)
+    b = ngc(f"G0 X0 Y0 Z5\n(trans)\n(arot)\nG1 X20 Y20 F100\n(arot)\n(atrans)\nX{20 + h} Y{10 + h}\n(rot)\n"
+            "X0 Y10\n(rot)\nX10 Y0\n")
+    assert_same_moves(a, b)
+
+
+def test_scale_multiplies_the_frame_coordinates_and_arc_radii():
+    """FB "Programmable scale factor (SCALE, ASCALE)": SCALE X2 Y2 doubles the contour (end points,
+    I/J, CR) about the frame origin; ASCALE multiplies the current scale; an ATRANS after it moves by
+    the scaled offset; SCALE alone clears. Without arcs in the program the factors may differ."""
+    a = sin("N10 G0 X0 Y0 Z5\nN20 SCALE X2 Y2\nN30 G1 X10 Y0 F100\nN40 G3 X10 Y10 I0 J5\nN50 G2 X0 Y10 CR=5\n"
+            "N60 ATRANS X1\nN70 G1 X0 Y1\nN80 ASCALE X0.5 Y0.5\nN90 X0 Y1\nN100 SCALE\nN110 X3 Y3\n")
+    b = ngc("G0 X0 Y0 Z5\nG1 X20 Y0 F100\nG3 X20 Y20 I0 J10\nG2 X0 Y20 R10\nG1 X2 Y2\nX2 Y1\nX3 Y3\n")
+    assert_same_moves(a, b)
+    c = sin("N10 G0 X0 Y0 Z5\nN20 SCALE X2\nN30 G1 X5 Y5 F100\nN40 TRANS X1 Y1\nN50 ASCALE Y3\nN60 X1 Y1\n")
+    assert_same_moves(c, ngc("G0 X0 Y0 Z5\nG1 X10 Y5 F100\nX2 Y4\n"))
+
+
+def test_mirror_flips_the_axis_and_swaps_the_arc_direction():
+    """FB "Programmable mirroring (MIRROR, AMIRROR)": MIRROR X0 flips X (the value is ignored) and
+    swaps G2/G3 (and G41/G42), also in arc blocks where the direction is modal; AMIRROR Y0 composed
+    after it flips Y too (a half turn: the arcs turn their programmed way again); MIRROR alone clears."""
+    a = sin("N10 G0 X0 Y0 Z5\nN20 MIRROR X0\nN30 G1 X10 Y0 F100\nN40 G2 X20 Y0 I5 J0\nN50 X30 I5\n"
+            "N60 AMIRROR Y0\nN70 G3 X0 Y10 CR=20\nN80 MIRROR\nN90 G1 X5 Y5\n")
+    b = ngc("G0 X0 Y0 Z5\nG1 X-10 Y0 F100\nG3 X-20 Y0 I-5 J0\nX-30 I-5\nG3 X0 Y-10 R20\nG1 X5 Y5\n")
+    assert_same_moves(a, b)
+    ngc_text = dialects.get("sinumerik").translate("N10 MIRROR Y0\nN20 G42 G1 X10 Y10 F100\n", "part.mpf")
+    assert "G[42-[" in ngc_text
+
+
+@pytest.mark.parametrize("text, line, column, word", [
+    ("N10 SCALE X2 Y3\nN20 G2 X10 Y0 CR=5\n", 1, 5, "SCALE X2 Y3"),
+    ("N10 SCALE Z2\n", 1, 11, "Z2"),
+    ("N10 MIRROR Z0\n", 1, 12, "Z0"),
+    ("N10 G0 X0\nN20 ROT X30\n", 2, 9, "X30"),
+    ("N10 G18\nN20 ROT RPL=30\n", 2, 9, "RPL=30"),
+    ("N10 ROT RPL=30\nN20 G0 X0 Y0\nN30 G3 X10 Y0 AR=90 F10\n", 3, 15, "AR=90"),
+    ("N10 ROT RPL=30\nN20 G18 G2 X10 Z0 K5 F10\n", 2, 12, "X10"),
+])
+def test_frames_not_modelled_are_refused(text, line, column, word):
+    """A scale different in X and Y in a program with arcs, Z scaling or mirroring, rotation about X or
+    Y, a rotation in G18/G19, and arcs by AR/CIP/CT or outside G17 under a rotation are refused where
+    they are written."""
     with pytest.raises(ParseError) as e:
-        sin("N10 G0 X0\nN20 ROT RPL=30\n")
-    assert (e.value.line, e.value.column) == (2, 5)
+        sin(text)
+    assert (e.value.line, e.value.column) == (line, column) and e.value.word.startswith(word)
 
 
 REAL = os.environ.get("MILLPOST_SINUMERIK_PROGRAMS")
@@ -406,6 +532,23 @@ def test_subprogram_calls_by_name_with_runs_by_l_number_and_by_call(tmp_path):
             "G91 X10 F300\nY10\nG90 G1 X0 Y0 F500\nM30\n")
     assert_same_moves(a, b)
     assert a.toolpath.line.tolist()[:3] == [1, 2, 10]  # a subprogram's moves: lines past the program's (7)
+
+
+def test_a_subprogram_runs_in_the_callers_frame_and_its_tapping_feed_is_restored(tmp_path):
+    """FB "Programmable rotation", Cycles manual "CYCLE84": a contour subprogram called under ROT runs
+    turned; after a subprogram that ends with CYCLE84 the caller's next move is at the programmed F
+    again (kept where the main program has CYCLE84/85 too: a subprogram with CYCLE84 called from a
+    program without is refused)."""
+    main = _files(tmp_path, MAIN__MPF="N10 G0 X0 Y0 Z5 S500 M3\nN20 ROT RPL=90\nN30 CONTOUR\nN40 ROT\n"
+                  "N50 TAP\nN60 G1 X1 Y1\nN70 CYCLE84(10, 0, 2, -6, , , 3, , 1, , 400)\nN80 M30\n",
+                  CONTOUR__SPF="N10 G1 X10 Y0 F300\nN20 Y5\nN30 M17\n",
+                  TAP__SPF="N10 F250\nN20 CYCLE84(10, 0, 2, -6, , , 3, , 1, , 400)\nN30 M17\n")
+    b = ngc("G0 X0 Y0 Z5 S500 M3\nG1 X0 Y10 F300\nX-5 Y10\nF250\nG98 G84 R2 Z-6 F400\nG1 X1 Y1 F250\nG98 G84 R2 Z-6 F400\n")
+    assert_same_moves(read_sin(main), b)
+    main.write_text("N10 G0 X0 Y0 Z5 S500 M3\nN20 F100\nN30 TAP\nN40 M30\n")
+    with pytest.raises(ParseError, match="CYCLE84/85") as e:
+        read_sin(main)
+    assert (e.value.line, e.value.column) == (3, 5)
 
 
 def test_subprograms_nest_and_lower_case_spf_is_found(tmp_path):

@@ -85,16 +85,57 @@ N100 G17 G0 Z10
 N110 M30
 """,
 ]
+# frames (ROT, SCALE, MIRROR), tapping/boring cycles and hole patterns: most of their mutants are refused,
+# so they are fuzzed apart
+FRAME_PROGRAMS = [
+    """N10 G90 G17 G710 G0 X0 Y0 Z2
+N20 TRANS X10 Y5
+N30 AROT RPL=30
+N40 G1 Z-1 F200
+N50 G1 X10 Y0
+N60 G3 X10 Y10 I0 J5
+N70 G91 G1 X-5 Y=AC(10)
+N80 ASCALE X2 Y2
+N90 G90 G2 X0 Y5 CR=3
+N100 AMIRROR X0
+N110 G1 X5 Y0
+N120 G2 X0 Y5 I=AC(0) J=AC(0)
+N130 ATRANS X1
+N140 ROT Z-15
+N150 MCALL CYCLE81(5, 0, 1, -3)
+N160 X1 Y1
+N170 MCALL
+N180 MIRROR
+N190 G0 Z10
+N200 M30
+""",
+    """N10 G90 G17 G710 T3 D1 M6
+N20 S800 M3
+N30 G0 X0 Y0 Z10
+N40 F150
+N50 CYCLE84(10, 0, 2, -12, , , 3, , 1.25, , 400)
+N60 G1 X5
+N70 MCALL CYCLE85(10, 0, 2, -8, , 0.5, 120, 120)
+N80 HOLES1(10, 20, 30, 5, 10, 3)
+N90 MCALL CYCLE86(10, 0, 2, -5, , 1, 3, 0, 0, 0, 90)
+N100 HOLES2(0, 0, 15, 0, 0, 5)
+N110 X40 Y40
+N120 MCALL
+N130 CYCLE84(10, 0, 2, , 6, , , 8)
+N140 G1 X0 Y0
+N150 M30
+""",
+]
 SNIPPETS = ["CR=", "AR=", "X=AC(", "I=AC(", "=IC(", "R1=", "R[", "DEF REAL", "IF", "ENDIF", "ELSE", "GOTOF", "GOTOB",
             "WHILE", "ENDWHILE", "LOOP", "REPEAT", "UNTIL", "MCALL", "CYCLE81(", "CYCLE83(1,0,", "TRANS", "ATRANS",
             "ROT", '"', "(", ")", "=", "==", ",", ":", "MSG(\"", "T=\"", ";", "G4 S", "G4 F", "SUPA", "G700", "G70",
             "TURN=", "ADIS=", "G641", "$PI", "SIN(", "POT(", "DIV", "MOD", "NOT", "AND", "1EX308", "/0", "LBL:"]
 
 
-def mutant(seed: int) -> tuple[str, str]:
+def mutant(seed: int, programs: list[str] = PROGRAMS) -> tuple[str, str]:
     """(mutated text, what was done) for a seed."""
     rng = random.Random(seed)
-    lines = PROGRAMS[rng.randrange(len(PROGRAMS))].splitlines()
+    lines = programs[rng.randrange(len(programs))].splitlines()
     done = []
     for _ in range(rng.choice([1, 1, 2, 3])):
         i = rng.randrange(len(lines))
@@ -112,10 +153,11 @@ def mutant(seed: int) -> tuple[str, str]:
     return "\n".join(lines) + "\n", " ".join(done)
 
 
-def run(count: int) -> dict[str, int]:
+def run(count: int, programs: list[str] = PROGRAMS, accepted: int = 10) -> dict[str, int]:
+    """Mutants of `programs` read or refused with file:line, more than 1/5 refused and 1/`accepted` read."""
     failures, counts = [], {}
     for seed in range(count):
-        text, done = mutant(seed)
+        text, done = mutant(seed, programs)
         status, detail = gcode_mutants.check_with(text, "fuzz.mpf", ReaderOptions(dialect="sinumerik"), seconds=10.0)
         counts[status] = counts.get(status, 0) + 1
         if status not in ("accepted", "refused"):
@@ -123,17 +165,21 @@ def run(count: int) -> dict[str, int]:
         elif status == "refused" and not detail.startswith("fuzz.mpf:"):
             failures.append(f"seed {seed} ({done}): refusal without file:line: {detail}")
     assert not failures, "\n".join(failures[:20])
-    assert counts.get("refused", 0) > count // 5 and counts.get("accepted", 0) > count // 10, counts
+    assert counts.get("refused", 0) > count // 5 and counts.get("accepted", 0) > count // accepted, counts
     return counts
 
 
 def test_the_programs_mutated_are_read():
-    for text in PROGRAMS:
+    for text in PROGRAMS + FRAME_PROGRAMS:
         assert len(read_text(text, "fuzz.mpf", ReaderOptions(dialect="sinumerik")).toolpath) > 3
 
 
 def test_mutants_are_read_or_refused_never_crash():
     run(3000)
+
+
+def test_mutants_of_frames_are_read_or_refused_never_crash():
+    run(600, FRAME_PROGRAMS, accepted=30)
 
 
 def test_refusals_name_file_line_and_column():

@@ -16,6 +16,10 @@ Section references are to the SINUMERIK 840D sl / 828D "Fundamentals" programmin
   tangential transition", modal): in a program with CT every path move in the plane sets its end
   direction in #<_sin_tx>/#<_sin_ty>/#<_sin_tz>, from which the CT line computes its centre
   (`geometry.tangent_arc`); in G17, G18 and G19.
+- Frames (FB "Programmable zero offset", "Programmable rotation", "Programmable scale factor",
+  "Programmable mirroring"): TRANS/ATRANS offsets, ROT/AROT about Z in G17, SCALE/ASCALE and
+  MIRROR/AMIRROR in X/Y (`geometry`): in a program with these, X/Y, I/J and CR go through
+  `Translator.transform`.
 - Work offsets (FB "Settable zero offset"): G54-G57 → G54-G57, G505-G508 → G58, G59, G59.1, G59.2,
   G500 (settable offsets off) → G59.3; G53 / SUPA → G53 (that block in machine coordinates).
 - Tools (FB "Tool change"): ``T1`` / ``T=1`` / ``T="name"`` (names numbered by first appearance unless
@@ -34,6 +38,8 @@ The translation keeps what it needs of the modal state (G90/G91 for AC/IC, the p
 the last S) in the order of the text: a loop or backward jump whose body changes one of them before
 a line that depends on it reads that line with the state the text shows there.
 
+- Drilling cycles CYCLE81-86 (`cycles`), immediate or modal with MCALL at each position that follows,
+  or at each hole of a HOLES1/HOLES2 pattern (`patterns`, an appended O-sub).
 - Subprogram calls (FB "Subprogram technique"): ``NAME [P n]``, ``L<n> [P n]``, ``CALL "NAME"`` in a
   block of their own run NAME.SPF beside the program, appended as an O-sub (`subprograms`).
 
@@ -49,9 +55,11 @@ from pathlib import Path
 
 from ..lexer import source_lines
 from ..tool_names import tool_number
-from .cycles import CYCLES, cycle_words
-from .geometry import FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, tangent_arc
+from .cycles import CYCLES, FEED_PARAMETER, cycle_words
+from .geometry import (DET, FRAME_BASE, FRAMES, PLANES, arc_by_angle, end_tangent, frame_words, framed_centre,
+                       framed_point, matrix_words, rotation, tangent_arc)
 from .jumps import Jumps, plan
+from .patterns import HOLE, PATTERNS, pattern_arguments, pattern_sub
 from .subprograms import END, MAX_DEPTH, Registry, Translation, call_of, find, label, proc_header, quoted_call
 from .syntax import R_BASE, R_COUNT, Expr, Line, Token, skip, tokens
 
@@ -127,7 +135,12 @@ class Translator:
         self.flow: list[tuple[str, int, Line, int]] = []  # open IF/WHILE/LOOP/REPEAT: (keyword, label, line, col)
         self.labels = 0
         self.jumps = Jumps()
+        self.keeps_feed = False  # the program has CYCLE84/85 (their own feed): F values kept in FEED_PARAMETER
+        self.feed_restore = False  # a cycle's own feed is in force: the next block restores the programmed F
         self.framed = False  # the program sets a programmable offset: absolute values get #2000.. added
+        self.linear = False  # the program rotates, scales or mirrors: X/Y/I/J/CR through the matrix #2003..
+        self.mirrored = False  # the program mirrors: G2/G3 and G41/G42 written as swapped when DET < 0
+        self.arcs = False  # the program has arcs: a scale must be uniform in X/Y
 
     def text(self, text: str) -> str:
         """The program's NGC, line for line, and after it the subprograms it calls (`subprograms`)."""
@@ -142,7 +155,11 @@ class Translator:
         """The NGC of each line of a program or subprogram."""
         lines = source_lines(text)
         self.jumps = plan(lines, self.file, label(self.sub_name)[1:-1] + "_jump" if self.sub_name else "jump")
-        self.framed = self.framed or re.search(r"^[^;\n]*\bA?TRANS\b", text, re.I | re.M) is not None
+        self.linear = self.linear or _has(r"\bA?(?:ROT|SCALE|MIRROR)\b[ \t]*[^\s;]", text)
+        self.mirrored = self.mirrored or _has(r"\bAMIRROR\b|\bMIRROR\b[ \t]*[^\s;]", text)
+        self.arcs = self.arcs or _has(r"(?<![A-Z0-9_$])(?:G0*[23](?![\d.])|CIP\b|CT\b)", text)
+        self.keeps_feed = self.keeps_feed or _has(r"\bCYCLE8[45]\b", text)
+        self.framed = self.framed or self.linear or _has(r"\bA?TRANS\b", text)
         self.tracks_tangent = self.tracks_tangent or re.search(r"^[^;\n]*\bCT\b", text, re.I | re.M) is not None
         out = [self.line(Line(raw, n, self.file)) for n, raw in enumerate(lines, 1)]
         if self.flow:
@@ -199,8 +216,12 @@ class Translator:
                 b.g[code] = t
         if b.toks[0].kind == "keyword" and b.toks[0].name in FRAMES:
             return self.frame(b)
+        if b.toks[0].kind == "call" and b.toks[0].name in PATTERNS:
+            return self.pattern(b, b.toks[0])
         self.modes(b)
         taken = self.special_arc(b)
+        if self.linear and not self.machine_block(b):
+            taken |= self.transform(b)
         for t in b.toks:
             if t.name in taken:
                 continue
@@ -215,6 +236,7 @@ class Translator:
             self.at_hole(b)
         elif self.restore_motion and moves and not {0, 1, 2, 3, 74, 75} & set(b.g):
             b.words.insert(0, f"G{self.motion}")
+        self.restore_feed(b)
         self.track_tangent(b)
         self.own_feed(b)
         if moves or {74, 75} & set(b.g):
@@ -358,6 +380,8 @@ class Translator:
             b.words.append(f"P{self.value(b, t)}")
         else:
             b.words.append(f"F{self.value(b, t)}")
+            if self.keeps_feed:
+                b.words.append(f"{FEED_PARAMETER}={self.value(b, t)}")
 
     def speed(self, b: _Block, t: Token) -> None:
         if 25 in b.g or 26 in b.g:
@@ -420,21 +444,96 @@ class Translator:
         b.assigned[key] = value
 
     def frame(self, b: _Block) -> str:
-        """TRANS/ATRANS X Y Z (alone in their block), or a frame cleared (`geometry.frame_words`)."""
+        """TRANS/ATRANS X Y Z (alone in their block), ROT/AROT (`rotation`), SCALE/ASCALE/MIRROR/AMIRROR
+        (`scaling`), or a frame cleared (`geometry.frame_words`)."""
         kind, rest = b.toks[0], b.toks[1:]
+        if kind.name in ("ROT", "AROT") and rest:
+            return self.rotation(b, kind, rest)
+        if kind.name not in ("TRANS", "ATRANS", "ROT", "AROT") and rest:
+            return self.scaling(b, kind, rest)
         if kind.name not in ("TRANS", "ATRANS") and rest:
             raise b.src.error(f"{kind.name} with values: rotation, scaling and mirroring frames are not modelled",
                               kind.start, b.src.text[kind.start:rest[-1].end],
-                              "TRANS/ATRANS offsets, or ROT/SCALE/MIRROR alone (frame cleared)")
+                              "TRANS/ATRANS offsets, ROT/AROT RPL=.., or ROT/SCALE/MIRROR alone (frame cleared)")
         for t in rest:
             if not (t.kind == "word" and t.name in "XYZ"):
                 raise b.src.error(f"{kind.name} takes axis offsets only, in a block of its own", t.start,
                                   b.src.text[t.start:t.end], f"{kind.name} X.. Y.. Z..")
-        words = frame_words(kind.name, {t.name: self.value(b, t) for t in rest})
+        words = frame_words(kind.name, {t.name: self.value(b, t) for t in rest}, self.linear)
         if words is None:
             raise b.src.error(f"{kind.name} alone does not say which frame", kind.start, kind.name,
                               "TRANS/ATRANS X.. Y.. Z.., or TRANS/ROT/SCALE/MIRROR alone (frame cleared)")
         return " ".join(words)
+
+    def rotation(self, b: _Block, kind: Token, rest: list[Token]) -> str:
+        """ROT/AROT RPL=a in G17, or ROT/AROT Z a (FB "Programmable rotation (ROT, AROT)"): a rotation about
+        Z by a degrees (counter-clockwise seen from +Z). ROT replaces the programmable frame (its offsets
+        cleared), AROT is composed after it (about its origin). Other axes, and other planes, are refused."""
+        t = rest[0]
+        if len(rest) > 1 or t.kind != "word" or t.name not in ("RPL", "Z") or self.plane != 17:
+            t = rest[1] if len(rest) > 1 and t.kind == "word" and t.name in ("RPL", "Z") else t
+            raise b.src.error(f"{kind.name}: only a rotation about Z in G17 is modelled", t.start,
+                              b.src.text[t.start:t.end], f"G17 and {kind.name} RPL=<degrees> or {kind.name} Z<degrees>"
+                              " alone in the block")
+        return " ".join(matrix_words(kind.name, rotation(self.value(b, t))))
+
+    def scaling(self, b: _Block, kind: Token, rest: list[Token]) -> str:
+        """SCALE/ASCALE X.. Y.. (FB "Programmable scale factor (SCALE, ASCALE)": factors along the frame's
+        X/Y, 1 where not given; uniform when the program has arcs) and MIRROR/AMIRROR X0 Y0 (FB
+        "Programmable mirroring (MIRROR, AMIRROR)": the named axes flipped, their values ignored) as a
+        matrix (`geometry.matrix_words`). Z factors and Z mirroring are refused."""
+        factors = {}
+        for t in rest:
+            if t.kind != "word" or t.name not in "XY":
+                raise b.src.error(f"{kind.name} {t.name}: only X and Y are modelled", t.start,
+                                  b.src.text[t.start:t.end], f"{kind.name} X.. Y.. alone in the block")
+            factors[t.name] = "-1" if kind.name.endswith("MIRROR") else self.value(b, t)
+        if kind.name.endswith("SCALE") and self.arcs and factors.get("X") != factors.get("Y"):
+            raise b.src.error(f"{kind.name} with different X and Y factors in a program with arcs: not modelled",
+                              kind.start, b.src.text[kind.start:rest[-1].end], f"{kind.name} X<f> Y<f> (equal)")
+        if any(f in ("0", "0.", "0.0") for f in factors.values()):
+            raise b.src.error(f"{kind.name} with a factor 0", kind.start, kind.name, "factors other than 0")
+        return " ".join(matrix_words(kind.name, (factors.get("X", "1"), "0", "0", factors.get("Y", "1"))))
+
+    def programmed(self, b: _Block, t: Token, absolute: bool) -> tuple[str, bool]:
+        """A word's value as written (AC(..)/IC(..) unwrapped) and whether it is absolute (`absolute`:
+        the mode without AC/IC)."""
+        mode = re.match(r"(AC|IC)[ \t]*\(", t.value, re.IGNORECASE) if t.eq else None
+        if mode:
+            return self.inner(b, t, mode), mode.group(1).upper() == "AC"
+        return self.value(b, t), absolute
+
+    def transform(self, b: _Block) -> set[str]:
+        """In a program with rotation, scaling or mirroring: the block's X/Y end point, I/J centre and CR
+        from the frame into the workpiece frame (`geometry.framed_point`, `framed_centre`; CR times the
+        scale); G2/G3 and G41/G42 swapped while the frame mirrors (`swap`); the tokens taken."""
+        xy = {t.name: self.programmed(b, t, self.absolute) for t in b.toks if t.kind == "word" and t.name in "XY"}
+        ij = {t.name: self.programmed(b, t, False) for t in b.toks if t.kind == "word" and t.name in "IJ"}
+        arc = self.motion in (2, 3) and not self.mcall and not any(t.kind == "call" for t in b.toks)
+        if arc and self.plane != 17 and (xy or ij or b.word("Z") or b.word("K")):
+            t = next(t for t in b.toks if t.kind == "word" and t.name in "XYZIJK")
+            raise b.src.error(f"an arc in G{self.plane} in a program with ROT/SCALE/MIRROR: not modelled", t.start,
+                              b.src.text[t.start:t.end], "arcs in G17")
+        cr = b.word("CR")
+        self.swap(b, arc and bool(xy or ij or cr))
+        if xy:
+            b.words.extend(framed_point(xy, self.absolute))
+        if ij:
+            b.words.extend(framed_centre(ij))
+        if cr is not None:
+            b.words.append(f"R[{self.value(b, cr)}*SQRT[ABS[{DET}]]]")
+        return set(xy) | set(ij) | ({"CR"} if cr is not None else set())
+
+    def swap(self, b: _Block, arc: bool) -> None:
+        """In a program with mirroring: G2/G3 (written in every arc block, the frame may change between
+        them) and G41/G42 as computed G words that swap while the frame's determinant is negative."""
+        if not self.mirrored:
+            return
+        b.words = [w for w in b.words if w not in ("G2", "G3")]
+        if arc:
+            b.words.insert(0, f"G[{self.motion}{'+' if self.motion == 2 else '-'}[{DET} LT 0]]")
+        b.words = [f"G[{w[1:]}{'+' if w == 'G41' else '-'}[{DET} LT 0]]" if w in ("G41", "G42") else w
+                   for w in b.words]
 
     def special_arc(self, b: _Block) -> set[str]:
         """An arc by opening angle (AR=) or through an intermediate point (CIP, modal until G0-G3): its
@@ -445,18 +544,28 @@ class Translator:
         ct = next((t for t in b.toks if t.kind == "keyword" and t.name == "CT"), None)
         if ct is not None or self.ct and not any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) and any(
                 t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.not_linear(b, "CT")
             self.tangential(b, ct)
             self.ct, self.cip = True, False
             return {p1, p2, "CT"}
         if b.word("AR") is not None:
+            self.not_linear(b, "AR")
             self.opening_angle(b)
             return {p1, p2, c1, c2, "AR"}
         if any(t.kind == "keyword" and t.name == "CIP" for t in b.toks) or self.cip and any(
                 t.kind == "word" and t.name in "XYZ" for t in b.toks):
+            self.not_linear(b, "CIP")
             self.circle_through(b)
             self.cip, self.ct = True, False
             return {p1, p2, f"{c1}1", f"{c2}1", "CIP"}
         return set()
+
+    def not_linear(self, b: _Block, what: str) -> None:
+        """CT, AR= and CIP are refused in a program with rotation, scaling or mirroring (not modelled)."""
+        if self.linear:
+            t = next((t for t in b.toks if t.name == what), b.toks[0])
+            raise b.src.error(f"{what} in a program with ROT/SCALE/MIRROR: not modelled", t.start, b.src.text[t.start:t.end],
+                              "G2/G3 with I/J or CR= under a rotation, scale or mirror")
 
     def circle_through(self, b: _Block) -> None:
         """CIP (FB "Circular interpolation with intermediate and end points (CIP)"): the circle through the
@@ -533,6 +642,19 @@ class Translator:
                               f"{c1}.. {c2}.. AR=..")
         b.words.extend(arc_by_angle(self.plane, self.value(b, ar), self.motion == 3, self.absolute, ends, centre))
 
+    def restore_feed(self, b: _Block) -> None:
+        """A block that runs CYCLE84/85 (their own feed, immediate or at a MCALL position) leaves that
+        feed in force: the next block without an F of its own sets the programmed F again
+        (FEED_PARAMETER); in the order of the text."""
+        programmed = b.word("F") is not None and 4 not in b.g
+        if any(w.startswith("F") for w in b.words) and not programmed:
+            self.feed_restore = True
+        elif programmed:
+            self.feed_restore = False
+        elif self.feed_restore:
+            b.words.append(f"F[{FEED_PARAMETER}]")
+            self.feed_restore = False
+
     def at_hole(self, b: _Block) -> None:
         """A position block under MCALL: the move to the hole and the modal cycle (the hole's Z is the
         cycle's, so a Z word is refused; the positioning is at rapid, as the canned cycle's)."""
@@ -543,11 +665,32 @@ class Translator:
         b.words = [w for w in b.words if w not in ("G0", "G1")] + self.mcall
         self.restore_motion = True
 
+    def pattern(self, b: _Block, t: Token) -> str:
+        """HOLES1/HOLES2 (`patterns`), alone in their block under MCALL in G90: the modal cycle at each
+        hole, the holes through the frame (TRANS, ROT, ...) as any position; an O-sub appended and called."""
+        if len(b.toks) > 1 or self.mcall is None or not self.absolute:
+            raise b.src.error(f"{t.name} outside a modal drilling cycle, in G91 or with other words", t.start,
+                              t.name, f"MCALL CYCLE8x(..), then {t.name}(..) alone in its block in G90")
+        values = pattern_arguments(b.src, t, lambda at: self.expr(b, at))
+        x, y = HOLE
+        if self.linear:
+            hole = framed_point({"X": (x, True), "Y": (y, True)}, True)
+        else:
+            hole = [f"X[{x}+#{FRAME_BASE}]", f"Y[{y}+#{FRAME_BASE + 1}]"] if self.framed else [f"X{x}", f"Y{y}"]
+        self.labels += 1
+        name = f"<sin_pattern_{self.labels}>"
+        self.subs.lines += pattern_sub(name, hole + self.mcall)
+        self.subs.origins.update({len(self.subs.lines) - k: (self.file, b.src.line) for k in range(7)})
+        self.restore_motion = True
+        self.feed_restore = self.feed_restore or any(w.startswith("F") for w in self.mcall)
+        return f"o{name} call " + " ".join(f"[{v}]" if not v.startswith("[") else v for v in values)
+
     def drill(self, b: _Block, t: Token) -> None:
-        """CYCLE81-83: modal after MCALL (run at each following position), else at the current point."""
+        """CYCLE81-86: modal after MCALL (run at each following position), else at the current point."""
         if self.plane != 17:
             raise b.src.error(f"{t.name} outside G17", t.start, t.name, "drilling along Z (G17)")
-        words = cycle_words(b.src, t, lambda at: self.expr(b, at), f"#{FRAME_BASE + 2}" if self.framed else None)
+        words = cycle_words(b.src, t, lambda at: self.expr(b, at), f"#{FRAME_BASE + 2}" if self.framed else None,
+                            self.spindle)
         modal = any(x.kind == "keyword" and x.name == "MCALL" for x in b.toks)
         if modal:
             self.mcall = words
@@ -617,6 +760,13 @@ class Translator:
                                 f"(in {path_folder(self.file)})", at, name, f"the file {name}.SPF beside the program")
             self.subs.state[name] = (state, self.run_subprogram(name, path))
         first, end = self.subs.state[name]
+        if end[7][2] and not self.keeps_feed:
+            raise src.error(f"subprogram {name} has CYCLE84/85 (their own feed) and this program has none: the "
+                            "programmed F to restore after them is not known", at, name,
+                            "CYCLE84/85 in the main program too, or none")
+        if end[7][0] and not self.linear or end[7][1] and not self.mirrored:
+            raise src.error(f"subprogram {name} rotates, scales or mirrors and this program does not: not modelled",
+                            at, name, "ROT/SCALE/MIRROR in the main program too, or none")
         if end[6] and not self.framed:
             raise src.error(f"subprogram {name} sets a frame (TRANS/ATRANS) and this program has none: not modelled",
                             at, name, "TRANS/ATRANS in the main program too, or none")
@@ -625,6 +775,7 @@ class Translator:
                             f"first {_mode(first)}): its translation is the first call's", at, name, _mode(first))
         self.absolute, self.plane, self.motion, self.cip, self.ct = end[:5]
         self.tangent |= end[5]
+        self.feed_restore = end[7][3]  # the subprogram ends with a cycle's own feed in force
         n = int(runs.value) if runs is not None else 1
         return f"o{label(name) if n == 1 else self.subs.repeated(name, n)} call"
 
@@ -639,6 +790,8 @@ class Translator:
         child.absolute, child.plane, child.motion, child.cip, child.ct = (self.absolute, self.plane, self.motion,
                                                                          self.cip, self.ct)
         child.tangent, child.framed, child.tracks_tangent = set(self.tangent), self.framed, self.tracks_tangent
+        child.linear, child.mirrored, child.arcs = self.linear, self.mirrored, self.arcs
+        child.keeps_feed, child.feed_restore = self.keeps_feed, self.feed_restore
         child.spindle, child.tools, child.names, child.labels, child.mcall = (self.spindle, self.tools, self.names,
                                                                               self.labels, self.mcall)
         self.subs.stack.append(name)
@@ -646,7 +799,8 @@ class Translator:
         self.subs.stack.pop()
         self.subs.add(name, str(path), body)
         self.labels, self.mcall = child.labels, child.mcall
-        return child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed
+        return (child.absolute, child.plane, child.motion, child.cip, child.ct, child.tangent, child.framed,
+                (child.linear, child.mirrored, child.keeps_feed, child.feed_restore))
 
     def own_feed(self, b: _Block) -> None:
         """In a subprogram, a feed move before any F word of it is refused (`subprograms`: its moves keep
@@ -759,6 +913,11 @@ def path_folder(file: str) -> str:
 
 def _mode(state: tuple) -> str:
     return f"G{90 if state[0] else 91} G{state[1]}"
+
+
+def _has(pattern: str, text: str) -> bool:
+    """Whether the program's code (outside ';' comments) matches `pattern` on some line."""
+    return re.search(r"^[^;\n]*" + pattern, text, re.I | re.M) is not None
 
 
 def _g_number(src: Line, t: Token) -> int:
