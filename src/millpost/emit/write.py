@@ -653,15 +653,16 @@ def whole_moves(program: Program, fragments: list) -> list:
     computed_lines = {n for n in suspect if 0 < n <= len(lines) and (
         program.source is not None  # a translated program's moves: only F words may change
         or ("#" in lines[n - 1] or "[" in lines[n - 1]) and _computed_line(lines[n - 1], n, program.path))}
-    fixed_feed = dialects.get(program.dialect).fixed_feed if program.source is not None else None
-    if fixed_feed is not None:
-        source = source_lines(program.source)
-        fixed = {n for n in suspect if n > len(source) or 0 < n and fixed_feed(source[n - 1])}
-        programmed = program.toolpath.feed_mm_s
+    fixed: set[int] = set()  # lines whose moves keep their programmed feed
+    if program.source is not None:
+        source, fixed_feed = source_lines(program.source), dialects.get(program.dialect).fixed_feed
+        fixed = {n for n in suspect if n > len(source) or fixed_feed is not None and 0 < n and fixed_feed(source[n - 1])}
+    programmed = program.toolpath.feed_mm_s
     for f in fragments:
-        if not (program.compensated[f.move] or program.cycle[f.move] or int(move_line[f.move]) in computed_lines):
+        line = int(move_line[f.move])
+        if not (program.compensated[f.move] or program.cycle[f.move] or line in computed_lines):
             out.append(f)
-        elif fixed_feed is not None and int(move_line[f.move]) in fixed:
+        elif line in fixed:
             whole[f.move] = replace(f, u_start=0.0, u_end=1.0, feed_mm_s=float(programmed[f.move]))
         elif f.move not in whole or f.feed_mm_s < whole[f.move].feed_mm_s:
             whole[f.move] = replace(f, u_start=0.0, u_end=1.0)
