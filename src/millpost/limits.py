@@ -477,9 +477,11 @@ class _Policy:
     forced: dict[str, np.ndarray] = field(default_factory=dict)
 
     def load_limit(self, name: str, kind: Kind, load: Load, effect: str, a, b, bound, signal,
-                   default: str = "") -> None:
+                   default: str = "") -> np.ndarray:
         """The load a·v + b ≤ bound (v mm/s) as a limit of this kind on this load, its bound after the policy;
-        `signal` is the same load in the forward model's signals of the samples `at`."""
+        `signal` is the same load in the forward model's signals of the samples `at`. Returns where the
+        policy holds the limit's bound so far (over all its rows: a limit of several rows calls this once
+        per row)."""
         held, forced, n = self.held, self.forced, len(self.cutting)
         bound = np.broadcast_to(bound, a.shape)
         bound_eff, h = _policed(a, b, bound, self.keep_hard if kind == HARD else self.keep_quality)
@@ -488,6 +490,7 @@ class _Policy:
             forced[name] = held[name]
         self.limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
                                  bound=bound, load=load))
+        return held[name]
 
 
 def _cut_limits(policy: _Policy, job: Job, cut: _CutLoads) -> None:
@@ -554,10 +557,9 @@ def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: dict, enga
     static = np.abs(loads["force_b"]) + friction
     slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
     for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
-        policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope[:, k], static[:, k],
+        stalled = policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope[:, k], static[:, k],
                           np.where(engaged, capacity[k], np.inf),
                           lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
-    stalled = policy.held["cutting_current"]
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
     v_cap = static_caps(samples, limits)
