@@ -300,192 +300,231 @@ def write_feeds(program: Program, plan: FeedPlan, *, trailing_point: bool | None
     tp = program.toolpath
     if len(plan.feed_mm_min) != len(tp):
         raise MillpostError(f"feed plan has {len(plan.feed_mm_min)} moves, program has {len(tp)}")
-    default_trailing = _program_trailing_point(program) if trailing_point is None else trailing_point
-    f_decimals = _f_decimals(program)
-    lines = source_lines(program.text, keepends=True)
-    lengths = tp.lengths()
-    cutting = tp.kind != RAPID
-    by_line: dict[int, list[int]] = {}
-    for i in np.flatnonzero(cutting):
-        by_line.setdefault(int(tp.line[i]), []).append(int(i))
-    out: list[str] = []
-    # the style of a line too short to show its own: the program's (comments aside)
-    code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
-    spaced = len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))  # the program's usual way
-    modal_f: float | None = None  # F in force in the output (in F units of `f_units` mm each)
-    in_f: float | None = None  # F in force in the program (the same units)
-    units, f_units = 1.0, 1.0  # mm per program unit in force (G20/G21 as the lines go); of modal_f and in_f
-    before_units = dialects.get(program.dialect).feed_before_units  # F on a G20/G21 line: the units before
-    # With O-word control flow a line may run several times, with other parameters and after other
-    # lines than the text shows: every line that feeds gets its own F (the lowest any run of it
-    # wants), no F is kept for its value, and parameters only locate the words.
-    flow = program.control_flow
-    if flow and not plan.fragments and np.array_equal(plan.feed_mm_min, tp.feed_mm_min, equal_nan=True):
+    if program.control_flow and not plan.fragments and np.array_equal(plan.feed_mm_min, tp.feed_mm_min,
+                                                                      equal_nan=True):
         return in_source(program, program.text)
-    params: dict = _Unknown() if flow else {}
-    # a line holding only an F word (`F369.75` before `G1 X4`), followed by nothing but comments and
-    # blank lines up to the next cutting line: (its index in out, its text, block, ending). Where that
-    # line needs a new F, the F line's value is rewritten instead of a second F being added.
-    f_line: tuple[int, str, Block, str] | None = None
-    for n, raw in enumerate(lines, start=1):
-        body = raw.rstrip("\r\n")
-        ending = raw[len(body):]
-        moves = by_line.get(n)
-        if flow and control_of(body) is not None:
-            out.append(raw)
-            continue
-        if moves is None:
-            if re.sub(r"\([^)]*\)|;.*", "", body).strip():
-                f_line = None
-            # parameters to carry, an F that sets the modal feed, or a change of length units
-            if "#" in body or "f" in body.lower() or _UNITS.search(body):
-                try:
-                    block = lex_line(body, n, program.path, params)
-                except MillpostError:  # a line the interpreter never ran (after M2, block delete, ...)
-                    out.append(raw)
-                    continue
-                params.update(block.assigns)
-                f = next((w for w in block.words if w.letter == "F"), None)
-                now = _units_of(block, units)
-                if f is not None:
-                    modal_f = in_f = f.value
-                    f_units = units if before_units else now
-                    if not flow and len(block.words) == 1 and not block.assigns:
-                        f_line = (len(out), body, block, ending)
-                units = now
-            out.append(raw)
-            continue
-        standalone_f, f_line = f_line, None
-        block = lex_line(body, n, program.path, params)
-        params.update(block.assigns)
-        line_units = INCH if program.move_inch[moves[0]] else 1.0
-        scale = units if before_units and _units_of(block, None) is not None else line_units  # of its F word
-        inch = scale == INCH
-        if modal_f is not None and f_units != scale:  # the F in force, in this line's F units
-            modal_f, in_f = modal_f * f_units / scale, (None if in_f is None else in_f * f_units / scale)
-        f_units, units = scale, line_units
-        trailing_point = _trailing_point(block, default_trailing)
-        writer = _LineWriter(body, block, spaced)
-        f_word = next((w for w in block.words if w.letter == "F"), None)
+    return in_source(program, _FeedWriter(program, plan, trailing_point).write())
 
-        def f_value(i: int, feed_mm_min: float, length_mm: float) -> float:
-            mode = int(program.feed_mode[i])  # an int: a numpy integer compares slowly with an enum
-            if mode == FeedMode.INVERSE_TIME and program.compensated[i]:  # timed by the programmed length
-                value = f_word.value * feed_mm_min / tp.feed_mm_min[i]
-            elif mode == FeedMode.INVERSE_TIME:
-                value = feed_mm_min / max(length_mm, 1e-12)  # inverse time: 1/min
-            elif mode == FeedMode.PER_REV:
-                value = feed_mm_min / scale / max(tp.rpm[i], 1e-12)  # per revolution
+
+class _FeedWriter:
+    """Goes through a program's source lines once, writing each line that cuts with the F its moves
+    want, and keeping what is modal as the lines run: the F in force in the output (`modal_f`) and in the
+    program (`in_f`), both in F units of `f_units` mm; the length units (`units`, mm per program unit);
+    parameters set so far; and a line holding only an F word just before (`f_line`).
+
+    With O-word control flow (`flow`) a line may run several times, with other parameters and after other
+    lines than the text shows: every line that feeds gets its own F (the lowest any run of it wants), no
+    F is kept for its value, and parameters only locate the words."""
+
+    def __init__(self, program: Program, plan: FeedPlan, trailing_point: bool | None) -> None:
+        tp = program.toolpath
+        self.program, self.plan = program, plan
+        self.default_trailing = _program_trailing_point(program) if trailing_point is None else trailing_point
+        self.f_decimals = _f_decimals(program)
+        self.lengths = tp.lengths()
+        self.by_line: dict[int, list[int]] = {}
+        for i in np.flatnonzero(tp.kind != RAPID):
+            self.by_line.setdefault(int(tp.line[i]), []).append(int(i))
+        # the style of a line too short to show its own: the program's (comments aside)
+        code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
+        self.spaced = len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))  # the program's usual way
+        self.modal_f: float | None = None
+        self.in_f: float | None = None
+        self.units, self.f_units = 1.0, 1.0
+        self.before_units = dialects.get(program.dialect).feed_before_units  # F on a G20/G21 line: units before
+        self.flow = program.control_flow
+        self.params: dict = _Unknown() if self.flow else {}
+        # a line holding only an F word (`F369.75` before `G1 X4`), followed by nothing but comments and
+        # blank lines up to the next cutting line: (its index in out, its text, block, ending). Where that
+        # line needs a new F, the F line's value is rewritten instead of a second F being added.
+        self.f_line: tuple[int, str, Block, str] | None = None
+        self.out: list[str] = []
+
+    def write(self) -> str:
+        for n, raw in enumerate(source_lines(self.program.text, keepends=True), start=1):
+            body = raw.rstrip("\r\n")
+            moves = self.by_line.get(n)
+            if self.flow and control_of(body) is not None:
+                self.out.append(raw)
+            elif moves is None:
+                self._other_line(n, raw, body)
             else:
-                value = feed_mm_min / scale
-            return value
+                self._cutting_line(n, raw, body, raw[len(body):], moves)
+        return "".join(self.out)
 
-        def f_text(value: float) -> str:
-            """F in the program's units, rounded down (never faster) to 0.1 mm/min or 0.01 in/min; a value
-            within FEED_ROUNDOFF under a grid value is that value (a cap the solver held, not an excess).
-            Padded with zeros to the program's own fixed decimals where it pads its F words (`_f_decimals`)."""
-            d = max((2 if inch else 1) + (2 if value < 10 else 0), f_decimals or 0)
-            text = _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, trailing_point)
-            if f_decimals:
-                whole, _, frac = text.partition(".")
-                text = f"{whole}.{frac:0<{f_decimals}}"
-            return text
+    def _other_line(self, n: int, raw: str, body: str) -> None:
+        """A line without cutting moves, kept; read for parameters to carry, an F that sets the modal feed,
+        or a change of length units."""
+        if re.sub(r"\([^)]*\)|;.*", "", body).strip():
+            self.f_line = None
+        if "#" in body or "f" in body.lower() or _UNITS.search(body):
+            try:
+                block = lex_line(body, n, self.program.path, self.params)
+            except MillpostError:  # a line the interpreter never ran (after M2, block delete, ...)
+                self.out.append(raw)
+                return
+            self.params.update(block.assigns)
+            f = next((w for w in block.words if w.letter == "F"), None)
+            now = _units_of(block, self.units)
+            if f is not None:
+                self.modal_f = self.in_f = f.value
+                self.f_units = self.units if self.before_units else now
+                if not self.flow and len(block.words) == 1 and not block.assigns:
+                    self.f_line = (len(self.out), body, block, raw[len(body):])
+            self.units = now
+        self.out.append(raw)
 
-        written = {"f": math.nan, "held": False}  # the last F feed_text wrote; under its move's programmed F?
-
-        def feed_text(i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
-            """F text for move i at the feed after the F in force `modal` (program units), changes
-            smaller than the plan's step made none or a full step, under the move's programmed F only
-            where a limit asks for it (`_stepped`; not in inverse time)."""
-            text = f_text(f_value(i, feed_mm_min, length_mm))
-            if flow or modal is None or int(program.feed_mode[i]) == FeedMode.INVERSE_TIME:
-                return text
-            keep = float(f_text(f_value(i, tp.feed_mm_min[i], length_mm))) if np.isfinite(tp.feed_mm_min[i]) else 0.0
-            # the F in force is one a limit held under the programmed F of the move it was written for
-            held = _same(modal, written["f"]) and written["held"]
-            out = f_text(_stepped(float(text), modal, plan.step, keep, held))
-            written.update(f=float(out), held=float(out) < keep)
-            return out
-
-        def distinct(i: int, fragments: list[tuple[float, float]]) -> list[tuple[float, float]]:
-            """Move i's fragments with each one whose F as written would be the F before it merged into
-            that one: no split point where the feed does not change."""
-            saved, pieces, u_prev, modal = dict(written), [], 0.0, modal_f
-            for u_end, feed in fragments:
-                text = feed_text(i, feed, lengths[i] * (u_end - u_prev), modal)
-                if pieces and text == pieces[-1][2] and int(program.feed_mode[i]) != FeedMode.INVERSE_TIME:
-                    pieces[-1] = (u_end, pieces[-1][1], text)
-                else:
-                    pieces.append((u_end, feed, text))
-                u_prev, modal = u_end, float(text)
-            written.update(saved)
-            return [(u, f) for u, f, _ in pieces]
-
-        in_before = in_f  # the program's F in force before this line
-        if f_word is not None:
-            in_f = f_word.value
-        repeats = f_word is not None and in_before is not None and _same(f_word.value, in_before)
+    def _cutting_line(self, n: int, raw: str, body: str, ending: str, moves: list[int]) -> None:
+        """A line with cutting moves: its F (or, where the plan splits its one move, its pieces)."""
+        program, plan, lengths = self.program, self.plan, self.lengths
+        standalone_f, self.f_line = self.f_line, None
+        block = lex_line(body, n, program.path, self.params)
+        self.params.update(block.assigns)
+        line_units = INCH if program.move_inch[moves[0]] else 1.0
+        scale = self.units if self.before_units and _units_of(block, None) is not None else line_units  # its F's
+        if self.modal_f is not None and self.f_units != scale:  # the F in force, in this line's F units
+            self.modal_f = self.modal_f * self.f_units / scale
+            self.in_f = None if self.in_f is None else self.in_f * self.f_units / scale
+        self.f_units, self.units = scale, line_units
+        line = _FeedLine(self, block, _LineWriter(body, block, self.spaced), scale)
+        in_before = self.in_f  # the program's F in force before this line
+        if line.f_word is not None:
+            self.in_f = line.f_word.value
+        repeats = line.f_word is not None and in_before is not None and _same(line.f_word.value, in_before)
         split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
                  and not computed(block)]
         one_feed = None  # a split move whose pieces all write one F: not split, that F
         if split and len(moves) == 1:
             i = moves[0]
-            pieces = distinct(i, plan.fragments[i])
+            pieces = line.distinct(i, plan.fragments[i], self.modal_f)
             if len(pieces) > 1:
-                new_lines, modal_f = _split_move(program, i, pieces, block, writer, ending, trailing_point,
-                                                 feed_text, lengths[i], modal_f, repeats, plan.axis_vmax_mm_min)
-                out.extend(new_lines)
-                continue
+                new_lines, self.modal_f = _split_move(program, i, pieces, block, line.writer, ending,
+                                                      line.trailing_point, line.feed_text, lengths[i], self.modal_f,
+                                                      repeats, plan.axis_vmax_mm_min)
+                self.out.extend(new_lines)
+                return
             one_feed = pieces[0][1]
-        if not flow and all(lengths[i] <= 0.0 and int(program.feed_mode[i]) != FeedMode.INVERSE_TIME for i in moves):
+        if not self.flow and all(lengths[i] <= 0.0 and int(program.feed_mode[i]) != FeedMode.INVERSE_TIME
+                                 for i in moves):
             # a move to where the tool is takes no time: no F of its own, the F in force holds (or the one it
             # has, which then holds after it as in the program)
-            modal_f = f_word.value if f_word is not None else modal_f
-            out.append(raw)
-            continue
+            self.modal_f = line.f_word.value if line.f_word is not None else self.modal_f
+            self.out.append(raw)
+            return
         timed = [i for i in moves if lengths[i] > 0.0] or moves  # a block's moves that take time set its F
-        wanted = [plan.feed_mm_min[i] for i in timed if not math.isnan(plan.feed_mm_min[i])]
-        if not wanted:
-            if f_word is not None:
-                modal_f = f_word.value
-            out.append(raw)
-            continue
+        if all(math.isnan(plan.feed_mm_min[i]) for i in timed):
+            if line.f_word is not None:
+                self.modal_f = line.f_word.value
+            self.out.append(raw)
+            return
         k = min(timed, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
-        feed_k = plan.feed_mm_min[k] if one_feed is None else one_feed
-        value = f_value(k, feed_k, lengths[k])
         if int(program.feed_mode[k]) == FeedMode.INVERSE_TIME and len(moves) > 1 and not program.compensated[moves].all():
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
-        if flow:  # its own F, evaluated as it runs, still right on every run: keep it; else write one
-            if f_word is not None and all(plan.feed_mm_min[i] == tp.feed_mm_min[i] for i in moves):
-                out.append(raw)
+        self.modal_f = self._set_f(line, raw, ending, moves, k, plan.feed_mm_min[k] if one_feed is None else one_feed,
+                                   repeats, standalone_f)
+
+    def _set_f(self, line: "_FeedLine", raw: str, ending: str, moves: list[int], k: int, feed_k: float,
+               repeats: bool, standalone_f) -> float:
+        """Write the line with the F of its move k at feed_k (mm/min): its own F kept, dropped, replaced or
+        added, or the F line before it rewritten. Returns the F in force after the line (program units)."""
+        program, tp, modal_f, f_word = self.program, self.program.toolpath, self.modal_f, line.f_word
+        value = line.f_value(k, feed_k, self.lengths[k])
+        inverse = int(program.feed_mode[k]) == FeedMode.INVERSE_TIME
+        if self.flow:  # its own F, evaluated as it runs, still right on every run: keep it; else write one
+            if f_word is not None and all(self.plan.feed_mm_min[i] == tp.feed_mm_min[i] for i in moves):
+                self.out.append(raw)
             else:
-                out.append(writer.replace({"F": f_text(value)}) + ending)
-            continue
+                self.out.append(line.writer.replace({"F": line.f_text(value)}) + ending)
+            return value
         if (f_word is not None and _same(f_word.value, value) and modal_f is not None and _same(modal_f, value)
-                and not repeats and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME):
-            out.append(writer.replace({}, drop={"F"}) + ending)  # its own F is now the F in force: no repeat
+                and not repeats and not inverse):
+            self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # its own F is now the F in force
         elif f_word is not None and _same(f_word.value, value):
-            out.append(raw)  # the program's own F still holds: keep its bytes
-        elif (f_word is None and modal_f is not None and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME
-              and (_same(modal_f, value) or _same(modal_f, float(feed_text(k, feed_k, lengths[k], modal_f))))):
-            out.append(raw)
+            self.out.append(raw)  # the program's own F still holds: keep its bytes
+        elif (f_word is None and modal_f is not None and not inverse
+              and (_same(modal_f, value) or _same(modal_f, float(line.feed_text(k, feed_k, self.lengths[k], modal_f))))):
+            self.out.append(raw)
             value = modal_f  # the F in force stays the one written
-        elif standalone_f is not None and f_word is None and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME:
+        elif standalone_f is not None and f_word is None and not inverse:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
-            text = feed_text(k, feed_k, lengths[k], modal_f)
-            out[at] = _LineWriter(f_body, f_block, spaced).replace({"F": text}) + f_ending
-            out.append(raw)
+            text = line.feed_text(k, feed_k, self.lengths[k], modal_f)
+            self.out[at] = _LineWriter(f_body, f_block, self.spaced).replace({"F": text}) + f_ending
+            self.out.append(raw)
             value = float(text)
         else:
-            text = feed_text(k, feed_k, lengths[k], modal_f)
-            if (modal_f is not None and _same(float(text), modal_f) and not repeats
-                    and int(program.feed_mode[k]) != FeedMode.INVERSE_TIME):  # the F in force holds: no F word repeating it
-                out.append(writer.replace({}, drop={"F"}) + ending)
+            text = line.feed_text(k, feed_k, self.lengths[k], modal_f)
+            if modal_f is not None and _same(float(text), modal_f) and not repeats and not inverse:
+                self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # the F in force holds: no repeat
             else:
-                out.append(writer.replace({"F": text}) + ending)
+                self.out.append(line.writer.replace({"F": text}) + ending)
             value = float(text)
-        modal_f = value
-    return in_source(program, "".join(out))
+        return value
+
+
+class _FeedLine:
+    """The F words of one cutting line: its feed values in the line's F units (`scale` mm each), their
+    text in its number style, and the last F written on it (`written`: and whether that F is under its
+    move's programmed F, which `_stepped` keeps)."""
+
+    def __init__(self, writer: _FeedWriter, block: Block, line_writer: _LineWriter, scale: float) -> None:
+        self.program, self.plan, self.flow, self.f_decimals = writer.program, writer.plan, writer.flow, writer.f_decimals
+        self.lengths = writer.lengths
+        self.block, self.writer, self.scale, self.inch = block, line_writer, scale, scale == INCH
+        self.trailing_point = _trailing_point(block, writer.default_trailing)
+        self.f_word = next((w for w in block.words if w.letter == "F"), None)
+        self.written = {"f": math.nan, "held": False}
+
+    def f_value(self, i: int, feed_mm_min: float, length_mm: float) -> float:
+        """Move i's F value at feed_mm_min in its feed mode and this line's units."""
+        tp = self.program.toolpath
+        mode = int(self.program.feed_mode[i])  # an int: a numpy integer compares slowly with an enum
+        if mode == FeedMode.INVERSE_TIME and self.program.compensated[i]:  # timed by the programmed length
+            return self.f_word.value * feed_mm_min / tp.feed_mm_min[i]
+        if mode == FeedMode.INVERSE_TIME:
+            return feed_mm_min / max(length_mm, 1e-12)  # inverse time: 1/min
+        if mode == FeedMode.PER_REV:
+            return feed_mm_min / self.scale / max(tp.rpm[i], 1e-12)  # per revolution
+        return feed_mm_min / self.scale
+
+    def f_text(self, value: float) -> str:
+        """F in the program's units, rounded down (never faster) to 0.1 mm/min or 0.01 in/min; a value
+        within FEED_ROUNDOFF under a grid value is that value (a cap the solver held, not an excess).
+        Padded with zeros to the program's own fixed decimals where it pads its F words (`_f_decimals`)."""
+        d = max((2 if self.inch else 1) + (2 if value < 10 else 0), self.f_decimals or 0)
+        text = _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, self.trailing_point)
+        if self.f_decimals:
+            whole, _, frac = text.partition(".")
+            text = f"{whole}.{frac:0<{self.f_decimals}}"
+        return text
+
+    def feed_text(self, i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
+        """F text for move i at the feed after the F in force `modal` (program units), changes
+        smaller than the plan's step made none or a full step, under the move's programmed F only
+        where a limit asks for it (`_stepped`; not in inverse time)."""
+        tp = self.program.toolpath
+        text = self.f_text(self.f_value(i, feed_mm_min, length_mm))
+        if self.flow or modal is None or int(self.program.feed_mode[i]) == FeedMode.INVERSE_TIME:
+            return text
+        keep = float(self.f_text(self.f_value(i, tp.feed_mm_min[i], length_mm))) if np.isfinite(tp.feed_mm_min[i]) else 0.0
+        # the F in force is one a limit held under the programmed F of the move it was written for
+        held = _same(modal, self.written["f"]) and self.written["held"]
+        out = self.f_text(_stepped(float(text), modal, self.plan.step, keep, held))
+        self.written.update(f=float(out), held=float(out) < keep)
+        return out
+
+    def distinct(self, i: int, fragments: list[tuple[float, float]], modal: float | None) -> list[tuple[float, float]]:
+        """Move i's fragments with each one whose F as written would be the F before it (`modal` the F in
+        force before the line) merged into that one: no split point where the feed does not change."""
+        saved, pieces, u_prev = dict(self.written), [], 0.0
+        for u_end, feed in fragments:
+            text = self.feed_text(i, feed, self.lengths[i] * (u_end - u_prev), modal)
+            if pieces and text == pieces[-1][2] and int(self.program.feed_mode[i]) != FeedMode.INVERSE_TIME:
+                pieces[-1] = (u_end, pieces[-1][1], text)
+            else:
+                pieces.append((u_end, feed, text))
+            u_prev, modal = u_end, float(text)
+        self.written.update(saved)
+        return [(u, f) for u, f, _ in pieces]
 
 
 def in_source(program: Program, text: str) -> str:
