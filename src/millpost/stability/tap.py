@@ -151,7 +151,10 @@ def find_hits(rec: Record, *, pretrigger_s: float = 1e-3, min_record_s: float = 
         near = [r for r in (runs[i - 1] if i else None, runs[i + 1] if i + 1 < len(runs) else None)
                 if r and abs(r[0] - a) < shortest]
         if near:
-            notes.append(f"double hit at t = {rec.columns['t_s'][a]:.4g} s left out")
+            if near[-1][0] > a:
+                gap_ms = (near[-1][0] - a) / fs * 1e3
+                notes.append(f"double hit at t = {rec.columns['t_s'][a]:.4g} s (a second pulse {gap_ms:.3g} ms "
+                             "later) left out")
         elif a >= pre:
             kept.append(a - pre)
     if not kept:
@@ -308,11 +311,11 @@ class ModalFit:
 
 
 def _pick_peaks(f: np.ndarray, g: np.ndarray, use: np.ndarray, n_modes: int | None, path: str) -> list[Mode]:
-    """Start values: peaks of |G| at usable bins (prominence ≥ 5 % of the largest usable |G|; the n_modes most
-    prominent),
+    """Start values: peaks of |G| at usable bins (prominence ≥ 15 % of the largest usable |G|, or the n_modes
+    most prominent of those ≥ 5 %),
     f_n at the peak, ζ from the half-power bandwidth, k = 1/(2ζ|G(f_n)|)."""
     a = np.abs(g)
-    peaks, props = signal.find_peaks(a, prominence=0.05 * a[use].max())
+    peaks, props = signal.find_peaks(a, prominence=(0.05 if n_modes else 0.15) * a[use].max())
     order = [i for i in np.argsort(props["prominences"])[::-1] if use[peaks[i]]]
     peaks = peaks[order[:n_modes]] if n_modes else peaks[order]
     if len(peaks) == 0:
