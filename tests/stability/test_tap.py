@@ -107,7 +107,7 @@ def test_one_mode_with_5_percent_noise(tmp_path, response):
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_two_modes_with_3_percent_noise(tmp_path, seed):
     log = tap_log(tmp_path / "tap.csv", TWO, hits=HITS, duration_s=1.9, noise=0.03, seed=seed)
-    fit = ModalFit().fit(read_tap_log(log))
+    fit = ModalFit(2).fit(read_tap_log(log))
     _check(fit.modes_, TWO)
     # the automatic window τ = 2/σ of the slower decay (σ = ζω_n of the 650 Hz mode: 143 /s): about 14 ms
     assert fit.measured_.tau_s == pytest.approx(2 / (0.035 * 2 * math.pi * 650), rel=0.15)
@@ -139,7 +139,7 @@ def test_bad_tap_logs(tmp_path):
 
 def test_a_double_hit_is_left_out(tmp_path):
     log = tap_log(tmp_path / "tap.csv", ONE, hits=(0.05, 0.35, 0.352, 0.65, 0.95), duration_s=1.25, noise=0.02)
-    fit = ModalFit().fit(read_tap_log(log))
+    fit = ModalFit(1).fit(read_tap_log(log))
     assert len(fit.measured_.hits.starts) == 3 and len(fit.notes_) == 1
     assert fit.notes_[0].startswith("double hit at t = 0.35 s (a second pulse 2.0")
     _check(fit.modes_, ONE)

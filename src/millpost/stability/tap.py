@@ -311,11 +311,12 @@ class ModalFit:
 
 
 def _pick_peaks(f: np.ndarray, g: np.ndarray, use: np.ndarray, n_modes: int | None, path: str) -> list[Mode]:
-    """Start values: peaks of |G| at usable bins (prominence ≥ 15 % of the largest usable |G|, or the n_modes
-    most prominent of those ≥ 5 %),
+    """Start values: peaks of |G| at usable bins with a prominence ≥ 5 % of the largest usable |G|: those at
+    least 20 % as high as it, or the n_modes most prominent,
     f_n at the peak, ζ from the half-power bandwidth, k = 1/(2ζ|G(f_n)|)."""
     a = np.abs(g)
-    peaks, props = signal.find_peaks(a, prominence=(0.05 if n_modes else 0.15) * a[use].max())
+    top = a[use].max()
+    peaks, props = signal.find_peaks(a, prominence=0.05 * top, height=0.0 if n_modes else 0.2 * top)
     order = [i for i in np.argsort(props["prominences"])[::-1] if use[peaks[i]]]
     peaks = peaks[order[:n_modes]] if n_modes else peaks[order]
     if len(peaks) == 0:
