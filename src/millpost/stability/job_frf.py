@@ -37,10 +37,10 @@ def frf_from_table(t: Table, base: Path) -> tuple[ToolTipFRF, Path | None]:
         if not path.is_file():
             raise t.fail("csv", str(path), "file not found")
         return read_frf_csv(path), path
-    x = _modes(t, "x")
-    y = _modes(t, "y") if t.has("y") else x
+    x = DirectionFRF(modes=_modes(t, "x"))
+    y = DirectionFRF(modes=_modes(t, "y")) if t.has("y") else x
     t.done(("csv",))
-    return ToolTipFRF(DirectionFRF(modes=x), DirectionFRF(modes=y)), None
+    return ToolTipFRF(x, y), None
 
 
 def _modes(t: Table, key: str) -> tuple[Mode, ...]:
