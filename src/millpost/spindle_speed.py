@@ -157,41 +157,14 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
         if b.window is None:
             rows.append({**row, "changed": False, "reason": f"S kept: {b.kept}"})
             continue
-        lo, hi, what = b.window
         grid = grids[id(b)]
         t0, held0 = times[0][0][k], times[0][1][k]
         # a speed at which the feed policy must hold more of the block's samples at their programmed feed
         # (a load over its bound there because of the new S) is no candidate
         t = np.array([times[1 + c][0][k] if times[1 + c][1][k] <= held0 else np.inf for c in range(len(grid))])
-        scan = scans[id(b)]
-        if scan is not None and (scan.programmed >= 1.0 or np.any(scan.clears & np.isfinite(t))):  # stable first
-            t = np.where(scan.clears, t, np.inf)
-        best = int(np.argmin(t))
-        if scan is not None and np.isfinite(t[best]):  # within MIN_GAIN of the fastest: the most stable
-            best = int(np.argmax(np.where(t <= t[best] * (1 + MIN_GAIN), scan.margins, -np.inf)))
-        window = (f"window {lo:.0f}–{hi:.0f} rpm: the material's surface speed for "
-                  + ", ".join(f"T{n} ({job.tools[n].diameter_mm:g} mm)" for n in b.tools)
-                  + (" within the spindle's range" if what == "surface_speed" else ", capped by the spindle's maximum"))
-        row.update(window_rpm=[round(lo, 1), round(hi, 1)], time_s=round(float(t0), 3))
-        if scan is not None and not scan.programmed >= 1.0 and scan.clears[best] and np.isfinite(t[best]):
-            new = float(grid[best])
-            chosen[b.line] = new
-            rows.append({**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
-                         "reason": f"S{b.rpm:g} → S{new:g}: a stable pocket, its cuts within the stable depth "
-                                   f"(a_lim/ap ≥ {scan.margins[best]:.2f}; at S{b.rpm:g} {scan.programmed:.2f}): "
-                                   f"{t[best]:.2f} s instead of {t0:.2f} s ({window})"})
-        elif np.isfinite(t[best]) and t[best] < t0 * (1 - MIN_GAIN):
-            new = float(grid[best])
-            chosen[b.line] = new
-            rows.append({**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
-                         "reason": f"S{b.rpm:g} → S{new:g}: its cuts take {t[best]:.2f} s instead of {t0:.2f} s "
-                                   f"under the same limits ({window})"})
-        else:
-            rows.append({**row, "changed": False,
-                         "reason": f"S{b.rpm:g} kept: no speed in the {window} shortens its cuts by "
-                                   f"{MIN_GAIN:.1%} or more"})
-        if scan is not None:
-            _chatter_row(rows[-1], scan, float(scan.margins[best]) if rows[-1]["changed"] else scan.programmed)
+        rows.append(_decide(job, b, row, grid, t, t0, scans[id(b)]))
+        if rows[-1]["changed"]:
+            chosen[b.line] = rows[-1]["rpm"]
     summary = {"mode": "optimize", "blocks": rows, "changed": sum(r["changed"] for r in rows)}
     if not chosen:
         return program, samples, summary
@@ -203,6 +176,40 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
     text = replace_numbers(program, {line: {"S": rpm} for line, rpm in chosen.items()})
     new_program = dataclasses.replace(program, text=text, toolpath=dataclasses.replace(tp, rpm=move_rpm))
     return new_program, _with_rpm(samples, blocks, sample_block, chosen), summary
+
+
+def _decide(job: Job, b: SpeedBlock, row: dict, grid: np.ndarray, t: np.ndarray, t0: float, scan: SpeedScan | None
+            ) -> dict:
+    """The summary row of a free block `b` (its start `row`) with the speed chosen among the candidates
+    `grid` (rpm) by their times `t` (s; inf: refused) against the programmed time `t0`, and with the
+    block's chatter scan (None: no tool of it has an FRF) taken first (module docstring)."""
+    lo, hi, what = b.window
+    if scan is not None and (scan.programmed >= 1.0 or np.any(scan.clears & np.isfinite(t))):  # stable first
+        t = np.where(scan.clears, t, np.inf)
+    best = int(np.argmin(t))
+    if scan is not None and np.isfinite(t[best]):  # within MIN_GAIN of the fastest: the most stable
+        best = int(np.argmax(np.where(t <= t[best] * (1 + MIN_GAIN), scan.margins, -np.inf)))
+    window = (f"window {lo:.0f}–{hi:.0f} rpm: the material's surface speed for "
+              + ", ".join(f"T{n} ({job.tools[n].diameter_mm:g} mm)" for n in b.tools)
+              + (" within the spindle's range" if what == "surface_speed" else ", capped by the spindle's maximum"))
+    row.update(window_rpm=[round(lo, 1), round(hi, 1)], time_s=round(float(t0), 3))
+    if scan is not None and not scan.programmed >= 1.0 and scan.clears[best] and np.isfinite(t[best]):
+        new = float(grid[best])
+        out = {**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
+               "reason": f"S{b.rpm:g} → S{new:g}: a stable pocket, its cuts within the stable depth "
+                         f"(a_lim/ap ≥ {scan.margins[best]:.2f}; at S{b.rpm:g} {scan.programmed:.2f}): "
+                         f"{t[best]:.2f} s instead of {t0:.2f} s ({window})"}
+    elif np.isfinite(t[best]) and t[best] < t0 * (1 - MIN_GAIN):
+        new = float(grid[best])
+        out = {**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
+               "reason": f"S{b.rpm:g} → S{new:g}: its cuts take {t[best]:.2f} s instead of {t0:.2f} s "
+                         f"under the same limits ({window})"}
+    else:
+        out = {**row, "changed": False,
+               "reason": f"S{b.rpm:g} kept: no speed in the {window} shortens its cuts by {MIN_GAIN:.1%} or more"}
+    if scan is not None:
+        _chatter_row(out, scan, float(scan.margins[best]) if out["changed"] else scan.programmed)
+    return out
 
 
 def _chatter_row(row: dict, scan: SpeedScan, margin: float) -> None:
