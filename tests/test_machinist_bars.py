@@ -33,7 +33,7 @@ def pocket(request, tmp_path_factory):
                        rpm=9000 if material == "al6061" else 18000)
     job = load_job(folder)
     if kind:
-        job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
+        job = replace(job, machine=replace(job.machine, controller=replace(job.machine.controller, kind=kind)))
     result = optimize(job, progress=False, trace=True)
     assert result.summary["status"] == "solved", result.summary["message"]
     original = read_program(job.program).toolpath
@@ -89,7 +89,7 @@ def test_trusting_the_cut_space_lifts_the_descent_rule(tmp_path):
     assert through
     feeds = {}
     for trust in (False, True):
-        job.settings = replace(job.settings, trust_cut_space=trust)
+        job = replace(job, settings=replace(job.settings, trust_cut_space=trust))
         out = read_text(optimize(job, progress=False).text, "out.nc").toolpath
         first = machinist.pieces_of_moves(original, out)
         feeds[trust] = max(out.feed_mm_min[first[k]:first[k + 1]].max() for k in through)

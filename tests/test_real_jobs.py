@@ -65,10 +65,10 @@ def run(request):
         pytest.skip(f"{SHARED_DATA} is absent (third-party programs, not in the repo)")
     job = load_job(folder)
     name, _, kind = machine.partition(":")
-    job.machine = Machine.load(name)
+    job = replace(job, machine=Machine.load(name))
     if kind:
-        job.machine = replace(job.machine, controller=replace(job.machine.controller, kind=kind))
-    job.allow = job.allow | {"slower", "overload"}  # refusals are checked from their warnings (the other checks need the output)
+        job = replace(job, machine=replace(job.machine, controller=replace(job.machine.controller, kind=kind)))
+    job = replace(job, allow=job.allow | {"slower", "overload"})  # refusals are checked from their warnings (the other checks need the output)
     try:
         result = optimize(job, progress=False, trace=True)
     except MillpostError as exc:  # a feature the reader does not support yet, or a cutter-compensation

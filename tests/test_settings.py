@@ -30,3 +30,11 @@ def test_the_first_bad_key_in_the_file_is_named():
         JobSettings.from_table({"lower": "x", "ds_mm": 0}, "j")
     with pytest.raises(ConfigError, match="unknown limit; known: deflection_mm, feed_max_mm_min"):
         JobSettings.from_table({"speed": 3}, "j")
+
+
+@pytest.mark.parametrize("key,value", [("model", ["mechanistic"]), ("lower", {"hard": 1}), ("rpm", ["optimize"])])
+def test_a_list_or_table_for_a_named_choice_is_refused_by_name(key, value):
+    """A TOML list or table where a name is expected is a ConfigError naming the key, not a TypeError
+    (a list is unhashable: testing it for membership in the plugin registry used to crash)."""
+    with pytest.raises(ConfigError, match=rf"^j: limits.{key} = "):
+        JobSettings.from_table({key: value}, "j")

@@ -49,9 +49,10 @@ _FIELDS = {"program", "output", "dialect", "material", "machine", "stock", "tool
 Box = tuple[tuple[float, float, float], tuple[float, float, float]]
 
 
-@dataclass
+@dataclass(frozen=True)
 class Job:
-    """Everything `optimize` needs. Stock: a box (mm, program frame) or a solid's file."""
+    """Everything `optimize` needs, as read from a job file (frozen: a command that overrides a field makes
+    a new Job with `dataclasses.replace`). Stock: a box (mm, program frame) or a solid's file."""
 
     path: Path
     program: Path

@@ -96,6 +96,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .errors import MillpostError
+from .forces import LinearLoads
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
 from .job import Job
 from .controller import ControllerModel, PathModes, block_lengths, blend_zones, corner_speeds, programmed_arcs
@@ -156,14 +157,14 @@ class Limit:
 class JobLimits:
     """The limits of a whole resampled program and what the replay and summary need about them.
 
-    loads: per-sample loads as affine functions of the path speed v (mm/s): peak_a/_b (N),
-    power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3). held: {limit name: samples where the
+    loads: per-sample loads as affine functions of the path speed v (mm/s), the flank's and the end's
+    summed (`LinearLoads`: peak_a/_b (N), power_a/_b (W), torque_a/_b (N·m), force_a/_b (N, 3)). held: {limit name: samples where the
     policy held the bound at the programmed or minimum-chip feed's load}; forced: the subset where a
     hard limit needed a feed below the minimum-chip feed. floor_mm_s: the minimum-chip feed per
     sample (0 where nothing cuts); deflection_mm: the deflection bound per sample (inf off the cut)."""
 
     limits: list[Limit]
-    loads: dict
+    loads: LinearLoads
     held: dict[str, np.ndarray]
     forced: dict[str, np.ndarray]
     floor_mm_s: np.ndarray
@@ -340,7 +341,7 @@ class _CutLoads:
     tool_torque_limit (N·m) the tool's buckling and torsional strength; engaged: the tool meets
     material; spin: the spindle turns; defaults: how the bounds the job did not give were chosen."""
 
-    loads: dict
+    loads: LinearLoads
     rpm: np.ndarray
     engaged: np.ndarray
     spin: np.ndarray
@@ -374,8 +375,7 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
         raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
-    loads = {key: np.zeros(n) for key in ("peak_a", "peak_b", "power_a", "power_b", "torque_a", "torque_b")}
-    loads["force_a"], loads["force_b"] = np.zeros((n, 3)), np.zeros((n, 3))
+    loads = LinearLoads.zeros(n)
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
     k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
     peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
@@ -405,8 +405,8 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
                                     feed_ref_mm_min=np.nan_to_num(f_word[part], nan=100.0) * edge)
             for key in ("peak", "power", "torque", "force"):
                 a = getattr(ll, f"{key}_a")  # per mm/s of the edge → per mm/s of the centre
-                loads[f"{key}_a"][part] = a * (edge[:, None] if a.ndim == 2 else edge)
-                loads[f"{key}_b"][part] = getattr(ll, f"{key}_b")
+                getattr(loads, f"{key}_a")[part] = a * (edge[:, None] if a.ndim == 2 else edge)
+                getattr(loads, f"{key}_b")[part] = getattr(ll, f"{key}_b")
             # a corner tighter than the tool (its centre's radius under R) wraps the tool: a full slot's
             # chip at the wall (sin φ = 1) whatever the stock model shows (a closing corner pre-cut by
             # the lead-in reads lighter than the cut a machinist programs it for)
@@ -429,8 +429,8 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
                 ref = np.minimum(np.nan_to_num(f_word[part], nan=100.0), fz_cap * tool.flutes * rpm[part])
                 le = end_model.linear_loads(eng_p, tool, rpm[part], feed_ref_mm_min=ref)
                 for key in ("power", "torque", "force"):
-                    loads[f"{key}_a"][part] += getattr(le, f"{key}_a")
-                    loads[f"{key}_b"][part] += getattr(le, f"{key}_b")
+                    getattr(loads, f"{key}_a")[part] += getattr(le, f"{key}_a")
+                    getattr(loads, f"{key}_b")[part] += getattr(le, f"{key}_b")
         thrust_limit[idx] = thrust_limit_N(tool, job.settings.tool_safety_factor)
         tool_torque_limit[idx] = torque_limit_Nm(tool, job.settings.tool_safety_factor)
         beam = ToolBeam.of(tool, safety_factor=job.settings.tool_safety_factor)
@@ -477,9 +477,11 @@ class _Policy:
     forced: dict[str, np.ndarray] = field(default_factory=dict)
 
     def load_limit(self, name: str, kind: Kind, load: Load, effect: str, a, b, bound, signal,
-                   default: str = "") -> None:
+                   default: str = "") -> np.ndarray:
         """The load a·v + b ≤ bound (v mm/s) as a limit of this kind on this load, its bound after the policy;
-        `signal` is the same load in the forward model's signals of the samples `at`."""
+        `signal` is the same load in the forward model's signals of the samples `at`. Returns where the
+        policy holds the limit's bound so far (over all its rows: a limit of several rows calls this once
+        per row)."""
         held, forced, n = self.held, self.forced, len(self.cutting)
         bound = np.broadcast_to(bound, a.shape)
         bound_eff, h = _policed(a, b, bound, self.keep_hard if kind == HARD else self.keep_quality)
@@ -488,6 +490,7 @@ class _Policy:
             forced[name] = held[name]
         self.limits.append(Limit(SpeedLoad(a, b, bound_eff, name=name), kind, effect, default=default, signal=signal,
                                  bound=bound, load=load))
+        return held[name]
 
 
 def _cut_limits(policy: _Policy, job: Job, cut: _CutLoads) -> None:
@@ -496,18 +499,18 @@ def _cut_limits(policy: _Policy, job: Job, cut: _CutLoads) -> None:
     m, loads, n, spin, rpm = job.machine, cut.loads, len(cut.rpm), cut.spin, cut.rpm
     defl_per_N, chip_a, defaults = cut.defl_per_N, cut.chip_a, cut.defaults
     # each load is affine in the speed (the schedule's rows)
-    policy.load_limit("cutting_force", HARD, Load.PEAK_FORCE, "cutting force", loads["peak_a"], loads["peak_b"],
+    policy.load_limit("cutting_force", HARD, Load.PEAK_FORCE, "cutting force", loads.peak_a, loads.peak_b,
                       cut.peak_limit, lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
-    policy.load_limit("power", HARD, Load.POWER, "power", loads["power_a"], loads["power_b"],
+    policy.load_limit("power", HARD, Load.POWER, "power", loads.power_a, loads.power_b,
                       np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s, at: s.cutting_power_W)
-    policy.load_limit("torque", HARD, Load.TORQUE, "power", loads["torque_a"], loads["torque_b"],
+    policy.load_limit("torque", HARD, Load.TORQUE, "power", loads.torque_a, loads.torque_b,
                       np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s, at: s.torque_Nm)
-    policy.load_limit("deflection", QUALITY, Load.DEFLECTION, "deflection", loads["peak_a"] * defl_per_N,
-                      loads["peak_b"] * defl_per_N, cut.defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at],
+    policy.load_limit("deflection", QUALITY, Load.DEFLECTION, "deflection", loads.peak_a * defl_per_N,
+                      loads.peak_b * defl_per_N, cut.defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at],
                       defaults.get("deflection", ""))
-    policy.load_limit("thrust", HARD, Load.THRUST, "thrust", loads["force_a"][:, 2], loads["force_b"][:, 2],
+    policy.load_limit("thrust", HARD, Load.THRUST, "thrust", loads.force_a[:, 2], loads.force_b[:, 2],
                       cut.thrust_limit, lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
-    policy.load_limit("tool_torque", HARD, Load.TORQUE, "tool torque", loads["torque_a"], loads["torque_b"],
+    policy.load_limit("tool_torque", HARD, Load.TORQUE, "tool torque", loads.torque_a, loads.torque_b,
                       cut.tool_torque_limit, lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
     policy.load_limit("chip_load_max", QUALITY, Load.CHIP, "chip load", chip_a, np.zeros(n), cut.h_max,
                       lambda s, at: s.speed_mm_s * chip_a[at])  # a restart's descent has a chip where nothing cuts
@@ -533,7 +536,7 @@ def _plunge_limits(policy: _Policy, job: Job, cut: _CutLoads, restart: np.ndarra
     policy.limits.append(Limit(MinSpeed(cut.floor, name="chip_load_min"), QUALITY, "chip-load floor"))
 
 
-def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: dict, engaged: np.ndarray) -> np.ndarray:
+def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: LinearLoads, engaged: np.ndarray) -> np.ndarray:
     """The axis drives' current: the cut's share per axis under what the drive has left beside the
     controller's own acceleration (where the tool is `engaged`), the motor current with the cutting force
     at each sample's speed cap, and the current's slew. Returns that speed cap per sample (mm/s: the
@@ -551,20 +554,19 @@ def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: dict, enga
     # acceleration (it ramps at a_max whatever the F words say): per axis
     # |F_b| + f_c + (|F_a| + c_v·|t|)·v ≤ k_f·I_max − m·a_max (N at the carriage), a conservative speed cap.
     capacity = np.asarray(kf) * np.asarray(current) - np.asarray(mass) * np.asarray(amax) * 1e-3
-    static = np.abs(loads["force_b"]) + friction
-    slope = np.abs(loads["force_a"]) + viscous * np.abs(samples.tangent)
+    static = np.abs(loads.force_b) + friction
+    slope = np.abs(loads.force_a) + viscous * np.abs(samples.tangent)
     for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
-        policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope[:, k], static[:, k],
+        stalled = policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope[:, k], static[:, k],
                           np.where(engaged, capacity[k], np.inf),
                           lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
-    stalled = policy.held["cutting_current"]
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
     v_cap = static_caps(samples, limits)
     drive_force = np.empty((n, 3))
     for k in range(3):  # per axis: temporaries of one column (memory)
-        at_cap = loads["force_a"][:, k] * v_cap + loads["force_b"][:, k]
-        drive_force[:, k] = -np.where(np.abs(at_cap) > np.abs(loads["force_b"][:, k]), at_cap, loads["force_b"][:, k])
+        at_cap = loads.force_a[:, k] * v_cap + loads.force_b[:, k]
+        drive_force[:, k] = -np.where(np.abs(at_cap) > np.abs(loads.force_b[:, k]), at_cap, loads.force_b[:, k])
     drive_force[stalled] = 0.0  # inertia only there: the cutting share is held at the kept feed (reported)
     limits.append(Limit(MotorCurrent(mass, kf, current, tuple(friction), tuple(viscous), cut_beta=drive_force),
                         HARD, "current"))

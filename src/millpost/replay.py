@@ -152,7 +152,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
         hi = min(lo + LOAD_CHUNK, n)
         a, b = max(lo - 1, 0), min(hi + 1, n)
         sig = predict(job, _sample_range(samples, a, b), eng.select(slice(a, b)), v_mm_s[a:b],
-                      loads={key: x[a:b] for key, x in limits.loads.items()}).select(slice(lo - a, hi - a))
+                      loads=limits.loads.select(slice(a, b))).select(slice(lo - a, hi - a))
         at, on = slice(lo, hi), cut[lo:hi]
         raw_best: dict[str, np.ndarray] = {}  # per name: the highest value / raw bound so far in the chunk
         for lim in loads:

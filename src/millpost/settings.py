@@ -115,9 +115,9 @@ def _check(f: Field, value: object, file: str | None = None) -> None:
     """Refuse `value` for the setting `f` (a field of `JobSettings`) unless it keeps the field's rule."""
     if "plugins" in f.metadata:
         names = plugins(f.metadata["plugins"])
-        ok, rule = value in names, f"one of {', '.join(sorted(names))}"
+        ok, rule = isinstance(value, str) and value in names, f"one of {', '.join(sorted(names))}"
     elif "choices" in f.metadata:
-        ok, rule = value in f.metadata["choices"], " or ".join(f.metadata["choices"])
+        ok, rule = isinstance(value, str) and value in f.metadata["choices"], " or ".join(f.metadata["choices"])
     elif isinstance(f.default, bool):
         ok, rule = isinstance(value, bool), "must be true or false"
     else:

@@ -34,6 +34,7 @@ import numpy as np
 from . import controller, engagement
 from .engagement import Engagement
 from .errors import MillpostError
+from .forces import LinearLoads
 from .forces.endcut import EndCut
 from .gcode import read_program
 from .gcode.interpret import Program
@@ -182,13 +183,12 @@ def axis_motion(samples: Samples, speed_mm_s: np.ndarray) -> tuple[np.ndarray, n
 
 
 def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray, *, time_s: np.ndarray | None = None,
-            peaks: bool = False, loads: dict | None = None) -> Signals:
+            peaks: bool = False, loads: LinearLoads | None = None) -> Signals:
     """Signals per sample at the executed path speed (mm/s, per sample). time_s: the time base (default:
     the cumulative `step_times_s`, for callers without a controller execution).
     peaks: also the peak in-plane force per revolution (a time-domain run; slower).
-    loads: the cutting loads as affine functions a·v + b of the path speed v (mm/s) per sample (keys
-    force_a/_b (N, 3), peak_a/_b, torque_a/_b, power_a/_b: `millpost.limits.JobLimits.loads`, the
-    schedule's linearisation, exact for the mechanistic model and an upper bound for the concave Kienzle
+    loads: the cutting loads as affine functions a·v + b of the path speed v (mm/s) per sample
+    (`millpost.limits.JobLimits.loads`, the schedule's linearisation, exact for the mechanistic model and an upper bound for the concave Kienzle
     and end-cutting laws); without them the force model and the end-cutting model at the feed per tooth."""
     n = len(samples)
     v = np.asarray(speed_mm_s, float)
@@ -208,8 +208,8 @@ def predict(job: Job, samples: Samples, eng: Engagement, speed_mm_s: np.ndarray,
     tool_defl = np.zeros(n)
     cutting = (samples.kind != RAPID) & engaged
     if loads is not None:
-        force = loads["force_a"] * v[:, None] + loads["force_b"]
-        torque, peak = loads["torque_a"] * v + loads["torque_b"], loads["peak_a"] * v + loads["peak_b"]
+        force = loads.force_at(v)
+        torque, peak = loads.torque_a * v + loads.torque_b, loads.peak_a * v + loads.peak_b
     for number in np.unique(samples.tool[cutting]):
         tool = job.tools.get(int(number))
         if tool is None:

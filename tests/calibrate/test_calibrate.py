@@ -132,7 +132,7 @@ def plan_job(folder, tool: Tool, model: str = "mechanistic"):
     plan = make_plan(tool, Material.load("al6061"), Machine.load(folder / "m.toml"), req, dialect="grbl")
     plan.write(folder, tool, "al6061", str(folder / "m.toml"), stock)
     job = load_job(folder / "job.toml")
-    job.settings = replace(job.settings, model=model)
+    job = replace(job, settings=replace(job.settings, model=model))
     return job, signals.simulate(job), read_plan(folder / "plan.csv")
 
 

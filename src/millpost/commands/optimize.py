@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import sys
 from pathlib import Path
 
@@ -46,7 +47,7 @@ def _positive_int(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     job = load_job(args.job)
-    job.allow = job.allow | set(args.allow)
+    job = replace(job, allow=job.allow | set(args.allow))
     output = Path(args.output) if args.output else job.output
     check_outputs({"output": output, "--json": args.json, "--trace": args.trace, "--report": args.report},
                   job.inputs)

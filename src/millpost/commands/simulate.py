@@ -6,6 +6,7 @@ PROGRAM takes stock and tool from the flags."""
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import sys
 import time
 from pathlib import Path
@@ -80,7 +81,7 @@ def _inputs(args: argparse.Namespace):
         job = load_job(target)
         check_outputs({"--trace": args.trace, "--stock-stl": args.stock_stl}, job.inputs)
         if args.cell is not None:
-            job.cell_mm = args.cell
+            job = replace(job, cell_mm=args.cell)
         step = args.step if args.step is not None else job.settings.ds_mm
         return job.program, job.stock(), dict(job.tools), step, job.dialect, job.allow
     if args.stock_box is None and args.stock is None:

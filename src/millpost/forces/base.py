@@ -9,7 +9,7 @@ Loads are averages over a tooth period unless named `peak_*` (maximum over a rev
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -180,8 +180,7 @@ class LinearLoads:
     tangent is a valid bound because all components share one exponent); tool deflection is
     compliance·‖F_xy‖ with compliance = ToolBeam.of(tool).compliance_mm_per_N(engagement.ap_mm) per sample,
     so δ ≤ δ_max is the same cone with F_max = δ_max / compliance (on the peak: peak_a·v + peak_b ≤ F_max is
-    one linear row); torque and power are one linear row each. All are increasing in v on the region of interest, so each gives a feed cap
-    too (`feed_cap`).
+    one linear row); torque and power are one linear row each.
     """
 
     force_a: np.ndarray
@@ -196,34 +195,28 @@ class LinearLoads:
     feed_ref_mm_min: np.ndarray | None = None
 
     @classmethod
-    def per_minute(cls, **fields) -> "LinearLoads":
+    def per_minute(cls, **arrays) -> "LinearLoads":
         """The loads from slopes per mm/min of feed (the models' chip per tooth f_z = v/(z·n) of a spindle
         at n rpm), stored per mm/s: each `*_a` × 60."""
-        return cls(**{k: v * 60.0 if k.endswith("_a") else v for k, v in fields.items()})
+        return cls(**{k: v * 60.0 if k.endswith("_a") else v for k, v in arrays.items()})
+
+    @classmethod
+    def zeros(cls, n: int) -> "LinearLoads":
+        """No load at any of n samples (to be filled per tool); `exact` False: a sum of exact and tangent
+        laws is only an upper bound."""
+        z = {f"{key}_{ab}": np.zeros(n) for key in ("peak", "torque", "power") for ab in "ab"}
+        return cls(force_a=np.zeros((n, 3)), force_b=np.zeros((n, 3)), **z, exact=False)
+
+    def select(self, index) -> "LinearLoads":
+        """The loads of some samples (an index or a slice)."""
+        arrays = {f.name: getattr(self, f.name)[index] for f in fields(self) if f.name.endswith(("_a", "_b"))}
+        ref = None if self.feed_ref_mm_min is None else self.feed_ref_mm_min[index]
+        return LinearLoads(**arrays, exact=self.exact, feed_ref_mm_min=ref)
 
     def force_at(self, feed_mm_s) -> np.ndarray:
         """(N, 3) average force (N) at feed v (mm/s, scalar or (N,))."""
         v = np.asarray(feed_mm_s, float)
         return self.force_a * (v[..., None] if v.ndim else v) + self.force_b
-
-    @staticmethod
-    def feed_cap(a: np.ndarray, b: np.ndarray, limit: float | np.ndarray) -> np.ndarray:
-        """Largest v ≥ 0 with a·v + b ≤ limit per sample (inf where a ≤ 0, 0 where already over)."""
-        a, b = np.asarray(a, float), np.asarray(b, float)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            v = np.where(a > 0, (limit - b) / np.where(a > 0, a, 1.0), np.where(b <= limit, np.inf, 0.0))
-        return np.maximum(v, 0.0)
-
-    def force_xy_cap(self, limit_N: float | np.ndarray) -> np.ndarray:
-        """Largest v ≥ 0 per sample with ‖a_xy v + b_xy‖ ≤ limit (the cone above, solved exactly)."""
-        a, b = self.force_a[:, :2], self.force_b[:, :2]
-        A = np.einsum("ni,ni->n", a, a)
-        B = np.einsum("ni,ni->n", a, b)
-        C = np.einsum("ni,ni->n", b, b) - np.asarray(limit_N, float) ** 2
-        disc = B * B - A * C
-        with np.errstate(divide="ignore", invalid="ignore"):
-            root = np.where(A > 0, (-B + np.sqrt(np.maximum(disc, 0))) / np.where(A > 0, A, 1), np.inf)
-        return np.where(disc < 0, 0.0, np.maximum(root, 0.0))
 
 
 def assemble_loads(engagement: Engagement, tool: Tool, avg: np.ndarray, fz: np.ndarray, rpm, *, kc, ke, p: float,

@@ -100,143 +100,169 @@ def convert(program: Program, dialect: Dialect) -> str:
 
 def write_rs274(program: Program, dialect: Dialect, blocks: SourceBlocks) -> str:
     """The program's moves and events as RS-274 in `dialect`'s style (`convert`, after its refusals)."""
-    tp = program.toolpath
-    block = blocks.__getitem__
-    out: list[str] = []
-    seq = [0]
+    return _RS274Writer(program, dialect, blocks).write()
 
-    def emit(words: str) -> None:
-        if dialect.line_numbers and words and not words.startswith(("(", ";", "%", "O")):
-            seq[0] += dialect.line_numbers
-            words = f"N{seq[0]} {words}"
-        out.append(words)
 
-    def comment(text: str) -> None:
+class _RS274Writer:
+    """Writes one program's moves and events in an RS-274 dialect, keeping the modal state it has written
+    (units, plane, feed, the axes the source has named, the loaded tool) and the words to join to a
+    line's next move (a G43 on the line of its move)."""
+
+    def __init__(self, program: Program, dialect: Dialect, blocks: SourceBlocks) -> None:
+        self.program, self.dialect, self.block = program, dialect, blocks.__getitem__
+        self.out: list[str] = []
+        self.seq = 0
+        self.inch: bool | None = None
+        self.plane: int | None = None
+        self.feed: float | None = None
+        self.known = [False, False, False]  # axes the source has named: only those are written
+        self.tool = -1
+        self.prefix: list[tuple[int, str]] = []  # (line, words) to put in front of that line's next move
+
+    def g(self, code: int) -> str:
+        return f"G{code:02d}" if self.dialect.trailing_point else f"G{code}"
+
+    def emit(self, words: str) -> None:
+        if self.dialect.line_numbers and words and not words.startswith(("(", ";", "%", "O")):
+            self.seq += self.dialect.line_numbers
+            words = f"N{self.seq} {words}"
+        self.out.append(words)
+
+    def comment(self, text: str) -> None:
         clean = text.replace("(", "[").replace(")", "]")
-        emit(f"({clean})" if dialect.comment == "paren" else f"; {clean}")
+        self.emit(f"({clean})" if self.dialect.comment == "paren" else f"; {clean}")
 
-    if dialect.percent:
-        out.append("%")
-        out.append("O1000")
-    comment(f"converted by millpost from {program.path} ({program.dialect} to {dialect.name})")
-    inch = None
-    plane = None
-    feed = None
-    g = lambda c: f"G{c:02d}" if dialect.trailing_point else f"G{c}"  # noqa: E731
-    emit(f"{g(90)} {g(94)} {g(17)}")
-    events = program.events  # in the order they ran (a line in a loop or subroutine runs again)
-    ev = 0
-    known = [False, False, False]  # axes the source has named: only those are written
-    tool = [-1]
-    prefix: list[tuple[int, str]] = []  # (line, words) to put in front of that line's next move
-    i = 0
-    while i < len(tp):
-        move_inch = bool(program.move_inch[i])
-        if move_inch != inch:  # units first: a block's G43 and dwell are read in its units
-            emit(g(20) if move_inch else g(21))
-            inch = move_inch
+    def write(self) -> str:
+        program, dialect, tp = self.program, self.dialect, self.program.toolpath
+        if dialect.percent:
+            self.out += ["%", "O1000"]
+        self.comment(f"converted by millpost from {program.path} ({program.dialect} to {dialect.name})")
+        self.emit(f"{self.g(90)} {self.g(94)} {self.g(17)}")
+        events = program.events  # in the order they ran (a line in a loop or subroutine runs again)
+        ev, i = 0, 0
+        while i < len(tp):
+            move_inch = bool(program.move_inch[i])
+            if move_inch != self.inch:  # units first: a block's G43 and dwell are read in its units
+                self.emit(self.g(20) if move_inch else self.g(21))
+                self.inch = move_inch
+            ev = self._events_until(events, ev, i)
+            line = int(tp.line[i])
+            lead = " ".join(w for ln, w in self.prefix if ln == line)
+            for ln, w in self.prefix:
+                if ln != line:
+                    self.emit(w)
+            self.prefix.clear()
+            i += self._move(i, line, lead)
+        for ln, w in self.prefix:
+            self.emit(w)
+        for e in events[ev:]:
+            self._event(e, -1, bool(self.inch))
+        if not any(e.kind == "end" for e in program.events):
+            self.emit(dialect.end_code)
+        if dialect.percent:
+            self.out.append("%")
+        return "\n".join(self.out) + "\n"
+
+    def _events_until(self, events: list, ev: int, i: int) -> int:
+        """Write the events that run before move i (from index ev); returns the next event's index."""
         changed_at = -1  # source line of the tool change just written (its G43 joins that block)
         while ev < len(events) and events[ev].move <= i:
             e = events[ev]
-            if e.kind == "tool_length":
-                words = _tool_length(program, block(e.line), e.line, dialect, tool[0], move_inch, g)
-                if int(tp.line[i]) == e.line:
-                    prefix.append((e.line, words))
-                elif changed_at == e.line:
-                    out[-1] += f" {words}"  # LinuxCNC applies a G43 beside M6 after the change
-                else:
-                    emit(words)
+            if e.kind == "tool_length" and int(self.program.toolpath.line[i]) == e.line:
+                self.prefix.append((e.line, _tool_length(self.program, self.block(e.line), e.line, self.dialect,
+                                                         self.tool, bool(self.program.move_inch[i]), self.g)))
+            elif e.kind == "tool_length" and changed_at == e.line:
+                self.out[-1] += " " + _tool_length(self.program, self.block(e.line), e.line, self.dialect, self.tool,
+                                                   bool(self.program.move_inch[i]), self.g)  # G43 beside M6
             else:
-                _event(e, dialect, emit, comment, g)
+                self._event(e, i, bool(self.program.move_inch[i]))
                 if e.kind == "tool_change":
-                    tool[0], changed_at = int(e.value), e.line
+                    self.tool, changed_at = int(e.value), e.line
             ev += 1
-        line = int(tp.line[i])
-        lead = " ".join(w for ln, w in prefix if ln == line)
-        for ln, w in prefix:
-            if ln != line:
-                emit(w)
-        prefix.clear()
-        scale = INCH if move_inch else 1.0
-        dec = dialect.decimals_inch if move_inch else dialect.decimals_mm
-        num = lambda v: dialect.number(v / scale, move_inch, dec)  # noqa: E731
-        src = block(line)
+        return ev
+
+    def _event(self, e, i: int, inch: bool) -> None:
+        """One event in its own block (a tool length change in the target's words)."""
+        if e.kind == "tool_length":
+            self.emit(_tool_length(self.program, self.block(e.line), e.line, self.dialect, self.tool, inch, self.g))
+        else:
+            _event(e, self.dialect, self.emit, self.comment, self.g)
+
+    def _number(self, value_mm: float, inch: bool) -> str:
+        dec = self.dialect.decimals_inch if inch else self.dialect.decimals_mm
+        return self.dialect.number(value_mm / (INCH if inch else 1.0), inch, dec)
+
+    def _move(self, i: int, line: int, lead: str) -> int:
+        """Write move i (source line `line`, `lead`: words joined in front); returns the moves it took."""
+        tp, src = self.program.toolpath, self.block(line)
         codes = _g_codes(src)
+        if 28.0 in codes or 30.0 in codes:
+            return self._stored_position(i, 28 if 28.0 in codes else 30, src, lead)
+        if 53.0 in codes:
+            self._machine_move(i, line, src, lead)
+            return 1
         named = {w.letter for w in src.words} & set("XYZ") if src is not None else set()
-        if 28.0 in codes or 30.0 in codes:  # to the stored position, through the same intermediate point
-            code = 28 if 28.0 in codes else 30
-            axes = [a for a in range(3) if "XYZ"[a] in named]
-            words = " ".join(f"{'XYZ'[a]}{num(tp.end[i, a])}" for a in axes)
-            emit(" ".join(w for w in (lead, g(code), words) if w))
-            for a in axes or range(3):
-                known[a] = False  # the stored position is the controller's, not the program's
-            i += 2 if axes else 1
-            continue
-        if 53.0 in codes:  # machine coordinates as the source wrote them
-            words = []
-            for w in src.words:
-                if w.letter in "XYZ":
-                    if any(c in w.text for c in "#["):
-                        raise _refuse(program, line, w.column, w.text, "G53 with a parameter word cannot be re-posted",
-                                      "a number")
-                    words.append(f"{w.letter}{dialect.number(w.value, move_inch, dec)}")
-                    known["XYZ".index(w.letter)] = False
-            motion = g(0) if int(tp.kind[i]) == RAPID else g(1)
-            fw = ""
-            if int(tp.kind[i]) != RAPID:
-                feed = tp.feed_mm_min[i] / scale
-                fw = f" F{dialect.number(feed, move_inch, 3)}"
-            emit(" ".join(w for w in (lead, "G53", motion, *words) if w) + fw)
-            i += 1
-            continue
-        end = tp.end[i]
-        moved = np.abs(end - tp.start[i]) > 1e-12
+        moved = np.abs(tp.end[i] - tp.start[i]) > 1e-12
         for a in range(3):
             touched = "XYZ"[a] in named or bool(moved[a])
-            if touched and not known[a] and program.incremental[i]:
-                raise _refuse(program, line, 1, "", f"an incremental (G91) move of {'XYZ'[a]}, whose position is not "
-                              "known (program start, home or G53), has no absolute equivalent",
+            if touched and not self.known[a] and self.program.incremental[i]:
+                raise _refuse(self.program, line, 1, "", f"an incremental (G91) move of {'XYZ'[a]}, whose position is "
+                              "not known (program start, home or G53), has no absolute equivalent",
                               f"an absolute {'XYZ'[a]} move before it")
-            known[a] = known[a] or touched
-        words = [f"{'XYZ'[a]}{num(end[a])}" for a in range(3) if known[a]]
-        kind = int(tp.kind[i])
+            self.known[a] = self.known[a] or touched
+        inch, kind = bool(self.program.move_inch[i]), int(tp.kind[i])
+        words = [f"{'XYZ'[a]}{self._number(tp.end[i, a], inch)}" for a in range(3) if self.known[a]]
         if kind == RAPID:
-            emit(" ".join(w for w in (lead, g(0), *words) if w))
-            i += 1
-            continue
-        if kind >= ARC_CW and int(tp.plane[i]) != plane:
-            plane = int(tp.plane[i])
-            emit({0: g(17), 1: g(18), 2: g(19)}[plane])
-        f = tp.feed_mm_min[i] / scale
-        fw = ""
-        if feed is None or abs(f - feed) > 1e-9 * max(1.0, f):
-            fw = f" F{dialect.number(f, move_inch, 1 if f >= 10 else 3)}"
-            feed = f
+            self.emit(" ".join(w for w in (lead, self.g(0), *words) if w))
+            return 1
+        if kind >= ARC_CW and int(tp.plane[i]) != self.plane:
+            self.plane = int(tp.plane[i])
+            self.emit({0: self.g(17), 1: self.g(18), 2: self.g(19)}[self.plane])
+        scale = INCH if inch else 1.0
+        f, fw = tp.feed_mm_min[i] / scale, ""
+        if self.feed is None or abs(f - self.feed) > 1e-9 * max(1.0, f):
+            fw = f" F{self.dialect.number(f, inch, 1 if f >= 10 else 3)}"
+            self.feed = f
         if kind >= ARC_CW:
-            a1, a2, _ = PLANE_AXES[plane]
-            start = tp.start[i]
+            a1, a2, _ = PLANE_AXES[self.plane]
+            start, dec = tp.start[i], self.dialect.decimals_inch if inch else self.dialect.decimals_mm
             # centre relative to the start as it was written, so rounding does not move the centre
             c = [tp.center[i, ax] - round(start[ax] / scale, dec) * scale for ax in (a1, a2)]
-            letters = "IJK"
-            words += [f"{letters[a1]}{num(c[0])}", f"{letters[a2]}{num(c[1])}"]
+            words += [f"{'IJK'[a1]}{self._number(c[0], inch)}", f"{'IJK'[a2]}{self._number(c[1], inch)}"]
             if tp.turns[i]:
                 words.append(f"P{int(tp.turns[i]) + 1}")
-            emit(" ".join(w for w in (lead, g(2) if kind == ARC_CW else g(3), *words) if w) + fw)
+            self.emit(" ".join(w for w in (lead, self.g(2) if kind == ARC_CW else self.g(3), *words) if w) + fw)
         else:
-            emit(" ".join(w for w in (lead, g(1), *words) if w) + fw)
-        i += 1
-    for ln, w in prefix:
-        emit(w)
-    for e in events[ev:]:
-        if e.kind == "tool_length":
-            emit(_tool_length(program, block(e.line), e.line, dialect, tool[0], bool(inch), g))
-        else:
-            _event(e, dialect, emit, comment, g)
-    if not any(e.kind == "end" for e in program.events):
-        emit(dialect.end_code)
-    if dialect.percent:
-        out.append("%")
-    return "\n".join(out) + "\n"
+            self.emit(" ".join(w for w in (lead, self.g(1), *words) if w) + fw)
+        return 1
+
+    def _stored_position(self, i: int, code: int, src: Block, lead: str) -> int:
+        """G28/G30: to the stored position through the same intermediate point (the source's axes)."""
+        inch = bool(self.program.move_inch[i])
+        axes = [a for a in range(3) if "XYZ"[a] in {w.letter for w in src.words}]
+        words = " ".join(f"{'XYZ'[a]}{self._number(self.program.toolpath.end[i, a], inch)}" for a in axes)
+        self.emit(" ".join(w for w in (lead, self.g(code), words) if w))
+        for a in axes or range(3):
+            self.known[a] = False  # the stored position is the controller's, not the program's
+        return 2 if axes else 1
+
+    def _machine_move(self, i: int, line: int, src: Block, lead: str) -> None:
+        """G53: the machine coordinates as the source wrote them."""
+        tp, inch = self.program.toolpath, bool(self.program.move_inch[i])
+        dec = self.dialect.decimals_inch if inch else self.dialect.decimals_mm
+        words = []
+        for w in src.words:
+            if w.letter in "XYZ":
+                if any(c in w.text for c in "#["):
+                    raise _refuse(self.program, line, w.column, w.text, "G53 with a parameter word cannot be re-posted",
+                                  "a number")
+                words.append(f"{w.letter}{self.dialect.number(w.value, inch, dec)}")
+                self.known["XYZ".index(w.letter)] = False
+        motion, fw = (self.g(0), "") if int(tp.kind[i]) == RAPID else (self.g(1), "")
+        if int(tp.kind[i]) != RAPID:
+            self.feed = tp.feed_mm_min[i] / (INCH if inch else 1.0)
+            fw = f" F{self.dialect.number(self.feed, inch, 3)}"
+        self.emit(" ".join(w for w in (lead, "G53", motion, *words) if w) + fw)
 
 
 def _tool_length(program: Program, src: Block | None, line: int, dialect: Dialect, tool: int, inch: bool, g) -> str:
