@@ -213,6 +213,14 @@ class Table:
             return default
         return Table(raw, self._field(key), self.file)
 
+    def tables(self, key: str) -> list["Table"]:
+        """A non-empty list of tables (a TOML array of inline tables, or [[key]] tables), each named
+        key[i] in a refusal."""
+        raw = self._raw(key, _MISSING)
+        if not isinstance(raw, list) or not raw:
+            raise self.fail(key, raw, "must be a non-empty list of tables, e.g. [{...}, {...}]")
+        return [Table(item, f"{self._field(key)}[{i}]", self.file) for i, item in enumerate(raw)]
+
     def done(self, also_known: tuple[str, ...] = ()) -> None:
         """Refuse fields nobody read (misspelt names and wrong unit suffixes land here). `also_known`
         lists optional fields that were absent, so that a misspelling of one of them gets its hint."""

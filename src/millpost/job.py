@@ -12,6 +12,9 @@
                                       # optional where the program states its blank (Heidenhain BLK FORM)
     cell_mm = 0.05                    # optional
     [tools.1]                         # by tool number; Tool fields, or file = "t1.toml|.json|.fctb"
+    [tools.1.frf]                     # optional: the tool tip's FRF in this holder on this machine, modes
+                                      # x = [{fn_hz, zeta, k_N_per_mm}], y = [...] (default x) or
+                                      # csv = "frf.csv" (`millpost.stability.job_frf`): chatter is checked
     [limits]                          # optional: settings.JobSettings (deflection_mm, feed_max_mm_min,
                                       # tool_safety_factor, ds_mm, model, jerk_mm_s3, lower, rpm, ...)
     [safety]                          # optional: allow = ["no-cut", ...] (see millpost.safety)
@@ -32,6 +35,8 @@ from .gcode import ReaderOptions, dialects
 from .machine import Machine
 from .materials import Material
 from .settings import JobSettings
+from .stability.frf import ToolTipFRF
+from .stability.job_frf import frf_from_table
 from .tools import Tool
 from .tools.library import load_tool, tool_from_table
 
@@ -63,6 +68,7 @@ class Job:
     allow: frozenset[str] = frozenset()  # safety gates the user overrides ([safety] allow)
     inputs: tuple[Path, ...] = ()  # every file the job reads (outputs must not replace one)
     spindle_rpm: float | None = None  # a spindle switched by hand: its speed (rpm) where the program has none
+    frf: dict[int, ToolTipFRF] = field(default_factory=dict)  # tool number → its tip's FRF ([tools.N.frf])
 
     def reader_options(self) -> ReaderOptions:
         """How to read the program: the job's dialect, its tools' diameters for cutter compensation, and
@@ -95,15 +101,17 @@ def load_job(path: str | Path) -> Job:
         box, stock_file, cell = _stock(data["stock"], base, f)
     else:
         box, stock_file, cell = _program_blank(program, dialect, f), None, None
-    tools, tool_files = _tools(_table(_need(data, "tools", f), "tools", f), base, f)
+    tools, tool_files, frf = _tools(_table(_need(data, "tools", f), "tools", f), base, f)
     settings = JobSettings.from_table(_table(data.get("limits", {}), "limits", f), f)
     spindle_rpm = data.get("spindle_rpm")
     lo, hi = SPINDLE_RPM_RANGE
     if spindle_rpm is not None and not (is_number(spindle_rpm) and lo <= spindle_rpm <= hi):
         raise ConfigError("spindle_rpm", spindle_rpm, f"must be a number in [{lo:g}, {hi:g}] rpm", file=f)
-    inputs = (path, program, *described, *([stock_file] if stock_file else []), *tool_files)
+    inputs = (path, program, *described, *([stock_file] if stock_file else []), *tool_files,
+              *(csv for _, csv in frf.values() if csv is not None))
     return Job(path, program, output, material, machine, tools, box, stock_file, cell, dialect, settings,
-               _allowed(data.get("safety", {}), f), inputs, None if spindle_rpm is None else float(spindle_rpm))
+               _allowed(data.get("safety", {}), f), inputs, None if spindle_rpm is None else float(spindle_rpm),
+               {n: t for n, (t, _) in frf.items()})
 
 
 def _read(path: Path) -> tuple[Path, dict]:
@@ -176,9 +184,11 @@ def _program_blank(program: Path, dialect: str | None, f: str) -> Box:
     return box
 
 
-def _tools(table: dict, base: Path, f: str) -> tuple[dict[int, Tool], list[Path]]:
-    """The [tools.N] tables: the tools by number, and the tool files they name."""
-    tools, files = {}, []
+def _tools(table: dict, base: Path, f: str
+           ) -> tuple[dict[int, Tool], list[Path], dict[int, tuple[ToolTipFRF, Path | None]]]:
+    """The [tools.N] tables: the tools by number, the tool files they name, and by number the tip FRFs
+    the [tools.N.frf] tables give (with the measured table's file, if any)."""
+    tools, files, frf = {}, [], {}
     for key, spec in table.items():
         if not str(key).isdigit():
             raise ConfigError(f"tools.{key}", spec, "tool tables are named by tool number (T word), e.g. [tools.1]; "
@@ -187,6 +197,9 @@ def _tools(table: dict, base: Path, f: str) -> tuple[dict[int, Tool], list[Path]
         n = int(key)
         if not isinstance(spec, dict):
             raise ConfigError(f"tools.{key}", spec, "must be a table", file=f)
+        if "frf" in spec:
+            spec = dict(spec)
+            frf[n] = frf_from_table(Table(spec.pop("frf"), f"tools.{key}.frf", f), base)
         try:
             if "file" in spec:
                 files.append(base / str(spec["file"]))
@@ -197,7 +210,7 @@ def _tools(table: dict, base: Path, f: str) -> tuple[dict[int, Tool], list[Path]
             if exc.file:
                 raise
             raise ConfigError(f"tools.{key}.{exc.field}", exc.value, exc.rule, file=f) from None
-    return tools, files
+    return tools, files, frf
 
 
 def _dialect(dialect: object, f: str) -> str | None:

@@ -31,6 +31,7 @@ from .replay import baseline_feeds, replay
 from .schedule import ScheduleOptions, schedule_samples
 from .signals import controller_model
 from .spindle_speed import choose_speeds
+from .stability.check import Chatter, CutImmersion
 from .summary import Run, f_words_over_caps, run_status, summarize, trace_columns
 from .toolpath import Samples
 
@@ -65,6 +66,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         samples, eng, notes = engage(program, stock, dict(job.tools), job.settings.ds_mm, job.allow,
                                      progress=report, clearance_mm=job.settings.air_clearance_mm)
         samples = safety.check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)
+        cut = CutImmersion.of(job, samples, eng)  # chatter: the immersion, before the per-slice arcs go
         # memory: the stock grid is not needed after the engagement, nor its per-slice arcs and per-step
         # records (reported by `millpost simulate`, checked by the safety gates), nor (at the programmed
         # speeds, whose loads do not change) the per-slice engagement once the loads are computed
@@ -79,7 +81,7 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
                                   zones=zones)
         t_limits = time.perf_counter()
         result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits, modes=modes,
-                                  zones=zones, trace=trace)
+                                  zones=zones, trace=trace, cut=cut)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
@@ -92,21 +94,23 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
 def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
                      progress: Progress = silent, limits: JobLimits | None = None,
                      modes: controller.PathModes | None = None, zones: np.ndarray | None = None,
-                     trace: bool = False) -> Result:
+                     trace: bool = False, cut: CutImmersion | None = None) -> Result:
     """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
     `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
     schedule, emitted text, cycle times and the replay check. modes: the program's path modes
     (`controller.path_modes`), zones: its programmed corners' blend arcs (`controller.blend_zones`),
-    both computed here unless given; trace: build the per-sample trace (`summary.trace_columns`). (Split
-    from `optimize` so that tests can give engagements of known geometry.) progress: stages "forces",
-    "schedule", "emission" and "replay"."""
+    both computed here unless given; trace: build the per-sample trace (`summary.trace_columns`); cut: the
+    samples' immersion for the chatter check (`stability.check.CutImmersion`), taken from `eng` unless
+    given. (Split from `optimize` so that tests can give engagements of known geometry.) progress: stages
+    "forces", "schedule", "emission" and "replay"."""
     options = options or ScheduleOptions.from_choices(solver=job.settings.solver)
+    cut = cut if cut is not None else CutImmersion.of(job, samples, eng)
     model = controller_model(job)
     modes = modes if modes is not None else controller.path_modes(program, model)
     zones = zones if zones is not None else controller.blend_zones(program.toolpath, model, modes)
     spindle, t_spindle, as_given = {}, time.perf_counter(), (program, samples)
     if job.settings.rpm == "optimize":  # the S words change, the moves and their path modes do not
-        program, samples, spindle = choose_speeds(job, program, samples, eng, options, modes, zones, progress)
+        program, samples, spindle = choose_speeds(job, program, samples, eng, options, modes, zones, progress, cut)
         spindle["seconds"] = round(time.perf_counter() - t_spindle, 3)
         limits = None  # the loads at the chosen speeds
     tp = program.toolpath
@@ -124,7 +128,8 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     failed = [s for _, _, s in sched.segments if not s.status.ok]
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
         programmed = replace(job, settings=replace(job.settings, rpm="programmed"))
-        result = schedule_program(programmed, *as_given, eng, options, progress, modes=modes, zones=zones, trace=trace)
+        result = schedule_program(programmed, *as_given, eng, options, progress, modes=modes, zones=zones, trace=trace,
+                                  cut=cut)
         result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
         return result
     if failed:
@@ -157,7 +162,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     checked = replay(job, samples, eng, limits, executed, columns=trace)  # its columns: the trace's
     progress("replay", 3, 3)
     run = Run(job, program, samples, eng, limits, sched, before, baseline, base_feeds, base_per_tool, emission,
-              executed, checked, as_programmed, status, message, spindle)
+              executed, checked, as_programmed, status, message, spindle, Chatter.check(job, cut, samples))
     stage_s = {"limits": round(t0 - t_limits, 3), "schedule": round(solver_s, 3),
                "emit": round(t_emit - t0 - solver_s, 3), "replay": round(time.perf_counter() - t_emit, 3)}
     summary = summarize(run, solver_s, stage_s)

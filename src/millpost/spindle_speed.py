@@ -16,6 +16,13 @@ shortens the block by at least `MIN_GAIN`. A speed at which the feed policy woul
 block's samples at their programmed feed (a load over its bound there, caused by the new S) is
 refused; if the schedule at the chosen speeds fails, `optimize` keeps the programmed S. Blocks where the feed depends on the speed (G95 feed per
 revolution) or whose S is an expression keep their S; a program with O-word control flow keeps all.
+
+Chatter (a tool with a tip FRF, `millpost.stability.check`): the candidates of a block its tools cut
+also include the centres of its stable pockets (`scan_speeds`), and speeds at which every sample of the
+block cuts within its stable depth come first: when some candidate clears, only those may be chosen; a
+block whose programmed S chatters moves to the fastest that clears whatever the time; when none
+clears, the block is chosen by time as before and its note says so. Among the speeds within `MIN_GAIN` of
+the fastest, the one of largest margin (a_lim/ap) wins: the pocket's centre rather than its edge.
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ from .limits import build_limits
 from .progress import Progress, reporting, silent
 from .schedule import ScheduleOptions, schedule_samples
 from .signals import step_times_s
+from .stability.check import CutImmersion, SpeedScan, scan_speeds
 from .toolpath import RAPID, Samples
 
 CANDIDATES = 6     # speeds tried per block across its window
@@ -119,17 +127,21 @@ def _plain_number(text: str) -> bool:
 
 
 def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions, modes: PathModes,
-                  zones: np.ndarray, progress: Progress = silent) -> tuple[Program, Samples, dict]:
+                  zones: np.ndarray, progress: Progress = silent, cut: CutImmersion | None = None
+                  ) -> tuple[Program, Samples, dict]:
     """The program and samples at the chosen speeds (the text with the new S words, toolpath and samples
     with the new rpm) and a summary: per S block its line, programmed and chosen S, window and times.
     modes, zones: the program's path modes and its programmed corners' blend arcs (`controller.path_modes`,
-    `controller.blend_zones`)."""
+    `controller.blend_zones`); cut: the samples' immersion for the chatter check (None: no tool has an FRF)."""
     blocks = speed_blocks(job, program)
     free = [b for b in blocks if b.window is not None]
     sample_block = np.full(len(samples), -1)
     for k, b in enumerate(blocks):
         sample_block[np.isin(samples.move, b.moves)] = k
     grids = {id(b): _grid(*b.window[:2]) for b in free}
+    scans = {id(b): scan_speeds(job, cut, np.flatnonzero(sample_block == k), grids[id(b)], b.rpm)
+             for k, b in enumerate(blocks) if b.window is not None}
+    grids.update({key: scan.speeds for key, scan in scans.items() if scan is not None})
     tries = max((len(g) for g in grids.values()), default=0)
     times = [_block_times(job, program, samples, eng, options, modes, zones, blocks, sample_block)]  # as programmed
     for c in range(tries):  # the c-th speed of every block's grid at once (the blocks' times are their own)
@@ -145,27 +157,14 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
         if b.window is None:
             rows.append({**row, "changed": False, "reason": f"S kept: {b.kept}"})
             continue
-        lo, hi, what = b.window
         grid = grids[id(b)]
         t0, held0 = times[0][0][k], times[0][1][k]
         # a speed at which the feed policy must hold more of the block's samples at their programmed feed
         # (a load over its bound there because of the new S) is no candidate
         t = np.array([times[1 + c][0][k] if times[1 + c][1][k] <= held0 else np.inf for c in range(len(grid))])
-        best = int(np.argmin(t))
-        window = (f"window {lo:.0f}–{hi:.0f} rpm: the material's surface speed for "
-                  + ", ".join(f"T{n} ({job.tools[n].diameter_mm:g} mm)" for n in b.tools)
-                  + (" within the spindle's range" if what == "surface_speed" else ", capped by the spindle's maximum"))
-        row.update(window_rpm=[round(lo, 1), round(hi, 1)], time_s=round(float(t0), 3))
-        if np.isfinite(t[best]) and t[best] < t0 * (1 - MIN_GAIN):
-            new = float(grid[best])
-            chosen[b.line] = new
-            rows.append({**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
-                         "reason": f"S{b.rpm:g} → S{new:g}: its cuts take {t[best]:.2f} s instead of {t0:.2f} s "
-                                   f"under the same limits ({window})"})
-        else:
-            rows.append({**row, "changed": False,
-                         "reason": f"S{b.rpm:g} kept: no speed in the {window} shortens its cuts by "
-                                   f"{MIN_GAIN:.1%} or more"})
+        rows.append(_decide(job, b, row, grid, t, t0, scans[id(b)]))
+        if rows[-1]["changed"]:
+            chosen[b.line] = rows[-1]["rpm"]
     summary = {"mode": "optimize", "blocks": rows, "changed": sum(r["changed"] for r in rows)}
     if not chosen:
         return program, samples, summary
@@ -177,6 +176,51 @@ def choose_speeds(job: Job, program: Program, samples: Samples, eng, options: Sc
     text = replace_numbers(program, {line: {"S": rpm} for line, rpm in chosen.items()})
     new_program = dataclasses.replace(program, text=text, toolpath=dataclasses.replace(tp, rpm=move_rpm))
     return new_program, _with_rpm(samples, blocks, sample_block, chosen), summary
+
+
+def _decide(job: Job, b: SpeedBlock, row: dict, grid: np.ndarray, t: np.ndarray, t0: float, scan: SpeedScan | None
+            ) -> dict:
+    """The summary row of a free block `b` (its start `row`) with the speed chosen among the candidates
+    `grid` (rpm) by their times `t` (s; inf: refused) against the programmed time `t0`, and with the
+    block's chatter scan (None: no tool of it has an FRF) taken first (module docstring)."""
+    lo, hi, what = b.window
+    if scan is not None and (scan.programmed >= 1.0 or np.any(scan.clears & np.isfinite(t))):  # stable first
+        t = np.where(scan.clears, t, np.inf)
+    best = int(np.argmin(t))
+    if scan is not None and np.isfinite(t[best]):  # within MIN_GAIN of the fastest: the most stable
+        best = int(np.argmax(np.where(t <= t[best] * (1 + MIN_GAIN), scan.margins, -np.inf)))
+    window = (f"window {lo:.0f}–{hi:.0f} rpm: the material's surface speed for "
+              + ", ".join(f"T{n} ({job.tools[n].diameter_mm:g} mm)" for n in b.tools)
+              + (" within the spindle's range" if what == "surface_speed" else ", capped by the spindle's maximum"))
+    row.update(window_rpm=[round(lo, 1), round(hi, 1)], time_s=round(float(t0), 3))
+    if scan is not None and not scan.programmed >= 1.0 and scan.clears[best] and np.isfinite(t[best]):
+        new = float(grid[best])
+        out = {**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
+               "reason": f"S{b.rpm:g} → S{new:g}: a stable pocket, its cuts within the stable depth "
+                         f"(a_lim/ap ≥ {scan.margins[best]:.2f}; at S{b.rpm:g} {scan.programmed:.2f}): "
+                         f"{t[best]:.2f} s instead of {t0:.2f} s ({window})"}
+    elif np.isfinite(t[best]) and t[best] < t0 * (1 - MIN_GAIN):
+        new = float(grid[best])
+        out = {**row, "rpm": new, "changed": True, "optimized_time_s": round(float(t[best]), 3),
+               "reason": f"S{b.rpm:g} → S{new:g}: its cuts take {t[best]:.2f} s instead of {t0:.2f} s "
+                         f"under the same limits ({window})"}
+    else:
+        out = {**row, "changed": False,
+               "reason": f"S{b.rpm:g} kept: no speed in the {window} shortens its cuts by {MIN_GAIN:.1%} or more"}
+    if scan is not None:
+        _chatter_row(out, scan, float(scan.margins[best]) if out["changed"] else scan.programmed)
+    return out
+
+
+def _chatter_row(row: dict, scan: SpeedScan, margin: float) -> None:
+    """A block's chatter entry (`row["chatter"]`): the margins a_lim/ap (smallest over its samples) at the
+    programmed and at the block's final speed, whether that one clears (every sample stable) and the
+    candidate speeds that would; a reason that says when its cuts still chatter."""
+    row["chatter"] = {"programmed_margin": round(scan.programmed, 3), "margin": round(margin, 3),
+                      "clears": margin >= 1.0, "clearing_rpm": [float(v) for v in scan.speeds[scan.clears]]}
+    if margin < 1.0:
+        row["reason"] += (f"; its cuts chatter at S{row['rpm']:g} (a_lim/ap {margin:.2f})"
+                          + ("" if scan.clears.any() else ": no candidate speed in the window clears them"))
 
 
 def _grid(lo: float, hi: float) -> np.ndarray:

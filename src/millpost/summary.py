@@ -26,6 +26,7 @@ from .operations import restart_points
 from .replay import Replay, binding_shares, feed_at_samples
 from .schedule import FeedLimit, PathGrid, ProgramSchedule
 from .signals import running_rpm
+from .stability.check import Chatter
 from .toolpath import RAPID, Samples
 
 
@@ -47,7 +48,8 @@ class Run:
     """What the stages of one run produced, for its summary and trace: the programmed run (`before`),
     the honest baseline's feeds (mm/min per move, `base_per_tool` per tool and programmed F) and run,
     the emission, the executed speed (mm/s per sample) of the emitted program, its replay (`checked`)
-    and the programmed feeds' ratios (`as_programmed`), `spindle`: the chosen spindle speeds (opt-in)."""
+    and the programmed feeds' ratios (`as_programmed`), `spindle`: the chosen spindle speeds (opt-in),
+    `chatter`: the chatter check (None: no tool has an FRF)."""
 
     job: Job
     program: Program
@@ -66,6 +68,7 @@ class Run:
     status: JobStatus
     message: str
     spindle: dict
+    chatter: Chatter | None = None
 
 
 def run_status(failed: list, before: controller.Execution, after: controller.Execution | None
@@ -131,10 +134,14 @@ def summarize(run: Run, solver_s: float, stage_s: dict[str, float]) -> dict:
         "restart_from": restart_points(program, samples),
         "notes": program.notes + _rpm_notes(job, samples) + _blend_notes(blends) + _flow_notes(run.emission.plan)
         + [f"note: {s.message}" for _, _, s in sched.segments if s.status.ok and s.message]
-        + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", []) if row["changed"]],
+        + [f"note: line {row['line']}: {row['reason']}" for row in spindle.get("blocks", [])
+           if row["changed"] or not row.get("chatter", {}).get("clears", True)],
     }
     if spindle:
         summary["spindle"] = spindle
+    if run.chatter is not None:
+        summary[run.chatter.name] = run.chatter.summary()
+        summary["notes"] += run.chatter.notes()
     _gates(run, summary)
     return summary
 

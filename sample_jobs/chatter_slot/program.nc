@@ -1,0 +1,37 @@
+(chatter_slot: full-width slots, 1.5 mm a pass, 6 mm 3F flat on a long reach, Al 6061, benchtop mill)
+G21 G90 G17 G94
+T1 M6
+S18600 M3
+G0 Z10
+G0 X-5 Y8
+G0 Z2
+G1 Z-1.5 F300
+G1 X65 F600
+G0 Z2
+G0 X-5 Y8
+G1 Z-3 F300
+G1 X65 F600
+G0 Z2
+G0 X-5 Y8
+G0 X-5 Y20
+G0 Z2
+G1 Z-1.5 F300
+G1 X65 F600
+G0 Z2
+G0 X-5 Y20
+G1 Z-3 F300
+G1 X65 F600
+G0 Z2
+G0 X-5 Y20
+G0 X-5 Y32
+G0 Z2
+G1 Z-1.5 F300
+G1 X65 F600
+G0 Z2
+G0 X-5 Y32
+G1 Z-3 F300
+G1 X65 F600
+G0 Z2
+G0 X-5 Y32
+G0 Z10
+M30

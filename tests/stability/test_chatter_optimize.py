@@ -1,0 +1,177 @@
+"""Chatter in `optimize`: each sample's axial depth against the zero-order limiting depth at its speed.
+
+Oracle (independent of `lobes`' frequency grid): the sample job `chatter_slot` cuts full slots (φ 0…π)
+with a symmetric single-mode tool (f_n 2200 Hz, ζ 0.03, k 8000 N/mm), N = 3, in Al 6061 (K_tc 631, K_rc 99
+N/mm²). For a slot the directional matrix has the eigenvalues λ = π(−K_r ± i), so Λ = −1/(λ G) in closed
+form at every chatter frequency f, a(f) = −2π|Λ|²/(Λ_R N K_t) and ε(f) = π − 2 atan(Λ_I/Λ_R); at a speed n the
+limit is the smallest a(f) > 0 over the roots of f·60/(N n) − ε(f)/2π = k, k = 0, 1, 2, …, found here by
+bracketing on a fine grid and Brent's method (`slot_limit_mm`).
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from millpost.engagement import Engagement
+from millpost.job import load_job
+from millpost.optimize import optimize
+from millpost.stability import check
+from millpost.stability.check import CutImmersion, limiting_depth_mm, margin
+from millpost.stability.frf import DirectionFRF, Mode, ToolTipFRF
+from millpost.stability.lobes import zero_order_limit_mm
+from millpost.toolpath import FEED
+
+JOB = Path(__file__).resolve().parents[2] / "sample_jobs" / "chatter_slot"
+FN, ZETA, K, N, KT, KR = 2200.0, 0.03, 8000.0, 3, 631.0, 99.0 / 631.0
+SLOT_LINES = [9, 13, 19, 23, 29, 33]  # the G1 X65 passes, 1.5 mm deep each
+
+
+def slot_limit_mm(rpm: float) -> float:
+    """The zero-order limit of a full slot at `rpm` for the job's tool, from the closed-form eigenvalues."""
+    T = 60.0 / (N * rpm)
+    f = np.linspace(1.0, 3 * FN, 400_001)
+    best = math.inf
+    for sign in (1.0, -1.0):
+        def parts(f):
+            G = 1 / (K * (1 - (f / FN) ** 2 + 2j * ZETA * f / FN))
+            lam = -1 / (math.pi * (-KR + sign * 1j) * G)
+            a = -2 * math.pi * abs(lam) ** 2 / (lam.real * N * KT) if np.ndim(f) == 0 else \
+                -2 * np.pi * np.abs(lam) ** 2 / (lam.real * N * KT)
+            return a, f * T - (math.pi - 2 * np.arctan(lam.imag / lam.real)) / (2 * math.pi)
+        a, theta = parts(f)
+        for k in range(int(np.nanmax(theta)) + 1):
+            h = theta - k
+            for i in np.flatnonzero((np.sign(h[:-1]) != np.sign(h[1:])) & (a[:-1] > 0) & (a[1:] > 0)
+                                    & (np.abs(h[1:] - h[:-1]) < 0.5)):
+                root = brentq(lambda x: parts(x)[1] - k, f[i], f[i + 1], xtol=1e-10)
+                best = min(best, parts(root)[0])
+    return best
+
+
+@pytest.fixture(scope="module")
+def programmed():
+    return optimize(load_job(JOB), progress=False).summary
+
+
+@pytest.fixture(scope="module")
+def at_optimized_speed(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("chatter_slot")
+    for name in ("program.nc", "job.toml"):
+        shutil.copy(JOB / name, folder / name)
+    with (folder / "job.toml").open("a") as fh:
+        fh.write('\n[limits]\nrpm = "optimize"\n')
+    result = optimize(load_job(folder), progress=False)
+    return result.summary, result.text
+
+
+def test_the_oracle_is_the_lobes_own_value():
+    """The closed-form slot limit and `zero_order_limit_mm` agree at the programmed and pocket speeds."""
+    frf = ToolTipFRF.symmetric(Mode(FN, ZETA, K))
+    for rpm in (18600.0, 21659.0, 22000.0):
+        lobes = zero_order_limit_mm(frf, kt_N_per_mm2=KT, kr=KR, flutes=N, phi_st_rad=0.0, phi_ex_rad=math.pi,
+                                    rpm=[rpm])[0]
+        assert lobes == pytest.approx(slot_limit_mm(rpm), rel=2e-3)
+
+
+def test_programmed_s_chatters_and_its_lines_are_listed(programmed):
+    c = programmed["chatter"]
+    assert c["kind"] == "quality" and c["tools"] == [1]
+    assert c["kt_N_mm2"] == pytest.approx(KT) and c["kr"] == pytest.approx(KR, abs=1e-4)
+    assert [r["line"] for r in c["lines"]] == SLOT_LINES and c["line_count"] == 6
+    a_lim = slot_limit_mm(18600.0)  # 0.597 mm
+    for row in c["lines"]:
+        assert row["tool"] == 1 and row["rpm"] == 18600.0
+        assert row["ap_mm"] == pytest.approx(1.5, abs=2e-3)
+        assert row["a_lim_mm"] == pytest.approx(a_lim, rel=3e-3)
+        assert row["ratio"] == pytest.approx(row["ap_mm"] / a_lim, rel=3e-3)
+    warnings = [n for n in programmed["notes"] if n.startswith("warning: chatter")]
+    assert len(warnings) == 1 and "T1 at 18600 rpm" in warnings[0] and "9, 13, 19, 23, 29, 33" in warnings[0]
+    # a quality limit: no feed is lowered for it (the F words are those of the other limits)
+    assert "chatter" not in programmed["binding_limits"] and "chatter" not in programmed["held"]
+
+
+def test_rpm_optimize_moves_s_into_a_pocket_that_clears(at_optimized_speed):
+    s, text = at_optimized_speed
+    (block,) = s["spindle"]["blocks"]
+    assert block["changed"] and block["programmed_rpm"] == 18600.0
+    new = block["rpm"]
+    lo, hi = block["window_rpm"]
+    assert lo <= new <= hi
+    assert f"S{new:g} M3" in text and "S18600" not in text
+    assert block["chatter"]["programmed_margin"] == pytest.approx(slot_limit_mm(18600.0) / 1.5, rel=5e-3)
+    assert block["chatter"]["clears"] and slot_limit_mm(new) > 1.5
+    assert s["chatter"]["lines"] == [] and s["chatter"]["samples_over"] == 0
+    assert not [n for n in s["notes"] if n.startswith("warning: chatter")]
+
+
+def test_without_an_frf_no_chatter_code_runs(tmp_path, monkeypatch):
+    """The job without its [tools.1.frf]: nothing is checked (the lobes would raise), the summary has
+    no chatter entry, and the program is the same as with the check switched off at its source."""
+    (tmp_path / "program.nc").write_text((JOB / "program.nc").read_text())
+    toml = (JOB / "job.toml").read_text()
+    (tmp_path / "job.toml").write_text(toml[:toml.index("[tools.1.frf]")])
+    job = load_job(tmp_path)
+    assert job.frf == {}
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a stability limit was computed for a job without an FRF")
+
+    monkeypatch.setattr(check, "zero_order_limit_mm", refuse)
+    s = optimize(job, progress=False).summary
+    assert "chatter" not in s and not any("chatter" in n for n in s["notes"])
+
+
+def _asymmetric_job(tmp_path):
+    (tmp_path / "program.nc").write_text((JOB / "program.nc").read_text())
+    toml = (JOB / "job.toml").read_text()
+    toml = toml.replace("x = [{fn_hz = 2200", "y = [{fn_hz = 3000, zeta = 0.05, k_N_per_mm = 20000}]\nx = [{fn_hz = 2200")
+    (tmp_path / "job.toml").write_text(toml)
+    return load_job(tmp_path)
+
+
+def test_immersion_bins_and_the_feed_direction(tmp_path):
+    """An arc φ 20.5°…131° is checked as 20°…135° (widened to 5° bins); a feed along Y swaps the FRF's
+    directions (x is the feed direction in the lobes)."""
+    job = _asymmetric_job(tmp_path)
+    tool = job.tools[1]
+    eng = Engagement.uniform(np.radians([20.5, 20.5]), np.radians([131.0, 131.0]), 2.0, tool.radius_mm, slices=4)
+    eng.feed_dir[1] = (0.0, 1.0, 0.0)
+    samples = type("S", (), {"kind": np.full(2, FEED), "tool": np.ones(2, int)})()
+    cut = CutImmersion.of(job, samples, eng)
+    assert list(cut.bin_st) == [4, 4] and list(cut.bin_ex) == [27, 27] and list(cut.along_y) == [False, True]
+    rpm = np.array([18000.0, 18000.0])
+    got = limiting_depth_mm(job, cut, rpm)
+    frf = job.frf[1]
+    kw = dict(kt_N_per_mm2=KT, kr=KR, flutes=3, phi_st_rad=math.radians(20), phi_ex_rad=math.radians(135), rpm=[18000.0])
+    assert got[0] == pytest.approx(zero_order_limit_mm(frf, **kw)[0], rel=1e-9)
+    assert got[1] == pytest.approx(zero_order_limit_mm(ToolTipFRF(frf.y, frf.x), **kw)[0], rel=1e-9)
+    assert got[0] != pytest.approx(got[1], rel=1e-3)
+    # the margin of both samples is the smaller limit over the depth 2 mm
+    assert margin(job, cut, np.arange(2), np.array([18000.0]))[0] == pytest.approx(min(got) / 2.0, rel=1e-9)
+
+
+def test_a_measured_frf_gives_the_modes_limit(tmp_path):
+    """The FRF as a measured table (the mode sampled finely) gives the limit of the mode itself."""
+    f = np.linspace(100.0, 6600.0, 13001)
+    g = Mode(FN, ZETA, K).receptance_mm_per_N(f)
+    rows = "\n".join(f"{a:.6f},{b.real:.9e},{b.imag:.9e},{b.real:.9e},{b.imag:.9e}" for a, b in zip(f, g))
+    (tmp_path / "frf.csv").write_text("f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n" + rows + "\n")
+    measured = load_job_with(tmp_path, 'csv = "frf.csv"').frf[1]
+    assert isinstance(measured.x, DirectionFRF) and measured.x.f_hz is not None
+    a = zero_order_limit_mm(measured, kt_N_per_mm2=KT, kr=KR, flutes=N, phi_st_rad=0.0, phi_ex_rad=math.pi,
+                            rpm=[18600.0])[0]
+    assert a == pytest.approx(slot_limit_mm(18600.0), rel=5e-3)
+
+
+def load_job_with(folder: Path, frf_body: str):
+    """The chatter_slot job in `folder` with its [tools.1.frf] table's body replaced."""
+    (folder / "program.nc").write_text((JOB / "program.nc").read_text())
+    toml = (JOB / "job.toml").read_text()
+    (folder / "job.toml").write_text(toml[:toml.index("[tools.1.frf]")] + "[tools.1.frf]\n" + frf_body + "\n")
+    return load_job(folder)
