@@ -210,9 +210,24 @@ def forging_contour() -> str:
     return "\n".join(out) + "\n"
 
 
+def thin_wall_finish() -> str:
+    """Finishing both faces of a thin wall (40 mm long, 1.4 mm thick as roughed, 12 mm tall; 0.2 mm left
+    on each face, finished 1.0 mm thick) with a 6 mm 3-flute end mill in one full-depth climb pass per
+    face, the floor strip at Z-12 beside it cut by the tool's end; plunges in the air beyond the wall's
+    ends; one programmed feed."""
+    out = header("thin wall finish, 6 mm 3F flat, Al 6061", 1, 12000)
+    r, allowance, depth = 3.0, 0.2, -12.0
+    for name, y, x0, x1 in (("face Y-", allowance - r, 45.0, -5.0), ("face Y+", 1.4 - allowance + r, -5.0, 45.0)):
+        out += [f"(finish {name})", f"G0 X{fmt(x0)} Y{fmt(y)}", "G0 Z2", f"G1 Z{fmt(depth)} F600",
+                f"G1 X{fmt(x1)} F1440", "G0 Z10"]
+    out += ["M5", "M30"]
+    return "\n".join(out) + "\n"
+
+
 PROGRAMS = {"adaptive_pocket": adaptive_pocket, "slotting": slotting, "ball_roughing": ball_roughing,
             "drill_and_mill": drill_and_mill, "offset_pocket": offset_pocket,
-            "sawcut_facing": sawcut_facing, "forging_contour": forging_contour}
+            "sawcut_facing": sawcut_facing, "forging_contour": forging_contour,
+            "thin_wall_finish": thin_wall_finish}
 
 if __name__ == "__main__":
     for name, make in PROGRAMS.items():

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import Table, load_description
+from .config import Table, is_number, load_description
 
 DRIVES = ("ballscrew", "belt")
 CONTROLLERS = ("grbl", "linuxcnc", "fanuc", "mach3", "generic")
@@ -190,6 +190,10 @@ class Machine:
     spindle: Spindle
     controller: Controller
     source: str
+    # the machine's compliance between tool and table (mm/N, 3×3 in machine XYZ, symmetric positive
+    # definite: cross-coupling a robot arm or a gantry has), from the file's compliance_mm_per_N; None:
+    # the axes in series, diagonal 1/k per axis
+    compliance_mm_per_N: tuple[tuple[float, float, float], ...] | None = None
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> "Machine":
@@ -226,8 +230,9 @@ class Machine:
                                 c.number("coolant_s", 0.0, ge=0),
                                 c.number("command_s", 0.0, ge=0))
         c.done()
+        compliance = _compliance(t)
         t.done()
-        return cls(name, description, axes, spindle, controller, source)
+        return cls(name, description, axes, spindle, controller, source, compliance)
 
     @property
     def feed_max_mm_min(self) -> float:
@@ -246,11 +251,36 @@ class Machine:
         """`feed_cap_mm_min` in mm/s."""
         return self.feed_cap_mm_min / 60.0
 
+    @property
+    def compliance_matrix(self) -> np.ndarray:
+        """(3, 3) compliance C (mm/N): the file's matrix, else diag(1/k_x, 1/k_y, 1/k_z)."""
+        if self.compliance_mm_per_N is not None:
+            return np.array(self.compliance_mm_per_N, float)
+        return np.diag([1.0 / self.axes[a].stiffness_N_per_mm for a in "xyz"])
+
     def deflection_mm(self, force_N) -> np.ndarray:
-        """Machine deflection (mm) under a machine-XYZ force (N), (…, 3): axes in series with the tool."""
-        f = np.asarray(force_N, float)
-        k = np.array([self.axes[a].stiffness_N_per_mm for a in "xyz"])
-        return f / k
+        """Machine deflection δ = C·F (mm) under a machine-XYZ force on the tool F (N), (…, 3): the tool
+        is displaced along the force on it (the axes, or the file's compliance matrix, in series with
+        the tool)."""
+        return np.asarray(force_N, float) @ self.compliance_matrix.T
+
+
+def _compliance(t: Table) -> tuple[tuple[float, float, float], ...] | None:
+    """The file's optional compliance_mm_per_N: a 3×3 matrix (mm/N, machine XYZ), symmetric (to 1e-9
+    relative) and positive definite (a stiffness matrix's inverse); None when absent."""
+    raw = t._raw("compliance_mm_per_N", None)
+    if raw is None:
+        return None
+    rule = "a 3×3 matrix [[..],[..],[..]] of numbers (mm/N), symmetric and positive definite"
+    if not (isinstance(raw, list) and len(raw) == 3 and all(isinstance(r, list) and len(r) == 3 for r in raw)
+            and all(is_number(v) for r in raw for v in r)):
+        raise t.fail("compliance_mm_per_N", raw, rule)
+    c = np.array(raw, float)
+    if not np.allclose(c, c.T, rtol=1e-9, atol=0.0):
+        raise t.fail("compliance_mm_per_N", raw, rule + ": it is not symmetric")
+    if np.linalg.eigvalsh(c).min() <= 0:
+        raise t.fail("compliance_mm_per_N", raw, rule + ": it has an eigenvalue <= 0")
+    return tuple(tuple(float(v) for v in row) for row in c)
 
 
 def _axis(t: Table, name: str) -> Axis:

@@ -1,0 +1,19 @@
+(thin wall finish, 6 mm 3F flat, Al 6061)
+G21 G90 G17 G94
+T1 M6
+S12000 M3
+G0 Z10
+(finish face Y-)
+G0 X45 Y-2.8
+G0 Z2
+G1 Z-12 F600
+G1 X-5 F1440
+G0 Z10
+(finish face Y+)
+G0 X-5 Y4.2
+G0 Z2
+G1 Z-12 F600
+G1 X45 F1440
+G0 Z10
+M5
+M30
