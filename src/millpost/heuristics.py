@@ -301,7 +301,10 @@ def _zero_normal_search(s: _Setup, ap_fixed, rpm_fixed, tie_tolerance: float) ->
     mill's root does not depend on the depth, so two or three rounds do)."""
     d, climb = s.tool.diameter_mm, s.kind.climb
     ap = ap_fixed or s.ap_range_mm[1]
-    ae = zero_normal_force(s.tool, s.model, fz_mm=s.chip_target_mm, ap_mm=ap, climb=climb).ae_mm
+    try:
+        ae = zero_normal_force(s.tool, s.model, fz_mm=s.chip_target_mm, ap_mm=ap, climb=climb).ae_mm
+    except MillpostError as exc:
+        raise MillpostError(f"{s.strategy} with the {s.model.name} model of {s.material.name}: {exc}") from None
     for _ in range(ZERO_NORMAL_ROUNDS):
         ae, ap, n, fz = _search(s, ae, ap_fixed, rpm_fixed, tie_tolerance)
         best = lambda w: _best_fz(s, w, np.full(len(w), ap), np.full(len(w), n), iterations=30)  # noqa: E731
