@@ -42,7 +42,8 @@ class StrategyRules:
     profile (side milling a wall), face (a wide, shallow pass); slot_ap_D: deepest full-width slot (chips
     must leave a closed slot); face_ap_D: deepest facing pass. Entry: ramp_angle_deg (steepest helical
     or linear ramp), ramp_feed_ratio (ramp feed over the cutting feed), plunge_fz_ratio (axial feed per
-    tooth of a plunge over the chip-load target: the whole end edge cuts, no chip thinning)."""
+    tooth of a plunge over the chip-load target: the whole end edge cuts, no chip thinning).
+    low-deflection has no width rule here (its width is computed, `Strategy`); its entry follows these."""
 
     adaptive_ae_D: tuple[float, float] = (0.05, 0.2)
     profile_ae_D: tuple[float, float] = (0.1, 0.4)
