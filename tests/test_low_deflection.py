@@ -59,20 +59,24 @@ def test_root_matches_the_closed_form_without_edge_forces(kr, flutes, helix):
         assert root.ae_mm == pytest.approx(5.0 * (1 - math.cos(phi)), abs=1e-6)
         assert not root.climb and abs(root.F_normal_N) < 1e-9 * abs(root.F_feed_N)
         # the feed-direction force left: F̄_x = (N a c/8π)[K_tc cos 2φ − K_rc (2φ − sin 2φ)] from 0 to φ_s
-        fx = flutes * ap * fz / (8 * math.pi) * (ktc * (math.cos(2 * phi) - 1) - kr * ktc * (2 * phi - math.sin(2 * phi)))
+        fx = flutes * ap * fz / (8 * math.pi) * ktc * (math.cos(2 * phi) - 1 - kr * (2 * phi - math.sin(2 * phi)))
         assert root.F_feed_N == pytest.approx(fx, rel=1e-6)
-    if kr < math.pi / 2:   # the bracket at φ = π/2 is K_tc π − 2 K_rc: positive, so the root is below half immersion
+    if kr < math.pi / 2:   # the bracket at φ = π/2 is K_tc π − 2 K_rc > 0: the root is below half immersion
         assert phi < math.pi / 2
 
 
 def test_kienzle_root_matches_its_integral():
-    """Kienzle (F_t = k_c b h^p, F_r = ρ F_t, p = 1 − m_c, h = f_z sin φ): F̄_y ∝ ∫₀^φs (dF_t sin φ − dF_r cos φ)
-    = ∫₀^φs sin^(p+1) φ dφ − ρ sin^(p+1) φ_s / (p + 1), zero at a width independent of f_z (every term ∝ f_z^p).
-    Root of that quadrature by bisection against the code's, within 1e-6 rad."""
+    """Kienzle (F_t = k_c b h^p, F_r = ρ F_t, p = 1 − m_c, h = f_z sin φ):
+    F̄_y ∝ ∫₀^φs (dF_t sin φ − dF_r cos φ) = ∫₀^φs sin^(p+1) φ dφ − ρ sin^(p+1) φ_s / (p + 1), zero at a width
+    independent of f_z (every term ∝ f_z^p). Root of that quadrature by bisection against the code's, within
+    1e-6 rad."""
     mc, rho = 0.25, 0.3
     model = Kienzle.from_coefficients(800.0, mc, radial_ratio=rho, axial_ratio=0.3)
     p = 1 - mc
-    g = lambda s: quad(lambda f: math.sin(f) ** (p + 1), 0, s, epsabs=1e-14)[0] - rho * math.sin(s) ** (p + 1) / (p + 1)  # noqa: E731
+
+    def g(s):
+        return quad(lambda f: math.sin(f) ** (p + 1), 0, s, epsabs=1e-14)[0] - rho * math.sin(s) ** (p + 1) / (p + 1)
+
     phi = _bisect(g, 1e-6, math.pi / 2)
     for fz in (0.01, 0.3):
         root = zero_normal_force(TOOL, model, fz_mm=fz, ap_mm=6.0)
@@ -127,8 +131,8 @@ def test_edge_forces_move_the_root_toward_their_own():
 
 
 def test_climb_and_a_model_without_radial_force_have_no_root():
-    """Climb milling: F̄_y = (N a c/8π)[K_tc(2φ_s − sin 2φ_s) + K_rc(1 − cos 2φ_s)] + (N a/2π)[K_te(1 − cos φ_s)
-    + K_re sin φ_s] > 0 at every width (the tool is pushed off the wall); conventional milling with
+    """Climb milling: F̄_y = (N a c/8π)[K_tc(2φ_s − sin 2φ_s) + K_rc(1 − cos 2φ_s)]
+    + (N a/2π)[K_te(1 − cos φ_s) + K_re sin φ_s] > 0 at every width (the tool is pushed off the wall); conventional milling with
     K_rc = K_re = 0 has only the tangential pull. Both are refused with the reason."""
     model = Material.load("al6061").force_model("mechanistic")
     with pytest.raises(MillpostError, match="climb milling pushes the tool off the wall"):
@@ -153,8 +157,9 @@ def test_recommended_cut_barely_deflects_normal_to_the_wall(material, model):
     compliance = float(ToolBeam.of(TOOL).compliance_mm_per_N(rec.ap_mm))
     for ae in (TOOL.diameter_mm / 2, TOOL.diameter_mm):
         other = evaluate_cut(TOOL, mat.force_model(model), ae_mm=ae, ap_mm=rec.ap_mm, rpm=rec.rpm, fz_mm=rec.fz_mm)
-        assert abs(rec.mean_deflection.tool_normal_mm) <= 0.01 * compliance * abs(other.F_avg_N[1])
-        assert abs(rec.mean_deflection.machine_normal_mm) <= 0.01 * abs(other.F_avg_N[1]) / mach.axes["y"].stiffness_N_per_mm
+        normal_N = abs(other.F_avg_N[1])
+        assert abs(rec.mean_deflection.tool_normal_mm) <= 0.01 * compliance * normal_N
+        assert abs(rec.mean_deflection.machine_normal_mm) <= 0.01 * normal_N / mach.axes["y"].stiffness_N_per_mm
     assert rec.mean_deflection.tool_feed_mm == pytest.approx(compliance * rec.F_avg_N[0], rel=1e-12)
     assert rec.mean_deflection.machine_feed_mm == pytest.approx(rec.F_avg_N[0] / mach.axes["x"].stiffness_N_per_mm)
     assert rec.binding   # the feed is still the largest any limit allows

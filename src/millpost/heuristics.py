@@ -21,14 +21,14 @@ the candidate with the highest material removal rate wins. The limits, with thei
 - among candidates within `tie_tolerance` of the best removal rate, the fastest feed wins (the
   reference's preference for fast, light passes over slow, heavy ones).
 
-With a strategy (adaptive, slot, profile, face, low-deflection) the search keeps to a machinist's rules for it, from
-the material file's `[strategies]` table with their sources: the radial width range of adaptive
-clearing, profiling and facing, the deepest full-width slot (chips must leave a closed slot), the
-deepest facing pass. low-deflection mills conventionally at the width where the mean force normal to
-the feed vanishes for the tool, force model and the cut's own feed (`millpost.lowdeflection`), so a
-compliant structure is not pushed into or off the wall. Entry moves are never fed like the cut: the ramp feed is the full-width ramp at
-the material's steepest ramp angle under the same limits, and at most `ramp_feed_ratio` of the
-cutting feed; the plunge feed takes the axial feed per tooth f_ax = `plunge_fz_ratio` · h_target on the
+With a strategy (adaptive, slot, profile, face, low-deflection) the search keeps to a machinist's rules
+for it, from the material file's `[strategies]` table with their sources: the radial width range of
+adaptive clearing, profiling and facing, the deepest full-width slot (chips must leave a closed slot),
+the deepest facing pass. low-deflection mills conventionally at the width where the mean force normal
+to the feed vanishes for the tool, force model and the cut's own feed (`millpost.lowdeflection`), so a
+compliant structure is not pushed into or off the wall. Entry moves are never fed like the cut: the
+ramp feed is the full-width ramp at the material's steepest ramp angle under the same limits, and at
+most `ramp_feed_ratio` of the cutting feed; the plunge feed takes the axial feed per tooth f_ax = `plunge_fz_ratio` · h_target on the
 whole end edge (no chip thinning there), lowered where the end-edge torque M = z·k_c(h)·h·R²/2 (Kienzle,
 k_c = k_c1.1·h^−m_c, the bottom edges as a 180° drill) exceeds the spindle's torque, and never above
 the ramp feed. The answer names the rules that bind, as it names the physical limits.
@@ -369,8 +369,8 @@ def sweep_ae(tool: Tool, material: Material, machine: Machine, limits: Limits = 
     if widths_mm is not None:
         widths = widths_mm
     else:
-        lo, hi = s.ae_range_mm
-        widths = np.linspace(max(lo, 0.02 * tool.diameter_mm), hi, 20) if strategy else np.linspace(0.05, 1.0, 20) * tool.diameter_mm
+        d, (lo, hi) = tool.diameter_mm, s.ae_range_mm
+        widths = np.linspace(max(lo, 0.02 * d), hi, 20) if strategy else np.linspace(0.05, 1.0, 20) * d
     out = []
     for k, ae in enumerate(widths):
         try:

@@ -18,7 +18,8 @@ the −y side. Forces are those on the tool.
 Mean forces per tooth period of a flat end mill, N teeth, depth a (Altintas, *Manufacturing Automation*,
 2nd ed., ch. 2), conventional:
 
-    F̄_y = (N a f_z / 8π)[K_tc (2φ_s − sin 2φ_s) − K_rc (1 − cos 2φ_s)] + (N a / 2π)[K_te (1 − cos φ_s) − K_re sin φ_s]
+    F̄_y = (N a f_z / 8π)[K_tc (2φ_s − sin 2φ_s) − K_rc (1 − cos 2φ_s)]
+          + (N a / 2π)[K_te (1 − cos φ_s) − K_re sin φ_s]
 
 Each bracket is negative for a thin cut (the radial force pushes the tool off the wall) and positive for a
 slot (the tangential force pulls it in), with one sign change each: the shearing root (φ_s ≈ 3 K_rc / 2 K_tc

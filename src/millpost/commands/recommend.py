@@ -181,8 +181,9 @@ def run(args: argparse.Namespace) -> int:
         r, d = material.strategies, tool.diameter_mm
         lo, hi = r.ae_range_D(rec.strategy)
         depth = f", ap ≤ {r.ap_max_D(rec.strategy):g} D" if r.ap_max_D(rec.strategy) is not None else ""
-        width = (f"ae {lo:g}–{hi:g} D ({lo * d:.3g}–{hi * d:.3g} mm)" if STRATEGY_KINDS[rec.strategy].width != "zero_normal_force"
-                 else f"ae {rec.ae_mm / d:.4g} D where the mean force normal to the feed is zero")
+        width = (f"ae {rec.ae_mm / d:.4g} D where the mean force normal to the feed is zero"
+                 if STRATEGY_KINDS[rec.strategy].width == "zero_normal_force"
+                 else f"ae {lo:g}–{hi:g} D ({lo * d:.3g}–{hi * d:.3g} mm)")
         out.write(f"{'strategy':>18}  {rec.strategy}: {width}{depth}; "
                   f"ramp ≤ {r.ramp_angle_deg:g}° at ≤ {r.ramp_feed_ratio:g} × feed; plunge f_z ≤ "
                   f"{r.plunge_fz_ratio:g} × chip target (sources: {material.name} material file)\n")
