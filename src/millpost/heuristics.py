@@ -21,12 +21,14 @@ the candidate with the highest material removal rate wins. The limits, with thei
 - among candidates within `tie_tolerance` of the best removal rate, the fastest feed wins (the
   reference's preference for fast, light passes over slow, heavy ones).
 
-With a strategy (adaptive, slot, profile, face) the search keeps to a machinist's rules for it, from
-the material file's `[strategies]` table with their sources: the radial width range of adaptive
-clearing, profiling and facing, the deepest full-width slot (chips must leave a closed slot), the
-deepest facing pass. Entry moves are never fed like the cut: the ramp feed is the full-width ramp at
-the material's steepest ramp angle under the same limits, and at most `ramp_feed_ratio` of the
-cutting feed; the plunge feed takes the axial feed per tooth f_ax = `plunge_fz_ratio` · h_target on the
+With a strategy (adaptive, slot, profile, face, low-deflection) the search keeps to a machinist's rules
+for it, from the material file's `[strategies]` table with their sources: the radial width range of
+adaptive clearing, profiling and facing, the deepest full-width slot (chips must leave a closed slot),
+the deepest facing pass. low-deflection mills conventionally at the width where the mean force normal
+to the feed vanishes for the tool, force model and the cut's own feed (`millpost.lowdeflection`), so a
+compliant structure is not pushed into or off the wall. Entry moves are never fed like the cut: the
+ramp feed is the full-width ramp at the material's steepest ramp angle under the same limits, and at
+most `ramp_feed_ratio` of the cutting feed; the plunge feed takes the axial feed per tooth f_ax = `plunge_fz_ratio` · h_target on the
 whole end edge (no chip thinning there), lowered where the end-edge torque M = z·k_c(h)·h·R²/2 (Kienzle,
 k_c = k_c1.1·h^−m_c, the bottom edges as a 180° drill) exceeds the spindle's torque, and never above
 the ramp feed. The answer names the rules that bind, as it names the physical limits.
@@ -45,15 +47,17 @@ import numpy as np
 
 from .cut import evaluate_cut
 from .errors import MillpostError
-from .forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut
+from .forces import Kienzle, Mechanistic, chip_thinning_factor, given_cut, immersion
+from .lowdeflection import MeanDeflection, toward_wall, zero_normal_force
 from .machine import Machine
-from .materials import STRATEGIES, Material
+from .materials import STRATEGIES, STRATEGY_KINDS, Material, Strategy
 from .progress import Progress, silent
 from .tools.beam import ToolBeam
 from .tools.cutter import Tool
 
 
 SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
+ZERO_NORMAL_ROUNDS = 8       # width ↔ (depth, speed) rounds of the low-deflection search (2–3 settle it)
 
 
 @dataclass(frozen=True)
@@ -80,7 +84,9 @@ class Recommendation:
     """Chosen cut and its predicted loads (mm, rpm, mm/min, mm³/min, N, N·m, W). `binding` names the
     limits and strategy rules at their bound (ratio ≥ 0.999); `ratios` gives every limit's load over its
     bound. ramp_feed_mm_min: along a full-width ramp at the material's ramp angle; plunge_feed_mm_min:
-    straight down (both below the cutting feed)."""
+    straight down (both below the cutting feed). climb: climb (down) milling, else conventional;
+    engagement_deg: immersion angle; mean_deflection: tool and machine under the mean force, normal to
+    the wall and along the feed."""
 
     ap_mm: float
     ae_mm: float
@@ -100,6 +106,9 @@ class Recommendation:
     ramp_feed_mm_min: float
     plunge_feed_mm_min: float
     binding: tuple[str, ...]
+    climb: bool
+    engagement_deg: float
+    mean_deflection: MeanDeflection
     ratios: dict[str, float] = field(default_factory=dict)
     strategy: str | None = None
 
@@ -124,6 +133,7 @@ class _Setup:
     strategy: str | None
     ae_range_mm: tuple[float, float]
     ap_range_mm: tuple[float, float]
+    kind: Strategy
 
 
 def rpm_range(tool: Tool, material: Material, machine: Machine) -> tuple[float, float, str]:
@@ -148,11 +158,11 @@ def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, mod
     reason = min(caps, key=caps.get)
     target = limits.chip_load_mm or float(np.mean(material.chip_load_mm(tool.diameter_mm)))
     d, ap_max = tool.diameter_mm, min(tool.flute_len, tool.stickout)
-    ae_range, ap_hi = (0.02 * d, d), ap_max
+    ae_range, ap_hi, kind = (0.02 * d, d), ap_max, Strategy()
     if strategy is not None:
         if strategy not in STRATEGIES:
             raise MillpostError(f"unknown strategy {strategy!r}; known: {', '.join(STRATEGIES)}")
-        rules = material.strategies
+        rules, kind = material.strategies, STRATEGY_KINDS[strategy]
         ae_range = tuple(f * d for f in rules.ae_range_D(strategy))
         if rules.ap_max_D(strategy) is not None:
             ap_hi = min(ap_max, rules.ap_max_D(strategy) * d)
@@ -160,7 +170,7 @@ def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, mod
                   material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV),
                   ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
                   material.min_chip_mm(tool.edge_radius_mm, tool.diameter_mm), lo, hi, hi_reason, caps[reason], reason,
-                  ap_max, strategy, ae_range, (min(0.05 * d, 0.5 * ap_hi), ap_hi))
+                  ap_max, strategy, ae_range, (min(0.05 * d, 0.5 * ap_hi), ap_hi), kind)
 
 
 def _load_ratios(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
@@ -190,7 +200,7 @@ def _best_fz(s: _Setup, ae: np.ndarray, ap: np.ndarray, rpm: np.ndarray, *, sear
     voltage) and then Illinois regula falsi (the force ratios are nearly affine) converge. The feasible end
     of the bracket is returned.
     """
-    eng = given_cut(s.tool, ae, ap)
+    eng = given_cut(s.tool, ae, ap, climb=s.kind.climb)
     rctf = chip_thinning_factor(ae, s.tool.diameter_mm)
     per_fz = s.tool.flutes * rpm
     top = np.minimum(s.chip_target_mm * rctf, s.feed_cap_mm_min / per_fz)
@@ -264,8 +274,12 @@ def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits =
               model: str = "mechanistic", ae_mm: float | None = None, ap_mm: float | None = None,
               rpm: float | None = None, tie_tolerance: float = 0.005, strategy: str | None = None) -> Recommendation:
     """Best roughing cut for the tool, material and machine (ae, ap, rpm may be fixed by the caller),
-    within the material's rules for `strategy` (adaptive, slot, profile, face; None: the physics only)."""
+    within the material's rules for `strategy` (adaptive, slot, profile, face, low-deflection; None: the
+    physics only). low-deflection chooses ae itself (zero mean normal force, `_zero_normal_search`)."""
     s = _setup(tool, material, machine, limits, model, strategy)
+    if s.kind.width == "zero_normal_force" and ae_mm is not None:
+        raise MillpostError(f"fixed ae_mm = {ae_mm:g} conflicts with {strategy}, which chooses the width "
+                            "(where the mean force normal to the feed vanishes); leave ae free")
     for name, value, lo, hi in (("ae_mm", ae_mm, 0.0, tool.diameter_mm), ("ap_mm", ap_mm, 0.0, s.ap_max_mm),
                                 ("rpm", rpm, machine.spindle.rpm_min, machine.spindle.rpm_max)):
         if value is not None and not lo < value <= hi:
@@ -274,14 +288,39 @@ def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits =
         if strategy is not None and value is not None and not lo * (1 - 1e-9) <= value <= hi * (1 + 1e-9):
             raise MillpostError(f"fixed {name} = {value:g} is outside {strategy}'s range [{lo:.4g}, {hi:.4g}] mm "
                                 f"for this tool in {material.name} ({material.strategies.source.split(';')[0]})")
-    ae, ap, n, fz = _search(s, ae_mm, ap_mm, rpm, tie_tolerance)
-    return _describe(s, ae, ap, n, fz)
+    if s.kind.width == "zero_normal_force":
+        return _describe(s, *_zero_normal_search(s, ap_mm, rpm, tie_tolerance))
+    return _describe(s, *_search(s, ae_mm, ap_mm, rpm, tie_tolerance))
+
+
+def _zero_normal_search(s: _Setup, ap_fixed, rpm_fixed, tie_tolerance: float) -> tuple[float, float, float, float]:
+    """(ae, ap, rpm, fz) of the best cut whose mean normal force vanishes at its own feed. The root moves
+    with f_z (through the edge forces) and f_z with the width (chip thinning), so the width is the root
+    with the largest feasible f_z at each width (`_best_fz`); the depth and speed are then the best at
+    that width (`_search`), and the two alternate until the width settles (within 10⁻⁶ D; a flat end
+    mill's root does not depend on the depth, so two or three rounds do)."""
+    d, climb = s.tool.diameter_mm, s.kind.climb
+    ap = ap_fixed or s.ap_range_mm[1]
+    try:
+        ae = zero_normal_force(s.tool, s.model, fz_mm=s.chip_target_mm, ap_mm=ap, climb=climb).ae_mm
+    except MillpostError as exc:
+        raise MillpostError(f"{s.strategy} with the {s.model.name} model of {s.material.name}: {exc}") from None
+    for _ in range(ZERO_NORMAL_ROUNDS):
+        ae, ap, n, fz = _search(s, ae, ap_fixed, rpm_fixed, tie_tolerance)
+        best = lambda w: _best_fz(s, w, np.full(len(w), ap), np.full(len(w), n), iterations=30)  # noqa: E731
+        root = zero_normal_force(s.tool, s.model, fz_mm=best, ap_mm=ap, climb=climb).ae_mm
+        if abs(root - ae) <= 1e-6 * d:
+            return ae, ap, n, fz
+        ae = root
+    raise MillpostError(f"the zero-normal-force width did not settle in {ZERO_NORMAL_ROUNDS} rounds "
+                        f"(last {ae:.6g} mm); fix ap or rpm")
 
 
 def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommendation:
-    res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, machine=s.machine,
+    climb = s.kind.climb
+    res = evaluate_cut(s.tool, s.model, ae_mm=ae, ap_mm=ap, rpm=n, fz_mm=fz, climb=climb, machine=s.machine,
                        safety_factor=s.limits.safety_factor)
-    eng = given_cut(s.tool, np.array([ae]), np.array([ap]))
+    eng = given_cut(s.tool, np.array([ae]), np.array([ap]), climb=climb)
     load_ratios = _load_ratios(s, eng, np.array([fz]), np.array([n]), np.array([ap]))
     ratios = {k: float(v[0]) for k, v in load_ratios.items()}
     ratios["chip_load"] = float(res.h_max_mm) / s.chip_target_mm
@@ -289,19 +328,22 @@ def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommend
     ratios[s.rpm_hi_reason] = n / s.rpm_hi
     ratios["max_depth"] = ap / s.ap_max_mm
     ratios["slot"] = min(ae, s.tool.diameter_mm) / s.tool.diameter_mm
-    if s.strategy is not None and s.ae_range_mm[0] < s.ae_range_mm[1]:
+    if s.strategy is not None and s.kind.width == "range" and s.ae_range_mm[0] < s.ae_range_mm[1]:
         ratios[f"{s.strategy}_width_max"] = ae / s.ae_range_mm[1]
         ratios[f"{s.strategy}_width_min"] = s.ae_range_mm[0] / ae
     if s.strategy is not None and s.ap_range_mm[1] < s.ap_max_mm:
             ratios[f"{s.strategy}_depth_max"] = ap / s.ap_range_mm[1]
     binding = tuple(sorted(k for k, v in ratios.items() if v >= 0.999))
     ramp_feed, plunge_feed = _entry_feeds(s, ap, n, res.feed_mm_min)
+    st, ex = immersion(ae, s.tool.diameter_mm, climb=climb)
+    mean = MeanDeflection.of(res.F_avg_N[0], float(toward_wall(res.F_avg_N[1], climb)), s.tool, ap, s.machine)
     return Recommendation(
         ap_mm=ap, ae_mm=ae, rpm=n, fz_mm=fz, feed_mm_min=res.feed_mm_min, mrr_mm3_min=res.mrr_mm3_min,
         h_max_mm=float(res.h_max_mm), chip_target_mm=s.chip_target_mm, vc_m_min=res.vc_m_min, F_avg_N=res.F_avg_N,
         F_peak_N=res.F_peak_N, deflection_mm=res.deflection_mm, break_ratio=res.break_ratio,
         torque_Nm=res.torque_Nm, power_W=res.power_W, ramp_feed_mm_min=ramp_feed, plunge_feed_mm_min=plunge_feed,
-        binding=binding, ratios=ratios, strategy=s.strategy)
+        binding=binding, climb=climb, engagement_deg=math.degrees(ex - st), mean_deflection=mean, ratios=ratios,
+        strategy=s.strategy)
 
 
 def _entry_feeds(s: _Setup, ap: float, n: float, feed_mm_min: float) -> tuple[float, float]:
@@ -327,7 +369,8 @@ def sweep_ae(tool: Tool, material: Material, machine: Machine, limits: Limits = 
     if widths_mm is not None:
         widths = widths_mm
     else:
-        widths = np.linspace(*s.ae_range_mm, 20) if strategy else np.linspace(0.05, 1.0, 20) * tool.diameter_mm
+        d, (lo, hi) = tool.diameter_mm, s.ae_range_mm
+        widths = np.linspace(max(lo, 0.02 * d), hi, 20) if strategy else np.linspace(0.05, 1.0, 20) * d
     out = []
     for k, ae in enumerate(widths):
         try:

@@ -16,7 +16,23 @@ from .errors import ConfigError
 from .registry import plugins
 
 
-STRATEGIES = ("adaptive", "slot", "profile", "face")
+@dataclass(frozen=True)
+class Strategy:
+    """How a roughing strategy sets its cut. width: "range" (the material file's `<name>_ae_D` range),
+    "full" (a slot: the tool's diameter) or "zero_normal_force" (computed from the force model: the width
+    at which the mean force normal to the feed vanishes, `millpost.lowdeflection`); depth: the material
+    file's key of the deepest cut (None: the flute length alone); climb: climb (down) milling, else
+    conventional (up)."""
+
+    width: str = "range"
+    depth: str | None = None
+    climb: bool = True
+
+
+STRATEGY_KINDS: dict[str, Strategy] = {
+    "adaptive": Strategy(), "slot": Strategy("full", "slot_ap_D"), "profile": Strategy(),
+    "face": Strategy(depth="face_ap_D"), "low-deflection": Strategy("zero_normal_force", climb=False)}
+STRATEGIES = tuple(STRATEGY_KINDS)
 
 
 @dataclass(frozen=True)
@@ -26,7 +42,8 @@ class StrategyRules:
     profile (side milling a wall), face (a wide, shallow pass); slot_ap_D: deepest full-width slot (chips
     must leave a closed slot); face_ap_D: deepest facing pass. Entry: ramp_angle_deg (steepest helical
     or linear ramp), ramp_feed_ratio (ramp feed over the cutting feed), plunge_fz_ratio (axial feed per
-    tooth of a plunge over the chip-load target: the whole end edge cuts, no chip thinning)."""
+    tooth of a plunge over the chip-load target: the whole end edge cuts, no chip thinning).
+    low-deflection has no width rule here (its width is computed, `Strategy`); its entry follows these."""
 
     adaptive_ae_D: tuple[float, float] = (0.05, 0.2)
     profile_ae_D: tuple[float, float] = (0.1, 0.4)
@@ -39,12 +56,17 @@ class StrategyRules:
     source: str = "millpost defaults (no material-specific source)"
 
     def ae_range_D(self, strategy: str) -> tuple[float, float]:
-        """Radial width range of a strategy (fractions of D); a slot is full width."""
-        return (1.0, 1.0) if strategy == "slot" else getattr(self, f"{strategy}_ae_D")
+        """Radial width range of a strategy (fractions of D); a slot is full width; a computed width
+        (zero normal force) may lie anywhere up to D."""
+        width = STRATEGY_KINDS[strategy].width
+        if width == "range":
+            return getattr(self, f"{strategy}_ae_D")
+        return (1.0, 1.0) if width == "full" else (0.0, 1.0)
 
     def ap_max_D(self, strategy: str) -> float | None:
         """Deepest cut of a strategy (fraction of D), None where only the flute length bounds it."""
-        return {"slot": self.slot_ap_D, "face": self.face_ap_D}.get(strategy)
+        key = STRATEGY_KINDS[strategy].depth
+        return getattr(self, key) if key else None
 
     @classmethod
     def from_table(cls, t: Table) -> "StrategyRules":

@@ -11,7 +11,7 @@ from ..errors import ConfigError
 from ..files import atomic_path, json_text
 from ..heuristics import Limits, Recommendation, recommend, sweep_ae
 from ..machine import Machine
-from ..materials import STRATEGIES, Material
+from ..materials import STRATEGIES, STRATEGY_KINDS, Material
 from ..progress import Bars, stage
 from ..registry import plugins
 from ..safety import check_outputs
@@ -38,6 +38,12 @@ Strategy rules (--strategy, default adaptive; from the material file's [strategi
   ramp / plunge feed  a full-width ramp at the material's ramp angle under the same limits and at most
                 ramp_feed_ratio of the cutting feed; plunge: axial chip plunge_fz_ratio of the target,
                 end-edge torque within the spindle's, never above the ramp feed
+  low-deflection  conventional (up) milling at the width where the mean force normal to the feed is zero
+                for this tool, force model and the cut's own feed (a robot-milling strategy: a slow, compliant
+                structure follows the mean force, so the wall is not pushed in or out; Altintas' mean-force
+                integrals: the radial force pushes off the wall, the tangential pulls in). Climb milling has
+                no such width. ap, rpm, fz as for the others; mean_deflection gives the tool and machine
+                deflection under the mean force, normal to the wall (≈ 0 here) and along the feed
   any           no strategy rules: the physics alone
 Among cuts within 0.5 % of the best removal rate the fastest feed wins (fast, light passes over slow,
 heavy ones). Units: mm, rpm, mm/min, mm³/min, N, W. --format fusion|freecad prints the values under the
@@ -58,7 +64,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--machine", required=True, metavar="NAME|FILE", help="built-in machine or machine .toml")
     p.add_argument("--model", choices=sorted(plugins("force_models")), default="mechanistic", help="force model")
     p.add_argument("--strategy", choices=(*STRATEGIES, "any"), default="adaptive",
-                   help="roughing strategy whose rules the cut keeps (default adaptive; any: physics only)")
+                   help="roughing strategy whose rules the cut keeps (default adaptive; low-deflection: zero "
+                        "mean normal force; any: physics only)")
     lim = p.add_argument_group("limits")
     lim.add_argument("--max-deflection", type=float, default=0.025, metavar="MM", help="tool deflection (mm)")
     lim.add_argument("--feed-min", type=float, default=0.0, metavar="MM_MIN", help="slowest traversal rate")
@@ -166,11 +173,18 @@ def run(args: argparse.Namespace) -> int:
                 "ramp_feed_mm_min", "plunge_feed_mm_min", "mrr_mm3_min", "F_peak_N", "deflection_mm", "break_ratio", "torque_Nm", "power_W"):
         out.write(f"{key:>18}  {getattr(rec, key):.6g}\n")
     out.write(f"{'binding':>18}  {', '.join(rec.binding) or 'none'}\n")
+    m = rec.mean_deflection
+    out.write(f"{'milling':>18}  {'climb' if rec.climb else 'conventional'}, engagement {rec.engagement_deg:.4g}°\n")
+    out.write(f"{'mean deflection':>18}  tool {m.tool_normal_mm:+.5f} mm toward the wall, {m.tool_feed_mm:+.5f} mm "
+              f"along the feed; machine {m.machine_normal_mm:+.5f}, {m.machine_feed_mm:+.5f} mm\n")
     if rec.strategy:
         r, d = material.strategies, tool.diameter_mm
         lo, hi = r.ae_range_D(rec.strategy)
         depth = f", ap ≤ {r.ap_max_D(rec.strategy):g} D" if r.ap_max_D(rec.strategy) is not None else ""
-        out.write(f"{'strategy':>18}  {rec.strategy}: ae {lo:g}–{hi:g} D ({lo * d:.3g}–{hi * d:.3g} mm){depth}; "
+        width = (f"ae {rec.ae_mm / d:.4g} D where the mean force normal to the feed is zero"
+                 if STRATEGY_KINDS[rec.strategy].width == "zero_normal_force"
+                 else f"ae {lo:g}–{hi:g} D ({lo * d:.3g}–{hi * d:.3g} mm)")
+        out.write(f"{'strategy':>18}  {rec.strategy}: {width}{depth}; "
                   f"ramp ≤ {r.ramp_angle_deg:g}° at ≤ {r.ramp_feed_ratio:g} × feed; plunge f_z ≤ "
                   f"{r.plunge_fz_ratio:g} × chip target (sources: {material.name} material file)\n")
     if rec.ramp_feed_mm_min == 0:
