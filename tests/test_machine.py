@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import math
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -143,3 +144,21 @@ def test_bad_machine_files(edit, field, rule):
 def test_unknown_machine():
     with pytest.raises(ConfigError, match="unknown machine.*benchtop-belt"):
         Machine.load("cnc-9000")
+
+
+def test_lateral_compliance_bounds_the_in_plane_deflection():
+    """The largest in-plane deflection per newton (optimize's deflection bound, calc's machine deflection)
+    is the largest eigenvalue of the compliance's XY block: 1/min(k_x, k_y) for axes in series; with the
+    thin-wall sample's coupled matrix [[0.01, 0.003], [0.003, 0.01]] mm/N, 0.013 mm/N along the diagonal,
+    and no force direction in the plane deflects it more."""
+    m = Machine.load(Path(__file__).resolve().parents[1] / "sample_jobs" / "thin_wall_finish" / "machine.toml")
+    c = m.compliance_matrix
+    assert m.lateral_compliance_mm_per_N == pytest.approx(c[0, 0] + abs(c[0, 1]), rel=1e-12)
+    angles = np.linspace(0.0, np.pi, 721)
+    unit = np.column_stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)])
+    reach = np.linalg.norm(m.deflection_mm(unit)[:, :2], axis=1)
+    assert reach.max() == pytest.approx(m.lateral_compliance_mm_per_N, rel=1e-4)
+    assert reach.max() <= m.lateral_compliance_mm_per_N * (1 + 1e-12)
+    vmc = Machine.load("vmc-small")
+    assert vmc.lateral_compliance_mm_per_N == pytest.approx(
+        1.0 / min(vmc.axes["x"].stiffness_N_per_mm, vmc.axes["y"].stiffness_N_per_mm), rel=1e-12)

@@ -143,7 +143,9 @@ class Table:
     def has(self, key: str) -> bool:
         return key in self.data
 
-    def _raw(self, key: str, default: Any) -> Any:
+    def raw(self, key: str, default: Any) -> Any:
+        """The field as written (no unit or type check), marked read; `default` when absent (required
+        without one)."""
         self._read.add(key)
         if key not in self.data:
             if default is _MISSING:
@@ -157,7 +159,7 @@ class Table:
     def number(self, key: str, default: Any = _MISSING, *, gt: float | None = None, ge: float | None = None,
                lt: float | None = None, le: float | None = None) -> Any:
         """A float in the unit named by the key's suffix, checked against bounds."""
-        raw = self._raw(key, default)
+        raw = self.raw(key, default)
         if raw is default and key not in self.data:
             return default
         v = self._convert(key, raw)
@@ -171,7 +173,7 @@ class Table:
     def numbers(self, key: str, default: Any = _MISSING, *, gt: float | None = None, ge: float | None = None,
                 length: int | None = None) -> Any:
         """A list of floats (same unit rules as `number`)."""
-        raw = self._raw(key, default)
+        raw = self.raw(key, default)
         if raw is default and key not in self.data:
             return default
         if not isinstance(raw, list) or not raw:
@@ -188,7 +190,7 @@ class Table:
         return tuple(out)
 
     def integer(self, key: str, default: Any = _MISSING, *, ge: int | None = None, le: int | None = None) -> Any:
-        raw = self._raw(key, default)
+        raw = self.raw(key, default)
         if raw is default and key not in self.data:
             return default
         if isinstance(raw, bool) or not isinstance(raw, int):
@@ -198,7 +200,7 @@ class Table:
         return raw
 
     def string(self, key: str, default: Any = _MISSING, *, choices: tuple[str, ...] | None = None) -> Any:
-        raw = self._raw(key, default)
+        raw = self.raw(key, default)
         if raw is default and key not in self.data:
             return default
         if not isinstance(raw, str):
@@ -208,7 +210,7 @@ class Table:
         return raw
 
     def table(self, key: str, default: Any = _MISSING) -> Any:
-        raw = self._raw(key, default)
+        raw = self.raw(key, default)
         if raw is default and key not in self.data:
             return default
         return Table(raw, self._field(key), self.file)
@@ -216,7 +218,7 @@ class Table:
     def tables(self, key: str) -> list["Table"]:
         """A non-empty list of tables (a TOML array of inline tables, or [[key]] tables), each named
         key[i] in a refusal."""
-        raw = self._raw(key, _MISSING)
+        raw = self.raw(key, _MISSING)
         if not isinstance(raw, list) or not raw:
             raise self.fail(key, raw, "must be a non-empty list of tables, e.g. [{...}, {...}]")
         return [Table(item, f"{self._field(key)}[{i}]", self.file) for i, item in enumerate(raw)]

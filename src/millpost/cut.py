@@ -50,7 +50,7 @@ def evaluate_cut(tool: Tool, model: Mechanistic | Kienzle, *, ae_mm: float, ap_m
     f_peak = float(loads.peak_force_xy_N[0])
     machine_defl = spindle_ratio = None
     if machine is not None:
-        machine_defl = f_peak / min(machine.axes["x"].stiffness_N_per_mm, machine.axes["y"].stiffness_N_per_mm)
+        machine_defl = f_peak * machine.lateral_compliance_mm_per_N
         avail = float(machine.spindle.power_available_W(rpm))
         spindle_ratio = float(loads.power_W[0]) / avail if avail > 0 else math.inf
     return CutResult(

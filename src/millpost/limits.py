@@ -377,7 +377,6 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
         raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = LinearLoads.zeros(n)
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
-    k_xy = min(m.axes["x"].stiffness_N_per_mm, m.axes["y"].stiffness_N_per_mm)
     peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
     chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
     # chip thickness per unit feed per tooth: flank (chip thinning) and end (axial chip over its share)
@@ -440,7 +439,7 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
             defaults.setdefault("thrust", f"tool safety factor on the buckling load: {sf}")
             defaults.setdefault("tool_torque", f"tool safety factor on the torsional strength: {sf}")
         peak_limit[idx] = beam.breaking_force_N(eng.ap_mm[idx])  # the cut's depth sets the lever arm
-        defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + 1.0 / k_xy
+        defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + m.lateral_compliance_mm_per_N
         if job.settings.deflection_mm is not None:
             defl_limit[idx] = job.settings.deflection_mm
         else:

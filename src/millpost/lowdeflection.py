@@ -66,8 +66,8 @@ class MeanDeflection:
         c = float(ToolBeam.of(tool).compliance_mm_per_N(ap_mm))
         if machine is None:
             return cls(c * force_normal_N, c * force_feed_N)
-        return cls(c * force_normal_N, c * force_feed_N, float(machine.axes["y"].deflection_mm(force_normal_N)),
-                   float(machine.axes["x"].deflection_mm(force_feed_N)))
+        dx, dy, _ = machine.deflection_mm([force_feed_N, force_normal_N, 0.0])
+        return cls(c * force_normal_N, c * force_feed_N, float(dy), float(dx))
 
 
 def toward_wall(force_y_N, climb: bool):

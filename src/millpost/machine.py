@@ -115,10 +115,6 @@ class Axis:
         friction = self.friction_coulomb_N + self.friction_viscous_N_s_per_mm * v
         return np.maximum(torque, 0.0) * self.efficiency / self.rho_m_per_rad - friction
 
-    def deflection_mm(self, force_N) -> np.ndarray:
-        """Axis compliance: F / k (mm)."""
-        return np.asarray(force_N, float) / self.stiffness_N_per_mm
-
 
 @dataclass(frozen=True)
 class Spindle:
@@ -258,6 +254,13 @@ class Machine:
             return np.array(self.compliance_mm_per_N, float)
         return np.diag([1.0 / self.axes[a].stiffness_N_per_mm for a in "xyz"])
 
+    @property
+    def lateral_compliance_mm_per_N(self) -> float:
+        """The largest deflection per newton of a force in the XY plane (mm/N): the largest eigenvalue of
+        the compliance's XY block (1/min(k_x, k_y) for axes in series); a bound on |δ_xy| / |F_xy| in any
+        direction."""
+        return float(np.linalg.eigvalsh(self.compliance_matrix[:2, :2]).max())
+
     def deflection_mm(self, force_N) -> np.ndarray:
         """Machine deflection δ = C·F (mm) under a machine-XYZ force on the tool F (N), (…, 3): the tool
         is displaced along the force on it (the axes, or the file's compliance matrix, in series with
@@ -268,7 +271,7 @@ class Machine:
 def _compliance(t: Table) -> tuple[tuple[float, float, float], ...] | None:
     """The file's optional compliance_mm_per_N: a 3×3 matrix (mm/N, machine XYZ), symmetric (to 1e-9
     relative) and positive definite (a stiffness matrix's inverse); None when absent."""
-    raw = t._raw("compliance_mm_per_N", None)
+    raw = t.raw("compliance_mm_per_N", None)
     if raw is None:
         return None
     rule = "a 3×3 matrix [[..],[..],[..]] of numbers (mm/N), symmetric and positive definite"

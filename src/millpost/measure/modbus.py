@@ -81,7 +81,7 @@ class RegisterMap:
                 raise ConfigError(f"register[{i}].column", column, str(exc).split(": ", 1)[-1], file=file) from None
             regs.append(Register(column, r.integer("address", ge=0, le=0xFFFF), r.string("table", "holding",
                                                                                          choices=TABLES),
-                                 r.number("scale", 1.0), r.number("offset", 0.0), bool(r._raw("signed", False))))
+                                 r.number("scale", 1.0), r.number("offset", 0.0), bool(r.raw("signed", False))))
             r.done()
         t.done()
         columns = [g.column for g in regs]
