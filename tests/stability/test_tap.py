@@ -104,10 +104,18 @@ def test_one_mode_with_5_percent_noise(tmp_path, response):
     assert abs(fit.predict([900.0])[0]) == pytest.approx(1 / (2 * 2e4 * 0.03), rel=0.1)   # |G(f_n)| = 1/(2kζ)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_one_mode_is_one_mode(tmp_path, seed):
+    """The mode count is chosen (no --modes): noise bumps of the receptance (an accelerometer's G = A/s²
+    amplifies noise at low frequency; the first version took bumps at 238 and 365 Hz for modes) are left out."""
+    log = tap_log(tmp_path / "tap.csv", ONE, hits=HITS[:4], duration_s=1.3, noise=0.05, seed=seed)
+    _check(ModalFit().fit(read_tap_log(log)).modes_, ONE)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
 def test_two_modes_with_3_percent_noise(tmp_path, seed):
     log = tap_log(tmp_path / "tap.csv", TWO, hits=HITS, duration_s=1.9, noise=0.03, seed=seed)
-    fit = ModalFit(2).fit(read_tap_log(log))
+    fit = ModalFit().fit(read_tap_log(log))      # the count, 2, is chosen by the fit
     _check(fit.modes_, TWO)
     # the automatic window τ = 2/σ of the slower decay (σ = ζω_n of the 650 Hz mode: 143 /s): about 14 ms
     assert fit.measured_.tau_s == pytest.approx(2 / (0.035 * 2 * math.pi * 650), rel=0.15)

@@ -43,7 +43,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     fit.add_argument("log", help="tap log (CSV)")
     fit.add_argument("--direction", choices=("x", "y"), default="x", help="machine direction of the test (default x)")
     fit.add_argument("--tool", type=int, default=1, metavar="N", help="tool number for --toml (default 1)")
-    fit.add_argument("--modes", type=int, metavar="N", help="number of modes (default: every clear peak)")
+    fit.add_argument("--modes", type=int, metavar="N", help="number of modes (default: chosen by the fit, "
+                     "docs/tap-test.md)")
     fit.add_argument("--band", metavar="LO,HI", help="frequencies to fit (Hz; default: the band the hammer excites)")
     fit.add_argument("--window", type=float, metavar="S", help="exponential window time constant τ (s; default "
                                                                 "chosen from the slowest decay)")

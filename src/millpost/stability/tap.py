@@ -240,13 +240,18 @@ def measure_frf(rec: Record, *, end_value: float = 0.01, tau_s: float | None = N
 
 
 # --- the modal fit ---------------------------------------------------------------------------------------
+Z_PEAK = 3.0          # a candidate peak's prominence, in random errors ε|G| of the H1 estimate at its top
+MAX_CANDIDATES = 10   # candidate peaks tried, most prominent first
+
+
 class ModalFit:
     """Modes of one direction fitted to a tap log's receptance.
 
-    Settings: n_modes (None: every clear peak of |G|), band_hz (lo, hi; None: where the hammer excites,
-    force spectrum within 20 dB of its top, up to 0.45·fs), min_coherence (bins below it are not fitted,
-    with two or more hits), window_s (the exponential window's τ, s; None: first one that ends at 1 %, then
-    τ = 2/σ for the slowest decay, see `_window`). Learned: measured_
+    Settings: n_modes (None: chosen by model selection, see `select_modes`), band_hz (lo, hi; None: where
+    the hammer excites, from 5 bins up to where the force spectrum first falls 20 dB below its top, at most
+    0.45·fs), min_coherence (bins below it are not fitted, with two or more hits), window_s (the exponential
+    window's τ, s; None: first one that ends at 1 %, then τ = 2/σ for the slowest decay σ = ζω_n found:
+    ζ's error for white response noise, ∝ √(1 + στ)·(1 + 1/(στ)), is least at στ = 2). Learned: measured_
     (MeasuredFRF), frf_ (DirectionFRF of the modes, window damping removed), modes_, residual_ (R_U mm/N,
     R_L mm·Hz²/N), r2_ (of the fit to the complex receptance), coherence_ (mean over the fitted bins),
     fit_band_hz_, notes_."""
@@ -261,17 +266,19 @@ class ModalFit:
 
     def fit(self, rec: Record) -> "ModalFit":
         m = measure_frf(rec, tau_s=self.window_s)
-        m, use, start = self._window(rec, m, _pick_peaks(m.f_hz, m.receptance_mm_per_N, self._usable(m, rec.fs_hz),
-                                                         self.n_modes, rec.path))
+        start = select_modes(m, self._usable(m, rec.fs_hz), self.n_modes, rec.path)
+        sigma = min(_decay(w) for w in start) - 1.0 / m.tau_s
+        if self.window_s is None and sigma > 0 and 2.0 / sigma < m.tau_s:
+            start = [_shift_decay(w, sigma / 2.0 - 1.0 / m.tau_s) for w in start]   # the same poles, new window
+            m = measure_frf(rec, tau_s=2.0 / sigma)
+        use = self._usable(m, rec.fs_hz)
         self.measured_ = m
         lo = max(0.6 * min(p.fn_hz for p in start), m.f_hz[use][0])
         hi = min(1.4 * max(p.fn_hz for p in start), m.f_hz[use][-1])
         pts = use & (m.f_hz >= lo) & (m.f_hz <= hi)
-        g, coh = m.receptance_mm_per_N[pts], m.coherence[pts]
-        # H1's random error: |G|·√((1 − γ²)/(γ² n_hits)) (Bendat & Piersol), at least 1 % of |G|
-        sigma = np.abs(g) * np.maximum(np.sqrt(np.clip(1 - coh, 0, 1) / (coh * len(m.hits.starts))), 0.01)
-        windowed, self.residual_ = _least_squares(m.f_hz[pts], g, sigma, start)
-        err = g - _model(m.f_hz[pts], [(w.fn_hz, w.zeta, w.k_N_per_mm) for w in windowed], self.residual_)
+        g = m.receptance_mm_per_N[pts]
+        windowed, self.residual_ = _least_squares(m.f_hz[pts], g, _random_error(m)[pts], start)
+        err = g - _model(m.f_hz[pts], _params(windowed), self.residual_)
         self.r2_ = 1.0 - float(np.sum(np.abs(err) ** 2) / np.sum(np.abs(g - g.mean()) ** 2))
         self.coherence_ = float(np.mean(m.coherence[pts]))
         self.fit_band_hz_ = (float(lo), float(hi))
@@ -281,20 +288,10 @@ class ModalFit:
                                             ["one hit: the coherence is 1 by construction, tap two or more times"])
         return self
 
-    def _window(self, rec: Record, m: MeasuredFRF, start: list[Mode]) -> tuple[MeasuredFRF, np.ndarray, list[Mode]]:
-        """Measure again with the window that measures the slowest decay best: τ = 2/σ for its decay rate
-        σ = ζω_n (ζ's error, ∝ √(1 + στ)·(1 + 1/(στ)) for white response noise, is least at στ = 2), when that
-        is shorter than the first window; (measured FRF, usable bins, start values)."""
-        sigma = min(2 * math.pi * p.fn_hz * p.zeta for p in start) - 1.0 / m.tau_s
-        if self.window_s is None and sigma > 0 and 2.0 / sigma < m.tau_s:
-            m = measure_frf(rec, tau_s=2.0 / sigma)
-            use = self._usable(m, rec.fs_hz)
-            return m, use, _pick_peaks(m.f_hz, m.receptance_mm_per_N, use, self.n_modes, rec.path)
-        return m, self._usable(m, rec.fs_hz), start
-
     def _usable(self, m: MeasuredFRF, fs: float) -> np.ndarray:
-        excited = np.flatnonzero(m.force_spectrum >= 0.01)
-        lo, hi = self.band_hz or (5 * m.f_hz[0], min(m.f_hz[excited[-1]], 0.45 * fs))
+        lo = 5 * m.f_hz[0]
+        weak = np.flatnonzero((m.force_spectrum < 0.01) & (m.f_hz > lo))   # past the force pulse's first lobe
+        lo, hi = self.band_hz or (lo, min(m.f_hz[weak[0] - 1] if len(weak) else m.f_hz[-1], 0.45 * fs))
         use = (m.f_hz >= lo) & (m.f_hz <= hi)
         if len(m.hits.starts) > 1:
             use &= m.coherence >= self.min_coherence
@@ -310,38 +307,95 @@ class ModalFit:
         return self.frf_.receptance_mm_per_N(f_hz)
 
 
-def _pick_peaks(f: np.ndarray, g: np.ndarray, use: np.ndarray, n_modes: int | None, path: str) -> list[Mode]:
-    """Start values: peaks of |G| at usable bins with a prominence ≥ 5 % of the largest usable |G|: those at
-    least 20 % as high as it, or the n_modes most prominent,
-    f_n at the peak, ζ from the half-power bandwidth, k = 1/(2ζ|G(f_n)|)."""
-    a = np.abs(g)
-    top = a[use].max()
-    peaks, props = signal.find_peaks(a, prominence=0.05 * top, height=0.0 if n_modes else 0.2 * top)
-    order = [i for i in np.argsort(props["prominences"])[::-1] if use[peaks[i]]]
-    peaks = peaks[order[:n_modes]] if n_modes else peaks[order]
-    if len(peaks) == 0:
-        raise MillpostError(f"{path}: no resonance peak in the receptance")
-    if n_modes and len(peaks) < n_modes:
-        raise MillpostError(f"{path}: {len(peaks)} resonance peaks in the receptance, {n_modes} modes asked for")
-    out = []
-    for p in sorted(peaks):
-        half = a[p] / math.sqrt(2)
-        i = p
-        while i > 0 and a[i] > half:
-            i -= 1
-        j = p
-        while j < len(a) - 1 and a[j] > half:
-            j += 1
-        f1 = np.interp(half, [a[i], a[i + 1]], [f[i], f[i + 1]])
-        f2 = np.interp(half, [a[j], a[j - 1]], [f[j], f[j - 1]])
-        zeta = min(max((f2 - f1) / (2 * f[p]), 1e-3), 0.3)
-        out.append(Mode(float(f[p]), float(zeta), float(1.0 / (2 * zeta * a[p]))))
-    return out
+def select_modes(m: MeasuredFRF, use: np.ndarray, n_modes: int | None, path: str) -> list[Mode]:
+    """The modes of the windowed receptance (start values of the final fit).
+
+    With n_modes: the start values of the n_modes most prominent peaks of |G|. Without: a forward model
+    selection over the usable bins. Candidates are the peaks of |G| whose prominence is at least Z_PEAK
+    times the H1 estimate's random error ε|G| there, ε = √((1 − γ²)/(2 n γ²)) for n hits (Bendat &
+    Piersol, "Random Data", §9.2); most prominent first, each is added to the modes kept so far and the
+    lot fitted (`_least_squares`); it is kept if every fitted mode is its peak (`_makes_peak`: noise
+    smoothed by the window looks like a mode with σ = 0, a broad shallow mode patches the baseline) and
+    the Bayesian information criterion falls,
+
+        BIC = n_eff ln(RSS / 2N) + p ln n_eff,   n_eff = 2N τ/T,
+
+    RSS the weighted complex residual Σ|e/σ|² over N bins, p = 3 per mode + 2 residual terms, and n_eff
+    the independent values: the window e^(−t/τ) smooths the spectrum of a record of length T over T/τ
+    bins (the noise's equivalent duration is τ). The common scale of σ is estimated (ln RSS), since γ²
+    from a few hits is biased upward."""
+    f, a = m.f_hz, np.abs(m.receptance_mm_per_N)
+    peaks, props = signal.find_peaks(a, prominence=0.0)
+    eps = np.sqrt(np.clip(1 - m.coherence, 0, 1) / (2 * len(m.hits.starts) * m.coherence))
+    clear = use[peaks] & (True if n_modes else props["prominences"] >= Z_PEAK * eps[peaks] * a[peaks])
+    order = [i for i in np.argsort(props["prominences"])[::-1] if clear[i]]
+    cands = [_half_power(f, a, peaks[i]) for i in order[:n_modes or MAX_CANDIDATES]]
+    if len(cands) < (n_modes or 1):
+        raise MillpostError(f"{path}: {len(cands)} resonance peaks stand out of the receptance's random error"
+                            f"{f', {n_modes} modes asked for' if n_modes else ''}")
+    if n_modes:
+        return cands
+    fu, g, err = f[use], m.receptance_mm_per_N[use], _random_error(m)[use]
+    n_eff = 2 * len(fu) * min(1.0, m.tau_s * f[0])      # f[0] = 1/T
+    best, peaks_kept, kept = math.inf, [], []
+    for c in cands:
+        try:
+            fitted, residual = _least_squares(fu, g, err, kept + [c])
+        except MillpostError:
+            continue
+        if not all(_makes_peak(w, p, m, a) for w, p in zip(fitted, peaks_kept + [c])):
+            continue
+        rss = float(np.sum(np.abs((g - _model(fu, _params(fitted), residual)) / err) ** 2))
+        bic = n_eff * math.log(rss / (2 * len(fu))) + (3 * len(fitted) + 2) * math.log(n_eff)
+        if bic < best:
+            best, peaks_kept, kept = bic, peaks_kept + [c], fitted
+    if not kept:
+        raise MillpostError(f"{path}: no resonance peak of the receptance fits a mode that decays faster than "
+                            f"the exponential window (τ = {m.tau_s:.3g} s): tap with a longer record")
+    return kept
+
+
+def _makes_peak(w: Mode, peak: Mode, m: MeasuredFRF, a: np.ndarray) -> bool:
+    """Whether the fitted (windowed) mode w is the peak it started from: the peak lies within w's half-power
+    band, w decays at least as fast as the window (windowed decay ≥ 2/τ), and w's own height 1/(2kζ) is at
+    least half of |G| at its natural frequency (less: the flank of other modes, or noise)."""
+    return (abs(w.fn_hz - peak.fn_hz) <= w.zeta * w.fn_hz and _decay(w) * m.tau_s >= 2.0
+            and 1.0 / (2 * w.k_N_per_mm * w.zeta) >= 0.5 * float(np.interp(w.fn_hz, m.f_hz, a)))
+
+
+def _half_power(f: np.ndarray, a: np.ndarray, p: int) -> Mode:
+    """Start values from the peak of |G| at bin p: f_n there, ζ = Δf/2f_n from the half-power bandwidth Δf,
+    k = 1/(2ζ|G(f_n)|)."""
+    half = a[p] / math.sqrt(2)
+    i = p
+    while i > 0 and a[i] > half:
+        i -= 1
+    j = p
+    while j < len(a) - 1 and a[j] > half:
+        j += 1
+    f1 = np.interp(half, [a[i], a[i + 1]], [f[i], f[i + 1]])
+    f2 = np.interp(half, [a[j], a[j - 1]], [f[j], f[j - 1]])
+    zeta = min(max((f2 - f1) / (2 * f[p]), 1e-3), 0.3)
+    return Mode(float(f[p]), float(zeta), float(1.0 / (2 * zeta * a[p])))
+
+
+def _random_error(m: MeasuredFRF) -> np.ndarray:
+    """The error (mm/N) each real and imaginary part of the H1 receptance is weighted by: |G|·√((1 − γ²)/(γ² n))
+    for n hits (√2 times Bendat & Piersol's ε, which a few hits' upward-biased γ² understates), at least
+    1 % of |G|."""
+    coh = m.coherence
+    return np.abs(m.receptance_mm_per_N) * np.maximum(np.sqrt(np.clip(1 - coh, 0, 1) / (coh * len(m.hits.starts))),
+                                                      0.01)
 
 
 def _model(f: np.ndarray, modes, residual: tuple[float, float]) -> np.ndarray:
     """Σ 1/(k (1 − r² + 2iζr)) + R_U − R_L/f² (mm/N); modes as (f_n Hz, ζ, k N/mm)."""
     return sum(1.0 / (k * (1 - (f / fn) ** 2 + 2j * z * f / fn)) for fn, z, k in modes) + residual[0] - residual[1] / f**2
+
+
+def _params(modes: list[Mode]) -> list[tuple[float, float, float]]:
+    """(f_n Hz, ζ, k N/mm) of each mode, as `_model` takes them."""
+    return [(m.fn_hz, m.zeta, m.k_N_per_mm) for m in modes]
 
 
 def _least_squares(f: np.ndarray, g: np.ndarray, sigma: np.ndarray,
@@ -368,16 +422,26 @@ def _least_squares(f: np.ndarray, g: np.ndarray, sigma: np.ndarray,
     return [Mode(*m) for m in modes], (float(residual[0]), float(residual[1]))
 
 
-def _unwindow(m: Mode, tau_s: float, path: str) -> Mode:
-    """The mode without the exponential window's damping: same damped frequency, decay rate less 1/τ,
-    same modal mass."""
+def _decay(m: Mode) -> float:
+    """The mode's decay rate σ = ζω_n (1/s)."""
+    return 2 * math.pi * m.fn_hz * m.zeta
+
+
+def _shift_decay(m: Mode, d_sigma: float) -> Mode:
+    """The mode with its decay rate raised by d_sigma (1/s): same damped frequency, same modal mass (what an
+    exponential window e^(−t/τ) does with d_sigma = 1/τ)."""
     w = 2 * math.pi * m.fn_hz
-    sigma, wd = m.zeta * w - 1.0 / tau_s, w * math.sqrt(1 - m.zeta**2)
-    if sigma <= 0:
-        raise MillpostError(f"{path}: the mode at {m.fn_hz:.4g} Hz decays no faster than the exponential window "
-                            f"(τ = {tau_s:.3g} s): its damping cannot be measured; tap with a longer record")
+    sigma, wd = _decay(m) + d_sigma, w * math.sqrt(1 - m.zeta**2)
     wn = math.hypot(sigma, wd)
     return Mode(wn / (2 * math.pi), sigma / wn, m.k_N_per_mm * (wn / w) ** 2)
+
+
+def _unwindow(m: Mode, tau_s: float, path: str) -> Mode:
+    """The mode without the exponential window's damping: decay rate less 1/τ."""
+    if _decay(m) <= 1.0 / tau_s:
+        raise MillpostError(f"{path}: the mode at {m.fn_hz:.4g} Hz decays no faster than the exponential window "
+                            f"(τ = {tau_s:.3g} s): its damping cannot be measured; tap with a longer record")
+    return _shift_decay(m, -1.0 / tau_s)
 
 
 # --- chatter ---------------------------------------------------------------------------------------------
