@@ -169,17 +169,15 @@ def test_chatter_frequency_and_stable_speeds(tmp_path, rpm, flutes, fc):
 
 def test_cli_fit_and_chatter(tmp_path, capsys):
     log = tap_log(tmp_path / "tap.csv", ONE, hits=HITS[:4], duration_s=1.3, noise=0.03)
-    assert main(["tap", "fit", str(log), "--direction", "y", "--tool", "3", "--json", str(tmp_path / "m.json"),
-                 "--toml", str(tmp_path / "frf.toml")]) == 0
-    assert capsys.readouterr().out.startswith("mode 1: fn 9")
-    out = json.loads((tmp_path / "m.json").read_text())
+    assert main(["tap", "fit", str(log), "--direction", "y", "--json", str(tmp_path / "m.json")]) == 0
+    assert capsys.readouterr().out.startswith("y mode 1: fn 9")
+    out = json.loads((tmp_path / "m.json").read_text())["y"]
     _check([type("M", (), m) for m in out["modes"]], ONE)
-    assert out["direction"] == "y" and out["hits"] == 4 and out["r2"] > 0.99
-    import tomllib
-    frf = tomllib.loads((tmp_path / "frf.toml").read_text())["tools"]["3"]["frf"]["y"]
-    _check([type("M", (), m) for m in frf], ONE)
+    assert out["log"] == str(log) and out["hits"] == 4 and out["r2"] > 0.99
     assert main(["tap", "fit", str(log), "--toml", str(log)]) == 2          # never overwrites its input
     assert "same file as the input" in capsys.readouterr().err
+    assert main(["tap", "fit", str(log), "--direction", "y", "--toml", str(tmp_path / "f.toml")]) == 2
+    assert "needs x" in capsys.readouterr().err and not (tmp_path / "f.toml").exists()
 
     rec = chatter_recording(tmp_path / "cut.csv", rpm=9000, flutes=3, f_chatter_hz=1234.0, rpm_column=True)
     assert main(["tap", "chatter", str(rec), "--flutes", "3", "--spindle-max", "12000", "--json", "-"]) == 0
@@ -189,3 +187,28 @@ def test_cli_fit_and_chatter(tmp_path, capsys):
     assert out["speeds"][0]["rpm"] == pytest.approx(60 * 1234.0 / 9, rel=0.01)
     assert main(["tap", "chatter", str(log), "--flutes", "3", "--rpm", "9000"]) == 2     # a tap log is no recording
     assert "unknown column 'force_N'" in capsys.readouterr().err
+
+
+def test_x_and_y_in_one_fragment_the_job_reads(tmp_path, capsys):
+    """`tap fit LOGX LOGY --toml` writes one [tools.N.frf] table with x = [...] and y = [...]; pasted into a
+    job, load_job gives the modes the fit printed (to the fragment's 6 digits) and those that went in."""
+    from millpost.job import load_job
+    logx = tap_log(tmp_path / "tap-x.csv", ONE, hits=HITS[:4], duration_s=1.3, noise=0.03)
+    logy = tap_log(tmp_path / "tap-y.csv", TWO, hits=HITS, duration_s=1.9, noise=0.03, seed=1)
+    assert main(["tap", "fit", str(logx), str(logy), "--tool", "1", "--json", str(tmp_path / "m.json"),
+                 "--toml", str(tmp_path / "frf.toml")]) == 0
+    fitted = json.loads((tmp_path / "m.json").read_text())
+    fragment = (tmp_path / "frf.toml").read_text()
+    assert fragment.count("[tools.1.frf]") == 1 and "\nx = [" in fragment and "\ny = [" in fragment
+    slot = Path(__file__).resolve().parents[2] / "sample_jobs" / "chatter_slot"
+    (tmp_path / "program.nc").write_text((slot / "program.nc").read_text())
+    job = (slot / "job.toml").read_text()
+    (tmp_path / "job.toml").write_text(job[:job.index("[tools.1.frf]")] + fragment)
+    frf = load_job(tmp_path).frf[1]
+    for direction, true in (("x", ONE), ("y", TWO)):
+        modes = getattr(frf, direction).modes
+        _check(modes, true)
+        for m, f in zip(modes, fitted[direction]["modes"]):
+            assert (m.fn_hz, m.zeta, m.k_N_per_mm) == pytest.approx((f["fn_hz"], f["zeta"], f["k_N_per_mm"]), rel=1e-3)
+    assert main(["tap", "fit", str(logx), str(logy), "--direction", "x"]) == 2
+    assert "no --direction with two logs" in capsys.readouterr().err
