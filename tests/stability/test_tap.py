@@ -66,10 +66,10 @@ def tap_log(path: Path, modes, *, hits=(0.05, 0.45, 0.85, 1.25), duration_s=1.65
 
 
 def chatter_recording(path: Path, *, rpm, flutes, f_chatter_hz, fs_hz=20000.0, duration_s=2.0, noise=0.05,
-                      seed=0, rpm_column=False) -> Path:
+                      seed=0, rpm_column=False, chatter=2.0) -> Path:
     """Write a recording: spindle and tooth-passing harmonics (runout: a little of every spindle harmonic)
-    plus a chatter component at f_chatter_hz growing as 1 − exp(−t/0.2 s) to twice the tooth-passing
-    amplitude, and white noise of σ = `noise` × the tooth-passing amplitude."""
+    plus a chatter component at f_chatter_hz growing as 1 − exp(−t/0.2 s) to `chatter` × the tooth-passing
+    amplitude (0: a stable cut), and white noise of σ = `noise` × the tooth-passing amplitude."""
     rng = np.random.default_rng(seed)
     t = np.arange(int(duration_s * fs_hz)) / fs_hz
     fs_ = rpm / 60.0
@@ -77,7 +77,7 @@ def chatter_recording(path: Path, *, rpm, flutes, f_chatter_hz, fs_hz=20000.0, d
     for k in range(1, int(0.45 * fs_hz / fs_)):
         amp = (1.0 / (k // flutes) if k % flutes == 0 else 0.1 / k)
         x += amp * np.sin(2 * math.pi * k * fs_ * t + rng.uniform(0, 2 * math.pi))
-    x += 2.0 * (1 - np.exp(-t / 0.2)) * np.sin(2 * math.pi * f_chatter_hz * t + 0.3)
+    x += chatter * (1 - np.exp(-t / 0.2)) * np.sin(2 * math.pi * f_chatter_hz * t + 0.3)
     x += noise * rng.standard_normal(len(t))
     cols, names = [t, x], "t_s,signal"
     if rpm_column:
@@ -157,6 +157,7 @@ def test_a_double_hit_is_left_out(tmp_path):
 def test_chatter_frequency_and_stable_speeds(tmp_path, rpm, flutes, fc):
     rec = read_recording(chatter_recording(tmp_path / "cut.csv", rpm=rpm, flutes=flutes, f_chatter_hz=fc))
     c = analyse_chatter(rec, rpm, flutes, rpm_max=15000)
+    assert c.chatter and c.peak_to_floor > 1e5 > c.threshold    # 50 dB above the floor
     assert c.f_chatter_hz == pytest.approx(fc, rel=0.01)
     ft = flutes * rpm / 60
     assert c.lobe == int(fc // ft) and c.epsilon_rad == pytest.approx(2 * math.pi * (fc / ft - c.lobe), abs=0.1)
@@ -165,6 +166,21 @@ def test_chatter_frequency_and_stable_speeds(tmp_path, rpm, flutes, fc):
     for j, n in c.speeds:
         assert n == pytest.approx(60 * c.f_chatter_hz / (flutes * j), rel=1e-12) and n <= 15000
         assert n == pytest.approx(60 * fc / (flutes * j), rel=0.01)
+
+
+@pytest.mark.parametrize("rpm, flutes", [(9000, 3), (12000, 2), (6000, 4)])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_stable_cut_has_no_chatter(tmp_path, rpm, flutes, seed):
+    """Harmonics and white noise only: no peak passes the threshold (the noise's χ² statistics, 1 % false
+    alarms over the spectrum), no speeds; a weak chatter 1/100 of the tooth passing's is found."""
+    rec = read_recording(chatter_recording(tmp_path / "cut.csv", rpm=rpm, flutes=flutes, f_chatter_hz=1234.0,
+                                           chatter=0.0, seed=seed))
+    c = analyse_chatter(rec, rpm, flutes)
+    assert not c.chatter and c.speeds == () and 1.0 < c.peak_to_floor < c.threshold < 4.0
+    weak = read_recording(chatter_recording(tmp_path / "weak.csv", rpm=rpm, flutes=flutes, f_chatter_hz=1234.0,
+                                            chatter=0.01, seed=seed))
+    c = analyse_chatter(weak, rpm, flutes)
+    assert c.chatter and c.f_chatter_hz == pytest.approx(1234.0, rel=0.001) and len(c.speeds) == 5
 
 
 def test_cli_fit_and_chatter(tmp_path, capsys):
@@ -182,9 +198,15 @@ def test_cli_fit_and_chatter(tmp_path, capsys):
     rec = chatter_recording(tmp_path / "cut.csv", rpm=9000, flutes=3, f_chatter_hz=1234.0, rpm_column=True)
     assert main(["tap", "chatter", str(rec), "--flutes", "3", "--spindle-max", "12000", "--json", "-"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["rpm"] == 9000 and out["f_chatter_hz"] == pytest.approx(1234.0, rel=0.01)
+    assert out["chatter"] and out["rpm"] == 9000 and out["f_chatter_hz"] == pytest.approx(1234.0, rel=0.01)
     assert [s["j"] for s in out["speeds"]] == [3, 4, 5, 6, 7]
     assert out["speeds"][0]["rpm"] == pytest.approx(60 * 1234.0 / 9, rel=0.01)
+    stable = chatter_recording(tmp_path / "stable.csv", rpm=9000, flutes=3, f_chatter_hz=1234.0, chatter=0.0)
+    assert main(["tap", "chatter", str(stable), "--flutes", "3", "--rpm", "9000", "--json", "-"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["chatter"] is False and out["speeds"] == []
+    assert main(["tap", "chatter", str(stable), "--flutes", "3", "--rpm", "9000"]) == 0
+    assert capsys.readouterr().out.startswith("no chatter found: the strongest")
     assert main(["tap", "chatter", str(log), "--flutes", "3", "--rpm", "9000"]) == 2     # a tap log is no recording
     assert "unknown column 'force_N'" in capsys.readouterr().err
 

@@ -27,11 +27,12 @@ table, x = [...] and y = [...] (without a Y log the job takes y = x; docs/tap-te
 
 HELP_CHATTER = """\
 REC: CSV with t_s (s, evenly spaced) and signal (a microphone or an accelerometer near the cut; any unit),
-optionally spindle_rpm. Prints the chatter frequency f_c (the strongest peak that is not a spindle or
-tooth-passing harmonic), the lobe number and phase ε at this speed (f_c/f_tooth = lobe + ε/2π), and the
-fastest stable speeds n_j = 60·f_c/(flutes·j) within the spindle's range (Tlusty's rule: the tooth-passing
-frequency on f_c or a fraction of it). Chatter at the new speed moves near the mode again: a second
-recording there refines it."""
+optionally spindle_rpm. Says whether the cut chatters: the strongest peak that is not a spindle or
+tooth-passing harmonic must stand above the noise floor by more than noise passes 1 time in 100
+(docs/tap-test.md). If so, prints the chatter frequency f_c, the lobe number and phase ε at this speed
+(f_c/f_tooth = lobe + ε/2π), and the fastest stable speeds n_j = 60·f_c/(flutes·j) within the spindle's
+range (Tlusty's rule: the tooth-passing frequency on f_c or a fraction of it). Chatter at the new speed
+moves near the mode again: a second recording there refines it."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -142,16 +143,21 @@ def run_chatter(args: argparse.Namespace) -> int:
             raise ConfigError("--rpm", None, "give the spindle speed, or a spindle_rpm column in the recording")
         rpm = float(np.nanmean(logged))
     c = analyse_chatter(rec, rpm, args.flutes, rpm_min=args.spindle_min, rpm_max=args.spindle_max, count=args.speeds)
-    result = {"f_chatter_hz": c.f_chatter_hz, "peak_to_median": c.peak_to_median, "rpm": c.rpm,
-              "flutes": c.flutes, "f_tooth_hz": c.f_tooth_hz, "lobe": c.lobe, "epsilon_rad": c.epsilon_rad,
-              "speeds": [{"j": j, "rpm": n} for j, n in c.speeds]}
+    result = {"chatter": c.chatter, "f_chatter_hz": c.f_chatter_hz, "peak_to_floor": c.peak_to_floor,
+              "threshold": c.threshold, "rpm": c.rpm, "flutes": c.flutes, "f_tooth_hz": c.f_tooth_hz,
+              "lobe": c.lobe, "epsilon_rad": c.epsilon_rad, "speeds": [{"j": j, "rpm": n} for j, n in c.speeds]}
     if args.json != "-":
-        print(f"chatter: {c.f_chatter_hz:.1f} Hz ({10 * math.log10(c.peak_to_median):.0f} dB above the median), "
-              f"tooth passing {c.f_tooth_hz:.1f} Hz at {c.rpm:.0f} rpm: lobe {c.lobe}, epsilon {c.epsilon_rad:.2f} rad")
-        for j, n in c.speeds:
-            print(f"stable speed j={j}: {n:.0f} rpm")
-        if not c.speeds:
-            print("stable speed: none within the spindle's range")
+        above = f"{10 * math.log10(c.peak_to_floor):.1f} dB above the noise floor"
+        if not c.chatter:
+            print(f"no chatter found: the strongest non-harmonic peak, {c.f_chatter_hz:.1f} Hz, is {above}, under "
+                  f"the {10 * math.log10(c.threshold):.1f} dB that noise passes 1 time in 100")
+        else:
+            print(f"chatter: {c.f_chatter_hz:.1f} Hz ({above}), tooth passing {c.f_tooth_hz:.1f} Hz at "
+                  f"{c.rpm:.0f} rpm: lobe {c.lobe}, epsilon {c.epsilon_rad:.2f} rad")
+            for j, n in c.speeds:
+                print(f"stable speed j={j}: {n:.0f} rpm")
+            if not c.speeds:
+                print("stable speed: none within the spindle's range")
     _write_json(args.json, result, "tap chatter")
     return 0
 

@@ -17,7 +17,9 @@ half-power bandwidth ζ = Δf/2f_n, k = 1/(2ζ|G(f_n)|)); the window's damping i
 σ = ζ_w ω_w − 1/τ, ω_n = √(σ² + ω_d²), ζ = σ/ω_n, and k = k_w (ω_n/ω_w)² (the modal mass is unchanged).
 
 Chatter frequency: the Welch spectrum of the recording with the spindle harmonics k·n/60 (they hold the
-tooth-passing ones k·N·n/60, and runout's) removed; the strongest remaining peak is f_c. The stable speeds
+tooth-passing ones k·N·n/60, and runout's) removed; the strongest remaining local maximum is f_c, and the
+cut chatters if it stands above the noise floor by more than the Welch estimate's χ² noise passes 1 time in
+100 over the spectrum (`chatter_frequency`). The stable speeds
 are those that put the tooth-passing frequency on f_c or a fraction of it, n_j = 60 f_c / (N j), j = 1, 2, …
 (Tlusty's rule, Smith & Tlusty 1992 "Stabilizing chatter by automatic spindle speed regulation"; tap-test
 apps call it the best speed): the teeth then meet the surface wave in phase. At the present speed
@@ -31,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy import fft, optimize, signal
+from scipy import fft, optimize, signal, stats
 
 from ..errors import MillpostError, ParseError
 from ..measure.log import _check_time, _data_line, read_table
@@ -445,14 +447,20 @@ def _unwindow(m: Mode, tau_s: float, path: str) -> Mode:
 
 
 # --- chatter ---------------------------------------------------------------------------------------------
+FALSE_ALARM = 0.01   # probability that a stable cut's noise alone is called chatter
+
+
 @dataclass(frozen=True)
 class Chatter:
-    """A chattering cut's chatter frequency f_c (Hz) and how far its peak stands above the spectrum's median
-    (ratio of power densities), the tooth-passing frequency f_t = N n/60 (Hz), the lobe number and phase
-    ε (rad) with f_c/f_t = lobe + ε/2π, and the stable speeds (j, rpm) with n_j = 60 f_c/(N j)."""
+    """A cut's verdict: `chatter` when the strongest non-harmonic peak, at f_chatter_hz (Hz), stands above the
+    noise floor by more than `threshold` (ratios of power densities; `peak_to_floor` is the peak's); the
+    tooth-passing frequency f_t = N n/60 (Hz), the lobe number and phase ε (rad) with
+    f_c/f_t = lobe + ε/2π, and the stable speeds (j, rpm) with n_j = 60 f_c/(N j) (none without chatter)."""
 
+    chatter: bool
     f_chatter_hz: float
-    peak_to_median: float
+    peak_to_floor: float
+    threshold: float
     rpm: float
     flutes: int
     f_tooth_hz: float
@@ -461,31 +469,46 @@ class Chatter:
     speeds: tuple[tuple[int, float], ...] = field(default=())
 
 
-def spectrum(rec: Record, resolution_hz: float) -> tuple[np.ndarray, np.ndarray]:
+def spectrum(rec: Record, resolution_hz: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Welch power spectral density (Hann, 50 % overlap) of the signal, segments of the power of two that
-    gives at most `resolution_hz` between bins (the whole record when it is shorter)."""
+    gives at most `resolution_hz` between bins (the whole record when it is shorter): (f Hz, PSD, ν), ν
+    the estimate's equivalent χ² degrees of freedom, 2K / (1 + 2ρ²(1 − 1/K)) for K segments whose
+    overlapping windows correlate by ρ (1/6 for Hann; Percival & Walden, "Spectral Analysis for Physical
+    Applications", §6.17)."""
     x = rec.columns["signal"] - np.mean(rec.columns["signal"])
     fs = rec.fs_hz
     nper = min(len(x), 2 ** math.ceil(math.log2(fs / resolution_hz)))
-    return signal.welch(x, fs, window="hann", nperseg=nper, detrend="constant")
+    f, p = signal.welch(x, fs, window="hann", nperseg=nper, detrend="constant")
+    w, step = signal.get_window("hann", nper), nper // 2
+    k = 1 + (len(x) - nper) // step
+    rho = float(np.sum(w[:nper - step] * w[step:]) / np.sum(w**2))
+    return f, p, 2 * k / (1 + 2 * rho**2 * (1 - 1 / k))
 
 
-def chatter_frequency(rec: Record, rpm: float, *, tolerance: float = 0.005) -> tuple[float, float]:
-    """(f_c Hz, peak / median power density): the strongest spectral peak that is not a spindle harmonic
-    k·n/60 (within max(2 bins, `tolerance`·f) of one; k·n/60 includes the tooth-passing harmonics), its
-    frequency refined by a parabola through the log power of the peak bin and its neighbours."""
+def chatter_frequency(rec: Record, rpm: float, *, tolerance: float = 0.002) -> tuple[float, float, float]:
+    """(f_c Hz, its peak / the noise floor, the threshold): f_c is the strongest local maximum of the spectrum
+    that is not a spindle harmonic k·n/60 (within max(2 bins, `tolerance`·f) of one; k·n/60 includes the
+    tooth-passing harmonics; a local maximum, so not a harmonic's leakage), refined by a parabola through
+    the log power of the peak bin and its neighbours. The noise floor is the median of the non-harmonic
+    bins within an octave of f_c. Noise alone makes each bin's estimate S·χ²_ν/ν: the threshold is the
+    ratio whose chance of being passed by any of the M non-harmonic bins is FALSE_ALARM,
+    χ²_ν quantile(1 − FALSE_ALARM/M) / χ²_ν median."""
     f_spindle = rpm / 60.0
-    f, p = spectrum(rec, f_spindle / 20.0)
+    f, p, dof = spectrum(rec, f_spindle / 40.0)
     df = f[1] - f[0]
     k = np.maximum(np.round(f / f_spindle), 1)
     free = (np.abs(f - k * f_spindle) > np.maximum(2 * df, tolerance * f)) & (f > 0.5 * f_spindle)
     free[[0, -1]] = False
-    if not free.any():
+    peak = free & (p >= np.roll(p, 1)) & (p >= np.roll(p, -1))
+    if not peak.any():
         raise MillpostError("no frequency of the recording lies between the spindle harmonics")
-    i = int(np.argmax(np.where(free, p, -np.inf)))
+    i = int(np.argmax(np.where(peak, p, -np.inf)))
     y0, y1, y2 = np.log(p[i - 1:i + 2] + 1e-300)
     shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) if y0 - 2 * y1 + y2 < 0 else 0.0
-    return float(f[i] + shift * df), float(p[i] / np.median(p[free]))
+    floor = float(np.median(p[free & (f >= f[i] / 2) & (f <= 2 * f[i])]))
+    chi2 = stats.chi2(dof)
+    threshold = float(chi2.isf(FALSE_ALARM / np.count_nonzero(free)) / chi2.median())
+    return float(f[i] + shift * df), float(p[i] / floor), threshold
 
 
 def stable_speeds(f_chatter_hz: float, flutes: int, *, rpm_min: float = 0.0, rpm_max: float = math.inf,
@@ -504,11 +527,12 @@ def stable_speeds(f_chatter_hz: float, flutes: int, *, rpm_min: float = 0.0, rpm
 
 def analyse_chatter(rec: Record, rpm: float, flutes: int, *, rpm_min: float = 0.0, rpm_max: float = math.inf,
                     count: int = 5) -> Chatter:
-    """The chatter frequency of a recording at `rpm` with `flutes` teeth, and the stable speeds."""
+    """Whether a recording at `rpm` with `flutes` teeth chatters, at what frequency, and the stable speeds."""
     if not (rpm > 0 and flutes >= 1):
         raise MillpostError(f"rpm = {rpm:g}, flutes = {flutes}: a positive speed and at least one flute")
-    fc, ratio = chatter_frequency(rec, rpm)
+    fc, ratio, threshold = chatter_frequency(rec, rpm)
     ft = flutes * rpm / 60.0
     lobe = int(fc // ft)
-    return Chatter(fc, ratio, rpm, flutes, ft, lobe, 2 * math.pi * (fc / ft - lobe),
-                   stable_speeds(fc, flutes, rpm_min=rpm_min, rpm_max=rpm_max, count=count))
+    chatter = ratio > threshold
+    return Chatter(chatter, fc, ratio, threshold, rpm, flutes, ft, lobe, 2 * math.pi * (fc / ft - lobe),
+                   stable_speeds(fc, flutes, rpm_min=rpm_min, rpm_max=rpm_max, count=count) if chatter else ())
