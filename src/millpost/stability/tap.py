@@ -36,7 +36,7 @@ import numpy as np
 from scipy import fft, optimize, signal, stats
 
 from ..errors import MillpostError, ParseError
-from ..measure.log import _check_time, _data_line, read_table
+from ..measure.log import check_time, data_line, read_table
 from .frf import DirectionFRF, Mode
 
 RESPONSES = {"accel_m_s2": "acceleration (m/s²)", "vel_mm_s": "velocity (mm/s)", "disp_mm": "displacement (mm)"}
@@ -61,7 +61,7 @@ class Record:
 
     def line(self, row: int) -> int:
         """The file line (1-based) of data row `row` (0-based)."""
-        return _data_line(Path(self.path).read_bytes(), self.header_line, row)
+        return data_line(Path(self.path).read_bytes(), self.header_line, row)
 
     def error(self, row: int, name: str, message: str, expected: str) -> ParseError:
         """A ParseError at row `row` of column `name`, naming the value."""
@@ -80,7 +80,7 @@ def _read(path, known: dict[str, str], required: tuple[str, ...]) -> Record:
     columns, header_at = read_table(path, check, required=required, describe=known, data=data)
     rec = Record(columns, str(path), header_at)
     t = columns["t_s"]
-    _check_time(t, str(path), data, header_at)
+    check_time(t, str(path), data, header_at)
     if len(t) < 16:
         raise ParseError(f"{len(t)} samples", file=str(path), line=header_at, column=1, word="t_s",
                          expected="at least 16 evenly spaced samples")
