@@ -120,7 +120,7 @@ def read_log(path: str | os.PathLike) -> Log:
         return _read_npz(path)
     data = path.read_bytes()
     columns, header_at = read_table(path, check_column_name, required=("t_s",), data=data)
-    _check_time(columns["t_s"], str(path), data, header_at)
+    check_time(columns["t_s"], str(path), data, header_at)
     comments = b"\n".join(_comment_lines(data))
     gaps = [Gap(float(a), float(b), (r or b"").decode("utf-8", "replace")) for a, b, r in _GAP.findall(comments)]
     meta = {k.decode(): v.decode("utf-8", "replace") for k, v in _META.findall(comments)}
@@ -216,19 +216,21 @@ def _locate_bad_field(data: bytes, name: str, header_at: int, names: list[str], 
                      expected="rows of comma-separated numbers")  # pragma: no cover - the scan finds it
 
 
-def _check_time(t: np.ndarray, name: str, data: bytes | None = None, header_at: int = 0) -> None:
+def check_time(t: np.ndarray, name: str, data: bytes | None = None, header_at: int = 0) -> None:
+    """Refuse a time column t (s) with a value that is not finite or goes back: a ParseError at file `name`,
+    at the row's line in `data` (the file's bytes, header on line `header_at`) or, without data, row + 1."""
     bad = np.flatnonzero(~np.isfinite(t))
     back = np.flatnonzero(np.diff(t) < 0)
     if len(bad) or len(back):
         row = int(min(bad[0] if len(bad) else len(t), back[0] + 1 if len(back) else len(t)))
-        line = _data_line(data, header_at, row) if data is not None else row + 1
+        line = data_line(data, header_at, row) if data is not None else row + 1
         word = f"{float(t[row]):g}"
         raise ParseError("t_s must be finite and never decrease", file=name, line=line, column=1, word=word,
                          expected=f"a time >= {float(t[row - 1]):g} s" if row > 0 and np.isfinite(t[row]) else
                          "a finite time (s)")
 
 
-def _data_line(data: bytes, header_at: int, row: int) -> int:
+def data_line(data: bytes, header_at: int, row: int) -> int:
     """1-based file line of data row `row` (0-based), skipping comments and blank lines."""
     k = -1
     for lineno, raw in enumerate(data.splitlines(), start=1):
@@ -263,7 +265,7 @@ def _read_npz(path: Path) -> Log:
         raise ParseError("no t_s array", file=name, line=1, column=1, expected="an array named t_s")
     columns = {"t_s": columns.pop("t_s"), **columns}
     log = Log(columns, gaps, meta, name)
-    _check_time(log.t_s, name)
+    check_time(log.t_s, name)
     return log
 
 

@@ -17,7 +17,9 @@ half-power bandwidth ζ = Δf/2f_n, k = 1/(2ζ|G(f_n)|)); the window's damping i
 σ = ζ_w ω_w − 1/τ, ω_n = √(σ² + ω_d²), ζ = σ/ω_n, and k = k_w (ω_n/ω_w)² (the modal mass is unchanged).
 
 Chatter frequency: the Welch spectrum of the recording with the spindle harmonics k·n/60 (they hold the
-tooth-passing ones k·N·n/60, and runout's) removed; the strongest remaining peak is f_c. The stable speeds
+tooth-passing ones k·N·n/60, and runout's) removed; the strongest remaining local maximum is f_c, and the
+cut chatters if it stands above the noise floor by more than the Welch estimate's χ² noise passes 1 time in
+100 over the spectrum (`chatter_frequency`). The stable speeds
 are those that put the tooth-passing frequency on f_c or a fraction of it, n_j = 60 f_c / (N j), j = 1, 2, …
 (Tlusty's rule, Smith & Tlusty 1992 "Stabilizing chatter by automatic spindle speed regulation"; tap-test
 apps call it the best speed): the teeth then meet the surface wave in phase. At the present speed
@@ -31,10 +33,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy import fft, optimize, signal
+from scipy import fft, optimize, signal, stats
 
 from ..errors import MillpostError, ParseError
-from ..measure.log import _check_time, _data_line, read_table
+from ..measure.log import check_time, data_line, read_table
 from .frf import DirectionFRF, Mode
 
 RESPONSES = {"accel_m_s2": "acceleration (m/s²)", "vel_mm_s": "velocity (mm/s)", "disp_mm": "displacement (mm)"}
@@ -59,7 +61,7 @@ class Record:
 
     def line(self, row: int) -> int:
         """The file line (1-based) of data row `row` (0-based)."""
-        return _data_line(Path(self.path).read_bytes(), self.header_line, row)
+        return data_line(Path(self.path).read_bytes(), self.header_line, row)
 
     def error(self, row: int, name: str, message: str, expected: str) -> ParseError:
         """A ParseError at row `row` of column `name`, naming the value."""
@@ -78,7 +80,7 @@ def _read(path, known: dict[str, str], required: tuple[str, ...]) -> Record:
     columns, header_at = read_table(path, check, required=required, describe=known, data=data)
     rec = Record(columns, str(path), header_at)
     t = columns["t_s"]
-    _check_time(t, str(path), data, header_at)
+    check_time(t, str(path), data, header_at)
     if len(t) < 16:
         raise ParseError(f"{len(t)} samples", file=str(path), line=header_at, column=1, word="t_s",
                          expected="at least 16 evenly spaced samples")
@@ -240,13 +242,18 @@ def measure_frf(rec: Record, *, end_value: float = 0.01, tau_s: float | None = N
 
 
 # --- the modal fit ---------------------------------------------------------------------------------------
+Z_PEAK = 3.0          # a candidate peak's prominence, in random errors ε|G| of the H1 estimate at its top
+MAX_CANDIDATES = 10   # candidate peaks tried, most prominent first
+
+
 class ModalFit:
     """Modes of one direction fitted to a tap log's receptance.
 
-    Settings: n_modes (None: every clear peak of |G|), band_hz (lo, hi; None: where the hammer excites,
-    force spectrum within 20 dB of its top, up to 0.45·fs), min_coherence (bins below it are not fitted,
-    with two or more hits), window_s (the exponential window's τ, s; None: first one that ends at 1 %, then
-    τ = 2/σ for the slowest decay, see `_window`). Learned: measured_
+    Settings: n_modes (None: chosen by model selection, see `select_modes`), band_hz (lo, hi; None: where
+    the hammer excites, from 5 bins up to where the force spectrum first falls 20 dB below its top, at most
+    0.45·fs), min_coherence (bins below it are not fitted, with two or more hits), window_s (the exponential
+    window's τ, s; None: first one that ends at 1 %, then τ = 2/σ for the slowest decay σ = ζω_n found:
+    ζ's error for white response noise, ∝ √(1 + στ)·(1 + 1/(στ)), is least at στ = 2). Learned: measured_
     (MeasuredFRF), frf_ (DirectionFRF of the modes, window damping removed), modes_, residual_ (R_U mm/N,
     R_L mm·Hz²/N), r2_ (of the fit to the complex receptance), coherence_ (mean over the fitted bins),
     fit_band_hz_, notes_."""
@@ -261,17 +268,19 @@ class ModalFit:
 
     def fit(self, rec: Record) -> "ModalFit":
         m = measure_frf(rec, tau_s=self.window_s)
-        m, use, start = self._window(rec, m, _pick_peaks(m.f_hz, m.receptance_mm_per_N, self._usable(m, rec.fs_hz),
-                                                         self.n_modes, rec.path))
+        start = select_modes(m, self._usable(m, rec.fs_hz), self.n_modes, rec.path)
+        sigma = min(_decay(w) for w in start) - 1.0 / m.tau_s
+        if self.window_s is None and sigma > 0 and 2.0 / sigma < m.tau_s:
+            start = [_shift_decay(w, sigma / 2.0 - 1.0 / m.tau_s) for w in start]   # the same poles, new window
+            m = measure_frf(rec, tau_s=2.0 / sigma)
+        use = self._usable(m, rec.fs_hz)
         self.measured_ = m
         lo = max(0.6 * min(p.fn_hz for p in start), m.f_hz[use][0])
         hi = min(1.4 * max(p.fn_hz for p in start), m.f_hz[use][-1])
         pts = use & (m.f_hz >= lo) & (m.f_hz <= hi)
-        g, coh = m.receptance_mm_per_N[pts], m.coherence[pts]
-        # H1's random error: |G|·√((1 − γ²)/(γ² n_hits)) (Bendat & Piersol), at least 1 % of |G|
-        sigma = np.abs(g) * np.maximum(np.sqrt(np.clip(1 - coh, 0, 1) / (coh * len(m.hits.starts))), 0.01)
-        windowed, self.residual_ = _least_squares(m.f_hz[pts], g, sigma, start)
-        err = g - _model(m.f_hz[pts], [(w.fn_hz, w.zeta, w.k_N_per_mm) for w in windowed], self.residual_)
+        g = m.receptance_mm_per_N[pts]
+        windowed, self.residual_ = _least_squares(m.f_hz[pts], g, _random_error(m)[pts], start)
+        err = g - _model(m.f_hz[pts], _params(windowed), self.residual_)
         self.r2_ = 1.0 - float(np.sum(np.abs(err) ** 2) / np.sum(np.abs(g - g.mean()) ** 2))
         self.coherence_ = float(np.mean(m.coherence[pts]))
         self.fit_band_hz_ = (float(lo), float(hi))
@@ -281,20 +290,10 @@ class ModalFit:
                                             ["one hit: the coherence is 1 by construction, tap two or more times"])
         return self
 
-    def _window(self, rec: Record, m: MeasuredFRF, start: list[Mode]) -> tuple[MeasuredFRF, np.ndarray, list[Mode]]:
-        """Measure again with the window that measures the slowest decay best: τ = 2/σ for its decay rate
-        σ = ζω_n (ζ's error, ∝ √(1 + στ)·(1 + 1/(στ)) for white response noise, is least at στ = 2), when that
-        is shorter than the first window; (measured FRF, usable bins, start values)."""
-        sigma = min(2 * math.pi * p.fn_hz * p.zeta for p in start) - 1.0 / m.tau_s
-        if self.window_s is None and sigma > 0 and 2.0 / sigma < m.tau_s:
-            m = measure_frf(rec, tau_s=2.0 / sigma)
-            use = self._usable(m, rec.fs_hz)
-            return m, use, _pick_peaks(m.f_hz, m.receptance_mm_per_N, use, self.n_modes, rec.path)
-        return m, self._usable(m, rec.fs_hz), start
-
     def _usable(self, m: MeasuredFRF, fs: float) -> np.ndarray:
-        excited = np.flatnonzero(m.force_spectrum >= 0.01)
-        lo, hi = self.band_hz or (5 * m.f_hz[0], min(m.f_hz[excited[-1]], 0.45 * fs))
+        lo = 5 * m.f_hz[0]
+        weak = np.flatnonzero((m.force_spectrum < 0.01) & (m.f_hz > lo))   # past the force pulse's first lobe
+        lo, hi = self.band_hz or (lo, min(m.f_hz[weak[0] - 1] if len(weak) else m.f_hz[-1], 0.45 * fs))
         use = (m.f_hz >= lo) & (m.f_hz <= hi)
         if len(m.hits.starts) > 1:
             use &= m.coherence >= self.min_coherence
@@ -310,38 +309,95 @@ class ModalFit:
         return self.frf_.receptance_mm_per_N(f_hz)
 
 
-def _pick_peaks(f: np.ndarray, g: np.ndarray, use: np.ndarray, n_modes: int | None, path: str) -> list[Mode]:
-    """Start values: peaks of |G| at usable bins with a prominence ≥ 5 % of the largest usable |G|: those at
-    least 20 % as high as it, or the n_modes most prominent,
-    f_n at the peak, ζ from the half-power bandwidth, k = 1/(2ζ|G(f_n)|)."""
-    a = np.abs(g)
-    top = a[use].max()
-    peaks, props = signal.find_peaks(a, prominence=0.05 * top, height=0.0 if n_modes else 0.2 * top)
-    order = [i for i in np.argsort(props["prominences"])[::-1] if use[peaks[i]]]
-    peaks = peaks[order[:n_modes]] if n_modes else peaks[order]
-    if len(peaks) == 0:
-        raise MillpostError(f"{path}: no resonance peak in the receptance")
-    if n_modes and len(peaks) < n_modes:
-        raise MillpostError(f"{path}: {len(peaks)} resonance peaks in the receptance, {n_modes} modes asked for")
-    out = []
-    for p in sorted(peaks):
-        half = a[p] / math.sqrt(2)
-        i = p
-        while i > 0 and a[i] > half:
-            i -= 1
-        j = p
-        while j < len(a) - 1 and a[j] > half:
-            j += 1
-        f1 = np.interp(half, [a[i], a[i + 1]], [f[i], f[i + 1]])
-        f2 = np.interp(half, [a[j], a[j - 1]], [f[j], f[j - 1]])
-        zeta = min(max((f2 - f1) / (2 * f[p]), 1e-3), 0.3)
-        out.append(Mode(float(f[p]), float(zeta), float(1.0 / (2 * zeta * a[p]))))
-    return out
+def select_modes(m: MeasuredFRF, use: np.ndarray, n_modes: int | None, path: str) -> list[Mode]:
+    """The modes of the windowed receptance (start values of the final fit).
+
+    With n_modes: the start values of the n_modes most prominent peaks of |G|. Without: a forward model
+    selection over the usable bins. Candidates are the peaks of |G| whose prominence is at least Z_PEAK
+    times the H1 estimate's random error ε|G| there, ε = √((1 − γ²)/(2 n γ²)) for n hits (Bendat &
+    Piersol, "Random Data", §9.2); most prominent first, each is added to the modes kept so far and the
+    lot fitted (`_least_squares`); it is kept if every fitted mode is its peak (`_makes_peak`: noise
+    smoothed by the window looks like a mode with σ = 0, a broad shallow mode patches the baseline) and
+    the Bayesian information criterion falls,
+
+        BIC = n_eff ln(RSS / 2N) + p ln n_eff,   n_eff = 2N τ/T,
+
+    RSS the weighted complex residual Σ|e/σ|² over N bins, p = 3 per mode + 2 residual terms, and n_eff
+    the independent values: the window e^(−t/τ) smooths the spectrum of a record of length T over T/τ
+    bins (the noise's equivalent duration is τ). The common scale of σ is estimated (ln RSS), since γ²
+    from a few hits is biased upward."""
+    f, a = m.f_hz, np.abs(m.receptance_mm_per_N)
+    peaks, props = signal.find_peaks(a, prominence=0.0)
+    eps = np.sqrt(np.clip(1 - m.coherence, 0, 1) / (2 * len(m.hits.starts) * m.coherence))
+    clear = use[peaks] & (True if n_modes else props["prominences"] >= Z_PEAK * eps[peaks] * a[peaks])
+    order = [i for i in np.argsort(props["prominences"])[::-1] if clear[i]]
+    cands = [_half_power(f, a, peaks[i]) for i in order[:n_modes or MAX_CANDIDATES]]
+    if len(cands) < (n_modes or 1):
+        raise MillpostError(f"{path}: {len(cands)} resonance peaks stand out of the receptance's random error"
+                            f"{f', {n_modes} modes asked for' if n_modes else ''}")
+    if n_modes:
+        return cands
+    fu, g, err = f[use], m.receptance_mm_per_N[use], _random_error(m)[use]
+    n_eff = 2 * len(fu) * min(1.0, m.tau_s * f[0])      # f[0] = 1/T
+    best, peaks_kept, kept = math.inf, [], []
+    for c in cands:
+        try:
+            fitted, residual = _least_squares(fu, g, err, kept + [c])
+        except MillpostError:
+            continue
+        if not all(_makes_peak(w, p, m, a) for w, p in zip(fitted, peaks_kept + [c])):
+            continue
+        rss = float(np.sum(np.abs((g - _model(fu, _params(fitted), residual)) / err) ** 2))
+        bic = n_eff * math.log(rss / (2 * len(fu))) + (3 * len(fitted) + 2) * math.log(n_eff)
+        if bic < best:
+            best, peaks_kept, kept = bic, peaks_kept + [c], fitted
+    if not kept:
+        raise MillpostError(f"{path}: no resonance peak of the receptance fits a mode that decays faster than "
+                            f"the exponential window (τ = {m.tau_s:.3g} s): tap with a longer record")
+    return kept
+
+
+def _makes_peak(w: Mode, peak: Mode, m: MeasuredFRF, a: np.ndarray) -> bool:
+    """Whether the fitted (windowed) mode w is the peak it started from: the peak lies within w's half-power
+    band, w decays at least as fast as the window (windowed decay ≥ 2/τ), and w's own height 1/(2kζ) is at
+    least half of |G| at its natural frequency (less: the flank of other modes, or noise)."""
+    return (abs(w.fn_hz - peak.fn_hz) <= w.zeta * w.fn_hz and _decay(w) * m.tau_s >= 2.0
+            and 1.0 / (2 * w.k_N_per_mm * w.zeta) >= 0.5 * float(np.interp(w.fn_hz, m.f_hz, a)))
+
+
+def _half_power(f: np.ndarray, a: np.ndarray, p: int) -> Mode:
+    """Start values from the peak of |G| at bin p: f_n there, ζ = Δf/2f_n from the half-power bandwidth Δf,
+    k = 1/(2ζ|G(f_n)|)."""
+    half = a[p] / math.sqrt(2)
+    i = p
+    while i > 0 and a[i] > half:
+        i -= 1
+    j = p
+    while j < len(a) - 1 and a[j] > half:
+        j += 1
+    f1 = np.interp(half, [a[i], a[i + 1]], [f[i], f[i + 1]])
+    f2 = np.interp(half, [a[j], a[j - 1]], [f[j], f[j - 1]])
+    zeta = min(max((f2 - f1) / (2 * f[p]), 1e-3), 0.3)
+    return Mode(float(f[p]), float(zeta), float(1.0 / (2 * zeta * a[p])))
+
+
+def _random_error(m: MeasuredFRF) -> np.ndarray:
+    """The error (mm/N) each real and imaginary part of the H1 receptance is weighted by: |G|·√((1 − γ²)/(γ² n))
+    for n hits (√2 times Bendat & Piersol's ε, which a few hits' upward-biased γ² understates), at least
+    1 % of |G|."""
+    coh = m.coherence
+    return np.abs(m.receptance_mm_per_N) * np.maximum(np.sqrt(np.clip(1 - coh, 0, 1) / (coh * len(m.hits.starts))),
+                                                      0.01)
 
 
 def _model(f: np.ndarray, modes, residual: tuple[float, float]) -> np.ndarray:
     """Σ 1/(k (1 − r² + 2iζr)) + R_U − R_L/f² (mm/N); modes as (f_n Hz, ζ, k N/mm)."""
     return sum(1.0 / (k * (1 - (f / fn) ** 2 + 2j * z * f / fn)) for fn, z, k in modes) + residual[0] - residual[1] / f**2
+
+
+def _params(modes: list[Mode]) -> list[tuple[float, float, float]]:
+    """(f_n Hz, ζ, k N/mm) of each mode, as `_model` takes them."""
+    return [(m.fn_hz, m.zeta, m.k_N_per_mm) for m in modes]
 
 
 def _least_squares(f: np.ndarray, g: np.ndarray, sigma: np.ndarray,
@@ -368,27 +424,43 @@ def _least_squares(f: np.ndarray, g: np.ndarray, sigma: np.ndarray,
     return [Mode(*m) for m in modes], (float(residual[0]), float(residual[1]))
 
 
-def _unwindow(m: Mode, tau_s: float, path: str) -> Mode:
-    """The mode without the exponential window's damping: same damped frequency, decay rate less 1/τ,
-    same modal mass."""
+def _decay(m: Mode) -> float:
+    """The mode's decay rate σ = ζω_n (1/s)."""
+    return 2 * math.pi * m.fn_hz * m.zeta
+
+
+def _shift_decay(m: Mode, d_sigma: float) -> Mode:
+    """The mode with its decay rate raised by d_sigma (1/s): same damped frequency, same modal mass (what an
+    exponential window e^(−t/τ) does with d_sigma = 1/τ)."""
     w = 2 * math.pi * m.fn_hz
-    sigma, wd = m.zeta * w - 1.0 / tau_s, w * math.sqrt(1 - m.zeta**2)
-    if sigma <= 0:
-        raise MillpostError(f"{path}: the mode at {m.fn_hz:.4g} Hz decays no faster than the exponential window "
-                            f"(τ = {tau_s:.3g} s): its damping cannot be measured; tap with a longer record")
+    sigma, wd = _decay(m) + d_sigma, w * math.sqrt(1 - m.zeta**2)
     wn = math.hypot(sigma, wd)
     return Mode(wn / (2 * math.pi), sigma / wn, m.k_N_per_mm * (wn / w) ** 2)
 
 
+def _unwindow(m: Mode, tau_s: float, path: str) -> Mode:
+    """The mode without the exponential window's damping: decay rate less 1/τ."""
+    if _decay(m) <= 1.0 / tau_s:
+        raise MillpostError(f"{path}: the mode at {m.fn_hz:.4g} Hz decays no faster than the exponential window "
+                            f"(τ = {tau_s:.3g} s): its damping cannot be measured; tap with a longer record")
+    return _shift_decay(m, -1.0 / tau_s)
+
+
 # --- chatter ---------------------------------------------------------------------------------------------
+FALSE_ALARM = 0.01   # probability that a stable cut's noise alone is called chatter
+
+
 @dataclass(frozen=True)
 class Chatter:
-    """A chattering cut's chatter frequency f_c (Hz) and how far its peak stands above the spectrum's median
-    (ratio of power densities), the tooth-passing frequency f_t = N n/60 (Hz), the lobe number and phase
-    ε (rad) with f_c/f_t = lobe + ε/2π, and the stable speeds (j, rpm) with n_j = 60 f_c/(N j)."""
+    """A cut's verdict: `chatter` when the strongest non-harmonic peak, at f_chatter_hz (Hz), stands above the
+    noise floor by more than `threshold` (ratios of power densities; `peak_to_floor` is the peak's); the
+    tooth-passing frequency f_t = N n/60 (Hz), the lobe number and phase ε (rad) with
+    f_c/f_t = lobe + ε/2π, and the stable speeds (j, rpm) with n_j = 60 f_c/(N j) (none without chatter)."""
 
+    chatter: bool
     f_chatter_hz: float
-    peak_to_median: float
+    peak_to_floor: float
+    threshold: float
     rpm: float
     flutes: int
     f_tooth_hz: float
@@ -397,31 +469,46 @@ class Chatter:
     speeds: tuple[tuple[int, float], ...] = field(default=())
 
 
-def spectrum(rec: Record, resolution_hz: float) -> tuple[np.ndarray, np.ndarray]:
+def spectrum(rec: Record, resolution_hz: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Welch power spectral density (Hann, 50 % overlap) of the signal, segments of the power of two that
-    gives at most `resolution_hz` between bins (the whole record when it is shorter)."""
+    gives at most `resolution_hz` between bins (the whole record when it is shorter): (f Hz, PSD, ν), ν
+    the estimate's equivalent χ² degrees of freedom, 2K / (1 + 2ρ²(1 − 1/K)) for K segments whose
+    overlapping windows correlate by ρ (1/6 for Hann; Percival & Walden, "Spectral Analysis for Physical
+    Applications", §6.17)."""
     x = rec.columns["signal"] - np.mean(rec.columns["signal"])
     fs = rec.fs_hz
     nper = min(len(x), 2 ** math.ceil(math.log2(fs / resolution_hz)))
-    return signal.welch(x, fs, window="hann", nperseg=nper, detrend="constant")
+    f, p = signal.welch(x, fs, window="hann", nperseg=nper, detrend="constant")
+    w, step = signal.get_window("hann", nper), nper // 2
+    k = 1 + (len(x) - nper) // step
+    rho = float(np.sum(w[:nper - step] * w[step:]) / np.sum(w**2))
+    return f, p, 2 * k / (1 + 2 * rho**2 * (1 - 1 / k))
 
 
-def chatter_frequency(rec: Record, rpm: float, *, tolerance: float = 0.005) -> tuple[float, float]:
-    """(f_c Hz, peak / median power density): the strongest spectral peak that is not a spindle harmonic
-    k·n/60 (within max(2 bins, `tolerance`·f) of one; k·n/60 includes the tooth-passing harmonics), its
-    frequency refined by a parabola through the log power of the peak bin and its neighbours."""
+def chatter_frequency(rec: Record, rpm: float, *, tolerance: float = 0.002) -> tuple[float, float, float]:
+    """(f_c Hz, its peak / the noise floor, the threshold): f_c is the strongest local maximum of the spectrum
+    that is not a spindle harmonic k·n/60 (within max(2 bins, `tolerance`·f) of one; k·n/60 includes the
+    tooth-passing harmonics; a local maximum, so not a harmonic's leakage), refined by a parabola through
+    the log power of the peak bin and its neighbours. The noise floor is the median of the non-harmonic
+    bins within an octave of f_c. Noise alone makes each bin's estimate S·χ²_ν/ν: the threshold is the
+    ratio whose chance of being passed by any of the M non-harmonic bins is FALSE_ALARM,
+    χ²_ν quantile(1 − FALSE_ALARM/M) / χ²_ν median."""
     f_spindle = rpm / 60.0
-    f, p = spectrum(rec, f_spindle / 20.0)
+    f, p, dof = spectrum(rec, f_spindle / 40.0)
     df = f[1] - f[0]
     k = np.maximum(np.round(f / f_spindle), 1)
     free = (np.abs(f - k * f_spindle) > np.maximum(2 * df, tolerance * f)) & (f > 0.5 * f_spindle)
     free[[0, -1]] = False
-    if not free.any():
+    peak = free & (p >= np.roll(p, 1)) & (p >= np.roll(p, -1))
+    if not peak.any():
         raise MillpostError("no frequency of the recording lies between the spindle harmonics")
-    i = int(np.argmax(np.where(free, p, -np.inf)))
+    i = int(np.argmax(np.where(peak, p, -np.inf)))
     y0, y1, y2 = np.log(p[i - 1:i + 2] + 1e-300)
     shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) if y0 - 2 * y1 + y2 < 0 else 0.0
-    return float(f[i] + shift * df), float(p[i] / np.median(p[free]))
+    floor = float(np.median(p[free & (f >= f[i] / 2) & (f <= 2 * f[i])]))
+    chi2 = stats.chi2(dof)
+    threshold = float(chi2.isf(FALSE_ALARM / np.count_nonzero(free)) / chi2.median())
+    return float(f[i] + shift * df), float(p[i] / floor), threshold
 
 
 def stable_speeds(f_chatter_hz: float, flutes: int, *, rpm_min: float = 0.0, rpm_max: float = math.inf,
@@ -440,11 +527,12 @@ def stable_speeds(f_chatter_hz: float, flutes: int, *, rpm_min: float = 0.0, rpm
 
 def analyse_chatter(rec: Record, rpm: float, flutes: int, *, rpm_min: float = 0.0, rpm_max: float = math.inf,
                     count: int = 5) -> Chatter:
-    """The chatter frequency of a recording at `rpm` with `flutes` teeth, and the stable speeds."""
+    """Whether a recording at `rpm` with `flutes` teeth chatters, at what frequency, and the stable speeds."""
     if not (rpm > 0 and flutes >= 1):
         raise MillpostError(f"rpm = {rpm:g}, flutes = {flutes}: a positive speed and at least one flute")
-    fc, ratio = chatter_frequency(rec, rpm)
+    fc, ratio, threshold = chatter_frequency(rec, rpm)
     ft = flutes * rpm / 60.0
     lobe = int(fc // ft)
-    return Chatter(fc, ratio, rpm, flutes, ft, lobe, 2 * math.pi * (fc / ft - lobe),
-                   stable_speeds(fc, flutes, rpm_min=rpm_min, rpm_max=rpm_max, count=count))
+    chatter = ratio > threshold
+    return Chatter(chatter, fc, ratio, threshold, rpm, flutes, ft, lobe, 2 * math.pi * (fc / ft - lobe),
+                   stable_speeds(fc, flutes, rpm_min=rpm_min, rpm_max=rpm_max, count=count) if chatter else ())
