@@ -297,41 +297,91 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     n = len(samples)
     if slices < 1 or ring_samples < 4:
         raise MillpostError("simulate: slices must be >= 1 and ring_samples >= 4")
-    tools = tool if isinstance(tool, Mapping) else None
     origin = np.array([0.0, 0.0, stock.z0])  # the kernels work in the stock's heights (above its z0)
-    xyz = np.asarray(samples.xyz_mm, dtype=np.float64) - origin
-    steps = np.concatenate([[0.0], np.linalg.norm(np.diff(xyz, axis=0), axis=1)]) if n else np.zeros(0)
-    tool_no = np.asarray(samples.tool)
-    fresh = np.asarray(samples.segment_start, bool).copy()
-    if n:
-        fresh[0] = True
-        fresh[1:] |= tool_no[1:] != tool_no[:-1]
-    rapid = np.asarray(samples.kind) == RAPID
-    # the leading rapids start wherever the machine stands (the reader assumes a start point for the
-    # axes not yet programmed): they are neither cut nor checked; the path starts after them
-    skip = (int(np.argmax(~rapid)) if not rapid.all() else n) if n else 0
-    if start is not None:
-        skip = min(max(int(start), 0), n)
-    if skip < n:
-        fresh[skip] = True
+    path = _Path.of(samples, origin, start)
+    runs = _tool_runs(samples, tool, path.skip)
     K, M = int(slices), int(ring_samples)
     nan = lambda *shape: np.full(shape, np.nan)  # noqa: E731
-    s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
     out = dict(phi_st=nan(n, K), phi_ex=nan(n, K), dz=np.zeros((n, K)), zmid=np.zeros((n, K)),
                rad=np.zeros((n, K)), arc=np.zeros((n, K)), ap=np.zeros(n), ae=np.zeros(n), vol=np.zeros(n),
                area=np.zeros(n), feed=np.zeros((n, 3)), desc=np.zeros(n, bool), depth=np.zeros(n),
                end=np.zeros((n, END_BINS), np.float32), near=np.zeros(n, bool), swept=np.zeros(n, bool))
-    top = stock.top.reshape(-1)
     # the clearance's snapshot of the stock as loaded: its tops' range per block of ~0.5 mm (at least
     # 4 × 4 columns: an eighth of the grid's size at most)
     clear = -1.0 if clearance_mm is None else float(clearance_mm)
     B = max(4, round(0.5 / stock.cell_mm))
-    omax, omin = _k.block_range(top, stock.nx, stock.ny, B, stock.z_floor)
-    zmax = float(omax.max())
-    prev_f = np.array([1.0, 0.0])
-    moving = steps[steps > 0]
-    ds = float(np.median(moving)) if len(moving) else 0.0
-    # runs of one tool, cut into chunks for the progress display
+    omax, omin = _k.block_range(stock.top.reshape(-1), stock.nx, stock.ny, B, stock.z_floor)
+    ahead = _step_runs(stock, samples, path, runs, out, K, M, look_ahead_mm, clear, (omax, omin, B), resolve(progress))
+    # under the tool's footprint, or going down below the stock's highest top anywhere (beside it too: a
+    # blank larger than modelled, a restart that left a neighbouring cut undone)
+    xyz, rapid, zmax = path.xyz, path.rapid, float(omax.max())
+    below = _below_original(xyz, ~rapid, runs, omax, B, stock) | (out["desc"] & ~rapid & (xyz[:, 2] < zmax - 1e-6))
+    kappa = np.full((n, K), np.pi / 2)
+    for a, b, t in runs:
+        for c0 in range(a, b, KAPPA_ROWS):  # in chunks: the profile's temporaries stay small
+            kappa[c0:min(b, c0 + KAPPA_ROWS)] = _kappa(t, out["zmid"][c0:min(b, c0 + KAPPA_ROWS)])
+    steps = path.steps
+    dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        descent = np.where(out["desc"] & (steps > 0), -dz_step / np.where(steps > 0, steps, 1.0), 0.0)
+    plunge = out["desc"] & (descent > 1.0 - 1e-9)
+    out["phi_st"][plunge], out["phi_ex"][plunge], out["dz"][plunge], out["arc"][plunge] = np.nan, np.nan, 0.0, 0.0
+    out["ae"][plunge] = 0.0
+    # a near step in swept space is known air when the step after it is too, or is not near: the tool
+    # then reaches no space near the stock that it has not cleared itself at the speed raised there
+    unknown_next = np.append(out["near"][1:] & ~out["swept"][1:], False)
+    fresh = path.fresh
+    return Engagement(
+        phi_st=out["phi_st"], phi_ex=out["phi_ex"], dz_mm=out["dz"], z_mm=out["zmid"], r_mm=out["rad"],
+        kappa=kappa, feed_dir=out["feed"], ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
+        volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
+        step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
+        depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead,
+        near_stock=out["near"] if clearance_mm is not None else None, below_top=below,
+        # the path's curvature at the sample itself: the move whose feed runs there
+        edge_ratio=edge_feed_ratio(out["phi_st"], out["phi_ex"], out["rad"], samples.tangent, samples.curvature),
+        swept_air=out["near"] & out["swept"] & ~unknown_next if clearance_mm is not None else None)
+
+
+@dataclass(frozen=True)
+class _Path:
+    """The samples as the kernels step them: positions above the stock's z0 (mm), step lengths and arc
+    length (mm), where the tool's footprint restarts (`fresh`: a new segment or tool), rapids, and the
+    first sample whose position is known (`skip`: the samples before it are neither cut nor checked)."""
+
+    xyz: np.ndarray
+    steps: np.ndarray
+    s_mm: np.ndarray
+    fresh: np.ndarray
+    rapid: np.ndarray
+    skip: int
+
+    @classmethod
+    def of(cls, samples: Samples, origin: np.ndarray, start: int | None) -> "_Path":
+        n = len(samples)
+        xyz = np.asarray(samples.xyz_mm, dtype=np.float64) - origin
+        steps = np.concatenate([[0.0], np.linalg.norm(np.diff(xyz, axis=0), axis=1)]) if n else np.zeros(0)
+        tool_no = np.asarray(samples.tool)
+        fresh = np.asarray(samples.segment_start, bool).copy()
+        if n:
+            fresh[0] = True
+            fresh[1:] |= tool_no[1:] != tool_no[:-1]
+        rapid = np.asarray(samples.kind) == RAPID
+        # the leading rapids start wherever the machine stands (the reader assumes a start point for the
+        # axes not yet programmed): they are neither cut nor checked; the path starts after them
+        skip = (int(np.argmax(~rapid)) if not rapid.all() else n) if n else 0
+        if start is not None:
+            skip = min(max(int(start), 0), n)
+        if skip < n:
+            fresh[skip] = True
+        s_mm = np.concatenate([[0.0], np.cumsum(steps[1:])]) if n else np.zeros(0)
+        return cls(xyz, steps, s_mm, fresh, rapid, skip)
+
+
+def _tool_runs(samples: Samples, tool: Tool | Mapping[int, Tool], skip: int) -> list[tuple[int, int, Tool]]:
+    """The runs of one tool from sample `skip` on: (first, end, tool)."""
+    n, tool_no = len(samples), np.asarray(samples.tool)
+    tools = tool if isinstance(tool, Mapping) else None
     bounds = sorted({skip, n, *(int(b) for b in np.flatnonzero(np.diff(tool_no)) + 1 if b > skip)})
     runs = []
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -339,15 +389,28 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
         if t is None:
             raise MillpostError(f"line {int(samples.line[a])}: tool T{int(tool_no[a])} is not described")
         runs.append((a, b, t))
+    return runs
+
+
+def _step_runs(stock, samples: Samples, path: _Path, runs: list, out: dict, K: int, M: int,
+               look_ahead_mm: float | None, clear: float, blocks: tuple, report: Progress) -> np.ndarray:
+    """Step each run's tool through the stock (cut in place), filling `out`'s per-sample columns; in chunks
+    for the progress display. blocks: the stock's tops' (max, min) per block of B columns, and B. Returns
+    the look-ahead (mm) per sample."""
+    n, xyz, fresh, rapid = len(samples), path.xyz, path.fresh, path.rapid
+    omax, omin, B = blocks
+    top, zmax = stock.top.reshape(-1), float(omax.max())
+    prev_f = np.array([1.0, 0.0])
+    moving = path.steps[path.steps > 0]
+    ds = float(np.median(moving)) if len(moving) else 0.0
     swept, sweep_grid = _swept_field(stock, max((t.radius_mm for _, _, t in runs), default=1.0), clear)
-    report = resolve(progress)
     report("engagement", 0, n)  # started: its bar's clock runs from here
     chunk = 50_000
     ahead = np.zeros(n)
     for a, b, t in runs:
         shape, R, rc, r_tip, tan_half = _tool_params(t)
         la = look_ahead_mm if look_ahead_mm is not None else max(2 * ds, math.sqrt(R * stock.cell_mm))
-        ring_at = _ring_frames(xyz[a:b], s_mm[a:b], fresh[a:b], la)
+        ring_at = _ring_frames(xyz[a:b], path.s_mm[a:b], fresh[a:b], la)
         ahead[a:b] = la
         for c0 in range(a, b, chunk):
             c1 = min(b, c0 + chunk)
@@ -359,34 +422,9 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
                              swept, *sweep_grid, *(v[a:b] for v in out.values()))
             if bad != _k.OK:
                 bad += a
-                raise CrashError(int(samples.line[bad]), xyz[bad] + origin)
+                raise CrashError(int(samples.line[bad]), xyz[bad] + np.array([0.0, 0.0, stock.z0]))
             report("engagement", c1, n)
-    # under the tool's footprint, or going down below the stock's highest top anywhere (beside it too: a
-    # blank larger than modelled, a restart that left a neighbouring cut undone)
-    below = _below_original(xyz, ~rapid, runs, omax, B, stock) | (out["desc"] & ~rapid & (xyz[:, 2] < zmax - 1e-6))
-    kappa = np.full((n, K), np.pi / 2)
-    for a, b, t in runs:
-        for c0 in range(a, b, KAPPA_ROWS):  # in chunks: the profile's temporaries stay small
-            kappa[c0:min(b, c0 + KAPPA_ROWS)] = _kappa(t, out["zmid"][c0:min(b, c0 + KAPPA_ROWS)])
-    dz_step = np.concatenate([[0.0], np.diff(xyz[:, 2])]) if n else np.zeros(0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        descent = np.where(out["desc"] & (steps > 0), -dz_step / np.where(steps > 0, steps, 1.0), 0.0)
-    plunge = out["desc"] & (descent > 1.0 - 1e-9)
-    out["phi_st"][plunge], out["phi_ex"][plunge], out["dz"][plunge], out["arc"][plunge] = np.nan, np.nan, 0.0, 0.0
-    out["ae"][plunge] = 0.0
-    # a near step in swept space is known air when the step after it is too, or is not near: the tool
-    # then reaches no space near the stock that it has not cleared itself at the speed raised there
-    unknown_next = np.append(out["near"][1:] & ~out["swept"][1:], False)
-    return Engagement(
-        phi_st=out["phi_st"], phi_ex=out["phi_ex"], dz_mm=out["dz"], z_mm=out["zmid"], r_mm=out["rad"],
-        kappa=kappa, feed_dir=out["feed"], ap_mm=out["ap"], ae_mm=_lowpass(out["ae"], fresh, smooth_steps),
-        volume_mm3=out["vol"], area_mm2=_lowpass(out["area"], fresh, smooth_steps), arc_rad=out["arc"],
-        step_mm=steps, descending=out["desc"], move=np.asarray(samples.move), line=np.asarray(samples.line),
-        depth_mm=out["depth"], end_engaged=out["end"], descent=descent, look_ahead_mm=ahead,
-        near_stock=out["near"] if clearance_mm is not None else None, below_top=below,
-        # the path's curvature at the sample itself: the move whose feed runs there
-        edge_ratio=edge_feed_ratio(out["phi_st"], out["phi_ex"], out["rad"], samples.tangent, samples.curvature),
-        swept_air=out["near"] & out["swept"] & ~unknown_next if clearance_mm is not None else None)
+    return ahead
 
 
 def _below_original(xyz: np.ndarray, feed: np.ndarray, runs: list, omax: np.ndarray, B: int, stock) -> np.ndarray:
