@@ -169,6 +169,7 @@ class Chatter:
     kt_N_per_mm2: float
     kr: float
     tools: tuple[int, ...]
+    cut: CutImmersion
     name: ClassVar[str] = "chatter"
     kind: ClassVar[Kind] = QUALITY
 
@@ -178,12 +179,23 @@ class Chatter:
         if cut is None:
             return None
         return cls(samples.line, cut.tool, running_rpm(job, samples.rpm), cut.ap_mm,
-                   limiting_depth_mm(job, cut, samples.rpm), *cutting_coefficients(job), tuple(sorted(job.frf)))
+                   limiting_depth_mm(job, cut, samples.rpm), *cutting_coefficients(job), tuple(sorted(job.frf)),
+                   cut)
 
     @property
     def over(self) -> np.ndarray:
         """Samples cut deeper than their stable depth."""
         return self.ap_mm > self.a_lim_mm
+
+    def trace_columns(self) -> dict[str, np.ndarray]:
+        """The trace's chatter columns per sample: the speed the spindle runs (rpm), the limiting depth
+        (mm; inf where not checked), the immersion bins' φ_st and φ_ex (degrees; nan where not checked),
+        feed_along_y (1: the FRF's X and Y swapped for it) and chatter_over (1: cut above a_lim)."""
+        checked = self.cut.checked
+        return {"rpm": self.rpm, "a_lim_mm": self.a_lim_mm,
+                "phi_st_deg": np.where(checked, self.cut.bin_st * BIN_DEG, np.nan),
+                "phi_ex_deg": np.where(checked, self.cut.bin_ex * BIN_DEG, np.nan),
+                "feed_along_y": self.cut.along_y.astype(np.int8), "chatter_over": self.over.astype(np.int8)}
 
     def lines(self) -> list[dict]:
         """Per source line cut above its stable depth, its worst sample: tool, rpm, ap, a_lim (mm), ratio."""
