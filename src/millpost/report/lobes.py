@@ -80,7 +80,7 @@ def tool_lobes(trace: dict[str, np.ndarray], job) -> list[ToolLobes]:
     checked = np.isfinite(trace["phi_st_deg"]) & (trace["rpm"] > 0)
     sp = job.machine.spindle
     rpm = np.linspace(max(sp.rpm_min, LOWEST_RPM * sp.rpm_max), sp.rpm_max, SPEEDS)
-    kt, kr = cutting_coefficients(job)
+    kt, kr = cutting_coefficients(job.material)
     out = []
     for tool in sorted(job.frf):
         mine = checked & (trace["tool"] == tool)
