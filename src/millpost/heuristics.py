@@ -24,10 +24,10 @@ the candidate with the highest material removal rate wins. The limits, with thei
   unstable candidates are dropped before their feed is solved;
 - among candidates within `tie_tolerance` of the best removal rate, the fastest feed wins (the
   reference's preference for fast, light passes over slow, heavy ones). With an FRF, only the candidates
-  within `CHATTER_TIE` (3 %) of the best removal rate with the largest chatter margin a_lim/ap take part
-  (margins ≥ `SAFE_MARGIN`, 1.25, count alike): a speed near a pocket's top rather than on a lobe's
-  flank, where a small error in the FRF or the speed tips the cut into chatter; a cut already that far
-  from the lobes is chosen as without the FRF.
+  within `CHATTER_TIE` (3 %) of the best removal rate at the highest lobe take part (a_lim at their
+  width and speed, counted up to `SAFE_MARGIN` = 1.25 × their depth): a speed near a pocket's top
+  rather than on a lobe's flank, where a small error in the FRF or the speed tips the cut into chatter;
+  at one speed the deepest stable cut, so that `chatter` binds when it decides the depth.
 
 With a strategy (adaptive, slot, profile, face, low-deflection) the search keeps to a machinist's rules
 for it, from the material file's `[strategies]` table with their sources: the radial width range of
@@ -69,8 +69,8 @@ from .tools.cutter import Tool
 SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
 ZERO_NORMAL_ROUNDS = 8       # width ↔ (depth, speed) rounds of the low-deflection search (2–3 settle it)
 CHATTER_SPEEDS = 61          # speeds of the first search grid with an FRF (geometric: ~2 % apart over 3:1)
-CHATTER_TIE = 0.03           # with an FRF: removal rates this close count as equal, the larger margin wins
-SAFE_MARGIN = 1.25           # ... up to this a_lim/ap (a choice: past it a margin buys nothing more here)
+CHATTER_TIE = 0.03           # with an FRF: removal rates this close count as equal, the higher lobe wins
+SAFE_MARGIN = 1.25           # ... counted up to this × the cut's depth (a choice: higher buys nothing here)
 
 
 @dataclass(frozen=True)
@@ -271,6 +271,8 @@ def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> t
     for sizes in (first, (7, 7, 4), (7, 7, 3), (7, 7, 3), (7, 7, 3)):
         axes = [_grid(lo, hi, n) for (lo, hi), n in zip(ranges, sizes)]
         A, P, N = (g.ravel() for g in np.meshgrid(*axes, indexing="ij"))
+        if s.chatter is not None:  # and at each width and speed the deepest stable cut
+            A, P, N = _with_stable_depths(s, A, P, N, ranges[1])
         mrr, _ = _removal_rates(s, A, P, N, search=True)
         seen.update({(a, p, n): m for a, p, n, m in zip(A, P, N, mrr) if m > 0})
         if not seen:
@@ -279,6 +281,16 @@ def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> t
         ratios = [(hi / lo) ** (1 / max(n - 1, 1)) for (lo, hi), n in zip(ranges, sizes)]
         ranges = [(max(f[0], c / q), min(f[1], c * q)) for f, c, q in zip(full, centre, ratios)]
     return _choose(s, seen, tie_tolerance)
+
+
+def _with_stable_depths(s: _Setup, A: np.ndarray, P: np.ndarray, N: np.ndarray, ap_range: tuple[float, float]
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The candidates plus, at each of their (ae, rpm), ap = a_lim where it lies within `ap_range` (so that
+    the chatter limit, when it decides, is met at its bound as the others are)."""
+    pairs = np.unique(np.stack([A, N], axis=1), axis=0)
+    deepest = s.chatter.a_lim_mm(pairs[:, 0], pairs[:, 1])
+    ok = (deepest >= ap_range[0]) & (deepest <= ap_range[1])
+    return (np.concatenate([A, pairs[ok, 0]]), np.concatenate([P, deepest[ok]]), np.concatenate([N, pairs[ok, 1]]))
 
 
 def _removal_rates(s: _Setup, A: np.ndarray, P: np.ndarray, N: np.ndarray, *, search: bool,
@@ -294,37 +306,44 @@ def _removal_rates(s: _Setup, A: np.ndarray, P: np.ndarray, N: np.ndarray, *, se
 
 def _choose(s: _Setup, seen: dict[tuple[float, float, float], float], tie_tolerance: float
             ) -> tuple[float, float, float, float]:
-    """The best dozen candidates of the search (with an FRF also the dozen of largest chatter margin within
-    `CHATTER_TIE` of the best) re-solved with the full model; among those within the tie of the best
-    removal rate the fastest feed wins. With an FRF only the candidates within `CHATTER_TIE` of the best
-    rate with the largest margin a_lim/ap (margins ≥ `SAFE_MARGIN` alike) take part."""
+    """The best dozen candidates of the search (with an FRF also the dozen of highest lobe within
+    `CHATTER_TIE` of the best, `_lobe_height`) re-solved with the full model; among those within the tie
+    of the best removal rate the fastest feed wins. With an FRF only the candidates within `CHATTER_TIE`
+    of the best rate at the highest lobe take part."""
     top = sorted(seen, key=seen.get, reverse=True)[:12]
     if s.chatter is not None:
         close = [k for k in seen if seen[k] >= (1 - CHATTER_TIE) * seen[top[0]]]
-        margin = np.minimum(1.0 / s.chatter.ratio(*np.array(close).T), SAFE_MARGIN)
-        top = list(dict.fromkeys(top + [close[i] for i in np.argsort(-margin, kind="stable")[:12]]))
+        lobe = _lobe_height(s, *np.array(close).T)
+        top = list(dict.fromkeys(top + [close[i] for i in np.lexsort(([-seen[k] for k in close], -lobe))[:12]]))
     A, P, N = (np.array(v) for v in zip(*top))
     mrr, fz = _removal_rates(s, A, P, N, search=False, iterations=30)
     if mrr.max() <= 0:
         raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
-    if s.chatter is not None:  # the largest margin (up to SAFE_MARGIN) among the near-equal, then as without
-        margin = np.minimum(1.0 / s.chatter.ratio(A, P, N), SAFE_MARGIN)
+    if s.chatter is not None:  # the highest lobe among the near-equal, then as without
+        lobe = _lobe_height(s, A, P, N)
         near = mrr >= (1 - CHATTER_TIE) * mrr.max()
-        mrr = np.where(near & (margin >= np.max(margin[near])), mrr, -1.0)
+        mrr = np.where(near & (lobe >= np.max(lobe[near])), mrr, -1.0)
     feed = fz * s.tool.flutes * N
     near = mrr >= (1 - tie_tolerance) * mrr.max()
     i = int(np.argmax(np.where(near, feed, -1.0)))
     return float(A[i]), float(P[i]), float(N[i]), float(fz[i])
 
 
+def _lobe_height(s: _Setup, A: np.ndarray, P: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """How high the lobes stand at each candidate's width and speed: a_lim (mm), counted up to
+    `SAFE_MARGIN` × its depth (a lobe that far above the cut is high enough)."""
+    return np.minimum(s.chatter.a_lim_mm(A, N), SAFE_MARGIN * P)
+
+
 def _no_cut(s: _Setup, full: list[tuple[float, float]], sizes: tuple[int, int, int]) -> MillpostError:
     """Why no candidate keeps every limit: with an FRF, when no depth searched is stable, the deepest
-    stable one (a_lim at its width and speed); else the general refusal."""
+    stable one (the highest a_lim over the widths and ten times as many speeds as searched); else the
+    general refusal."""
     general = MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle"
                             f"{', chatter' if s.chatter is not None else ''}); relax a limit")
     if s.chatter is None:
         return general
-    ae, rpm = np.meshgrid(_grid(*full[0], sizes[0]), _grid(*full[2], sizes[2]), indexing="ij")
+    ae, rpm = np.meshgrid(_grid(*full[0], sizes[0]), _grid(*full[2], 10 * sizes[2]), indexing="ij")
     a_lim = s.chatter.a_lim_mm(ae.ravel(), rpm.ravel())
     k = int(np.argmax(a_lim))
     if a_lim[k] >= full[1][0]:

@@ -35,9 +35,9 @@ Heuristics (each limit is named in `binding` when it decides the answer):
   chatter       with --frf FILE.toml (the tool tip's FRF, as `millpost tap fit --toml` writes it): ap ≤ a_lim,
                 the zero-order stability lobes' limiting depth at the cut's speed and immersion (Altintas &
                 Budak 1995; the material's K_t, K_r as optimize's chatter check; feed along the FRF's x).
-                61 speeds over the window are searched; among cuts within 3 % of the best removal rate the
-                largest margin a_lim/ap wins, margins ≥ 1.25 alike (a speed near a stable pocket's top, not on
-                a lobe's flank; past 1.25 the rule without --frf decides).
+                61 speeds over the window are searched; among cuts within 3 % of the best removal rate those
+                at the highest lobe win (a_lim at their speed, counted up to 1.25 × their depth: a speed near a
+                stable pocket's top, not on a lobe's flank), then the usual rule.
                 The answer gives a_lim and the margin; when no depth searched is stable, which ap would be.
 Strategy rules (--strategy, default adaptive; from the material file's [strategies] table, with sources):
   <strategy>_width_min/max  radial width within the strategy's range (adaptive clearing: light, e.g.
