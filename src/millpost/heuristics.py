@@ -350,7 +350,8 @@ def _no_cut(s: _Setup, full: list[tuple[float, float]], sizes: tuple[int, int, i
         return general
     return MillpostError(
         f"no stable cut: the chatter limit (zero-order lobes of the FRF) is at most {a_lim[k]:.3g} mm deep over "
-        f"{full[2][0]:.0f}–{full[2][1]:.0f} rpm and ae {full[0][0]:.3g}–{full[0][1]:.3g} mm (at {rpm.ravel()[k]:.0f} "
+        f"{full[2][0]:.0f}–{full[2][1]:.0f} rpm and ae {full[0][0]:.3g}–{full[0][1]:.3g} mm "
+        f"(at {rpm.ravel()[k]:.0f} "
         f"rpm, ae {ae.ravel()[k]:.3g} mm), shallower than the {full[1][0]:.3g} mm searched: ap ≤ "
         f"{a_lim[k]:.3g} mm would be stable (--ap), or a stiffer tool set-up")
 

@@ -47,7 +47,8 @@ class ChatterLimit:
             limit = zero_order_limit_mm(self.frf, kt_N_per_mm2=kt, kr=kr, flutes=self.flutes, phi_st_rad=st,
                                         phi_ex_rad=ex, rpm=speeds)
             self._cache.update(zip(((width, r) for r in speeds.tolist()), limit.tolist()))
-        return np.array([self._cache[(a, r)] for a, r in zip(ae.ravel().tolist(), n.ravel().tolist())]).reshape(ae.shape)
+        pairs = zip(ae.ravel().tolist(), n.ravel().tolist())
+        return np.array([self._cache[pair] for pair in pairs]).reshape(ae.shape)
 
     def ratio(self, ae_mm, ap_mm, rpm) -> np.ndarray:
         """ap / a_lim per candidate (≤ 1: stable)."""

@@ -179,9 +179,9 @@ class Chatter:
         """The check at the samples' speeds; None without an FRF."""
         if cut is None:
             return None
-        return cls(samples.line, cut.tool, running_rpm(job, samples.rpm), cut.ap_mm,
-                   limiting_depth_mm(job, cut, samples.rpm), *cutting_coefficients(job.material), tuple(sorted(job.frf)),
-                   cut)
+        a_lim = limiting_depth_mm(job, cut, samples.rpm)
+        return cls(samples.line, cut.tool, running_rpm(job, samples.rpm), cut.ap_mm, a_lim,
+                   *cutting_coefficients(job.material), tuple(sorted(job.frf)), cut)
 
     @property
     def over(self) -> np.ndarray:
