@@ -18,8 +18,16 @@ the candidate with the highest material removal rate wins. The limits, with thei
 - feed range: the machine's maximum feed, the user's min/max traversal rate, and a cap on the dynamic
   range between corners and open passes (the reference's 100 mm/s: above it, acceleration at corners
   dominates and the programmed feed is never reached);
+- chatter (with the tool tip's FRF, `Limits.frf`): ap ≤ a_lim, the zero-order stability lobes' limiting
+  depth at the cut's speed and immersion (`stability.chatter_limit`; Altintas & Budak 1995). The speeds
+  searched are then `CHATTER_SPEEDS` spread over the window (a lobe's pocket is a few % wide), and
+  unstable candidates are dropped before their feed is solved;
 - among candidates within `tie_tolerance` of the best removal rate, the fastest feed wins (the
-  reference's preference for fast, light passes over slow, heavy ones).
+  reference's preference for fast, light passes over slow, heavy ones). With an FRF, only the candidates
+  within `CHATTER_TIE` (3 %) of the best removal rate at the highest lobe take part (a_lim at their
+  width and speed, counted up to `SAFE_MARGIN` = 1.25 × their depth): a speed near a pocket's top
+  rather than on a lobe's flank, where a small error in the FRF or the speed tips the cut into chatter;
+  at one speed the deepest stable cut, so that `chatter` binds when it decides the depth.
 
 With a strategy (adaptive, slot, profile, face, low-deflection) the search keeps to a machinist's rules
 for it, from the material file's `[strategies]` table with their sources: the radial width range of
@@ -53,11 +61,16 @@ from .machine import Machine
 from .materials import STRATEGIES, STRATEGY_KINDS, Material, Strategy
 from .progress import Progress, silent
 from .tools.beam import ToolBeam
+from .stability.chatter_limit import ChatterLimit
+from .stability.frf import ToolTipFRF
 from .tools.cutter import Tool
 
 
 SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
 ZERO_NORMAL_ROUNDS = 8       # width ↔ (depth, speed) rounds of the low-deflection search (2–3 settle it)
+CHATTER_SPEEDS = 61          # speeds of the first search grid with an FRF (geometric: ~2 % apart over 3:1)
+CHATTER_TIE = 0.03           # with an FRF: removal rates this close count as equal, the higher lobe wins
+SAFE_MARGIN = 1.25           # ... counted up to this × the cut's depth (a choice: higher buys nothing here)
 
 
 @dataclass(frozen=True)
@@ -65,7 +78,8 @@ class Limits:
     """User limits. max_deflection_mm: tool deflection at the cut. safety_factor: on the tool's bending
     strength (None: chosen from the geometry). feed_min/max_mm_min: traversal rate range (max None: the
     machine's). dynamic_range_mm_s: largest feed change between corners and open passes. chip_load_mm:
-    target maximum chip thickness (None: the material's guidance)."""
+    target maximum chip thickness (None: the material's guidance). frf: the tool tip's FRF (None: no
+    chatter limit)."""
 
     max_deflection_mm: float = 0.025
     safety_factor: float | None = None
@@ -73,6 +87,7 @@ class Limits:
     feed_max_mm_min: float | None = None
     dynamic_range_mm_s: float = 100.0
     chip_load_mm: float | None = None
+    frf: ToolTipFRF | None = None
 
     def __post_init__(self) -> None:
         if self.max_deflection_mm <= 0 or self.dynamic_range_mm_s <= 0 or self.feed_min_mm_min < 0:
@@ -86,7 +101,7 @@ class Recommendation:
     bound. ramp_feed_mm_min: along a full-width ramp at the material's ramp angle; plunge_feed_mm_min:
     straight down (both below the cutting feed). climb: climb (down) milling, else conventional;
     engagement_deg: immersion angle; mean_deflection: tool and machine under the mean force, normal to
-    the wall and along the feed."""
+    the wall and along the feed. a_lim_mm: the chatter limit's depth at the cut (None without an FRF)."""
 
     ap_mm: float
     ae_mm: float
@@ -111,6 +126,7 @@ class Recommendation:
     mean_deflection: MeanDeflection
     ratios: dict[str, float] = field(default_factory=dict)
     strategy: str | None = None
+    a_lim_mm: float | None = None
 
 
 @dataclass(frozen=True)
@@ -134,6 +150,7 @@ class _Setup:
     ae_range_mm: tuple[float, float]
     ap_range_mm: tuple[float, float]
     kind: Strategy
+    chatter: ChatterLimit | None
 
 
 def rpm_range(tool: Tool, material: Material, machine: Machine) -> tuple[float, float, str]:
@@ -166,11 +183,13 @@ def _setup(tool: Tool, material: Material, machine: Machine, limits: Limits, mod
         ae_range = tuple(f * d for f in rules.ae_range_D(strategy))
         if rules.ap_max_D(strategy) is not None:
             ap_hi = min(ap_max, rules.ap_max_D(strategy) * d)
+    chatter = (ChatterLimit(limits.frf, material, d, tool.flutes, kind.climb) if limits.frf is not None
+               else None)
     return _Setup(tool, material, machine, limits, material.force_model(model),
                   material.force_model(model, steps_per_rev=SEARCH_STEPS_PER_REV),
                   ToolBeam.of(tool, safety_factor=limits.safety_factor), target,
                   material.min_chip_mm(tool.edge_radius_mm, tool.diameter_mm), lo, hi, hi_reason, caps[reason], reason,
-                  ap_max, strategy, ae_range, (min(0.05 * d, 0.5 * ap_hi), ap_hi), kind)
+                  ap_max, strategy, ae_range, (min(0.05 * d, 0.5 * ap_hi), ap_hi), kind, chatter)
 
 
 def _load_ratios(s: _Setup, eng, fz: np.ndarray, rpm: np.ndarray, ap: np.ndarray, *,
@@ -242,32 +261,99 @@ def _grid(lo: float, hi: float, n: int) -> np.ndarray:
 
 def _search(s: _Setup, ae_fixed, ap_fixed, rpm_fixed, tie_tolerance: float) -> tuple[float, float, float, float]:
     """Geometric grid over (ae, ap, rpm) with the coarse search model, four finer grids around the best so
-    far, then the best dozen candidates re-solved with the full model; f_z is always the largest feasible."""
+    far, then the best dozen candidates re-solved with the full model (`_choose`); f_z is always the
+    largest feasible."""
     full = [(v, v) if v else rng for v, rng in
             ((ae_fixed, s.ae_range_mm), (ap_fixed, s.ap_range_mm), (rpm_fixed, (s.rpm_lo, s.rpm_hi)))]
     ranges = list(full)
     seen: dict[tuple[float, float, float], float] = {}
-    for sizes in ((20, 16, 4), (7, 7, 4), (7, 7, 3), (7, 7, 3), (7, 7, 3)):
+    first = (20, 16, 4 if s.chatter is None else CHATTER_SPEEDS)
+    for sizes in (first, (7, 7, 4), (7, 7, 3), (7, 7, 3), (7, 7, 3)):
         axes = [_grid(lo, hi, n) for (lo, hi), n in zip(ranges, sizes)]
         A, P, N = (g.ravel() for g in np.meshgrid(*axes, indexing="ij"))
-        fz = _best_fz(s, A, P, N, search=True)
-        mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * fz * s.tool.flutes * N, -1.0)
+        if s.chatter is not None:  # and at each width and speed the deepest stable cut
+            A, P, N = _with_stable_depths(s, A, P, N, ranges[1])
+        mrr, _ = _removal_rates(s, A, P, N, search=True)
         seen.update({(a, p, n): m for a, p, n, m in zip(A, P, N, mrr) if m > 0})
         if not seen:
-            raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
+            raise _no_cut(s, full, first)
         centre = max(seen, key=seen.get)
         ratios = [(hi / lo) ** (1 / max(n - 1, 1)) for (lo, hi), n in zip(ranges, sizes)]
         ranges = [(max(f[0], c / q), min(f[1], c * q)) for f, c, q in zip(full, centre, ratios)]
+    return _choose(s, seen, tie_tolerance)
+
+
+def _with_stable_depths(s: _Setup, A: np.ndarray, P: np.ndarray, N: np.ndarray, ap_range: tuple[float, float]
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The candidates plus, at each of their (ae, rpm), ap = a_lim where it lies within `ap_range` (so that
+    the chatter limit, when it decides, is met at its bound as the others are)."""
+    pairs = np.unique(np.stack([A, N], axis=1), axis=0)
+    deepest = s.chatter.a_lim_mm(pairs[:, 0], pairs[:, 1])
+    ok = (deepest >= ap_range[0]) & (deepest <= ap_range[1])
+    return (np.concatenate([A, pairs[ok, 0]]), np.concatenate([P, deepest[ok]]), np.concatenate([N, pairs[ok, 1]]))
+
+
+def _removal_rates(s: _Setup, A: np.ndarray, P: np.ndarray, N: np.ndarray, *, search: bool,
+                   iterations: int = 14) -> tuple[np.ndarray, np.ndarray]:
+    """Per candidate (ae, ap, rpm) the removal rate (mm³/min; −1 where no feed keeps every limit or the
+    cut chatters) and its largest feasible feed per tooth (nan there)."""
+    fz = np.full(len(A), np.nan)
+    stable = np.ones(len(A), bool) if s.chatter is None else s.chatter.ratio(A, P, N) <= 1.0
+    if stable.any():
+        fz[stable] = _best_fz(s, A[stable], P[stable], N[stable], search=search, iterations=iterations)
+    return np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * fz * s.tool.flutes * N, -1.0), fz
+
+
+def _choose(s: _Setup, seen: dict[tuple[float, float, float], float], tie_tolerance: float
+            ) -> tuple[float, float, float, float]:
+    """The best dozen candidates of the search (with an FRF also the dozen of highest lobe within
+    `CHATTER_TIE` of the best, `_lobe_height`) re-solved with the full model; among those within the tie
+    of the best removal rate the fastest feed wins. With an FRF only the candidates within `CHATTER_TIE`
+    of the best rate at the highest lobe take part."""
     top = sorted(seen, key=seen.get, reverse=True)[:12]
+    if s.chatter is not None:
+        close = [k for k in seen if seen[k] >= (1 - CHATTER_TIE) * seen[top[0]]]
+        lobe = _lobe_height(s, *np.array(close).T)
+        top = list(dict.fromkeys(top + [close[i] for i in np.lexsort(([-seen[k] for k in close], -lobe))[:12]]))
     A, P, N = (np.array(v) for v in zip(*top))
-    fz = _best_fz(s, A, P, N, iterations=30)
-    feed = fz * s.tool.flutes * N
-    mrr = np.where(np.isfinite(fz), given_cut(s.tool, A, P).area_mm2 * feed, -1.0)
+    mrr, fz = _removal_rates(s, A, P, N, search=False, iterations=30)
     if mrr.max() <= 0:
         raise MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle); relax a limit")
+    if s.chatter is not None:  # the highest lobe among the near-equal, then as without
+        lobe = _lobe_height(s, A, P, N)
+        near = mrr >= (1 - CHATTER_TIE) * mrr.max()
+        mrr = np.where(near & (lobe >= np.max(lobe[near])), mrr, -1.0)
+    feed = fz * s.tool.flutes * N
     near = mrr >= (1 - tie_tolerance) * mrr.max()
     i = int(np.argmax(np.where(near, feed, -1.0)))
     return float(A[i]), float(P[i]), float(N[i]), float(fz[i])
+
+
+def _lobe_height(s: _Setup, A: np.ndarray, P: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """How high the lobes stand at each candidate's width and speed: a_lim (mm), counted up to
+    `SAFE_MARGIN` × its depth (a lobe that far above the cut is high enough)."""
+    return np.minimum(s.chatter.a_lim_mm(A, N), SAFE_MARGIN * P)
+
+
+def _no_cut(s: _Setup, full: list[tuple[float, float]], sizes: tuple[int, int, int]) -> MillpostError:
+    """Why no candidate keeps every limit: with an FRF, when no depth searched is stable, the deepest
+    stable one (the highest a_lim over the widths and ten times as many speeds as searched); else the
+    general refusal."""
+    general = MillpostError("no cut keeps every limit (minimum chip, feed range, tool, spindle"
+                            f"{', chatter' if s.chatter is not None else ''}); relax a limit")
+    if s.chatter is None:
+        return general
+    ae, rpm = np.meshgrid(_grid(*full[0], sizes[0]), _grid(*full[2], 10 * sizes[2]), indexing="ij")
+    a_lim = s.chatter.a_lim_mm(ae.ravel(), rpm.ravel())
+    k = int(np.argmax(a_lim))
+    if a_lim[k] >= full[1][0]:
+        return general
+    return MillpostError(
+        f"no stable cut: the chatter limit (zero-order lobes of the FRF) is at most {a_lim[k]:.3g} mm deep over "
+        f"{full[2][0]:.0f}–{full[2][1]:.0f} rpm and ae {full[0][0]:.3g}–{full[0][1]:.3g} mm "
+        f"(at {rpm.ravel()[k]:.0f} "
+        f"rpm, ae {ae.ravel()[k]:.3g} mm), shallower than the {full[1][0]:.3g} mm searched: ap ≤ "
+        f"{a_lim[k]:.3g} mm would be stable (--ap), or a stiffer tool set-up")
 
 
 def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits = Limits(), *,
@@ -327,6 +413,9 @@ def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommend
     ratios[s.feed_cap_reason] = res.feed_mm_min / s.feed_cap_mm_min
     ratios[s.rpm_hi_reason] = n / s.rpm_hi
     ratios["max_depth"] = ap / s.ap_max_mm
+    a_lim = None if s.chatter is None else float(s.chatter.a_lim_mm(ae, n))
+    if a_lim is not None:
+        ratios["chatter"] = ap / a_lim
     ratios["slot"] = min(ae, s.tool.diameter_mm) / s.tool.diameter_mm
     if s.strategy is not None and s.kind.width == "range" and s.ae_range_mm[0] < s.ae_range_mm[1]:
         ratios[f"{s.strategy}_width_max"] = ae / s.ae_range_mm[1]
@@ -343,7 +432,7 @@ def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommend
         F_peak_N=res.F_peak_N, deflection_mm=res.deflection_mm, break_ratio=res.break_ratio,
         torque_Nm=res.torque_Nm, power_W=res.power_W, ramp_feed_mm_min=ramp_feed, plunge_feed_mm_min=plunge_feed,
         binding=binding, climb=climb, engagement_deg=math.degrees(ex - st), mean_deflection=mean, ratios=ratios,
-        strategy=s.strategy)
+        strategy=s.strategy, a_lim_mm=a_lim)
 
 
 def _entry_feeds(s: _Setup, ap: float, n: float, feed_mm_min: float) -> tuple[float, float]:

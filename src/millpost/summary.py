@@ -165,7 +165,8 @@ def _gates(run: Run, summary: dict) -> None:
 def trace_columns(run: Run) -> dict[str, np.ndarray]:
     """The per-sample trace (`--trace` CSV, the job report's plots): position, engagement, the feeds
     (mm/min) programmed, baseline, scheduled, executed, minimum-chip and hard cap, the loads and their
-    bounds, which kind of limit binds and where the policy held a bound."""
+    bounds, which kind of limit binds, where the policy held a bound and (a tool with an FRF) the chatter
+    check (`Chatter.trace_columns`)."""
     samples, eng, limits, sched = run.samples, run.eng, run.limits, run.sched
     cut = samples.kind != RAPID
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
@@ -179,6 +180,8 @@ def trace_columns(run: Run) -> dict[str, np.ndarray]:
              "binding_hard": _binding_kind(samples, sched, limits, HARD), **run.checked.trace_columns()}
     # 1 where the policy held that limit's bound at the programmed or minimum-chip feed (reported)
     trace.update({f"held_{k}": v.astype(np.int8) for k, v in sorted(limits.held.items())})
+    if run.chatter is not None:
+        trace.update(run.chatter.trace_columns())
     return trace
 
 

@@ -15,6 +15,7 @@ from ..materials import STRATEGIES, STRATEGY_KINDS, Material
 from ..progress import Bars, stage
 from ..registry import plugins
 from ..safety import check_outputs
+from ..stability.job_frf import frf_from_file
 from .calc import add_tool_arguments, tool_from_args
 
 HELP = """\
@@ -31,6 +32,13 @@ Heuristics (each limit is named in `binding` when it decides the answer):
   machine_feed / feed_max / dynamic_range  feed ≤ the machine's, the user's, and the corner-to-open-pass
                 dynamic range (the reference's 100 mm/s)
   max_depth / slot  ap at the flute length, ae at the full diameter
+  chatter       with --frf FILE.toml (the tool tip's FRF, as `millpost tap fit --toml` writes it): ap ≤ a_lim,
+                the zero-order stability lobes' limiting depth at the cut's speed and immersion (Altintas &
+                Budak 1995; the material's K_t, K_r as optimize's chatter check; feed along the FRF's x).
+                61 speeds over the window are searched; among cuts within 3 % of the best removal rate those
+                at the highest lobe win (a_lim at their speed, counted up to 1.25 × their depth: a speed near a
+                stable pocket's top, not on a lobe's flank), then the usual rule.
+                The answer gives a_lim and the margin; when no depth searched is stable, which ap would be.
 Strategy rules (--strategy, default adaptive; from the material file's [strategies] table, with sources):
   <strategy>_width_min/max  radial width within the strategy's range (adaptive clearing: light, e.g.
                 0.15-0.2 D in aluminium; profile 0.1-0.4 D; face 0.67-0.83 D; slot: full width)
@@ -73,6 +81,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     lim.add_argument("--dynamic-range", type=float, default=100.0, metavar="MM_S",
                      help="largest feed change between corners and open passes (mm/s, default 100)")
     lim.add_argument("--chip-load", type=float, metavar="MM", help="target max chip thickness (default: material)")
+    lim.add_argument("--frf", metavar="FILE.toml", help="the tool tip's FRF ([tools.N.frf], as `millpost tap fit "
+                     "--toml` writes it): keep the cut stable (chatter limit)")
+    lim.add_argument("--frf-tool", type=int, metavar="N", help="with --frf: the tool table N (default: the only one)")
     fix = p.add_argument_group("fix a variable (the others are chosen)")
     fix.add_argument("--ae", type=float, metavar="MM")
     fix.add_argument("--ap", type=float, metavar="MM")
@@ -85,13 +96,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def limits_from_args(args: argparse.Namespace) -> Limits:
+    if args.frf_tool is not None and not args.frf:
+        raise ConfigError("--frf-tool", args.frf_tool, "needs --frf FILE.toml (the file whose tool table it picks)")
+    frf = frf_from_file(args.frf, args.frf_tool)[1] if args.frf else None
     return Limits(max_deflection_mm=args.max_deflection, safety_factor=args.safety_factor,
                   feed_min_mm_min=args.feed_min, feed_max_mm_min=args.feed_max,
-                  dynamic_range_mm_s=args.dynamic_range, chip_load_mm=args.chip_load)
+                  dynamic_range_mm_s=args.dynamic_range, chip_load_mm=args.chip_load, frf=frf)
 
 
 def as_dict(rec: Recommendation) -> dict:
     d = asdict(rec)
+    if rec.a_lim_mm is None:  # no FRF: no chatter entries
+        del d["a_lim_mm"]
+    else:
+        d["chatter_margin"] = rec.a_lim_mm / rec.ap_mm
     d["F_avg_N"] = list(rec.F_avg_N)
     d["binding"] = list(rec.binding)
     return d
@@ -173,6 +191,9 @@ def run(args: argparse.Namespace) -> int:
                 "ramp_feed_mm_min", "plunge_feed_mm_min", "mrr_mm3_min", "F_peak_N", "deflection_mm", "break_ratio", "torque_Nm", "power_W"):
         out.write(f"{key:>18}  {getattr(rec, key):.6g}\n")
     out.write(f"{'binding':>18}  {', '.join(rec.binding) or 'none'}\n")
+    if rec.a_lim_mm is not None:
+        out.write(f"{'chatter':>18}  a_lim {rec.a_lim_mm:.4g} mm at {rec.rpm:.0f} rpm and this immersion (zero-order "
+                  f"lobes): margin a_lim/ap {rec.a_lim_mm / rec.ap_mm:.3g}\n")
     m = rec.mean_deflection
     out.write(f"{'milling':>18}  {'climb' if rec.climb else 'conventional'}, engagement {rec.engagement_deg:.4g}°\n")
     out.write(f"{'mean deflection':>18}  tool {m.tool_normal_mm:+.5f} mm toward the wall, {m.tool_feed_mm:+.5f} mm "

@@ -1,6 +1,6 @@
 """What the job report shows, gathered from an optimize result (its summary and per-sample trace) and,
 when the job is at hand, from the job itself (operations from the program's comments, the load
-limits per sample, the final stock).
+limits per sample, the final stock, the stability lobes of the tools with a tip FRF: `report.lobes`).
 
 The optimize trace holds per sample the programmed, scheduled and executed feeds (mm/min), where a
 cut is too heavy at any feed, and the replay check's loads at the executed feed with their bounds
@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import MillpostError
 from ..operations import Operation, operations_from_lines
 from ..signals import Load, step_times_s
+from .lobes import ToolLobes, tool_lobes, why_none
 
 RAPID_FEED = np.nan  # the trace's programmed feed on rapids
 TIGHT = 0.97  # a ratio this close to 1 counts as binding
@@ -47,6 +48,8 @@ class ReportData:
     binding: np.ndarray | None = None  # str per sample ("" off the cut)
     stock: StockMap | None = None
     title: str = ""
+    lobes: list[ToolLobes] = field(default_factory=list)  # per tool with an FRF that cuts
+    lobes_note: str = ""  # why a job with a chatter check has no lobes here ("" otherwise)
 
     @property
     def cutting(self) -> np.ndarray:
@@ -103,6 +106,7 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     n = len(trace["s_mm"])
     data = ReportData(summary, trace, [], title=Path(summary.get("program", "job")).name)
     _trace_limits(data)
+    data.lobes, data.lobes_note = tool_lobes(trace, job), why_none(trace, job)
     if job is None:
         data.operations = operations_from_lines(np.zeros(n, int), trace["tool"], [])
         data.binding = _binding(data, feed_cap=None)

@@ -15,8 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data import LABELS, TIGHT, ReportData, operation_times
+from .lobes import ToolLobes
 
 BUCKETS = 2000
+POCKET_LABELS = 5  # stable pockets labelled with their speed on a lobe diagram
 BINDING_COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
                    "#bcbd22", "#17becf"]
 
@@ -272,3 +274,31 @@ def stock_map(data: ReportData) -> str:
                    interpolation="nearest", rasterized=True)  # grey cut through, white beyond the stock
     _colour_bar(fig, im, cax, "top of material Z (mm); grey: cut through")
     return svg(fig, "stock-map")
+
+
+def stability_lobes(lobes: ToolLobes) -> str:
+    """One tool's lobe diagram: a_lim (mm) against spindle speed (rpm) per immersion (the most cut first, its
+    stable pockets marked, the `POCKET_LABELS` fastest labelled in rpm), and the program's (rpm, ap) points, those over their limit in red."""
+    fig, (ax,) = _figure(height_in=3.8)
+    for k, c in enumerate(lobes.curves):
+        colour = ("#1f77b4", "#9467bd", "#8c564b")[k % 3]
+        feed = ", feed along Y" if c.along_y else ""
+        ax.plot(c.rpm, c.a_lim_mm, color=colour, lw=1.1 if k == 0 else 0.8, gid=f"lobe-{k}",
+                label=f"a_lim, φ {c.phi_st_deg:g}–{c.phi_ex_deg:g}°{feed} ({c.samples} samples)")
+        ax.plot([p.rpm for p in c.pockets], [p.depth_mm for p in c.pockets], "v", color=colour, ms=5)
+        for p in c.pockets[:POCKET_LABELS] if k == 0 else ():  # the fastest: the widest, deepest pockets
+            ax.annotate(f"{p.rpm:.0f}", (p.rpm, p.depth_mm), textcoords="offset points", xytext=(0, 9),
+                        ha="center", fontsize=7, color=colour)
+    for sel, style, colour, name in ((~lobes.points_over, "o", "#2ca02c", "stable"),
+                                     (lobes.points_over, "X", "#d62728", "above a_lim (chatter)")):
+        if sel.any():
+            ax.plot(lobes.points_rpm[sel], lobes.points_ap_mm[sel], style, color=colour, ms=7,
+                    gid=f"cuts-{name.split()[0]}", label=f"program's cuts, {name}")
+    finite = np.concatenate([c.a_lim_mm[np.isfinite(c.a_lim_mm)] for c in lobes.curves] + [lobes.points_ap_mm])
+    ax.set_ylim(0, 1.15 * max(float(np.percentile(finite, 98)), float(lobes.points_ap_mm.max()), 1e-6))
+    ax.set_xlim(lobes.curves[0].rpm[0], lobes.curves[0].rpm[-1])
+    ax.set_xlabel("spindle speed (rpm)")
+    ax.set_ylabel("axial depth (mm)")
+    ax.set_title(f"T{lobes.tool} ({lobes.flutes} flutes): zero-order stability lobes", fontsize=10)
+    ax.legend(loc="upper left", fontsize=8)
+    return svg(fig, f"lobes-T{lobes.tool}")

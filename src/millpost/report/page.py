@@ -81,6 +81,7 @@ def render(data: ReportData) -> str:
               "crosses where it is slower than programmed.</p>", f"<figure>{figures.top_view(data)}</figure>"]
     if data.stock is not None:
         parts += ["<h2>Final stock</h2>", f"<figure>{figures.stock_map(data)}</figure>"]
+    parts += _lobes_section(data)
     notes = list(s.get("notes", []))
     for name, h in s.get("held", {}).items():
         notes.append(f"{name} ({h['kind']}) held by the feed policy on {h['line_count']} lines "
@@ -93,6 +94,19 @@ def render(data: ReportData) -> str:
     body = "\n".join(parts)
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>millpost: '
             f"{html.escape(data.title)}</title><style>{STYLE}</style></head><body>\n{body}\n</body></html>\n")
+
+
+def _lobes_section(data: ReportData) -> list[str]:
+    """The stability lobes per tool with a tip FRF (nothing without one; a note when they cannot be drawn)."""
+    if not data.lobes and not data.lobes_note:
+        return []
+    text = ("<h2>Chatter: stability lobes</h2><p>Per tool with a tip FRF: the zero-order limiting depth against "
+            "spindle speed over the spindle's range, at the immersions the tool cuts (most cut first), with its "
+            "stable pockets (triangles); the program's cuts at their speed and depth, crosses where a cut is above "
+            "the stable depth of its own immersion (the lines the notes list).</p>")
+    if data.lobes_note:
+        return [text, f"<p>No lobes here: {html.escape(data.lobes_note)}.</p>"]
+    return [text] + [f"<figure>{figures.stability_lobes(t)}</figure>" for t in data.lobes]
 
 
 def write_report(path: str | os.PathLike, data: ReportData) -> None:

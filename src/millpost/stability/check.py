@@ -25,6 +25,7 @@ import numpy as np
 from ..forces.mechanistic import Mechanistic
 from ..job import Job
 from ..limits import QUALITY, Kind
+from ..materials import Material
 from ..signals import running_rpm
 from ..toolpath import RAPID, Samples
 from .frf import ToolTipFRF
@@ -38,9 +39,9 @@ _BIN = math.radians(BIN_DEG)
 _BINS = round(180.0 / BIN_DEG)
 
 
-def cutting_coefficients(job: Job) -> tuple[float, float]:
-    """(K_t N/mm², K_r = K_rc/K_tc) of the job's material (mechanistic set, or its Kienzle tangent)."""
-    ktc, krc = Mechanistic.from_material(job.material).coef_[:2]
+def cutting_coefficients(material: Material) -> tuple[float, float]:
+    """(K_t N/mm², K_r = K_rc/K_tc) of a material (its mechanistic set, or its Kienzle tangent)."""
+    ktc, krc = Mechanistic.from_material(material).coef_[:2]
     return float(ktc), float(krc / ktc)
 
 
@@ -98,7 +99,7 @@ class CutImmersion:
 
 def _limit(job: Job, frf: ToolTipFRF, tool: int, phi_st: float, phi_ex: float, rpm: np.ndarray) -> np.ndarray:
     """a_lim (mm) of one group at the speeds `rpm`."""
-    kt, kr = cutting_coefficients(job)
+    kt, kr = cutting_coefficients(job.material)
     return zero_order_limit_mm(frf, kt_N_per_mm2=kt, kr=kr, flutes=job.tools[tool].flutes, phi_st_rad=phi_st,
                                phi_ex_rad=min(phi_ex, math.pi), rpm=rpm)
 
@@ -169,6 +170,7 @@ class Chatter:
     kt_N_per_mm2: float
     kr: float
     tools: tuple[int, ...]
+    cut: CutImmersion
     name: ClassVar[str] = "chatter"
     kind: ClassVar[Kind] = QUALITY
 
@@ -177,13 +179,24 @@ class Chatter:
         """The check at the samples' speeds; None without an FRF."""
         if cut is None:
             return None
-        return cls(samples.line, cut.tool, running_rpm(job, samples.rpm), cut.ap_mm,
-                   limiting_depth_mm(job, cut, samples.rpm), *cutting_coefficients(job), tuple(sorted(job.frf)))
+        a_lim = limiting_depth_mm(job, cut, samples.rpm)
+        return cls(samples.line, cut.tool, running_rpm(job, samples.rpm), cut.ap_mm, a_lim,
+                   *cutting_coefficients(job.material), tuple(sorted(job.frf)), cut)
 
     @property
     def over(self) -> np.ndarray:
         """Samples cut deeper than their stable depth."""
         return self.ap_mm > self.a_lim_mm
+
+    def trace_columns(self) -> dict[str, np.ndarray]:
+        """The trace's chatter columns per sample: the speed the spindle runs (rpm), the limiting depth
+        (mm; inf where not checked), the immersion bins' φ_st and φ_ex (degrees; nan where not checked),
+        feed_along_y (1: the FRF's X and Y swapped for it) and chatter_over (1: cut above a_lim)."""
+        checked = self.cut.checked
+        return {"rpm": self.rpm, "a_lim_mm": self.a_lim_mm,
+                "phi_st_deg": np.where(checked, self.cut.bin_st * BIN_DEG, np.nan),
+                "phi_ex_deg": np.where(checked, self.cut.bin_ex * BIN_DEG, np.nan),
+                "feed_along_y": self.cut.along_y.astype(np.int8), "chatter_over": self.over.astype(np.int8)}
 
     def lines(self) -> list[dict]:
         """Per source line cut above its stable depth, its worst sample: tool, rpm, ap, a_lim (mm), ratio."""

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import Table
-from ..errors import ParseError
+from ..config import Table, load_toml
+from ..errors import ConfigError, ParseError
 from .frf import DirectionFRF, Mode, ToolTipFRF
 
 COLUMNS = ("f_hz", "re_x_mm_per_N", "im_x_mm_per_N", "re_y_mm_per_N", "im_y_mm_per_N")
@@ -41,6 +41,27 @@ def frf_from_table(t: Table, base: Path) -> tuple[ToolTipFRF, Path | None]:
     y = DirectionFRF(modes=_modes(t, "y")) if t.has("y") else x
     t.done(("csv",))
     return ToolTipFRF(x, y), None
+
+
+def frf_from_file(path: str | Path, tool: int | None = None) -> tuple[int, ToolTipFRF]:
+    """(tool number, FRF) of the `[tools.N.frf]` table in a TOML file (`millpost tap fit --toml` writes one,
+    a job file holds one per tool): tool `tool`, or the only one the file gives."""
+    path = Path(path)
+    f = str(path)
+    if not path.is_file():
+        raise ConfigError("--frf", f, "file not found", file=f)
+    tools = load_toml(path).get("tools", {})
+    given = {int(k): v["frf"] for k, v in tools.items() if str(k).isdigit() and isinstance(v, dict) and "frf" in v} \
+        if isinstance(tools, dict) else {}
+    if not given:
+        raise ConfigError("tools.N.frf", None, "no [tools.N.frf] table (the form `millpost tap fit --toml` writes)",
+                          file=f)
+    if tool is None and len(given) > 1:
+        raise ConfigError("tools", sorted(given), "more than one tool has an FRF: choose one (--frf-tool N)", file=f)
+    n = tool if tool is not None else next(iter(given))
+    if n not in given:
+        raise ConfigError(f"tools.{n}.frf", None, f"not in the file (tools with an FRF: {sorted(given)})", file=f)
+    return n, frf_from_table(Table(given[n], f"tools.{n}.frf", f), path.parent)[0]
 
 
 def _modes(t: Table, key: str) -> tuple[Mode, ...]:
