@@ -40,7 +40,7 @@ def test_curves_are_the_zero_order_limit_at_the_cut_immersions(run):
     (lobes,) = tool_lobes(trace, job)
     ktc, krc = Mechanistic.from_material(job.material).coef_[:2]
     main_curve = lobes.curves[0]
-    assert (main_curve.phi_st_deg, main_curve.phi_ex_deg) == (0.0, 180.0)  # the slots: most of the samples
+    assert main_curve.phi_st_deg == 0.0 and main_curve.phi_ex_deg == pytest.approx(180.0, abs=0.2)  # the slots: most samples
     sp = job.machine.spindle
     assert main_curve.rpm[-1] == sp.rpm_max and main_curve.rpm[0] == max(sp.rpm_min, 0.05 * sp.rpm_max)
     for c in lobes.curves:
