@@ -234,3 +234,25 @@ def test_x_and_y_in_one_fragment_the_job_reads(tmp_path, capsys):
             assert (m.fn_hz, m.zeta, m.k_N_per_mm) == pytest.approx((f["fn_hz"], f["zeta"], f["k_N_per_mm"]), rel=1e-3)
     assert main(["tap", "fit", str(logx), str(logy), "--direction", "x"]) == 2
     assert "no --direction with two logs" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--spindle-max", "0"], "spindle max rpm = 0: expected > 0"),
+    (["--spindle-min", "9000", "--spindle-max", "8000"], "spindle max rpm = 8000: expected > 0 and ≥ the spindle min"),
+    (["--spindle-min", "-1"], "spindle min rpm = -1: expected ≥ 0"),
+    (["--speeds", "-1"], "stable speeds listed = -1: expected at least 1"),
+    (["--speeds", "0"], "stable speeds listed = 0"),
+    (["--rpm", "0"], "rpm = 0: expected a spindle speed > 0"),
+    (["--rpm", "nan"], "rpm = nan"),
+    (["--flutes", "0"], "flutes = 0: expected at least 1"),
+    (["--rpm", "1e9"], "with 3 flutes, 5e+07 Hz, is not below the recording's Nyquist frequency 10000 Hz"),
+])
+def test_cli_chatter_refuses_bad_options(tmp_path, capsys, args, message):
+    """Each bad option is a one-line error naming it and the value (formerly ZeroDivisionError, scipy's
+    nperseg ValueError, or accepted), exit status 2."""
+    rec = chatter_recording(tmp_path / "cut.csv", rpm=9000, flutes=3, f_chatter_hz=1234.0)
+    flutes = [] if "--flutes" in args else ["--flutes", "3"]
+    rpm = [] if "--rpm" in args else ["--rpm", "9000"]
+    assert main(["tap", "chatter", str(rec), *flutes, *rpm, *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err

@@ -528,8 +528,18 @@ def stable_speeds(f_chatter_hz: float, flutes: int, *, rpm_min: float = 0.0, rpm
 def analyse_chatter(rec: Record, rpm: float, flutes: int, *, rpm_min: float = 0.0, rpm_max: float = math.inf,
                     count: int = 5) -> Chatter:
     """Whether a recording at `rpm` with `flutes` teeth chatters, at what frequency, and the stable speeds."""
-    if not (rpm > 0 and flutes >= 1):
-        raise MillpostError(f"rpm = {rpm:g}, flutes = {flutes}: a positive speed and at least one flute")
+    for name, value, ok, rule in (("rpm", rpm, math.isfinite(rpm) and rpm > 0, "a spindle speed > 0"),
+                                  ("flutes", flutes, flutes >= 1, "at least 1"),
+                                  ("spindle min rpm", rpm_min, math.isfinite(rpm_min) and rpm_min >= 0, "≥ 0"),
+                                  ("spindle max rpm", rpm_max, rpm_max > 0 and rpm_max >= rpm_min,
+                                   f"> 0 and ≥ the spindle min ({rpm_min:g} rpm)"),
+                                  ("stable speeds listed", count, count >= 1, "at least 1")):
+        if not ok:
+            raise MillpostError(f"{name} = {value:g}: expected {rule}")
+    if flutes * rpm / 60.0 >= rec.fs_hz / 2:
+        raise MillpostError(f"{rec.path}: the tooth-passing frequency at {rpm:g} rpm with {flutes} flutes, "
+                            f"{flutes * rpm / 60.0:.6g} Hz, is not below the recording's Nyquist frequency "
+                            f"{rec.fs_hz / 2:.6g} Hz: check the speed (rpm) or record faster")
     fc, ratio, threshold = chatter_frequency(rec, rpm)
     ft = flutes * rpm / 60.0
     lobe = int(fc // ft)
