@@ -256,3 +256,24 @@ def test_cli_chatter_refuses_bad_options(tmp_path, capsys, args, message):
     assert main(["tap", "chatter", str(rec), *flutes, *rpm, *args]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_flip_chatter_on_a_spindle_harmonic_with_an_even_flute_count(tmp_path, seed, capsys):
+    """N = 4 at 9000 rpm: period-doubling chatter at 2.5·f_t = 1500 Hz is the 10th spindle harmonic, hidden by
+    the harmonic mask (the verdict was "chatter: 1482.5 Hz", a leakage shoulder, or none). Twice the
+    tooth-passing amplitude stands 44 dB above the 9th and 11th harmonics (runout, 0.1/k): found at 1500 Hz,
+    lobe 2, ε = π. A stable cut of the same tool is not called flip chatter, and notes that weak flip chatter
+    cannot be told from runout."""
+    rec = read_recording(chatter_recording(tmp_path / "cut.csv", rpm=9000, flutes=4, f_chatter_hz=1500.0,
+                                           seed=seed))
+    c = analyse_chatter(rec, 9000, 4)
+    assert c.chatter and c.period_doubling and c.f_chatter_hz == 1500.0
+    assert c.lobe == 2 and c.epsilon_rad == pytest.approx(math.pi) and c.peak_to_floor > 1e4 and c.notes == []
+    assert c.speeds[0] == (1, pytest.approx(22500.0))
+    stable = read_recording(chatter_recording(tmp_path / "stable.csv", rpm=9000, flutes=4, f_chatter_hz=1500.0,
+                                              chatter=0.0, seed=seed))
+    c = analyse_chatter(stable, 9000, 4)
+    assert not c.chatter and not c.period_doubling and "cannot be told from runout" in c.notes[0]
+    assert main(["tap", "chatter", str(rec.path), "--rpm", "9000", "--flutes", "4"]) == 0
+    assert "chatter: 1500.0 Hz (44." in capsys.readouterr().out

@@ -28,8 +28,9 @@ table, x = [...] and y = [...] (without a Y log the job takes y = x; docs/tap-te
 HELP_CHATTER = """\
 REC: CSV with t_s (s, evenly spaced) and signal (a microphone or an accelerometer near the cut; any unit),
 optionally spindle_rpm. Says whether the cut chatters: the strongest peak that is not a spindle or
-tooth-passing harmonic must stand above the noise floor by more than noise passes 1 time in 100
-(docs/tap-test.md). If so, prints the chatter frequency f_c, the lobe number and phase ε at this speed
+tooth-passing harmonic must stand above the noise floor by more than noise passes 1 time in 100, or
+(an even flute count: period-doubling chatter at (k + 1/2)·f_tooth is a spindle harmonic) such a harmonic
+must stand 20 dB above its neighbouring runout harmonics (docs/tap-test.md). If so, prints the chatter frequency f_c, the lobe number and phase ε at this speed
 (f_c/f_tooth = lobe + ε/2π), and the fastest stable speeds n_j = 60·f_c/(flutes·j) within the spindle's
 range (Tlusty's rule: the tooth-passing frequency on f_c or a fraction of it). Chatter at the new speed
 moves near the mode again: a second recording there refines it."""
@@ -145,9 +146,12 @@ def run_chatter(args: argparse.Namespace) -> int:
     c = analyse_chatter(rec, rpm, args.flutes, rpm_min=args.spindle_min, rpm_max=args.spindle_max, count=args.speeds)
     result = {"chatter": c.chatter, "f_chatter_hz": c.f_chatter_hz, "peak_to_floor": c.peak_to_floor,
               "threshold": c.threshold, "rpm": c.rpm, "flutes": c.flutes, "f_tooth_hz": c.f_tooth_hz,
-              "lobe": c.lobe, "epsilon_rad": c.epsilon_rad, "speeds": [{"j": j, "rpm": n} for j, n in c.speeds]}
+              "lobe": c.lobe, "epsilon_rad": c.epsilon_rad, "speeds": [{"j": j, "rpm": n} for j, n in c.speeds],
+              "period_doubling": c.period_doubling, "notes": c.notes}
     if args.json != "-":
-        above = f"{10 * math.log10(c.peak_to_floor):.1f} dB above the noise floor"
+        above = (f"{10 * math.log10(c.peak_to_floor):.1f} dB above the neighbouring spindle harmonics: "
+                 "period doubling" if c.period_doubling else
+                 f"{10 * math.log10(c.peak_to_floor):.1f} dB above the noise floor")
         if not c.chatter:
             print(f"no chatter found: the strongest non-harmonic peak, {c.f_chatter_hz:.1f} Hz, is {above}, under "
                   f"the {10 * math.log10(c.threshold):.1f} dB that noise passes 1 time in 100")
@@ -158,6 +162,8 @@ def run_chatter(args: argparse.Namespace) -> int:
                 print(f"stable speed j={j}: {n:.0f} rpm")
             if not c.speeds:
                 print("stable speed: none within the spindle's range")
+    for note in c.notes:
+        print(f"millpost: note: {note}", file=sys.stderr)
     _write_json(args.json, result, "tap chatter")
     return 0
 

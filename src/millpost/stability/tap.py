@@ -19,7 +19,9 @@ half-power bandwidth ζ = Δf/2f_n, k = 1/(2ζ|G(f_n)|)); the window's damping i
 Chatter frequency: the Welch spectrum of the recording with the spindle harmonics k·n/60 (they hold the
 tooth-passing ones k·N·n/60, and runout's) removed; the strongest remaining local maximum is f_c, and the
 cut chatters if it stands above the noise floor by more than the Welch estimate's χ² noise passes 1 time in
-100 over the spectrum (`chatter_frequency`). The stable speeds
+100 over the spectrum (`chatter_frequency`); with an even flute count, period-doubling chatter at
+(k + ½)·N·n/60 is itself a spindle harmonic, found when it stands 20 dB above its neighbouring runout
+harmonics (`flip_chatter`). The stable speeds
 are those that put the tooth-passing frequency on f_c or a fraction of it, n_j = 60 f_c / (N j), j = 1, 2, …
 (Tlusty's rule, Smith & Tlusty 1992 "Stabilizing chatter by automatic spindle speed regulation"; tap-test
 apps call it the best speed): the teeth then meet the surface wave in phase. At the present speed
@@ -448,14 +450,17 @@ def _unwindow(m: Mode, tau_s: float, path: str) -> Mode:
 
 # --- chatter ---------------------------------------------------------------------------------------------
 FALSE_ALARM = 0.01   # probability that a stable cut's noise alone is called chatter
+FLIP_RATIO = 100.0   # a spindle harmonic this far (power) above its neighbours' median is flip chatter (20 dB)
 
 
 @dataclass(frozen=True)
-class Chatter:
+class ChatterVerdict:
     """A cut's verdict: `chatter` when the strongest non-harmonic peak, at f_chatter_hz (Hz), stands above the
-    noise floor by more than `threshold` (ratios of power densities; `peak_to_floor` is the peak's); the
-    tooth-passing frequency f_t = N n/60 (Hz), the lobe number and phase ε (rad) with
-    f_c/f_t = lobe + ε/2π, and the stable speeds (j, rpm) with n_j = 60 f_c/(N j) (none without chatter)."""
+    noise floor by more than `threshold` (ratios of power densities; `peak_to_floor` is the peak's), or, with
+    `period_doubling`, when a spindle harmonic at (k + ½)·f_t stands above its neighbouring runout harmonics
+    by more than `threshold` (`flip_chatter`; `peak_to_floor` is then that ratio); the tooth-passing
+    frequency f_t = N n/60 (Hz), the lobe number and phase ε (rad) with f_c/f_t = lobe + ε/2π, and the
+    stable speeds (j, rpm) with n_j = 60 f_c/(N j) (none without chatter)."""
 
     chatter: bool
     f_chatter_hz: float
@@ -467,6 +472,16 @@ class Chatter:
     lobe: int
     epsilon_rad: float
     speeds: tuple[tuple[int, float], ...] = field(default=())
+    period_doubling: bool = False
+
+    @property
+    def notes(self) -> list[str]:
+        """What the verdict cannot tell: with an even flute count flip chatter lies on a spindle harmonic."""
+        if self.flutes % 2 or self.period_doubling:
+            return []
+        return [f"with {self.flutes} flutes (even) period-doubling chatter, at (k + ½)·{self.f_tooth_hz:.6g} Hz, "
+                f"lies on a spindle harmonic: it is found only where it stands {10 * math.log10(FLIP_RATIO):.0f} dB "
+                "above the neighbouring (runout) harmonics; weaker, it cannot be told from runout"]
 
 
 def spectrum(rec: Record, resolution_hz: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -485,8 +500,10 @@ def spectrum(rec: Record, resolution_hz: float) -> tuple[np.ndarray, np.ndarray,
     return f, p, 2 * k / (1 + 2 * rho**2 * (1 - 1 / k))
 
 
-def chatter_frequency(rec: Record, rpm: float, *, tolerance: float = 0.002) -> tuple[float, float, float]:
-    """(f_c Hz, its peak / the noise floor, the threshold): f_c is the strongest local maximum of the spectrum
+def chatter_frequency(f: np.ndarray, p: np.ndarray, dof: float, rpm: float, *, tolerance: float = 0.002
+                      ) -> tuple[float, float, float, float]:
+    """(f_c Hz, its peak / the noise floor, the threshold, its peak's density) from the spectrum (f Hz, PSD p,
+    ν = dof; `spectrum`): f_c is the strongest local maximum of the spectrum
     that is not a spindle harmonic k·n/60 (within max(2 bins, `tolerance`·f) of one; k·n/60 includes the
     tooth-passing harmonics; a local maximum, so not a harmonic's leakage), refined by a parabola through
     the log power of the peak bin and its neighbours. The noise floor is the median of the non-harmonic
@@ -494,7 +511,6 @@ def chatter_frequency(rec: Record, rpm: float, *, tolerance: float = 0.002) -> t
     ratio whose chance of being passed by any of the M non-harmonic bins is FALSE_ALARM,
     χ²_ν quantile(1 − FALSE_ALARM/M) / χ²_ν median."""
     f_spindle = rpm / 60.0
-    f, p, dof = spectrum(rec, f_spindle / 40.0)
     df = f[1] - f[0]
     k = np.maximum(np.round(f / f_spindle), 1)
     free = (np.abs(f - k * f_spindle) > np.maximum(2 * df, tolerance * f)) & (f > 0.5 * f_spindle)
@@ -508,7 +524,30 @@ def chatter_frequency(rec: Record, rpm: float, *, tolerance: float = 0.002) -> t
     floor = float(np.median(p[free & (f >= f[i] / 2) & (f <= 2 * f[i])]))
     chi2 = stats.chi2(dof)
     threshold = float(chi2.isf(FALSE_ALARM / np.count_nonzero(free)) / chi2.median())
-    return float(f[i] + shift * df), float(p[i] / floor), threshold
+    return float(f[i] + shift * df), float(p[i] / floor), threshold, float(p[i])
+
+
+def flip_chatter(f: np.ndarray, p: np.ndarray, rpm: float, flutes: int) -> tuple[float, float, float]:
+    """(f Hz, its level / its neighbours', its density) of the strongest candidate for period-doubling (flip)
+    chatter on a spindle harmonic: with an even flute count N flip chatter sits at (k + ½)·N·n/60, the
+    spindle harmonic m = (2k + 1)·N/2, which the harmonic mask of `chatter_frequency` hides. Runout makes
+    every spindle harmonic but not one towering over the others: each such m's level (the largest density
+    within 2 bins) is compared with the median of the nearest harmonics that are not tooth-passing ones, two
+    each side; an m with fewer below (the once-per-revolution 1×, where unbalance and runout dominate, and
+    for N = 2 also 3×) is not examined. (nan, 0, 0) for an odd N (its flip chatter lies between harmonics)."""
+    if flutes % 2:
+        return math.nan, 0.0, 0.0
+    f_spindle, df = rpm / 60.0, f[1] - f[0]
+    top = int(f[-1] / f_spindle) - 1
+    level = {m: float(p[np.abs(f - m * f_spindle) <= 2 * df].max()) for m in range(1, top + 1)}
+    runout = [m for m in level if m % flutes]
+    best = (math.nan, 0.0, 0.0)
+    for m in range(flutes // 2, top + 1, flutes):
+        near = [q for q in runout if q < m][-2:] + [q for q in runout if q > m][:2]
+        ratio = level[m] / float(np.median([level[q] for q in near])) if len(near) == 4 else 0.0
+        if ratio > best[1]:
+            best = (m * f_spindle, ratio, level[m])
+    return best
 
 
 def stable_speeds(f_chatter_hz: float, flutes: int, *, rpm_min: float = 0.0, rpm_max: float = math.inf,
@@ -526,7 +565,7 @@ def stable_speeds(f_chatter_hz: float, flutes: int, *, rpm_min: float = 0.0, rpm
 
 
 def analyse_chatter(rec: Record, rpm: float, flutes: int, *, rpm_min: float = 0.0, rpm_max: float = math.inf,
-                    count: int = 5) -> Chatter:
+                    count: int = 5) -> ChatterVerdict:
     """Whether a recording at `rpm` with `flutes` teeth chatters, at what frequency, and the stable speeds."""
     for name, value, ok, rule in (("rpm", rpm, math.isfinite(rpm) and rpm > 0, "a spindle speed > 0"),
                                   ("flutes", flutes, flutes >= 1, "at least 1"),
@@ -540,9 +579,15 @@ def analyse_chatter(rec: Record, rpm: float, flutes: int, *, rpm_min: float = 0.
         raise MillpostError(f"{rec.path}: the tooth-passing frequency at {rpm:g} rpm with {flutes} flutes, "
                             f"{flutes * rpm / 60.0:.6g} Hz, is not below the recording's Nyquist frequency "
                             f"{rec.fs_hz / 2:.6g} Hz: check the speed (rpm) or record faster")
-    fc, ratio, threshold = chatter_frequency(rec, rpm)
+    f, p, dof = spectrum(rec, rpm / 60.0 / 40.0)
+    fc, ratio, threshold, power = chatter_frequency(f, p, dof, rpm)
+    f_flip, flip_ratio, flip_power = flip_chatter(f, p, rpm, flutes)
+    flip = flip_ratio > FLIP_RATIO and (ratio <= threshold or flip_power > power)
+    if flip:
+        fc, ratio, threshold = f_flip, flip_ratio, FLIP_RATIO
     ft = flutes * rpm / 60.0
     lobe = int(fc // ft)
     chatter = ratio > threshold
-    return Chatter(chatter, fc, ratio, threshold, rpm, flutes, ft, lobe, 2 * math.pi * (fc / ft - lobe),
-                   stable_speeds(fc, flutes, rpm_min=rpm_min, rpm_max=rpm_max, count=count) if chatter else ())
+    return ChatterVerdict(chatter, fc, ratio, threshold, rpm, flutes, ft, lobe, 2 * math.pi * (fc / ft - lobe),
+                          stable_speeds(fc, flutes, rpm_min=rpm_min, rpm_max=rpm_max, count=count) if chatter else (),
+                          flip)
