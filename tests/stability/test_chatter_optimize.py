@@ -210,3 +210,20 @@ def load_job_with(folder: Path, frf_body: str):
     toml = (JOB / "job.toml").read_text()
     (folder / "job.toml").write_text(toml[:toml.index("[tools.1.frf]")] + "[tools.1.frf]\n" + frf_body + "\n")
     return load_job(folder)
+
+
+def test_notes_on_the_frfs(tmp_path):
+    """T1's FRF measured and band-limited below its resonance (largest |G| at the band's end) is doubted in
+    the notes; T2 has an FRF but the program never uses it: a note, nothing checked for it."""
+    f = np.linspace(100.0, 1500.0, 141)
+    g = Mode(FN, ZETA, K).receptance_mm_per_N(f)
+    rows = "\n".join(f"{a:.6f},{b.real:.9e},{b.imag:.9e},{b.real:.9e},{b.imag:.9e}" for a, b in zip(f, g))
+    (tmp_path / "frf.csv").write_text("f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n" + rows + "\n")
+    job = load_job_with(tmp_path, 'csv = "frf.csv"\n\n[tools.2]\ndiameter_mm = 6\nflutes = 3\n\n'
+                                  '[tools.2.frf]\nx = [{fn_hz = 2200, zeta = 0.03, k_N_per_mm = 8000}]')
+    s = optimize(job, progress=False).summary
+    notes = [n for n in s["notes"] if "tip FRF" in n]
+    assert [n[:61] for n in notes] == [
+        "warning: T1's tip FRF ([tools.1.frf]) in x: its largest |G| (", "warning: T1's tip FRF ([tools.1.frf]) in y: its largest |G| (",
+        "note: T2 has a tip FRF ([tools.2.frf]) but cuts nothing in th"]
+    assert "is at the end of its band, 1500 Hz" in notes[0] and s["chatter"]["tools"] == [1, 2]

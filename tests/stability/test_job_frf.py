@@ -92,8 +92,43 @@ def test_csv_header_and_length(tmp_path):
     ('csv = "frf.csv"\nx = [{fn_hz = 2200, zeta = 0.03, k_N_per_mm = 8000}]', "tools.1.frf.csv", "not both"),
     ('csv = "nothere.csv"', "tools.1.frf.csv", "file not found"),
     ("x = [{fn_hz = 2200, zeta = 0.03, k_N_per_mm = 8000}]\nz = 1", "tools.1.frf.z", "unknown field"),
+    # a misspelt field is named (it was "zeta = None: is required")
+    ("x = [{fn_hz = 2200, damping = 0.03, k_N_per_mm = 8000}]", "tools.1.frf.x[0].damping", "unknown field"),
+    ("X = [{fn_hz = 2200, zeta = 0.03, k_N_per_mm = 8000}]", "tools.1.frf.X", "unknown field (known: csv, x, y)"),
 ])
 def test_table_refusals_name_the_field_and_file(tmp_path, body, field, rule):
     with pytest.raises(ConfigError) as err:
         job_with(tmp_path, body)
     assert err.value.field == field and rule in err.value.rule and err.value.file.endswith("job.toml")
+
+
+def _mode_csv(path: Path, f_hz: np.ndarray, scale: float = 1.0, sign: float = 1.0) -> None:
+    """The chatter_slot mode (2200 Hz, ζ 0.03, 8000 N/mm) sampled at f_hz, times `scale`, Im times `sign`."""
+    g = scale / (8000 * (1 - (f_hz / 2200) ** 2 + 2j * 0.03 * f_hz / 2200))
+    rows = "".join(f"{f:g},{v.real:.9e},{sign * v.imag:.9e},{v.real:.9e},{v.imag:.9e}\n" for f, v in zip(f_hz, g))
+    path.write_text(HEADER + rows)
+
+
+def test_csv_with_positive_imaginary_part_at_the_peak_is_refused(tmp_path):
+    """Im G_x > 0 where |G_x| is largest (2200 Hz, the 11th row: line 12): not a driving-point receptance."""
+    _mode_csv(tmp_path / "frf.csv", np.linspace(200.0, 4200.0, 21), sign=-1.0)
+    with pytest.raises(ParseError, match="Im G_x > 0 where .G_x. is largest .2200 Hz.") as err:
+        job_with(tmp_path, 'csv = "frf.csv"')
+    e = err.value
+    cells = (tmp_path / "frf.csv").read_text().splitlines()[11].split(",")
+    assert (Path(e.file).name, e.line, e.column, e.word) == ("frf.csv", 12, len(cells[0]) + len(cells[1]) + 3, cells[2])
+    assert float(e.word) > 0
+
+
+def test_measured_table_doubts(tmp_path):
+    """A band that stops below the resonance, and a table in m/N (1000× too small), are doubted; the mode
+    sampled across its resonance in mm/N is not."""
+    f = np.linspace(200.0, 4200.0, 41)
+    _mode_csv(tmp_path / "frf.csv", f)
+    assert job_with(tmp_path, 'csv = "frf.csv"').frf[1].x.doubts == []
+    _mode_csv(tmp_path / "frf.csv", f[f < 1500.0])
+    (doubt,) = job_with(tmp_path, 'csv = "frf.csv"').frf[1].x.doubts
+    assert "is at the end of its band, 1400 Hz" in doubt
+    _mode_csv(tmp_path / "frf.csv", f, scale=1e-3 * 1e-3)     # m/N, and a mode 1000× stiffer
+    (doubt,) = job_with(tmp_path, 'csv = "frf.csv"').frf[1].y.doubts
+    assert doubt.startswith("|G| ≤ 2.08e-09 mm/N everywhere") and "m/N?" in doubt

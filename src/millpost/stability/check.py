@@ -184,6 +184,7 @@ class Chatter:
     kr: float
     tools: tuple[int, ...]
     cut: CutImmersion
+    remarks: tuple[str, ...] = ()
     name: ClassVar[str] = "chatter"
     kind: ClassVar[Kind] = QUALITY
 
@@ -194,7 +195,7 @@ class Chatter:
             return None
         a_lim = limiting_depth_mm(job, cut, samples.rpm)
         return cls(samples.line, cut.tool, running_rpm(job, samples.rpm), cut.ap_mm, a_lim,
-                   *cutting_coefficients(job.material), tuple(sorted(job.frf)), cut)
+                   *cutting_coefficients(job.material), tuple(sorted(job.frf)), cut, _remarks(job, cut))
 
     @property
     def over(self) -> np.ndarray:
@@ -228,8 +229,9 @@ class Chatter:
                 "line_count": len(rows), "lines": rows[:LINES_LISTED]}
 
     def notes(self) -> list[str]:
-        """A warning per tool and speed whose lines are cut above the stable depth."""
-        out = []
+        """The remarks on the FRFs (`_remarks`), then a warning per tool and speed whose lines are cut above
+        the stable depth."""
+        out = list(self.remarks)
         rows = self.lines()
         for tool, rpm in sorted({(r["tool"], r["rpm"]) for r in rows}):
             mine = [r for r in rows if r["tool"] == tool and r["rpm"] == rpm]
@@ -239,3 +241,16 @@ class Chatter:
                        f"{worst['ap_mm']:g} mm deep where {worst['a_lim_mm']:g} mm is stable ({worst['ratio']:.2f}x, line "
                        f"{worst['line']}); a lighter depth or a speed in a stable pocket (rpm = \"optimize\") clears it")
         return out
+
+
+def _remarks(job: Job, cut: CutImmersion) -> tuple[str, ...]:
+    """Notes on the job's FRFs: a measured table's doubts (`DirectionFRF.doubts`) and a tool with an FRF
+    that cuts nothing (nothing is checked for it)."""
+    out = []
+    for n, frf in sorted(job.frf.items()):
+        for d, direction in (("x", frf.x), ("y", frf.y)):
+            out += [f"warning: T{n}'s tip FRF ([tools.{n}.frf]) in {d}: {doubt}" for doubt in direction.doubts]
+        if not (cut.checked & (cut.tool == n)).any():
+            out.append(f"note: T{n} has a tip FRF ([tools.{n}.frf]) but cuts nothing in this program: "
+                       "no chatter is checked for it")
+    return tuple(out)

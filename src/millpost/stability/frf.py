@@ -18,11 +18,13 @@ import numpy as np
 
 from ..errors import ConfigError
 
+G_MIN_MM_PER_N = 1e-7  # a tool tip's largest |G| is above this (1 / 10 N/nm, a static stiffness none reaches)
+
 
 @dataclass(frozen=True)
 class Mode:
     """One vibration mode at the tool tip: natural frequency fn_hz (Hz), damping ratio zeta (–), modal
-    stiffness k_N_per_mm (N/mm). Its modal mass is k/ω_n² (kg when k is in N/m)."""
+    stiffness k_N_per_mm (N/mm)."""
 
     fn_hz: float
     zeta: float
@@ -33,11 +35,6 @@ class Mode:
                                   ("k_N_per_mm", self.k_N_per_mm, self.k_N_per_mm > 0)):
             if not (math.isfinite(value) and rule):
                 raise ConfigError(name, value, "fn_hz and k_N_per_mm must be > 0, zeta in (0, 1)")
-
-    @property
-    def mass_kg(self) -> float:
-        """Modal mass m = k / ω_n² (k converted to N/m)."""
-        return self.k_N_per_mm * 1e3 / (2 * math.pi * self.fn_hz) ** 2
 
     def receptance_mm_per_N(self, f_hz) -> np.ndarray:
         """G(f) = 1 / (k (1 − r² + 2iζr)), r = f / f_n (mm/N, complex)."""
@@ -75,6 +72,23 @@ class DirectionFRF:
                               f"the measured FRF covers {lo:.6g}–{hi:.6g} Hz only")
         g = np.asarray(self.measured_mm_per_N)
         return np.interp(f, self.f_hz, g.real) + 1j * np.interp(f, self.f_hz, g.imag)
+
+    @property
+    def doubts(self) -> list[str]:
+        """What makes a measured table suspect: its largest |G| at an end of its band (the resonance, where
+        chatter lives, may lie outside it), or |G| below `G_MIN_MM_PER_N` everywhere (stiffer than any tool
+        tip: a table in m/N, 1000 times too small). None for modes."""
+        if self.f_hz is None:
+            return []
+        g = np.abs(np.asarray(self.measured_mm_per_N))
+        k, out = int(np.argmax(g)), []
+        if k in (0, len(g) - 1):
+            out.append(f"its largest |G| ({g[k]:.3g} mm/N) is at the end of its band, {self.f_hz[k]:g} Hz: the "
+                       "resonance may lie outside the table, and chatter near it is not seen")
+        if g[k] < G_MIN_MM_PER_N:
+            out.append(f"|G| ≤ {g[k]:.3g} mm/N everywhere, stiffer than any tool tip: a receptance in m/N? (the "
+                       "table is read in mm/N: 1 m/N = 1000 mm/N)")
+        return out
 
     @property
     def band_hz(self) -> tuple[float, float]:

@@ -7,7 +7,9 @@
 or a measured receptance, `csv = "frf.csv"` (relative to the job file) with the header
 `f_hz, re_x_mm_per_N, im_x_mm_per_N, re_y_mm_per_N, im_y_mm_per_N` (any order) and one row per
 frequency, ascending (blank lines and lines starting with # are skipped). A refusal names the file,
-the field or the file's line and column.
+the field or the file's line and column; a table whose imaginary part is positive where |G| is largest is
+refused (a driving-point receptance has Im G ≤ 0: another sign convention, or not a receptance), and the
+doubts `DirectionFRF.doubts` lists (a band missing the resonance, m/N values) are noted by the check.
 """
 
 from __future__ import annotations
@@ -29,17 +31,16 @@ K_MAX_N_PER_MM = 1e7   # N/mm (10 N/nm): stiffer than any spindle, holder and to
 def frf_from_table(t: Table, base: Path) -> tuple[ToolTipFRF, Path | None]:
     """The FRF of a `[tools.N.frf]` table (`t`), and the CSV file it names (None for modes); `base`: the
     job file's folder."""
+    t.done(("x", "y", "csv"))           # unknown fields first: a misspelt one is named, not a missing one
     if t.has("csv"):
         if t.has("x") or t.has("y"):
             raise t.fail("csv", t.data["csv"], "give modes (x, y) or a measured csv, not both")
         path = base / t.string("csv")
-        t.done()
         if not path.is_file():
             raise t.fail("csv", str(path), "file not found")
         return read_frf_csv(path), path
     x = DirectionFRF(modes=_modes(t, "x"))
     y = DirectionFRF(modes=_modes(t, "y")) if t.has("y") else x
-    t.done(("csv",))
     return ToolTipFRF(x, y), None
 
 
@@ -68,9 +69,9 @@ def _modes(t: Table, key: str) -> tuple[Mode, ...]:
     """The modes listed under `key` (fn_hz > 0, 0 < zeta < 1, k_N_per_mm > 0, with units as elsewhere)."""
     modes = []
     for m in t.tables(key):
+        m.done(("fn_hz", "zeta", "k_N_per_mm"))     # a misspelt field is named before a missing one
         modes.append(Mode(m.number("fn_hz", gt=0, le=FN_MAX_HZ), m.number("zeta", gt=0, lt=1),
                           m.number("k_N_per_mm", gt=0, le=K_MAX_N_PER_MM)))
-        m.done()
     return tuple(modes)
 
 
@@ -100,6 +101,15 @@ def read_frf_csv(path: str | Path) -> ToolTipFRF:
             raise ParseError("frequencies must ascend", file=str(path), line=n, column=_column(cells, order[0]),
                              word=cells[order[0]].strip(), expected=f"more than {table[k - 1, 0]:g} Hz")
     f = table[:, 0]
+    for d, re, im in (("x", 1, 2), ("y", 3, 4)):
+        k = int(np.argmax(np.hypot(table[:, re], table[:, im])))
+        if table[k, im] > 0:
+            n, cells = rows[k + 1]
+            raise ParseError(f"Im G_{d} > 0 where |G_{d}| is largest ({f[k]:g} Hz): not a driving-point receptance "
+                             "(its imaginary part is ≤ 0 at every frequency)", file=str(path), line=n,
+                             column=_column(cells, order[im]), word=cells[order[im]].strip(),
+                             expected="G = displacement / force in mm/N, Im G < 0 (a response in the opposite "
+                                      "direction, or an accelerance or mobility, gives another sign)")
     x = DirectionFRF(f_hz=f, measured_mm_per_N=table[:, 1] + 1j * table[:, 2])
     y = DirectionFRF(f_hz=f, measured_mm_per_N=table[:, 3] + 1j * table[:, 4])
     return ToolTipFRF(x, y)
