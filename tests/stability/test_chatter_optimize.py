@@ -11,6 +11,7 @@ bracketing on a fine grid and Brent's method (`slot_limit_mm`).
 from __future__ import annotations
 
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -227,3 +228,22 @@ def test_notes_on_the_frfs(tmp_path):
         "warning: T1's tip FRF ([tools.1.frf]) in x: its largest |G| (", "warning: T1's tip FRF ([tools.1.frf]) in y: its largest |G| (",
         "note: T2 has a tip FRF ([tools.2.frf]) but cuts nothing in th"]
     assert "is at the end of its band, 1500 Hz" in notes[0] and s["chatter"]["tools"] == [1, 2]
+
+
+def test_the_worked_example_quotes_these_runs(programmed, at_optimized_speed):
+    """docs/chatter.md's worked example quotes the warning, the new speed, its margins, a_lim there and the
+    clearing candidates: each figure is the one these runs give (the page is read, not copied)."""
+    page = " ".join((JOB.parents[1] / "docs" / "chatter.md").read_text().split())
+    (warning,) = [n for n in programmed["notes"] if n.startswith("warning: chatter")]
+    quoted = re.search(r"prints `(warning: chatter: T1 at 18600 rpm [^`]*)`", page).group(1)
+    assert quoted == warning.split("; a lighter depth")[0]
+    s, _ = at_optimized_speed
+    (block,) = s["spindle"]["blocks"]
+    c = block["chatter"]
+    m = re.search(r"moves S to (\d+) rpm \(`S18600 → S(\d+): a stable pocket, its cuts within the stable depth "
+                  r"\(a_lim/ap ≥ ([\d.]+); at S18600 ([\d.]+)\)`\): a_lim there is ([\d.]+) mm", page)
+    assert float(m.group(1)) == float(m.group(2)) == block["rpm"]
+    assert (float(m.group(3)), float(m.group(4))) == (round(c["margin"], 2), round(c["programmed_margin"], 2))
+    assert float(m.group(5)) == round(c["margin"] * 1.5, 2) == pytest.approx(slot_limit_mm(block["rpm"]), abs=0.01)
+    clearing = re.search(r"The clearing candidates were (\d+), (\d+) and (\d+) rpm", page).groups()
+    assert [float(v) for v in clearing] == c["clearing_rpm"]
