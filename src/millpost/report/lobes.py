@@ -3,7 +3,7 @@ spindle speed (rpm) over the machine's spindle range, at each radial immersion t
 program's (speed, depth) points marked, those cut above their stable depth apart.
 
 The immersions and the check come from the trace's chatter columns (`Chatter.trace_columns`: the
-immersion bins φ_st…φ_ex the optimize check grouped the samples by, the feed direction that swaps the
+checked arcs φ_st…φ_ex the optimize check grouped the samples by (`check.binned_arc`), the feed direction that swaps the
 FRF's X and Y, and which samples are over); the FRF, the tool's flutes, the cutting coefficients and the
 spindle range from the job. A curve is drawn for each of the `CURVES` immersions with the most samples
 (a point belongs to its own immersion's curve; its colour says whether it is over its own limit).
