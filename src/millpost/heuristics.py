@@ -68,7 +68,7 @@ from .tools.cutter import Tool
 
 
 SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
-ZERO_NORMAL_GRIDS = ((8, 4), (5, 3), (5, 3))   # (depths, speeds) of the low-deflection grids: whole ranges, then finer
+ZERO_NORMAL_GRIDS = ((8, 4), (5, 3), (5, 3))   # low-deflection (depths, speeds) grids: whole ranges, then finer
 FIXED_POINT_ROUNDS = 12      # secant rounds of the low-deflection width before the bracketing solve
 CHATTER_SPEEDS = 61          # speeds of the first search grid with an FRF (geometric: ~2 % apart over 3:1)
 CHATTER_TIE = 0.03           # with an FRF: removal rates this close count as equal, the higher lobe wins
@@ -419,8 +419,9 @@ def _roots(s: _Setup, ae0: float, P: np.ndarray, N: np.ndarray) -> tuple[np.ndar
     feed per tooth at that width, and that feed (nan where no width with a feasible feed has a root).
     The width is the fixed point of T(ae) = the root at f_z = `_best_fz`(ae), solved from ae0 for all
     candidates at once by the secant method on T(ae) − ae (a plain iteration of T may cycle where the feed
-    falls steeply with the width), until T moves ae by ≤ 10⁻⁹ D; a candidate that does not settle in `FIXED_POINT_ROUNDS` (or has no feed
-    on the way) gets the bracketing solve of g(ae) = normal force at ae with the feed at ae."""
+    falls steeply with the width), until T moves ae by ≤ 10⁻⁹ D; a candidate that does not settle in
+    `FIXED_POINT_ROUNDS` (or has no feed on the way) gets the bracketing solve of g(ae) = normal force at ae
+    with the feed at ae (`zero_normal_force` with the feed as a function of the width)."""
     d = s.tool.diameter_mm
     ae, fz = np.full(len(P), ae0), np.full(len(P), np.nan)
     last, h_last = np.full(len(P), np.nan), np.full(len(P), np.nan)
