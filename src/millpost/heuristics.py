@@ -474,7 +474,8 @@ def _no_zero_normal_cut(s: _Setup, free, full: list[tuple[float, float]], misses
     """Why no depth and speed searched has a feasible cut at the zero-normal-force width: the limits met at
     the shallowest depth (slowest and fastest speed), at the model's root width for the chip target."""
     ap = min(k[0] for k in misses)
-    why = "; ".join(dict.fromkeys(f"{n:.0f} rpm: {misses[(a, n)]}" for a, n in sorted(misses) if a == ap))
+    speeds = sorted(n for a, n in misses if a == ap)
+    why = "; ".join(dict.fromkeys(f"{n:.0f} rpm: {misses[(ap, n)]}" for n in (speeds[0], speeds[-1])))
     return MillpostError(
         f"{s.strategy}: no feasible feed at the width where the mean force normal to the feed vanishes "
         f"(ae ≈ {free.ae_mm:.3g} mm at the chip target, engagement {free.engagement_deg:.1f}°) for any depth "
