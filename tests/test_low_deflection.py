@@ -4,6 +4,7 @@ deflection of the recommended cut against half immersion and slotting."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -14,7 +15,7 @@ from scipy.optimize import brentq
 from millpost.cut import evaluate_cut
 from millpost.errors import MillpostError
 from millpost.forces import Kienzle, Mechanistic, given_cut
-from millpost.forces.base import clipped_arcs
+from millpost.forces.base import chip_thinning_factor, clipped_arcs
 from millpost.forces.timedomain import simulate
 from millpost.heuristics import recommend
 from millpost.lowdeflection import zero_normal_force
@@ -36,8 +37,10 @@ def _bisect(g, lo: float, hi: float) -> float:
 
 @pytest.mark.parametrize("kr, flutes, helix", [(0.157, 3, 30.0), (0.3, 2, 0.0), (0.8, 4, 45.0), (1.4, 3, 35.0)])
 def test_root_matches_the_closed_form_without_edge_forces(kr, flutes, helix):
-    """Altintas' mean feed-normal force over one tooth period (Manufacturing Automation 2nd ed. ch. 2;
-    PHYSICS.md §1.3), edge coefficients neglected, N teeth, depth a, feed per tooth c:
+    """Altintas' mean feed-normal force over one tooth period (Y. Altintas, Manufacturing Automation, 2nd ed.,
+    Cambridge 2012, ch. 2, mean milling forces: the elemental forces dF_t = K_tc a h dφ, dF_r = K_rc a h dφ,
+    h = c sin φ, projected on y and averaged over the pitch 2π/N), edge coefficients neglected, N teeth,
+    depth a, feed per tooth c:
 
         F̄_y = (N a c / 8π) [K_tc (2φ − sin 2φ) + K_rc cos 2φ] from φ_st to φ_ex.
 
@@ -168,3 +171,54 @@ def test_recommended_cut_barely_deflects_normal_to_the_wall(material, model):
 def test_a_fixed_width_is_refused():
     with pytest.raises(MillpostError, match="chooses the width"):
         recommend(TOOL, Material.load("al6061"), Machine.load("vmc-small"), ae_mm=1.0, strategy="low-deflection")
+
+
+def _assert_root_or_refusal(tool, material, machine, **fixed):
+    """The recommendation's width is a root of the mean normal force at its own feed (|F_y| ≤ 1e-6 |F_x|
+    from an independent `evaluate_cut` of the answer) within every limit (each load ratio ≤ 1), or the
+    refusal names the limit; never a search that did not settle."""
+    mat, mach = Material.load(material), Machine.load(machine)
+    try:
+        rec = recommend(tool, mat, mach, strategy="low-deflection", **fixed)
+    except MillpostError as exc:
+        assert "no feasible feed at the width" in str(exc) and ("allows f_z" in str(exc) or "bound" in str(exc))
+        return None
+    cut = evaluate_cut(tool, mat.force_model(), ae_mm=rec.ae_mm, ap_mm=rec.ap_mm, rpm=rec.rpm, fz_mm=rec.fz_mm,
+                       climb=False)
+    assert not rec.climb and abs(cut.F_avg_N[1]) <= 1e-6 * abs(cut.F_avg_N[0])
+    assert max(rec.ratios.values()) <= 1 + 1e-6, rec.ratios
+    return rec
+
+
+@pytest.mark.parametrize("machine, diameter, material", list(itertools.product(
+    ("hobby-router", "benchtop-belt", "vmc-small"), (3, 6, 10), ("al6061", "steel1045", "mdf"))))
+def test_every_built_in_machine_diameter_and_material(machine, diameter, material):
+    """The reviewer's grid (3 flutes): a root within every limit, or a refusal naming the limit."""
+    _assert_root_or_refusal(Tool(diameter_mm=diameter, flutes=3), material, machine)
+
+
+def test_the_reviewers_examples_recommend():
+    """hobby-router, D6 al6061 (the root cycled 0.8455 <-> 0.9225 mm as the outer search flipped the speed)
+    and D10 al6061 (the widths past the root had no feed at the full depth: spindle power) both give a cut,
+    and fixing the answer's depth and speed gives the same width (the width solve alone, no outer search)."""
+    for d in (6, 10):
+        tool = Tool(diameter_mm=d, flutes=3)
+        rec = _assert_root_or_refusal(tool, "al6061", "hobby-router")
+        assert rec is not None
+        again = recommend(tool, Material.load("al6061"), Machine.load("hobby-router"), strategy="low-deflection",
+                          ap_mm=rec.ap_mm, rpm=rec.rpm)
+        assert again.ae_mm == pytest.approx(rec.ae_mm, abs=1e-7 * d) and again.fz_mm == pytest.approx(rec.fz_mm)
+
+
+def test_a_refusal_names_the_feed_cap_against_the_minimum_chip():
+    """MDF, D6 on the hobby router: Kienzle's root does not depend on f_z (see above), so the width is fixed by
+    the model; there the minimum chip h_min needs f_z ≥ h_min · RCTF(ae) (radial chip thinning,
+    RCTF = D / (2 sqrt(ae (D − ae)))), while the 3000 mm/min machine feed at the slowest speed of the window
+    allows f_z ≤ 3000 / (z n_min): checked here from those formulas, then the refusal must name both."""
+    tool, mat, mach = Tool(diameter_mm=6, flutes=3), Material.load("mdf"), Machine.load("hobby-router")
+    ae = zero_normal_force(tool, mat.force_model(), fz_mm=0.1, ap_mm=1.0).ae_mm
+    n_min = mat.rpm_window(6, tool.material)[0]
+    h_min = mat.min_chip_mm(tool.edge_radius_mm, 6)
+    assert 3000 / (3 * n_min) < h_min * chip_thinning_factor(ae, 6)
+    with pytest.raises(MillpostError, match=r"machine_feed allows f_z ≤ .* minimum chip needs ≥"):
+        recommend(tool, mat, mach, strategy="low-deflection")

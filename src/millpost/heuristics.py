@@ -48,6 +48,7 @@ answer satisfies every limit.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import product
 
 import math
 
@@ -67,7 +68,8 @@ from .tools.cutter import Tool
 
 
 SEARCH_STEPS_PER_REV = 90    # coarse angular resolution while searching; the answer is re-solved at full
-ZERO_NORMAL_ROUNDS = 8       # width ↔ (depth, speed) rounds of the low-deflection search (2–3 settle it)
+ZERO_NORMAL_GRIDS = ((8, 4), (5, 3), (5, 3))   # low-deflection (depths, speeds) grids: whole ranges, then finer
+FIXED_POINT_ROUNDS = 12      # secant rounds of the low-deflection width before the bracketing solve
 CHATTER_SPEEDS = 61          # speeds of the first search grid with an FRF (geometric: ~2 % apart over 3:1)
 CHATTER_TIE = 0.03           # with an FRF: removal rates this close count as equal, the higher lobe wins
 SAFE_MARGIN = 1.25           # ... counted up to this × the cut's depth (a choice: higher buys nothing here)
@@ -380,26 +382,105 @@ def recommend(tool: Tool, material: Material, machine: Machine, limits: Limits =
 
 
 def _zero_normal_search(s: _Setup, ap_fixed, rpm_fixed, tie_tolerance: float) -> tuple[float, float, float, float]:
-    """(ae, ap, rpm, fz) of the best cut whose mean normal force vanishes at its own feed. The root moves
-    with f_z (through the edge forces) and f_z with the width (chip thinning), so the width is the root
-    with the largest feasible f_z at each width (`_best_fz`); the depth and speed are then the best at
-    that width (`_search`), and the two alternate until the width settles (within 10⁻⁶ D; a flat end
-    mill's root does not depend on the depth, so two or three rounds do)."""
-    d, climb = s.tool.diameter_mm, s.kind.climb
-    ap = ap_fixed or s.ap_range_mm[1]
+    """(ae, ap, rpm, fz) of the best cut whose mean normal force vanishes at its own feed. At a fixed depth
+    and speed the width is a 1-D fixed point (the root moves with f_z through the edge forces, f_z with the
+    width through chip thinning), solved by `_roots`. The depth and speed are then chosen among such roots
+    by removal rate as in `_search`: a geometric grid of (ap, rpm), finer grids around the best so far
+    (`ZERO_NORMAL_GRIDS`), the best dozen by `_choose`."""
     try:
-        ae = zero_normal_force(s.tool, s.model, fz_mm=s.chip_target_mm, ap_mm=ap, climb=climb).ae_mm
+        free = zero_normal_force(s.tool, s.model, fz_mm=s.chip_target_mm, ap_mm=ap_fixed or s.ap_range_mm[1],
+                                 climb=s.kind.climb)
     except MillpostError as exc:
         raise MillpostError(f"{s.strategy} with the {s.model.name} model of {s.material.name}: {exc}") from None
-    for _ in range(ZERO_NORMAL_ROUNDS):
-        ae, ap, n, fz = _search(s, ae, ap_fixed, rpm_fixed, tie_tolerance)
-        best = lambda w: _best_fz(s, w, np.full(len(w), ap), np.full(len(w), n), iterations=30)  # noqa: E731
-        root = zero_normal_force(s.tool, s.model, fz_mm=best, ap_mm=ap, climb=climb).ae_mm
-        if abs(root - ae) <= 1e-6 * d:
-            return ae, ap, n, fz
-        ae = root
-    raise MillpostError(f"the zero-normal-force width did not settle in {ZERO_NORMAL_ROUNDS} rounds "
-                        f"(last {ae:.6g} mm); fix ap or rpm")
+    full = [(v, v) if v else rng for v, rng in ((ap_fixed, s.ap_range_mm), (rpm_fixed, (s.rpm_lo, s.rpm_hi)))]
+    ranges, seen, misses = list(full), {}, {}
+    for sizes in ZERO_NORMAL_GRIDS:
+        done = set(misses) | {key[1:] for key in seen}
+        todo = [c for c in product(*(_grid(lo, hi, k) for (lo, hi), k in zip(ranges, sizes))) if c not in done]
+        if todo:
+            P, N = (np.array(v) for v in zip(*todo))
+            A, _ = _roots(s, free.ae_mm, P, N)
+            mrr, _ = _removal_rates(s, np.nan_to_num(A, nan=free.ae_mm), P, N, search=False, iterations=30)
+            for a, p, n, m in zip(A, P, N, mrr):
+                if np.isfinite(a) and m > 0:
+                    seen[(a, p, n)] = m
+                else:
+                    misses[(p, n)] = _why_no_feed(s, free.ae_mm, p, n) if np.isnan(a) else "chatter"
+        if not seen:
+            raise _no_zero_normal_cut(s, free, full, misses)
+        _, *centre = max(seen, key=seen.get)
+        steps = [(hi / lo) ** (1 / max(k - 1, 1)) for (lo, hi), k in zip(ranges, sizes)]
+        ranges = [(max(f[0], c / q), min(f[1], c * q)) for f, c, q in zip(full, centre, steps)]
+    return _choose(s, seen, tie_tolerance)
+
+
+def _roots(s: _Setup, ae0: float, P: np.ndarray, N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per depth P and speed N the width (mm) where the mean normal force vanishes with the largest feasible
+    feed per tooth at that width, and that feed (nan where no width with a feasible feed has a root).
+    The width is the fixed point of T(ae) = the root at f_z = `_best_fz`(ae), solved from ae0 for all
+    candidates at once by the secant method on T(ae) − ae (a plain iteration of T may cycle where the feed
+    falls steeply with the width), until T moves ae by ≤ 10⁻⁹ D; a candidate that does not settle in
+    `FIXED_POINT_ROUNDS` (or has no feed on the way) gets the bracketing solve of g(ae) = normal force at ae
+    with the feed at ae (`zero_normal_force` with the feed as a function of the width)."""
+    d = s.tool.diameter_mm
+    ae, fz = np.full(len(P), ae0), np.full(len(P), np.nan)
+    last, h_last = np.full(len(P), np.nan), np.full(len(P), np.nan)
+    todo = np.ones(len(P), bool)
+    for _ in range(FIXED_POINT_ROUNDS):
+        fz[todo] = _best_fz(s, ae[todo], P[todo], N[todo], iterations=30)
+        todo &= np.isfinite(fz)
+        mapped = ae.copy()
+        for i in np.flatnonzero(todo):
+            mapped[i] = zero_normal_force(s.tool, s.model, fz_mm=fz[i], ap_mm=P[i], climb=s.kind.climb).ae_mm
+        h = mapped - ae
+        settled = todo & (np.abs(h) <= 1e-9 * d)
+        ae[settled], todo[settled] = mapped[settled], False
+        dx, dh = ae - last, h - h_last
+        ok = np.isfinite(dh) & (dx != 0) & (dh != 0)
+        slope = np.where(ok, dh / np.where(ok, dx, 1.0), -1.0)   # first round: ae ← T(ae)
+        last, h_last = ae.copy(), h
+        ae[todo] = np.clip(ae[todo] - h[todo] / slope[todo], 1e-4 * d, d)
+        if not todo.any():
+            break
+    todo |= np.isnan(fz)
+    for i in np.flatnonzero(todo):   # a jumping or infeasible feed: the bracketing solve
+        def best(w: np.ndarray, i: int = i) -> np.ndarray:
+            return _best_fz(s, w, np.full(len(w), P[i]), np.full(len(w), N[i]), iterations=30)
+        try:
+            root = zero_normal_force(s.tool, s.model, fz_mm=best, ap_mm=P[i], climb=s.kind.climb)
+            ae[i], fz[i] = root.ae_mm, root.fz_mm
+        except MillpostError:
+            ae[i] = fz[i] = np.nan
+    return ae, fz
+
+
+def _why_no_feed(s: _Setup, ae: float, ap: float, n: float) -> str:
+    """The limits that leave no feed per tooth at width ae, depth ap, speed n: the feed cap below the minimum
+    chip, or the loads at the smallest feed the minimum chip allows."""
+    rctf, per_fz = chip_thinning_factor(ae, s.tool.diameter_mm), s.tool.flutes * n
+    floors = {"minimum chip": s.h_min_mm * rctf, "feed_min": s.limits.feed_min_mm_min / per_fz}
+    floor = max(floors, key=floors.get)
+    caps = {"chip_load": s.chip_target_mm * rctf, s.feed_cap_reason: s.feed_cap_mm_min / per_fz}
+    cap = min(caps, key=caps.get)
+    if caps[cap] < floors[floor]:
+        return f"{cap} allows f_z ≤ {caps[cap]:.3g} mm, {floor} needs ≥ {floors[floor]:.3g} mm"
+    eng = given_cut(s.tool, np.array([ae]), np.array([ap]), climb=s.kind.climb)
+    ratios = _load_ratios(s, eng, np.array([floors[floor]]), np.array([n]), np.array([ap]))
+    over = ", ".join(f"{k} {float(v[0]):.3g}× its bound" for k, v in ratios.items() if v[0] > 1)
+    return f"at the smallest f_z the {floor} allows ({floors[floor]:.3g} mm): {over or 'no load over its bound'}"
+
+
+def _no_zero_normal_cut(s: _Setup, free, full: list[tuple[float, float]], misses: dict) -> MillpostError:
+    """Why no depth and speed searched has a feasible cut at the zero-normal-force width: the limits met at
+    the shallowest depth (slowest and fastest speed), at the model's root width for the chip target."""
+    ap = min(k[0] for k in misses)
+    speeds = sorted(n for a, n in misses if a == ap)
+    why = "; ".join(dict.fromkeys(f"{n:.0f} rpm: {misses[(ap, n)]}" for n in (speeds[0], speeds[-1])))
+    return MillpostError(
+        f"{s.strategy}: no feasible feed at the width where the mean force normal to the feed vanishes "
+        f"(ae ≈ {free.ae_mm:.3g} mm at the chip target, engagement {free.engagement_deg:.1f}°) for any depth "
+        f"{full[0][0]:.3g}–{full[0][1]:.3g} mm and speed {full[1][0]:.0f}–{full[1][1]:.0f} rpm; at ap "
+        f"{ap:.3g} mm, {why}; relax that limit or use another strategy")
 
 
 def _describe(s: _Setup, ae: float, ap: float, n: float, fz: float) -> Recommendation:

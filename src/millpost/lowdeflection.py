@@ -44,7 +44,8 @@ from .machine import Machine
 from .tools.beam import ToolBeam
 from .tools.cutter import Tool
 
-SCAN_WIDTHS = 48   # geometric grid of widths (1e-4 D .. D) on which the first sign change is looked for
+SCAN_WIDTHS = 48        # geometric grid of widths (1e-4 D .. D) on which the sign changes are looked for
+ROOT_TOLERANCE = 1e-6   # a root's |mean normal force| at most this × |mean feed force| (else a jump of the feed)
 
 
 @dataclass(frozen=True)
@@ -95,11 +96,13 @@ class ZeroNormalForce:
 
 def zero_normal_force(tool: Tool, model, *, fz_mm: float | Callable[[np.ndarray], np.ndarray], ap_mm: float,
                       climb: bool = False, machine: Machine | None = None) -> ZeroNormalForce:
-    """Root in ae ∈ (0, D] of the model's mean normal force (the module docstring): the first sign change
-    on a geometric grid of widths from 10⁻⁴ D, then Brent's method. fz_mm: a feed per tooth (mm), or a
+    """Root in ae ∈ (0, D] of the model's mean normal force (the module docstring): the sign changes on a
+    geometric grid of widths from 10⁻⁴ D, in order, each solved by Brent's method; the first whose normal
+    force is within `ROOT_TOLERANCE` of the feed force is the root. fz_mm: a feed per tooth (mm), or a
     function of the widths (array, mm) giving one per width (a feed that follows the width, nan where no
-    feed is feasible). Refuses when the mean normal force does not change sign (climb milling; a model
-    without radial force)."""
+    feed is feasible: a feed that jumps makes a sign change that is no root). Refuses when the mean normal
+    force has no root: no sign change (climb milling; a model without radial force), or none among the
+    widths with a feasible feed."""
     d = tool.diameter_mm
     feed = fz_mm if callable(fz_mm) else (lambda ae: np.full(len(ae), float(fz_mm)))
 
@@ -112,26 +115,34 @@ def zero_normal_force(tool: Tool, model, *, fz_mm: float | Callable[[np.ndarray]
             f[ok] = model.predict(eng, fz[ok], 1000.0, tool, peaks=False).force_feed_N
         return f[:, 0], toward_wall(f[:, 1], climb), fz
 
-    widths = d * np.geomspace(1e-4, 1.0, SCAN_WIDTHS)
-    _, fn, _ = force(widths)
-    change = np.flatnonzero(np.isfinite(fn[:-1]) & np.isfinite(fn[1:]) & (np.sign(fn[:-1]) != np.sign(fn[1:])))
-    if not len(change):
-        side = "climb" if climb else "conventional"
-        raise MillpostError(f"no radial width in (0, {d:g}] mm makes the mean force normal to the feed zero in "
-                            f"{side} milling with this tool and force model (normal force from "
-                            f"{np.nanmin(fn):.4g} to {np.nanmax(fn):.4g} N toward the wall, no sign change"
-                            f"{'; climb milling pushes the tool off the wall at every width' if climb else ''}"
-                            "; conventional milling needs a radial force coefficient > 0)")
-
     def normal(ae: float) -> float:
         value = float(force(np.array([ae]))[1][0])
         if not math.isfinite(value):
             raise MillpostError(f"no feasible feed per tooth at width {ae:.6g} mm while solving for zero normal force")
         return value
 
-    k = int(change[0])
-    ae = brentq(normal, widths[k], widths[k + 1], xtol=1e-12 * d, rtol=4 * np.finfo(float).eps)
-    fx, fn, fz = (float(v[0]) for v in force(np.array([ae])))
-    st, ex = immersion(ae, d, climb=climb)
-    return ZeroNormalForce(ae_mm=float(ae), fz_mm=fz, ap_mm=ap_mm, climb=climb, engagement_deg=math.degrees(ex - st),
-                           F_feed_N=fx, F_normal_N=fn, deflection=MeanDeflection.of(fx, fn, tool, ap_mm, machine))
+    widths = d * np.geomspace(1e-4, 1.0, SCAN_WIDTHS)
+    _, fn, _ = force(widths)
+    changes = np.flatnonzero(np.isfinite(fn[:-1]) & np.isfinite(fn[1:]) & (np.sign(fn[:-1]) != np.sign(fn[1:])))
+    for k in changes:
+        ae = brentq(normal, widths[k], widths[k + 1], xtol=1e-12 * d, rtol=4 * np.finfo(float).eps)
+        fx, fy, fz = (float(v[0]) for v in force(np.array([ae])))
+        if abs(fy) <= ROOT_TOLERANCE * abs(fx):
+            st, ex = immersion(ae, d, climb=climb)
+            return ZeroNormalForce(ae_mm=float(ae), fz_mm=fz, ap_mm=ap_mm, climb=climb,
+                                   engagement_deg=math.degrees(ex - st), F_feed_N=fx, F_normal_N=fy,
+                                   deflection=MeanDeflection.of(fx, fy, tool, ap_mm, machine))
+    side = "climb" if climb else "conventional"
+    feasible = np.isfinite(fn)
+    if len(changes):
+        raise MillpostError(f"the mean force normal to the feed changes sign only where the feed per tooth jumps "
+                            f"(near ae = {', '.join(f'{widths[k]:.4g}' for k in changes)} mm): no root")
+    if not feasible.all():
+        span = (f"{widths[feasible].min():.4g}–{widths[feasible].max():.4g} mm" if feasible.any() else "none")
+        raise MillpostError(f"no radial width with a feasible feed makes the mean force normal to the feed zero "
+                            f"in {side} milling (widths with a feed: {span} of (0, {d:g}] mm)")
+    raise MillpostError(f"no radial width in (0, {d:g}] mm makes the mean force normal to the feed zero in "
+                        f"{side} milling with this tool and force model (normal force from "
+                        f"{np.nanmin(fn):.4g} to {np.nanmax(fn):.4g} N toward the wall, no sign change"
+                        f"{'; climb milling pushes the tool off the wall at every width' if climb else ''}"
+                        "; conventional milling needs a radial force coefficient > 0)")
