@@ -86,7 +86,7 @@ def test_sample_error_is_removed_along_the_wall(result):
     inner = np.isfinite(before) & (p[:, 0] > 4.0) & (p[:, 0] < 36.0)  # 4 mm from the wall's ends
     assert np.abs(before[inner]).min() > 0.1  # 0.156 mm undercut before: k_c/(k + k_c) of the 0.2 mm allowance
     assert np.abs(after[inner]).max() < 0.005
-    assert s["reduction"] >= 0.6 and s["surface_error_before_um"] > 100
+    assert s["reduction"] >= 0.8 and s["surface_error_before_um"] > 100  # measured: 109.8 → 1.1 µm RMS
     assert s["deflection_iterations"]["before"] < 100 and not s["notes"]
 
 
