@@ -188,3 +188,21 @@ def test_independent_check_of_the_compensated_program(result, tmp_path):
     # measured: walls 149.1 → 18.5 µm, floor 18.4 → 3.2 µm RMS (the rest: the walls' exit ends, overcut)
     for k in range(3):
         assert rms["after"][k] <= 0.2 * rms["before"][k]
+
+
+def test_report_page_shows_the_error_per_operation_and_its_map(result):
+    from millpost.commands.compensate import report_page
+
+    page = report_page(result)
+    s = result.summary
+    assert page.count('data-figure="surface-error"') == 1 and "<script" not in page
+    assert f"{s['surface_error_before_um']:.1f} → {s['surface_error_after_um']:.1f} µm" in page
+    for op in s["operations"]:
+        for surf in ("wall", "floor"):
+            assert f"<td>{op['before'][surf]['rms_um']:.1f}</td><td>{op['after'][surf]['rms_um']:.1f}</td>" in page
+    # the panels' titles: RMS over the samples that finish a surface (wall where both), before and after
+    p = result.samples.xyz_mm
+    for name, run in (("as programmed", result.before), ("compensated", result.after)):
+        wall, floor = result.surfaces.errors_mm(run.actual_mm - p)
+        e = np.where(np.isfinite(wall), wall, floor) * 1000.0
+        assert f"{name}: RMS {np.sqrt(np.nanmean(e**2)):.1f} µm, largest {np.nanmax(np.abs(e)):.1f} µm" in page
