@@ -10,7 +10,7 @@ surface; the chip is set by the feed per tooth, not by the spacing of the sample
 fixed point, bracketed and bisected from the previous sample's deflection (`_solve`): a relaxed
 iteration does not settle, as the step's cut is very stiff against a move out of the wall (the tool
 backs into the crescent the previous sample left: 10 µm cost 40 % of the force on the sample). Unlike the
-compensator's model, which moves each cut of the commanded path across the surface it generates, the
+compensator's model, which moves the programmed path's cut across the surface it generates, the
 material here is what the deflected tool left: a real machine's sequence.
 
 Measured (`surface_errors`): in a horizontal slice at height z, each wall cell the rigid cut leaves
@@ -88,12 +88,12 @@ class DeflectedCut:
 
 def deflected_cut(job: Job, program: Program, cell_mm: float, *, rigid: bool = False, tolerance_mm: float = 5e-4,
                   max_iterations: int = 40) -> DeflectedCut:
-    """Cut the job's stock box, in cells of `cell_mm`, along `program` with the tool deflected (rigid: at
+    """Cut the job's stock, in cells of `cell_mm`, along `program` with the tool deflected (rigid: at
     the commanded points, the nominal cut)."""
     samples = program.toolpath.resample(job.settings.ds_mm)
     speed = controller.execute(program.toolpath, controller_model(job)).speed_at_samples(samples)
     start = engagement.known_start(program, samples)
-    work = stocks.box(*job.stock_box, cell_mm)
+    work = replace(job, cell_mm=cell_mm).stock()
     tools = dict(job.tools)
     c = np.asarray(samples.xyz_mm, float)
     if rigid:

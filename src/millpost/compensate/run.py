@@ -8,8 +8,8 @@
    written as the program can carry it (`plan_offsets`: split lines,
    whole arcs, the controller's point spacing F·DT).
 3. The commanded path c = p + o runs through the deflection model again (the tool meets p's cut moved
-   across the surface to where it actually is); its miss a − p is taken off the wanted offset, o ← o − (a − p), and 2–3
-   repeat until the RMS surface error is within the tolerance, stops falling, or the passes run out;
+   across the surface to where it actually is); its miss a − p is taken off the wanted offset,
+   o ← o − (a − p), and 2–3 repeat until the RMS surface error is within the tolerance, stops falling, or the passes run out;
    the pass with the smallest RMS error is written.
 """
 

@@ -110,8 +110,8 @@ def compensation_page(summary: dict, figure: str) -> str:
     title = html.escape(str(summary.get("program", "")))
     body = "\n".join([
         f"<h1>millpost compensate: {title}</h1>",
-        f'<p class="headline">predicted surface error (RMS over walls and floors) {summary["surface_error_before_um"]:.1f}'
-        f' → {summary["surface_error_after_um"]:.1f} µm</p>',
+        '<p class="headline">predicted surface error (RMS over walls and floors) '
+        f'{summary["surface_error_before_um"]:.1f} → {summary["surface_error_after_um"]:.1f} µm</p>',
         _table(rows, [("operation", "operation", ""), ("surface", "surface", ""), ("before", "RMS before (µm)", ".1f"),
                       ("after", "RMS after (µm)", ".1f"), ("before_max", "largest before (µm)", ".1f"),
                       ("after_max", "largest after (µm)", ".1f")]),
