@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from ..errors import ConfigError
 from ..files import json_text, write_atomic
 from ..progress import Bars
@@ -19,10 +21,24 @@ def register(subparsers) -> None:
     p.add_argument("job", metavar="JOB", help="job folder or job.toml")
     p.add_argument("-o", "--output", required=True, help="output program (written atomically)")
     p.add_argument("--json", metavar="SUMMARY", help="write the summary JSON here ('-' for stdout)")
+    p.add_argument("--report", metavar="HTML", help="write a page with the surface error per operation and its map")
     p.add_argument("--tolerance", type=float, default=2.0, metavar="UM",
                    help="surface error and offset miss aimed at, µm (default 2)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bars and no summary line")
     p.set_defaults(func=run)
+
+
+def report_page(result) -> str:
+    """The --report page: per sample its wall error, else its floor error (µm), before and after."""
+    from ..report.figures import surface_error_map
+    from ..report.page import compensation_page
+
+    p = result.samples.xyz_mm
+    errors = {}
+    for name, run in (("as programmed", result.before), ("compensated", result.after)):
+        wall, floor = result.surfaces.errors_mm(run.actual_mm - p)
+        errors[name] = np.where(np.isfinite(wall), wall, floor) * 1000.0
+    return compensation_page(result.summary, surface_error_map(p[:, 0], p[:, 1], errors))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,11 +48,14 @@ def run(args: argparse.Namespace) -> int:
     if not 0.1 <= args.tolerance <= 1000.0:
         raise ConfigError("tolerance", args.tolerance, "must be in [0.1, 1000] µm")
     job = load_job(args.job)
-    check_outputs({"-o": args.output, "--json": args.json if args.json != "-" else None}, job.inputs)
+    check_outputs({"-o": args.output, "--json": args.json if args.json != "-" else None, "--report": args.report},
+                  job.inputs)
     with Bars(enabled=False if args.quiet else None) as bars:
         result = compensate(job, tolerance_mm=args.tolerance / 1000.0, progress=bars)
     text = json_text(result.summary)
     write_atomic(args.output, result.text)
+    if args.report:
+        write_atomic(args.report, report_page(result))
     if args.json == "-":
         print(text)
     elif args.json:

@@ -1,15 +1,16 @@
 """Where the tool actually runs under load: the fixed point a = c + δ(F(a)) of the commanded path c.
 
 The cut, and with it the force, depends on where the deflected tool actually is: a tool pushed off a
-wall by x cuts a radial depth a_e − x, one lifted off a floor by z an axial depth a_p − z. The commanded
-path is stepped through the stock once (`engagement.simulate`); from there each sample's engagement
-follows its displacement d = a − c across the surface it generates (`Surfaces`): on a wall the engaged
-arc's entry (down milling; exit for up milling) moves to the immersion of the new radial depth,
+wall by x cuts a radial depth a_e − x, one lifted off a floor by z an axial depth a_p − z. The programmed
+path p is stepped through the stock once (`engagement.simulate`, by the caller); the tool at a meets
+that cut moved across the surface it generates by a − p (`Surfaces`): on a wall the engaged arc's
+entry (down milling; exit for up milling) moves to the immersion of the new radial depth,
 φ = π − arccos(1 − a_e'/r) per slice of radius r; on a floor the slices' thicknesses scale by a_p'/a_p.
-A step through the height field cannot resolve a displacement finer than its cells (a_e moves in steps
-of a cell, and a sample's cut depends on where the samples before it left the material), so the local
-relation is what keeps the fixed point smooth; `tests/compensate` checks the envelope it predicts in a
-fine height field.
+Where the material ends along the feed (a wall's exit) stays where p meets it: stepping the commanded
+path instead, whose offsets turn it off the wall where they ramp out, would lose the cut there early.
+A step through the height field cannot resolve a displacement finer than its cells either, so the local
+relation is what keeps the fixed point smooth; `compensate.check` measures the envelope independently,
+sample after sample in a fine height field.
 
 The fixed point is found by the relaxed step a ← a + ω g, g = c + δ − a, until 99 % of the samples
 move less than the tolerance (where the tool just touches, a_e → 0, the edge forces make the force
@@ -25,7 +26,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .. import engagement
 from ..engagement import Engagement
 from ..job import Job
 from ..signals import Signals, predict
@@ -40,7 +40,7 @@ SETTLED = 0.99  # the share of samples that must move less than the tolerance
 @dataclass
 class Deflected:
     """The tool under load along the samples: actual positions and deflection (mm, (N, 3)), the
-    signals at the actual positions, the commanded path's engagement and surfaces, the passes run and
+    signals at the actual positions, the programmed path's engagement and surfaces, the passes run and
     the last pass's move at the 99th percentile of the samples (mm; inf: not settled)."""
 
     actual_mm: np.ndarray
@@ -80,18 +80,16 @@ def displaced(eng: Engagement, surfaces: Surfaces, d_mm: np.ndarray) -> Engageme
     return replace(eng, phi_st=st, phi_ex=ex, dz_mm=dz, ae_mm=ae, ap_mm=ap)
 
 
-def deflected_run(job: Job, stock, samples: Samples, commanded_mm: np.ndarray, speed_mm_s: np.ndarray, start: int,
-                  *, tolerance_mm: float = 1e-4, max_iterations: int = 100) -> Deflected:
+def deflected_run(job: Job, eng: Engagement, samples: Samples, programmed_mm: np.ndarray, commanded_mm: np.ndarray,
+                  speed_mm_s: np.ndarray, *, tolerance_mm: float = 1e-4, max_iterations: int = 100) -> Deflected:
     """Solve a = c + δ(F(a)) for the commanded positions `commanded_mm` (N, 3) at `samples` (their
-    order, moves and feeds), the path speed per sample (mm/s) and the first known sample `start`,
-    stepping the tool along c through a copy of `stock`."""
-    c = np.asarray(commanded_mm, float)
-    at = replace(samples, xyz_mm=c)
-    eng = engagement.simulate(stock.copy(), dict(job.tools), at, start=start)
+    order, moves and feeds), the path speed per sample (mm/s), and `eng` the engagement of the
+    programmed positions `programmed_mm` (N, 3) through the stock."""
+    c, p = np.asarray(commanded_mm, float), np.asarray(programmed_mm, float)
     surfaces = Surfaces.of(eng)
     a = c.copy()
     for k in range(1, max_iterations + 1):
-        sig = predict(job, at, displaced(eng, surfaces, a - c), speed_mm_s)
+        sig = predict(job, samples, displaced(eng, surfaces, a - p), speed_mm_s)
         step = c + deflection_vectors(job, sig) - a
         moved = float(np.quantile(np.abs(step).max(axis=1), SETTLED)) if len(step) else 0.0
         a = a + (1.0 if moved <= tolerance_mm else RELAX) * step

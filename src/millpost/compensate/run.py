@@ -7,9 +7,9 @@
    this is what it would bend by) less its component along the horizontal feed direction (`across`),
    written as the program can carry it (`plan_offsets`: split lines,
    whole arcs, the controller's point spacing F·DT).
-3. The commanded path c = p + o runs through the deflection model again (its engagement depends on where
-   the tool actually is); its miss a − p is taken off the wanted offset, o ← o − (a − p), and 2–3
-   repeat until the RMS surface error is within the tolerance, stops falling, or the passes run out;
+3. The commanded path c = p + o runs through the deflection model again (the tool meets p's cut moved
+   across the surface to where it actually is); its miss a − p is taken off the wanted offset,
+   o ← o − (a − p), and 2–3 repeat until the RMS surface error is within the tolerance, stops falling, or the passes run out;
    the pass with the smallest RMS error is written.
 """
 
@@ -93,15 +93,13 @@ def compensate(job: Job, *, tolerance_mm: float = TOLERANCE_MM, max_passes: int 
     report = resolve(progress)
     program = read_program(job.program, job.reader_options())
     check_writable(program)
-    stock = job.stock()
-    samples, eng, notes = engagement.engage(program, stock.copy(), dict(job.tools), job.settings.ds_mm, job.allow,
+    samples, eng, notes = engagement.engage(program, job.stock(), dict(job.tools), job.settings.ds_mm, job.allow,
                                             stage="simulate", progress=report)
     samples = check_spindle(program, samples, eng, job.spindle_rpm, job.allow, notes)
     speed = controller.execute(program.toolpath, controller_model(job)).speed_at_samples(samples)
-    start = engagement.known_start(program, samples)
     surfaces = Surfaces.of(eng)
     p = samples.xyz_mm
-    before = deflected_run(job, stock, samples, p, speed, start)
+    before = deflected_run(job, eng, samples, p, p, speed)
     cutting = cutting_moves(program, samples, eng)
     spacing = point_spacing_mm(job, program)
     wanted = across(samples, -deflection_vectors(job, predict(job, samples, eng, speed)))
@@ -109,7 +107,7 @@ def compensate(job: Job, *, tolerance_mm: float = TOLERANCE_MM, max_passes: int 
     for k in range(1, max_passes + 1):
         report("compensate", k, max_passes)
         plan = plan_offsets(program.toolpath, samples, wanted, cutting, tolerance_mm, spacing)
-        run = deflected_run(job, stock, samples, commanded(program.toolpath, samples, plan), speed, start)
+        run = deflected_run(job, eng, samples, p, commanded(program.toolpath, samples, plan), speed)
         miss = run.actual_mm - p
         error = rms_error_mm(surfaces, miss)
         if best is not None and error >= best[0]:

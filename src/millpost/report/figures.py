@@ -302,3 +302,24 @@ def stability_lobes(lobes: ToolLobes) -> str:
     ax.set_title(f"T{lobes.tool} ({lobes.flutes} flutes): zero-order stability lobes", fontsize=10)
     ax.legend(loc="upper left", fontsize=8)
     return svg(fig, f"lobes-T{lobes.tool}")
+
+
+def surface_error_map(x: np.ndarray, y: np.ndarray, errors_um: dict[str, np.ndarray]) -> str:
+    """Top view of the predicted surface error along the finished walls and floors, one panel per state
+    (e.g. programmed, compensated): each wall or floor sample at its programmed XY (mm), coloured by its
+    error (µm; + material left, − overcut) on one diverging scale symmetric about 0; samples that finish
+    no surface (nan) are left out."""
+    finite = [e[np.isfinite(e)] for e in errors_um.values()]
+    top = max((float(np.abs(e).max()) for e in finite if len(e)), default=1.0) or 1.0
+    fig, axes = _figure(10.0, 2.6, rows=len(errors_um))
+    for ax, (name, err) in zip(axes, errors_um.items()):
+        ok = np.isfinite(err)
+        pts = ax.scatter(x[ok], y[ok], c=err[ok], s=4, cmap="RdBu_r", vmin=-top, vmax=top, rasterized=True)
+        rms = float(np.sqrt(np.mean(err[ok] ** 2))) if ok.any() else 0.0
+        ax.set_title(f"{name}: RMS {rms:.1f} µm, largest {float(np.abs(err[ok]).max(initial=0.0)):.1f} µm",
+                     fontsize=9)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("X (mm)")
+        ax.set_ylabel("Y (mm)")
+        fig.colorbar(pts, ax=ax, label="surface error (µm)")
+    return svg(fig, "surface-error")

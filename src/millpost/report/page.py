@@ -112,3 +112,25 @@ def _lobes_section(data: ReportData) -> list[str]:
 def write_report(path: str | os.PathLike, data: ReportData) -> None:
     """Write the page atomically."""
     write_atomic(path, render(data))
+
+
+def compensation_page(summary: dict, figure: str) -> str:
+    """The page of `millpost compensate --report`: the predicted surface error per operation before and
+    after, and its map (`figures.surface_error_map`)."""
+    rows = [{"operation": op["operation"], "surface": surf, "before": op["before"][surf]["rms_um"],
+             "after": op["after"][surf]["rms_um"], "before_max": op["before"][surf]["max_um"],
+             "after_max": op["after"][surf]["max_um"]}
+            for op in summary["operations"] for surf in ("wall", "floor") if surf in op["before"]]
+    title = html.escape(str(summary.get("program", "")))
+    body = "\n".join([
+        f"<h1>millpost compensate: {title}</h1>",
+        '<p class="headline">predicted surface error (RMS over walls and floors) '
+        f'{summary["surface_error_before_um"]:.1f} → {summary["surface_error_after_um"]:.1f} µm</p>',
+        _table(rows, [("operation", "operation", ""), ("surface", "surface", ""), ("before", "RMS before (µm)", ".1f"),
+                      ("after", "RMS after (µm)", ".1f"), ("before_max", "largest before (µm)", ".1f"),
+                      ("after_max", "largest after (µm)", ".1f")]),
+        "<h2>Surface error along walls and floors</h2><p>The deflected tool's envelope against the programmed "
+        "one, at each sample that finishes a wall or a floor (wall where both): red material left, blue "
+        "overcut.</p>", f"<figure>{figure}</figure>"])
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>millpost compensate: {title}'
+            f"</title><style>{STYLE}</style></head><body>\n{body}\n</body></html>\n")
