@@ -67,6 +67,7 @@ SLOW = {
     "tests/schedule/test_schedule.py::test_seeded_random_problems_exceed_no_limit": "random problems: 20 s",
     "tests/schedule/test_schedule_certify.py": "40 random jobs against Clarabel: 16 s",
     "tests/stability/test_lobes.py::test_semi_discretisation_agrees_with_zero_order_in_slotting": "64-step semi-discretisation: 16 s",
+    "tests/compensate/test_compensate.py::test_independent_check_of_the_compensated_program": "a 10 µm height field cut sample by sample: 31-64 s",
     "tests/schedule/test_solver_choice.py::test_auto_and_clarabel_agree_on_the_adaptive_pocket": "2 optimizes: 10 s",
 }
 _SLOW = re.compile("|".join(re.escape(k).replace(r"\*", ".*") + r"(?:$|::|\[)" for k in SLOW))

@@ -162,7 +162,6 @@ def test_surface_errors_read_a_shifted_wall_and_floor():
     assert np.allclose(floor, 0.004, atol=1e-5)
 
 
-@pytest.mark.slow
 def test_independent_check_of_the_compensated_program(result, tmp_path):
     """Re-read the compensated program, cut a 10 µm height field with the tool placed sample after sample
     where it deflects under the force of the cut it meets (no use of compensate's error model), and

@@ -17,8 +17,8 @@ import re
 
 import numpy as np
 
-from ..emit.write import (_SPACED, _UNSPACED, _LineWriter, _decimals, _fmt, _program_trailing_point,
-                          _trailing_point, computed)
+from ..emit.write import (LineWriter, computed, format_number, line_decimals, line_trailing_point, program_spaced,
+                          program_trailing_point)
 from ..errors import MillpostError
 from ..gcode.interpret import INCH, Program
 from ..gcode.lexer import lex_line, source_lines
@@ -68,9 +68,8 @@ def write_offsets(program: Program, plan: dict[int, MoveOffsets]) -> str:
     on_line: dict[int, list[int]] = {}
     for i in np.flatnonzero(np.isin(tp.line, [int(tp.line[m]) for m in plan])):
         on_line.setdefault(int(tp.line[i]), []).append(int(i))
-    default_trailing = _program_trailing_point(program)
-    code = _code(program.text)
-    spaced = len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))
+    default_trailing = program_trailing_point(program)
+    spaced = program_spaced(program)
     end_off = {i: mo.offset_mm[-1] for i, mo in plan.items()}
     for n, moves in sorted(on_line.items()):
         raw = lines[n - 1]
@@ -81,9 +80,9 @@ def write_offsets(program: Program, plan: dict[int, MoveOffsets]) -> str:
         mo = plan[i]
         inch = bool(program.move_inch[i])
         scale = INCH if inch else 1.0
-        decimals = max(_decimals(block, 0), 4 if inch else 3)
-        trailing = _trailing_point(block, default_trailing)
-        writer = _LineWriter(body, block, spaced)
+        decimals = max(line_decimals(block, 0), 4 if inch else 3)
+        trailing = line_trailing_point(block, default_trailing)
+        writer = LineWriter(body, block, spaced)
         named = {w.letter for w in block.words if w.letter in _AXES}
         points = tp.points(np.full(len(mo.u), i), mo.u) + mo.offset_mm
         in_force = tp.start[i] + end_off.get(i - 1, np.zeros(3))
@@ -91,7 +90,7 @@ def write_offsets(program: Program, plan: dict[int, MoveOffsets]) -> str:
         for k, point in enumerate(points):
             words = {}
             for ax, letter in enumerate(_AXES):
-                text = _fmt(point[ax] / scale, decimals, trailing)
+                text = format_number(point[ax] / scale, decimals, trailing)
                 if (k == 0 and letter in named) or abs(float(text) * scale - in_force[ax]) > 0.5 * 10**-decimals * scale:
                     words[letter] = text
             in_force = np.array([float(words[L]) * scale if L in words else in_force[ax] for ax, L in enumerate(_AXES)])

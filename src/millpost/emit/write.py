@@ -187,12 +187,12 @@ class _Unknown(dict):
         return 0.0
 
 
-def _decimals(block: Block, default: int) -> int:
+def line_decimals(block: Block, default: int) -> int:
     found = [len(w.text.split(".")[1].rstrip()) for w in block.words if "." in w.text and "[" not in w.text]
     return max(found + [default])
 
 
-def _program_trailing_point(program: Program) -> bool:
+def program_trailing_point(program: Program) -> bool:
     """Whether the program writes whole numbers as "10." (Fanuc style) or "10": from its own whole
     coordinates and feeds (comments aside), the more frequent; the dialect's style where it has none."""
     text = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
@@ -214,7 +214,7 @@ def _f_decimals(program: Program) -> int | None:
     return counts.pop()
 
 
-def _trailing_point(block: Block, default: bool) -> bool:
+def line_trailing_point(block: Block, default: bool) -> bool:
     """Whether this line writes whole numbers as "10." (from its own numbers, else the dialect)."""
     nums = [w.text[1:].strip() for w in block.words if w.letter in "XYZIJKRF" and "[" not in w.text]
     if any(t.endswith(".") for t in nums):
@@ -224,7 +224,7 @@ def _trailing_point(block: Block, default: bool) -> bool:
     return default
 
 
-def _fmt(value: float, decimals: int, trailing_point: bool) -> str:
+def format_number(value: float, decimals: int, trailing_point: bool) -> str:
     text = f"{value:.{decimals}f}"
     if "." in text:
         text = text.rstrip("0")
@@ -248,7 +248,14 @@ def _units_of(block: Block, default: float | None) -> float | None:
     return default
 
 
-class _LineWriter:
+def program_spaced(program: Program) -> bool:
+    """Whether the program usually puts blanks between its words (comments aside): the style of a line
+    too short to show its own."""
+    code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
+    return len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))
+
+
+class LineWriter:
     """Edits one source line: replace or add words, keeping every other byte."""
 
     def __init__(self, raw: str, block: Block, spaced: bool) -> None:
@@ -319,15 +326,13 @@ class _FeedWriter:
     def __init__(self, program: Program, plan: FeedPlan, trailing_point: bool | None) -> None:
         tp = program.toolpath
         self.program, self.plan = program, plan
-        self.default_trailing = _program_trailing_point(program) if trailing_point is None else trailing_point
+        self.default_trailing = program_trailing_point(program) if trailing_point is None else trailing_point
         self.f_decimals = _f_decimals(program)
         self.lengths = tp.lengths()
         self.by_line: dict[int, list[int]] = {}
         for i in np.flatnonzero(tp.kind != RAPID):
             self.by_line.setdefault(int(tp.line[i]), []).append(int(i))
-        # the style of a line too short to show its own: the program's (comments aside)
-        code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
-        self.spaced = len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))  # the program's usual way
+        self.spaced = program_spaced(program)
         self.modal_f: float | None = None
         self.in_f: float | None = None
         self.units, self.f_units = 1.0, 1.0
@@ -386,7 +391,7 @@ class _FeedWriter:
             self.modal_f = self.modal_f * self.f_units / scale
             self.in_f = None if self.in_f is None else self.in_f * self.f_units / scale
         self.f_units, self.units = scale, line_units
-        line = _FeedLine(self, block, _LineWriter(body, block, self.spaced), scale)
+        line = _FeedLine(self, block, LineWriter(body, block, self.spaced), scale)
         in_before = self.in_f  # the program's F in force before this line
         if line.f_word is not None:
             self.in_f = line.f_word.value
@@ -448,7 +453,7 @@ class _FeedWriter:
         elif standalone_f is not None and f_word is None and not inverse:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
             text = line.feed_text(k, feed_k, self.lengths[k], modal_f)
-            self.out[at] = _LineWriter(f_body, f_block, self.spaced).replace({"F": text}) + f_ending
+            self.out[at] = LineWriter(f_body, f_block, self.spaced).replace({"F": text}) + f_ending
             self.out.append(raw)
             value = float(text)
         else:
@@ -466,11 +471,11 @@ class _FeedLine:
     text in its number style, and the last F written on it (`written`: and whether that F is under its
     move's programmed F, which `_stepped` keeps)."""
 
-    def __init__(self, writer: _FeedWriter, block: Block, line_writer: _LineWriter, scale: float) -> None:
+    def __init__(self, writer: _FeedWriter, block: Block, line_writer: LineWriter, scale: float) -> None:
         self.program, self.plan, self.flow, self.f_decimals = writer.program, writer.plan, writer.flow, writer.f_decimals
         self.lengths = writer.lengths
         self.block, self.writer, self.scale, self.inch = block, line_writer, scale, scale == INCH
-        self.trailing_point = _trailing_point(block, writer.default_trailing)
+        self.trailing_point = line_trailing_point(block, writer.default_trailing)
         self.f_word = next((w for w in block.words if w.letter == "F"), None)
         self.written = {"f": math.nan, "held": False}
 
@@ -491,7 +496,7 @@ class _FeedLine:
         within FEED_ROUNDOFF under a grid value is that value (a cap the solver held, not an excess).
         Padded with zeros to the program's own fixed decimals where it pads its F words (`_f_decimals`)."""
         d = max((2 if self.inch else 1) + (2 if value < 10 else 0), self.f_decimals or 0)
-        text = _fmt(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, self.trailing_point)
+        text = format_number(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, self.trailing_point)
         if self.f_decimals:
             whole, _, frac = text.partition(".")
             text = f"{whole}.{frac:0<{self.f_decimals}}"
@@ -567,7 +572,7 @@ def split_decimals(block: Block, inch: bool) -> int:
     (√3·½·10⁻ᵈ·scale: 4 decimals in mm, 0.87e-4 mm; 6 in inch, 0.22e-4 mm; 5 in inch would be 2.2e-4)."""
     scale = INCH if inch else 1.0
     needed = math.ceil(math.log10(math.sqrt(3) * 0.5 * scale / SPLIT_TOLERANCE_MM))
-    return max(_decimals(block, 0) + 1, needed)
+    return max(line_decimals(block, 0) + 1, needed)
 
 
 def _axis_rate(delta_mm: np.ndarray, vmax_mm_min) -> float:
@@ -580,7 +585,7 @@ def _axis_rate(delta_mm: np.ndarray, vmax_mm_min) -> float:
     return float(np.min(np.where(share > 1e-12, np.asarray(vmax_mm_min) / np.maximum(share, 1e-12), np.inf)))
 
 
-def _split_move(program: Program, i: int, fragments, block: Block, writer: _LineWriter, ending: str,
+def _split_move(program: Program, i: int, fragments, block: Block, writer: LineWriter, ending: str,
                 trailing_point: bool, feed_text, length_mm: float, modal_f: float | None,
                 repeats: bool = False, vmax_mm_min=None) -> tuple[list[str], float]:
     """Split move i at the fragment ends: the first piece is the original line with its axis, arc and F
@@ -624,17 +629,17 @@ def _split_move(program: Program, i: int, fragments, block: Block, writer: _Line
                 if _AXIS_LETTERS[ax] in as_written and abs(end[ax] - tp.end[i, ax]) <= 1e-9:
                     words[_AXIS_LETTERS[ax]] = as_written[_AXIS_LETTERS[ax]]
                 elif k == 0 or moves_here or not incremental:
-                    words[_AXIS_LETTERS[ax]] = _fmt(value / scale, decimals, trailing_point)
+                    words[_AXIS_LETTERS[ax]] = format_number(value / scale, decimals, trailing_point)
         if arc:
             if uses_r:
                 r = math.hypot(start[a1] - tp.center[i, a1], start[a2] - tp.center[i, a2])
                 sweep = _sweep(tp, i) * (u_end - us[k])
-                words["R"] = _fmt((r if abs(sweep) <= math.pi else -r) / scale, decimals, trailing_point)
+                words["R"] = format_number((r if abs(sweep) <= math.pi else -r) / scale, decimals, trailing_point)
             else:
                 for ax in (a1, a2):  # relative to the start as written (rounded), so the centre stays exact
                     written = round(start[ax] / scale, decimals) * scale
                     c = tp.center[i, ax] if program.arc_absolute[i] else tp.center[i, ax] - written
-                    words[_ARC_LETTERS[ax]] = _fmt(c / scale, decimals, trailing_point)
+                    words[_ARC_LETTERS[ax]] = format_number(c / scale, decimals, trailing_point)
         if not (arc or incremental):  # no faster than the axes run the piece as written (rounded)
             end_written = np.array([float(words[L]) * scale if L in words else end[ax]
                                     for ax, L in enumerate(_AXIS_LETTERS)])
@@ -750,6 +755,6 @@ def replace_numbers(program: Program, words: dict[int, dict[str, float]]) -> str
             old = have[letter].text[1:].strip()
             decimals = len(old.split(".")[1]) if "." in old else 0
             trailing = old.endswith(".")
-            texts[letter] = _fmt(value, max(decimals, 1) if trailing else decimals, trailing)
-        lines[n - 1] = _LineWriter(body, block, True).replace(texts) + lines[n - 1][len(body):]
+            texts[letter] = format_number(value, max(decimals, 1) if trailing else decimals, trailing)
+        lines[n - 1] = LineWriter(body, block, True).replace(texts) + lines[n - 1][len(body):]
     return "".join(lines)
