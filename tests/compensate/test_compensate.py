@@ -205,3 +205,21 @@ def test_report_page_shows_the_error_per_operation_and_its_map(result):
         wall, floor = result.surfaces.errors_mm(run.actual_mm - p)
         e = np.where(np.isfinite(wall), wall, floor) * 1000.0
         assert f"{name}: RMS {np.sqrt(np.nanmean(e**2)):.1f} µm, largest {np.nanmax(np.abs(e)):.1f} µm" in page
+
+
+def test_canned_cycles_are_kept_and_the_rest_compensated():
+    """drill_and_mill: facing, a pocket, G81/G83 holes. A cycle block's X Y Z R are its hole's, not a move's
+    end, and a drill's thrust bends no wall: the cycle lines keep every byte, a note names them, and the
+    milled lines are still compensated (the program is not refused for holding cycles)."""
+    job = load_job(ROOT / "sample_jobs" / "drill_and_mill")
+    out = compensate(job)
+    before = job.program.read_text().splitlines()
+    after = out.text.splitlines()
+    starts = [k for k, line in enumerate(before) if re.search(r"\bG8[1-9]\b", line)]
+    assert len(starts) == 2
+    for k in starts:  # the cycle's block and its hole lines up to G80, byte for byte and in order
+        block = before[k:before.index("G80", k) + 1]
+        at = after.index(block[0])
+        assert after[at:at + len(block)] == block
+    assert any("canned-cycle line(s) kept as programmed" in n for n in out.summary["notes"])
+    assert out.summary["points_added"] > 0 and out.summary["surface_error_after_um"] < out.summary["surface_error_before_um"]

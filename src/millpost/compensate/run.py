@@ -101,6 +101,12 @@ def compensate(job: Job, *, tolerance_mm: float = TOLERANCE_MM, max_passes: int 
     p = samples.xyz_mm
     before = deflected_run(job, eng, samples, p, p, speed)
     cutting = cutting_moves(program, samples, eng)
+    cycles = cutting & (np.asarray(program.cycle) != 0)
+    if cycles.any():  # a drill's thrust bends no wall; a cycle block's words are its hole's, not a move's end
+        lines = sorted({int(n) for n in program.toolpath.line[cycles]})
+        notes.append(f"note: {len(lines)} canned-cycle line(s) kept as programmed (first: line {lines[0]}): "
+                     "compensate moves the points of lines and arcs, not a cycle's holes")
+        cutting &= ~cycles
     spacing = point_spacing_mm(job, program)
     wanted = across(samples, -deflection_vectors(job, predict(job, samples, eng, speed)))
     best = None
