@@ -13,13 +13,13 @@ from __future__ import annotations
 import math
 import re
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
+from chatter_jobs import SLOT as JOB, job_with
 from millpost.engagement import Engagement
 from millpost.job import load_job
 from millpost.optimize import optimize
@@ -29,7 +29,6 @@ from millpost.stability.frf import DirectionFRF, Mode, ToolTipFRF
 from millpost.stability.lobes import semi_discretisation_limit_mm, zero_order_limit_mm
 from millpost.toolpath import FEED
 
-JOB = Path(__file__).resolve().parents[2] / "sample_jobs" / "chatter_slot"
 FN, ZETA, K, N, KT, KR = 2200.0, 0.03, 8000.0, 3, 631.0, 99.0 / 631.0
 SLOT_LINES = [9, 13, 19, 23, 29, 33]  # the G1 X65 passes, 1.5 mm deep each
 
@@ -198,19 +197,11 @@ def test_a_measured_frf_gives_the_modes_limit(tmp_path):
     g = Mode(FN, ZETA, K).receptance_mm_per_N(f)
     rows = "\n".join(f"{a:.6f},{b.real:.9e},{b.imag:.9e},{b.real:.9e},{b.imag:.9e}" for a, b in zip(f, g))
     (tmp_path / "frf.csv").write_text("f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n" + rows + "\n")
-    measured = load_job_with(tmp_path, 'csv = "frf.csv"').frf[1]
+    measured = job_with(tmp_path, 'csv = "frf.csv"').frf[1]
     assert isinstance(measured.x, DirectionFRF) and measured.x.f_hz is not None
     a = zero_order_limit_mm(measured, kt_N_per_mm2=KT, kr=KR, flutes=N, phi_st_rad=0.0, phi_ex_rad=math.pi,
                             rpm=[18600.0])[0]
     assert a == pytest.approx(slot_limit_mm(18600.0), rel=5e-3)
-
-
-def load_job_with(folder: Path, frf_body: str):
-    """The chatter_slot job in `folder` with its [tools.1.frf] table's body replaced."""
-    (folder / "program.nc").write_text((JOB / "program.nc").read_text())
-    toml = (JOB / "job.toml").read_text()
-    (folder / "job.toml").write_text(toml[:toml.index("[tools.1.frf]")] + "[tools.1.frf]\n" + frf_body + "\n")
-    return load_job(folder)
 
 
 def test_notes_on_the_frfs(tmp_path):
@@ -220,7 +211,7 @@ def test_notes_on_the_frfs(tmp_path):
     g = Mode(FN, ZETA, K).receptance_mm_per_N(f)
     rows = "\n".join(f"{a:.6f},{b.real:.9e},{b.imag:.9e},{b.real:.9e},{b.imag:.9e}" for a, b in zip(f, g))
     (tmp_path / "frf.csv").write_text("f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n" + rows + "\n")
-    job = load_job_with(tmp_path, 'csv = "frf.csv"\n\n[tools.2]\ndiameter_mm = 6\nflutes = 3\n\n'
+    job = job_with(tmp_path, 'csv = "frf.csv"\n\n[tools.2]\ndiameter_mm = 6\nflutes = 3\n\n'
                                   '[tools.2.frf]\nx = [{fn_hz = 2200, zeta = 0.03, k_N_per_mm = 8000}]')
     s = optimize(job, progress=False).summary
     notes = [n for n in s["notes"] if "tip FRF" in n]

@@ -8,18 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from chatter_jobs import job_with
 from millpost.errors import ConfigError, ParseError
-from millpost.job import load_job
 
-SLOT = Path(__file__).resolve().parents[2] / "sample_jobs" / "chatter_slot"
 HEADER = "f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n"
-
-
-def job_with(folder: Path, frf_body: str):
-    (folder / "program.nc").write_text((SLOT / "program.nc").read_text())
-    toml = (SLOT / "job.toml").read_text()
-    (folder / "job.toml").write_text(toml[:toml.index("[tools.1.frf]")] + "[tools.1.frf]\n" + frf_body + "\n")
-    return load_job(folder)
 
 
 def test_modes_and_y_defaulting_to_x(tmp_path):
