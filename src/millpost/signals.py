@@ -105,7 +105,7 @@ class Signals:
     axis_accel_mm_s2: np.ndarray    # (N, 3)
     axis_current_A: np.ndarray      # (N, 3) motor current of X, Y, Z
     tool_deflection_mm: np.ndarray     # (N,) lateral, at the load point
-    machine_deflection_mm: np.ndarray  # (N, 3) per axis
+    machine_deflection_mm: np.ndarray  # (N, 3): the machine's compliance times the force on the tool
     engagement: Engagement | None = None  # the engagement the loads came from (for fits and discover)
 
     def __len__(self) -> int:

@@ -69,7 +69,8 @@ def test_straight_wall_constant_force_closed_form():
     c_tool = (a**3 - (a - ls) ** 3) / (3 * ei_shank) + (a - ls) ** 3 / (3 * ei_flute)
     assert beam.compliance_mm_per_N(ap) == pytest.approx(c_tool, rel=1e-12)
     force = np.array([[0.0, -20.0, 0.0]])  # on the tool, away from a wall at +Y
-    sig = SimpleNamespace(force_tool_N=force, tool_deflection_mm=np.array([c_tool * 20.0]))
+    sig = SimpleNamespace(force_tool_N=force, tool_deflection_mm=np.array([c_tool * 20.0]),
+                          machine_deflection_mm=job.machine.deflection_mm(force))  # as the forward model gives it
     delta = deflection_vectors(job, sig)
     c_machine = np.array(load_toml(JOB / "machine.toml")["compliance_mm_per_N"])
     assert np.allclose(delta[0], c_machine @ force[0] + [0.0, -20.0 * c_tool, 0.0], rtol=1e-12)

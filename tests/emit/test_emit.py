@@ -11,7 +11,7 @@ import pytest
 import rs274_oracle
 from conftest import SHARED_DATA
 from millpost.emit import FeedPlan, computed, write_feeds
-from millpost.emit.write import _Unknown
+from millpost.emit.write import UnknownParameters
 from millpost.files import write_atomic
 from millpost.errors import ParseError
 from millpost.gcode import ReaderOptions, read_program, read_text
@@ -86,7 +86,7 @@ def test_split_moves_keep_the_path_and_take_each_feed():
         text = write_feeds(program, plan)
         back = read_text(text, program.path, ReaderOptions.linuxcnc())
         lines = program.text.splitlines()  # a line computing a word (`G1 Z#2`) is never split
-        whole = sum(computed(lex_line(lines[tp.line[i] - 1], 1, "", _Unknown())) for i in single[:60])
+        whole = sum(computed(lex_line(lines[tp.line[i] - 1], 1, "", UnknownParameters())) for i in single[:60])
         assert len(back.toolpath) == len(tp) + 2 * (len(single[:60]) - whole), program.path
         _same_path(program, back)
         if rs274_oracle.RS274 and single:

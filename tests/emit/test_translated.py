@@ -62,11 +62,11 @@ def test_text_only_evaluation_takes_undefined_operations_as_zero():
     by such a 0 (a translation's computed arc) gives 0 there, while a real run still refuses it."""
     import pytest
 
-    from millpost.emit.write import _Unknown
+    from millpost.emit.write import UnknownParameters
     from millpost.errors import ParseError
     from millpost.gcode.lexer import lex_line
 
-    block = lex_line("G1 X[1/#<_a>] F100", 1, "t.nc", _Unknown())
+    block = lex_line("G1 X[1/#<_a>] F100", 1, "t.nc", UnknownParameters())
     assert [(w.letter, w.value) for w in block.words] == [("G", 1.0), ("X", 0.0), ("F", 100.0)]
     with pytest.raises(ParseError, match="undefined"):
         lex_line("G1 X[1/#<_a>] F100", 1, "t.nc", {"_a": 0.0})

@@ -77,12 +77,10 @@ def _solve(miss, d0: np.ndarray, tolerance_mm: float, max_iterations: int):
 
 @dataclass
 class DeflectedCut:
-    """The fine height field the deflected tool left, the commanded and actual positions (N, 3) mm and the
-    samples whose placement did not settle within the iterations."""
+    """The fine height field the deflected tool left and the number of samples whose placement did not
+    settle within the iterations."""
 
     stock: stocks.Stock
-    commanded_mm: np.ndarray
-    actual_mm: np.ndarray
     unsettled: int
 
 
@@ -98,7 +96,7 @@ def deflected_cut(job: Job, program: Program, cell_mm: float, *, rigid: bool = F
     c = np.asarray(samples.xyz_mm, float)
     if rigid:
         engagement.simulate(work, tools, samples, start=start)
-        return DeflectedCut(work, c, c.copy(), 0)
+        return DeflectedCut(work, 0)
     a = c.copy()
     d = np.zeros(3)
     lo, hi = work.bounds()
@@ -122,7 +120,7 @@ def deflected_cut(job: Job, program: Program, cell_mm: float, *, rigid: bool = F
         d, work, settled = _solve(miss, d, tolerance_mm, max_iterations)
         unsettled += not settled
         a[k] = c[k] + d
-    return DeflectedCut(work, c, a, unsettled)
+    return DeflectedCut(work, unsettled)
 
 
 def surface_errors(original: stocks.Stock, nominal: stocks.Stock, actual: stocks.Stock,

@@ -19,10 +19,10 @@ from ..signals import Signals
 
 def deflection_vectors(job: Job, signals: Signals) -> np.ndarray:
     """(N, 3) deflection of the tool at the load point (mm, machine XYZ) per sample: the machine's
-    `Machine.deflection_mm` plus the tool beam's lateral deflection (`Signals.tool_deflection_mm`, its
+    (`Signals.machine_deflection_mm`) plus the tool beam's lateral deflection (`Signals.tool_deflection_mm`, its
     magnitude) along the in-plane force."""
     force = np.asarray(signals.force_tool_N, float)
-    delta = job.machine.deflection_mm(force)
+    delta = np.array(signals.machine_deflection_mm, float)
     f_xy = np.hypot(force[:, 0], force[:, 1])
     along = np.divide(force[:, :2], f_xy[:, None], out=np.zeros((len(force), 2)), where=f_xy[:, None] > 0)
     delta[:, :2] += signals.tool_deflection_mm[:, None] * along

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..engagement import Engagement
 from ..job import Job
-from ..signals import Signals, predict
+from ..signals import predict
 from ..toolpath import Samples
 from .deflection import deflection_vectors
 from .surface import Surfaces
@@ -39,15 +39,10 @@ SETTLED = 0.99  # the share of samples that must move less than the tolerance
 
 @dataclass
 class Deflected:
-    """The tool under load along the samples: actual positions and deflection (mm, (N, 3)), the
-    signals at the actual positions, the programmed path's engagement and surfaces, the passes run and
-    the last pass's move at the 99th percentile of the samples (mm; inf: not settled)."""
+    """The tool under load along the samples: actual positions (mm, (N, 3)), the passes run and the last
+    pass's move at the 99th percentile of the samples (mm; inf: not settled)."""
 
     actual_mm: np.ndarray
-    deflection_mm: np.ndarray
-    signals: Signals
-    engagement: Engagement
-    surfaces: Surfaces
     iterations: int
     residual_mm: float
 
@@ -80,13 +75,12 @@ def displaced(eng: Engagement, surfaces: Surfaces, d_mm: np.ndarray) -> Engageme
     return replace(eng, phi_st=st, phi_ex=ex, dz_mm=dz, ae_mm=ae, ap_mm=ap)
 
 
-def deflected_run(job: Job, eng: Engagement, samples: Samples, programmed_mm: np.ndarray, commanded_mm: np.ndarray,
+def deflected_run(job: Job, eng: Engagement, surfaces: Surfaces, samples: Samples, commanded_mm: np.ndarray,
                   speed_mm_s: np.ndarray, *, tolerance_mm: float = 1e-4, max_iterations: int = 100) -> Deflected:
     """Solve a = c + δ(F(a)) for the commanded positions `commanded_mm` (N, 3) at `samples` (their
-    order, moves and feeds), the path speed per sample (mm/s), and `eng` the engagement of the
-    programmed positions `programmed_mm` (N, 3) through the stock."""
-    c, p = np.asarray(commanded_mm, float), np.asarray(programmed_mm, float)
-    surfaces = Surfaces.of(eng)
+    order, moves and feeds; programmed at `samples.xyz_mm`), the path speed per sample (mm/s), with `eng`
+    the programmed positions' engagement through the stock and `surfaces` the surfaces it makes."""
+    c, p = np.asarray(commanded_mm, float), np.asarray(samples.xyz_mm, float)
     a = c.copy()
     for k in range(1, max_iterations + 1):
         sig = predict(job, samples, displaced(eng, surfaces, a - p), speed_mm_s)
@@ -94,5 +88,5 @@ def deflected_run(job: Job, eng: Engagement, samples: Samples, programmed_mm: np
         moved = float(np.quantile(np.abs(step).max(axis=1), SETTLED)) if len(step) else 0.0
         a = a + (1.0 if moved <= tolerance_mm else RELAX) * step
         if moved <= tolerance_mm:
-            return Deflected(a, a - c, sig, eng, surfaces, k, moved)
-    return Deflected(a, a - c, sig, eng, surfaces, max_iterations, float("inf"))
+            return Deflected(a, k, moved)
+    return Deflected(a, max_iterations, float("inf"))

@@ -99,7 +99,7 @@ def compensate(job: Job, *, tolerance_mm: float = TOLERANCE_MM, max_passes: int 
     speed = controller.execute(program.toolpath, controller_model(job)).speed_at_samples(samples)
     surfaces = Surfaces.of(eng)
     p = samples.xyz_mm
-    before = deflected_run(job, eng, samples, p, p, speed)
+    before = deflected_run(job, eng, surfaces, samples, p, speed)
     cutting = cutting_moves(program, samples, eng)
     cycles = cutting & (np.asarray(program.cycle) != 0)
     if cycles.any():  # a drill's thrust bends no wall; a cycle block's words are its hole's, not a move's end
@@ -113,7 +113,7 @@ def compensate(job: Job, *, tolerance_mm: float = TOLERANCE_MM, max_passes: int 
     for k in range(1, max_passes + 1):
         report("compensate", k, max_passes)
         plan = plan_offsets(program.toolpath, samples, wanted, cutting, tolerance_mm, spacing)
-        run = deflected_run(job, eng, samples, p, commanded(program.toolpath, samples, plan), speed)
+        run = deflected_run(job, eng, surfaces, samples, commanded(program.toolpath, samples, plan), speed)
         miss = run.actual_mm - p
         error = rms_error_mm(surfaces, miss)
         if best is not None and error >= best[0]:

@@ -17,8 +17,8 @@ import re
 
 import numpy as np
 
-from ..emit.write import (LineWriter, computed, format_number, line_decimals, line_trailing_point, program_spaced,
-                          program_trailing_point)
+from ..emit.write import (LineWriter, UnknownParameters, computed, format_number, line_decimals, line_trailing_point,
+                          program_spaced, program_trailing_point)
 from ..errors import MillpostError
 from ..gcode.interpret import INCH, Program
 from ..gcode.lexer import lex_line, source_lines
@@ -74,7 +74,7 @@ def write_offsets(program: Program, plan: dict[int, MoveOffsets]) -> str:
     for n, moves in sorted(on_line.items()):
         raw = lines[n - 1]
         body = raw.rstrip("\r\n")
-        block = lex_line(body, n, program.path, {})
+        block = lex_line(body, n, program.path, UnknownParameters())  # a computed word: refused by name below
         _check_line(program, n, moves, block)
         i = moves[0]
         mo = plan[i]

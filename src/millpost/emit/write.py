@@ -177,7 +177,7 @@ def cycle_feeds(program: Program, feed_mm_min: np.ndarray) -> tuple[np.ndarray, 
     return out, held
 
 
-class _Unknown(dict):
+class UnknownParameters(dict):
     """Parameters whose values the text alone cannot give (0 for any missing one); an operation
     undefined on such values (a division by 0) gives 0 too: they only locate a line's words."""
 
@@ -338,7 +338,7 @@ class _FeedWriter:
         self.units, self.f_units = 1.0, 1.0
         self.before_units = dialects.get(program.dialect).feed_before_units  # F on a G20/G21 line: units before
         self.flow = program.control_flow
-        self.params: dict = _Unknown() if self.flow else {}
+        self.params: dict = UnknownParameters() if self.flow else {}
         # a line holding only an F word (`F369.75` before `G1 X4`), followed by nothing but comments and
         # blank lines up to the next cutting line: (its index in out, its text, block, ending). Where that
         # line needs a new F, the F line's value is rewritten instead of a second F being added.
@@ -678,7 +678,7 @@ def computed(block: Block) -> bool:
 
 def _computed_line(text: str, n: int, path: str) -> bool:
     try:
-        return computed(lex_line(text, n, path, _Unknown()))
+        return computed(lex_line(text, n, path, UnknownParameters()))
     except MillpostError:  # not a line the lexer reads alone (control flow): the interpreter ran it
         return True
 
@@ -745,7 +745,7 @@ def replace_numbers(program: Program, words: dict[int, dict[str, float]]) -> str
     lines = source_lines(program.text, keepends=True)
     for n, new in sorted(words.items()):
         body = lines[n - 1].rstrip("\r\n")
-        block = lex_line(body, n, program.path, _Unknown())
+        block = lex_line(body, n, program.path, UnknownParameters())
         have = {w.letter: w for w in block.words}
         missing = sorted(set(new) - set(have))
         if missing:

@@ -44,7 +44,7 @@ class LobeCurve:
 class ToolLobes:
     """One tool's lobe diagram: its curves (most cut first), the distinct (rpm, ap mm) points the program
     cuts at, `points_over` where a sample there is cut above its stable depth, `lines_over` the source lines
-    of those samples, and how many immersions the tool cuts at (`immersions`; `CURVES` of them drawn)."""
+    of those samples."""
 
     tool: int
     flutes: int
@@ -53,7 +53,6 @@ class ToolLobes:
     points_ap_mm: np.ndarray
     points_over: np.ndarray
     lines_over: tuple[int, ...]
-    immersions: int
 
 
 def has_chatter_columns(trace: dict[str, np.ndarray]) -> bool:
@@ -96,7 +95,7 @@ def tool_lobes(trace: dict[str, np.ndarray], job) -> list[ToolLobes]:
         over_at = np.zeros(len(pts), bool)
         np.logical_or.at(over_at, at.reshape(-1), over)
         out.append(ToolLobes(tool, flutes, curves, pts[:, 0], pts[:, 1], over_at,
-                             tuple(sorted({int(v) for v in trace["line"][mine][over]})), len(uniq)))
+                             tuple(sorted({int(v) for v in trace["line"][mine][over]}))))
     return out
 
 
