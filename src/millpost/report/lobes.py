@@ -16,9 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..stability.check import cutting_coefficients
+from ..materials import Material
+from ..stability.check import limit_mm
 from ..stability.frf import ToolTipFRF
-from ..stability.lobes import Pocket, stable_pockets, zero_order_limit_mm
+from ..stability.lobes import Pocket, stable_pockets
 
 SPEEDS = 600           # speeds per curve, evenly spaced over the spindle range
 CURVES = 3             # immersions drawn per tool (the most cut)
@@ -79,7 +80,6 @@ def tool_lobes(trace: dict[str, np.ndarray], job) -> list[ToolLobes]:
     checked = np.isfinite(trace["phi_st_deg"]) & (trace["rpm"] > 0)
     sp = job.machine.spindle
     rpm = np.linspace(max(sp.rpm_min, LOWEST_RPM * sp.rpm_max), sp.rpm_max, SPEEDS)
-    kt, kr = cutting_coefficients(job.material)
     out = []
     for tool in sorted(job.frf):
         mine = checked & (trace["tool"] == tool)
@@ -88,7 +88,7 @@ def tool_lobes(trace: dict[str, np.ndarray], job) -> list[ToolLobes]:
         flutes = job.tools[tool].flutes
         keys = np.stack([trace["phi_st_deg"][mine], trace["phi_ex_deg"][mine], trace["feed_along_y"][mine]], axis=1)
         uniq, counts = np.unique(keys, axis=0, return_counts=True)
-        curves = [_curve(job.frf[tool], kt, kr, flutes, *uniq[k], rpm, int(counts[k]))
+        curves = [_curve(job.frf[tool], job.material, flutes, *uniq[k], rpm, int(counts[k]))
                   for k in np.argsort(-counts, kind="stable")[:CURVES]]
         over = trace["chatter_over"][mine] > 0
         pts, at = np.unique(np.stack([trace["rpm"][mine], trace["ap_mm"][mine]], axis=1), axis=0, return_inverse=True)
@@ -99,10 +99,9 @@ def tool_lobes(trace: dict[str, np.ndarray], job) -> list[ToolLobes]:
     return out
 
 
-def _curve(frf: ToolTipFRF, kt: float, kr: float, flutes: int, st_deg: float, ex_deg: float, along_y: float,
+def _curve(frf: ToolTipFRF, material: Material, flutes: int, st_deg: float, ex_deg: float, along_y: float,
            rpm: np.ndarray, samples: int) -> LobeCurve:
     """One immersion's zero-order lobes (the FRF's X and Y swapped when the feed runs along Y, as the check)."""
-    oriented = ToolTipFRF(frf.y, frf.x) if along_y else frf
-    a = zero_order_limit_mm(oriented, kt_N_per_mm2=kt, kr=kr, flutes=flutes, phi_st_rad=math.radians(st_deg),
-                            phi_ex_rad=min(math.radians(ex_deg), math.pi), rpm=rpm)
+    a = limit_mm(frf.oriented(bool(along_y)), material, flutes, math.radians(st_deg),
+                 min(math.radians(ex_deg), math.pi), rpm)
     return LobeCurve(float(st_deg), float(ex_deg), bool(along_y), rpm, a, stable_pockets(rpm, a), samples)

@@ -19,9 +19,8 @@ import numpy as np
 
 from ..forces import immersion
 from ..materials import Material
-from .check import cutting_coefficients
+from .check import limit_mm
 from .frf import ToolTipFRF
-from .lobes import zero_order_limit_mm
 
 
 @dataclass
@@ -40,12 +39,10 @@ class ChatterLimit:
         """The limiting depth (mm; inf where no lobe reaches) per candidate (arrays of one shape)."""
         ae, n = np.broadcast_arrays(np.asarray(ae_mm, float), np.asarray(rpm, float))
         todo = sorted({(a, r) for a, r in zip(ae.ravel().tolist(), n.ravel().tolist())} - set(self._cache))
-        kt, kr = cutting_coefficients(self.material)
         for width in sorted({a for a, _ in todo}):
             speeds = np.array([r for a, r in todo if a == width])
             st, ex = immersion(width, self.diameter_mm, climb=self.climb)
-            limit = zero_order_limit_mm(self.frf, kt_N_per_mm2=kt, kr=kr, flutes=self.flutes, phi_st_rad=st,
-                                        phi_ex_rad=ex, rpm=speeds)
+            limit = limit_mm(self.frf, self.material, self.flutes, st, ex, speeds)
             self._cache.update(zip(((width, r) for r in speeds.tolist()), limit.tolist()))
         pairs = zip(ae.ravel().tolist(), n.ravel().tolist())
         return np.array([self._cache[pair] for pair in pairs]).reshape(ae.shape)

@@ -105,16 +105,22 @@ class CutImmersion:
         order = np.argsort(inverse.reshape(-1), kind="stable")
         bounds = np.searchsorted(inverse.reshape(-1)[order], np.arange(len(uniq) + 1))
         for g, (tool, lo, hi, y) in enumerate(uniq):
-            frf = job.frf[int(tool)]
-            oriented = ToolTipFRF(frf.y, frf.x) if y else frf
-            yield oriented, int(tool), float(lo), float(hi), index[order[bounds[g]:bounds[g + 1]]]
+            at = index[order[bounds[g]:bounds[g + 1]]]
+            yield job.frf[int(tool)].oriented(bool(y)), int(tool), float(lo), float(hi), at
+
+
+def limit_mm(frf: ToolTipFRF, material: Material, flutes: int, phi_st: float, phi_ex: float, rpm) -> np.ndarray:
+    """The zero-order limiting depth a_lim (mm) at the speeds `rpm` of a cut over [φ_st, φ_ex] (rad) with
+    the tool tip's receptance `frf` in the feed frame (`ToolTipFRF.oriented`) and the material's cutting
+    coefficients (`cutting_coefficients`)."""
+    kt, kr = cutting_coefficients(material)
+    return zero_order_limit_mm(frf, kt_N_per_mm2=kt, kr=kr, flutes=flutes, phi_st_rad=phi_st, phi_ex_rad=phi_ex,
+                               rpm=rpm)
 
 
 def _limit(job: Job, frf: ToolTipFRF, tool: int, phi_st: float, phi_ex: float, rpm: np.ndarray) -> np.ndarray:
     """a_lim (mm) of one group at the speeds `rpm`."""
-    kt, kr = cutting_coefficients(job.material)
-    return zero_order_limit_mm(frf, kt_N_per_mm2=kt, kr=kr, flutes=job.tools[tool].flutes, phi_st_rad=phi_st,
-                               phi_ex_rad=phi_ex, rpm=rpm)
+    return limit_mm(frf, job.material, job.tools[tool].flutes, phi_st, phi_ex, rpm)
 
 
 def limiting_depth_mm(job: Job, cut: CutImmersion, rpm: np.ndarray) -> np.ndarray:

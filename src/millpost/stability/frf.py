@@ -106,6 +106,11 @@ class ToolTipFRF:
     x: DirectionFRF
     y: DirectionFRF
 
+    def oriented(self, along_y: bool) -> "ToolTipFRF":
+        """The receptance in the feed frame (x along the feed): X and Y swapped where the feed runs along
+        machine Y."""
+        return ToolTipFRF(self.y, self.x) if along_y else self
+
     @classmethod
     def symmetric(cls, *modes: Mode) -> "ToolTipFRF":
         """The same modes in X and Y (a tool's own bending modes: round, so symmetric)."""
