@@ -19,7 +19,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from chatter_jobs import SLOT as JOB, job_with
+from chatter_jobs import SLOT as JOB, job_with, mode_csv
 from millpost.engagement import Engagement
 from millpost.job import load_job
 from millpost.optimize import optimize
@@ -194,9 +194,7 @@ def test_an_arc_s_limit_is_within_3_percent_of_the_engaged_arc_s():
 def test_a_measured_frf_gives_the_modes_limit(tmp_path):
     """The FRF as a measured table (the mode sampled finely) gives the limit of the mode itself."""
     f = np.linspace(100.0, 6600.0, 13001)
-    g = Mode(FN, ZETA, K).receptance_mm_per_N(f)
-    rows = "\n".join(f"{a:.6f},{b.real:.9e},{b.imag:.9e},{b.real:.9e},{b.imag:.9e}" for a, b in zip(f, g))
-    (tmp_path / "frf.csv").write_text("f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n" + rows + "\n")
+    mode_csv(tmp_path / "frf.csv", f)  # the mode (FN, ZETA, K) sampled
     measured = job_with(tmp_path, 'csv = "frf.csv"').frf[1]
     assert isinstance(measured.x, DirectionFRF) and measured.x.f_hz is not None
     a = zero_order_limit_mm(measured, kt_N_per_mm2=KT, kr=KR, flutes=N, phi_st_rad=0.0, phi_ex_rad=math.pi,
@@ -208,9 +206,7 @@ def test_notes_on_the_frfs(tmp_path):
     """T1's FRF measured and band-limited below its resonance (largest |G| at the band's end) is doubted in
     the notes; T2 has an FRF but the program never uses it: a note, nothing checked for it."""
     f = np.linspace(100.0, 1500.0, 141)
-    g = Mode(FN, ZETA, K).receptance_mm_per_N(f)
-    rows = "\n".join(f"{a:.6f},{b.real:.9e},{b.imag:.9e},{b.real:.9e},{b.imag:.9e}" for a, b in zip(f, g))
-    (tmp_path / "frf.csv").write_text("f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n" + rows + "\n")
+    mode_csv(tmp_path / "frf.csv", f)  # the mode (FN, ZETA, K) sampled
     job = job_with(tmp_path, 'csv = "frf.csv"\n\n[tools.2]\ndiameter_mm = 6\nflutes = 3\n\n'
                                   '[tools.2.frf]\nx = [{fn_hz = 2200, zeta = 0.03, k_N_per_mm = 8000}]')
     s = optimize(job, progress=False).summary

@@ -8,10 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from chatter_jobs import job_with
+from chatter_jobs import HEADER, job_with, mode_csv
 from millpost.errors import ConfigError, ParseError
 
-HEADER = "f_hz,re_x_mm_per_N,im_x_mm_per_N,re_y_mm_per_N,im_y_mm_per_N\n"
 
 
 def test_modes_and_y_defaulting_to_x(tmp_path):
@@ -94,16 +93,9 @@ def test_table_refusals_name_the_field_and_file(tmp_path, body, field, rule):
     assert err.value.field == field and rule in err.value.rule and err.value.file.endswith("job.toml")
 
 
-def _mode_csv(path: Path, f_hz: np.ndarray, scale: float = 1.0, sign: float = 1.0) -> None:
-    """The chatter_slot mode (2200 Hz, ζ 0.03, 8000 N/mm) sampled at f_hz, times `scale`, Im times `sign`."""
-    g = scale / (8000 * (1 - (f_hz / 2200) ** 2 + 2j * 0.03 * f_hz / 2200))
-    rows = "".join(f"{f:g},{v.real:.9e},{sign * v.imag:.9e},{v.real:.9e},{v.imag:.9e}\n" for f, v in zip(f_hz, g))
-    path.write_text(HEADER + rows)
-
-
 def test_csv_with_positive_imaginary_part_at_the_peak_is_refused(tmp_path):
     """Im G_x > 0 where |G_x| is largest (2200 Hz, the 11th row: line 12): not a driving-point receptance."""
-    _mode_csv(tmp_path / "frf.csv", np.linspace(200.0, 4200.0, 21), sign=-1.0)
+    mode_csv(tmp_path / "frf.csv", np.linspace(200.0, 4200.0, 21), sign=-1.0)
     with pytest.raises(ParseError, match="Im G_x > 0 where .G_x. is largest .2200 Hz.") as err:
         job_with(tmp_path, 'csv = "frf.csv"')
     e = err.value
@@ -116,11 +108,11 @@ def test_measured_table_doubts(tmp_path):
     """A band that stops below the resonance, and a table in m/N (1000× too small), are doubted; the mode
     sampled across its resonance in mm/N is not."""
     f = np.linspace(200.0, 4200.0, 41)
-    _mode_csv(tmp_path / "frf.csv", f)
+    mode_csv(tmp_path / "frf.csv", f)
     assert job_with(tmp_path, 'csv = "frf.csv"').frf[1].x.doubts == []
-    _mode_csv(tmp_path / "frf.csv", f[f < 1500.0])
+    mode_csv(tmp_path / "frf.csv", f[f < 1500.0])
     (doubt,) = job_with(tmp_path, 'csv = "frf.csv"').frf[1].x.doubts
     assert "is at the end of its band, 1400 Hz" in doubt
-    _mode_csv(tmp_path / "frf.csv", f, scale=1e-3 * 1e-3)     # m/N, and a mode 1000× stiffer
+    mode_csv(tmp_path / "frf.csv", f, scale=1e-3 * 1e-3)     # m/N, and a mode 1000× stiffer
     (doubt,) = job_with(tmp_path, 'csv = "frf.csv"').frf[1].y.doubts
     assert doubt.startswith("|G| ≤ 2.08e-09 mm/N everywhere") and "m/N?" in doubt
