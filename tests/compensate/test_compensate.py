@@ -224,3 +224,22 @@ def test_canned_cycles_are_kept_and_the_rest_compensated():
         assert after[at:at + len(block)] == block
     assert any("canned-cycle line(s) kept as programmed" in n for n in out.summary["notes"])
     assert out.summary["points_added"] > 0 and out.summary["surface_error_after_um"] < out.summary["surface_error_before_um"]
+
+
+def test_no_displacement_is_the_cut_as_stepped():
+    """Moving the tool by nothing across the surfaces it makes gives back the stepped engagement slice by
+    slice (the wall's arcs were rebuilt from the sample's a_e before, up to 13.5 µm of deflection off at the
+    wall's ends), so the surface error before and the first offsets start from one cut."""
+    from millpost import engagement
+    from millpost.compensate.model import displaced
+    from millpost.gcode import read_program
+
+    job = load_job(JOB)
+    program = read_program(job.program, job.reader_options())
+    samples, eng, _ = engagement.engage(program, job.stock(), dict(job.tools), job.settings.ds_mm, job.allow,
+                                        stage="simulate")
+    moved = displaced(eng, Surfaces.of(eng), np.zeros((len(samples), 3)))
+    for name in ("phi_st", "phi_ex", "dz_mm", "ae_mm", "ap_mm"):
+        np.testing.assert_allclose(getattr(moved, name), getattr(eng, name), rtol=0, atol=1e-12, err_msg=name)
+    shifted = displaced(eng, Surfaces.of(eng), np.tile([0.0, 0.05, 0.0], (len(samples), 1)))
+    assert np.nanmax(np.abs(shifted.phi_st - eng.phi_st)) > 0.01  # and a move does move the arcs

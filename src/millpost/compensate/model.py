@@ -52,20 +52,30 @@ class Deflected:
 
 
 def displaced(eng: Engagement, surfaces: Surfaces, d_mm: np.ndarray) -> Engagement:
-    """The engagement of each sample moved by d (N, 3) mm across the surface it generates: on a wall
-    a_e' = a_e + d·n (n into the wall), the arc's other end at the new depth's immersion; on a floor
-    a_p' = a_p − d_z, the slices' thicknesses scaled. Samples that generate neither keep their cut."""
+    """The engagement of each sample moved by d (N, 3) mm across the surface it generates: on a wall each
+    slice's radial depth grows by d·n (n into the wall) and its arc's free end moves to the new depth's
+    immersion (the wall at φ = π: cos(π − φ_st') = cos(π − φ_st) − d·n/r; at φ = 0: cos φ_ex' = cos φ_ex −
+    d·n/r), so d = 0 gives the cut as stepped; on a floor a_p' = a_p − d_z, the slices' thicknesses scaled.
+    Samples that generate neither keep their cut."""
     st, ex, dz = eng.phi_st.copy(), eng.phi_ex.copy(), eng.dz_mm.copy()
     ae, ap = eng.ae_mm.copy(), eng.ap_mm.copy()
     wall = surfaces.wall
     if wall.any():
-        ae[wall] = np.maximum(eng.ae_mm[wall] + np.einsum("ij,ij->i", d_mm[wall], surfaces.wall_normal[wall]), 0.0)
+        n = surfaces.wall_normal[wall]
+        into = np.einsum("ij,ij->i", d_mm[wall], n)
+        ae[wall] = np.maximum(eng.ae_mm[wall] + into, 0.0)
+        # the wall at φ = π (the normal is −y of the feed frame) or at φ = 0 (+y), as `Surfaces.of` found it
+        feed = eng.feed_dir[wall]
+        right = (n[:, 0] * feed[:, 1] - n[:, 1] * feed[:, 0]) > 0
         r = eng.r_mm[wall]
-        depth = np.clip(1.0 - ae[wall, None] / np.where(r > 0, r, 1.0), -1.0, 1.0)
-        right = eng.phi_ex[wall] >= np.pi - np.radians(2.0)
-        gone = (ae[wall, None] <= 0.0) | ~np.isfinite(eng.phi_st[wall])
-        st[wall] = np.where(gone, np.nan, np.where(right, np.pi - np.arccos(depth), eng.phi_st[wall]))
-        ex[wall] = np.where(gone, np.nan, np.where(right, eng.phi_ex[wall], np.arccos(depth)))
+        shift = into[:, None] / np.where(r > 0, r, np.inf)
+        s0, e0 = eng.phi_st[wall], eng.phi_ex[wall]
+        with np.errstate(invalid="ignore"):
+            depth = np.where(right[:, None], -np.cos(s0), np.cos(e0)) - shift  # cos of the free end's angle
+        gone = (depth >= 1.0) | ~np.isfinite(s0)
+        angle = np.arccos(np.clip(depth, -1.0, 1.0))
+        st[wall] = np.where(gone, np.nan, np.where(right[:, None], np.pi - angle, s0))
+        ex[wall] = np.where(gone, np.nan, np.where(right[:, None], e0, angle))
         dz[wall] = np.where(gone, 0.0, dz[wall])
     floor = surfaces.floor
     if floor.any():
