@@ -793,6 +793,63 @@ def _split(i_s, i_e, M, cos_st, cos_ex, g, sin_t, cos_t):
 
 
 @njit(cache=True, error_model="numpy")
+def _level_sweep(k, xyz, fresh, rapid, shape, px, py, pz, qx, qy, fx, fy, dxy, args):
+    """The material a level step k removes, as (cells' removed height sum, ap mm, crash): its band,
+    the wedge at its start (when the previous step was a band of the same kind), and its front cap
+    when no such band follows."""
+    n = xyz.shape[0]
+    rem, ap, crash = _region(BAND, qx, qy, pz, 0.0, 0.0, fx, fy, dxy, not rapid[k], *args)
+    if not crash and _level_step(k - 1, n, xyz, fresh, shape) and rapid[k - 1] == rapid[k]:
+        ex, ey = xyz[k - 1, 0] - xyz[k - 2, 0], xyz[k - 1, 1] - xyz[k - 2, 1]
+        le = math.sqrt(ex * ex + ey * ey)
+        r2, a2, crash = _region(WEDGE, qx, qy, pz, ex / le, ey / le, fx, fy, 0.0, not rapid[k], *args)
+        rem += r2
+        ap = max(ap, a2)
+    if not crash and not (_level_step(k + 1, n, xyz, fresh, shape) and rapid[k + 1] == rapid[k]):
+        r2, a2, crash = _region(CAP, px, py, pz, 0.0, 0.0, fx, fy, 0.0, not rapid[k], *args)
+        rem += r2
+        ap = max(ap, a2)
+    return rem, ap, crash
+
+
+@njit(cache=True, error_model="numpy")
+def _slices(k, ap, K, M, cx, cy, gx, gy, pz, shape, R, rc, r_tip, tan_half, bilinear, grid, work, zmid, rad,
+            phi_st, phi_ex, dz, arc):
+    """Sample k's K axial slices of depth ap/K mm on the ring centred (cx, cy), feed direction (gx, gy):
+    each slice's engaged arc (rows k of phi_st, phi_ex, dz, arc, zmid, rad written in place), and the
+    step's chip cross-section (sum of the slices' ring areas, mm²) and radial engagement a_e (mm).
+    Slices on the vertical flank (r = R) share one ring; below it each slice has its own.
+    work: the scratch arrays (sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known)."""
+    sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known = work
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
+    dzs = ap / K
+    area = 0.0
+    ae = 0.0
+    s0 = K
+    while s0 > 0 and profile_radius((s0 - 1) * dzs, shape, R, rc, r_tip, tan_half) == R:
+        s0 -= 1
+    for s in range(K):
+        zmid[k, s] = (s + 0.5) * dzs
+        rad[k, s] = profile_radius((s + 0.5) * dzs, shape, R, rc, r_tip, tan_half)
+    for s in range(s0 if not has_multi else K):
+        r = rad[k, s]
+        _ring_cells(cx, cy, gx, gy, r, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
+        flank = s >= s0
+        rint = r * dzs if flank else _profile_integral(s * dzs, (s + 1) * dzs, shape, R, rc, r_tip, tan_half)
+        da, de = _ring_slice(k, s, cx, cy, gx, gy, r, pz + s * dzs, dzs, flank, rint, M, sin_t, cos_t,
+                             cells, wts, pc, pw, mat, g, bilinear, grid, phi_st, phi_ex, dz, arc)
+        area += da
+        ae = max(ae, de)
+    if s0 < K and not has_multi:
+        _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
+        da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw,
+                             mat, cnt, g, tree, known, bilinear, grid, phi_st, phi_ex, dz, arc)
+        area += da
+        ae = max(ae, de)
+    return area, ae
+
+
+@njit(cache=True, error_model="numpy")
 def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi,
         shape, R, rc, r_tip, tan_half, flute, K, M, ring_at, bilinear, crash_tol, clear, zmax, omax, omin, B,
         swept, snx, sny, sx0, sy0, W,
@@ -852,21 +909,9 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
                       rank, ptr, lo, hi, end_o[k])
         n = xyz.shape[0]
         if _level_step(k, n, xyz, fresh, shape):
-            # the level sweep of this step: its band, the wedge at its start (when the previous
-            # step was a band of the same kind), and its front cap when no such band follows
             args = (R, shape, rc, r_tip, tan_half, top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi,
                     crash_tol)
-            rem, ap, crash = _region(BAND, qx, qy, pz, 0.0, 0.0, fx, fy, dxy, not rapid[k], *args)
-            if not crash and _level_step(k - 1, n, xyz, fresh, shape) and rapid[k - 1] == rapid[k]:
-                ex, ey = xyz[k - 1, 0] - xyz[k - 2, 0], xyz[k - 1, 1] - xyz[k - 2, 1]
-                le = math.sqrt(ex * ex + ey * ey)
-                r2, a2, crash = _region(WEDGE, qx, qy, pz, ex / le, ey / le, fx, fy, 0.0, not rapid[k], *args)
-                rem += r2
-                ap = max(ap, a2)
-            if not crash and not (_level_step(k + 1, n, xyz, fresh, shape) and rapid[k + 1] == rapid[k]):
-                r2, a2, crash = _region(CAP, px, py, pz, 0.0, 0.0, fx, fy, 0.0, not rapid[k], *args)
-                rem += r2
-                ap = max(ap, a2)
+            rem, ap, crash = _level_sweep(k, xyz, fresh, rapid, shape, px, py, pz, qx, qy, fx, fy, dxy, args)
         else:
             rem, ap, crash = _footprint(px, py, pz, qx, qy, mode, not rapid[k], R, shape, rc, r_tip, tan_half,
                                         top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi, crash_tol,
@@ -890,34 +935,10 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
         if ap <= 1e-6 or step == 0.0:
             area_o[k] = vol_o[k] / step if step > 0.0 else 0.0
             continue
-        dzs = ap / K
-        cx, cy = ring_at[k, 0], ring_at[k, 1]
-        area = 0.0
-        ae = 0.0
-        # slices on the vertical flank (r = R) share one ring; below it each slice has its own
-        s0 = K
-        while s0 > 0 and profile_radius((s0 - 1) * dzs, shape, R, rc, r_tip, tan_half) == R:
-            s0 -= 1
-        for s in range(K):
-            zmid[k, s] = (s + 0.5) * dzs
-            rad[k, s] = profile_radius((s + 0.5) * dzs, shape, R, rc, r_tip, tan_half)
         grid = (top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi)
-        for s in range(s0 if not has_multi else K):
-            r = rad[k, s]
-            _ring_cells(cx, cy, gx, gy, r, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
-            flank = s >= s0
-            rint = r * dzs if flank else _profile_integral(s * dzs, (s + 1) * dzs, shape, R, rc, r_tip, tan_half)
-            da, de = _ring_slice(k, s, cx, cy, gx, gy, r, pz + s * dzs, dzs, flank, rint, M, sin_t, cos_t,
-                                 cells, wts, pc, pw, mat, g, bilinear, grid, phi_st, phi_ex, dz, arc)
-            area += da
-            ae = max(ae, de)
-        if s0 < K and not has_multi:
-            _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
-            da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw,
-                                 mat, cnt, g, tree, known, bilinear, grid, phi_st, phi_ex, dz, arc)
-            area += da
-            ae = max(ae, de)
-        ae_o[k] = ae
+        work = (sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known)
+        area, ae_o[k] = _slices(k, ap, K, M, ring_at[k, 0], ring_at[k, 1], gx, gy, pz, shape, R, rc, r_tip,
+                                tan_half, bilinear, grid, work, zmid, rad, phi_st, phi_ex, dz, arc)
         if descending:
             area_o[k] = vol_o[k] / step
         else:
