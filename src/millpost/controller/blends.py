@@ -11,6 +11,7 @@ import math
 import numba
 import numpy as np
 
+from .._kernels import compiling
 from ..toolpath import FEED, Samples, Toolpath
 from .model import EXACT_PATH, EXACT_STOP, ControllerModel, PathModes
 from .segments import (ANGLE_EPS, KINK_RATIO, NORMAL_SHARE, SHARP_CORNER_COS, SQUARE, TANGENTIAL_SHARE, arc_maxvel,
@@ -171,7 +172,8 @@ def corner_speeds(tp: Toolpath, model: ControllerModel, modes: PathModes | None 
     segs, _ = build_segments(tp, model, np.full(len(tp), np.inf), modes)
     if len(segs) > 1:
         accel = np.asarray(model.accel_mm_s2, float)
-        speeds = _corner_speeds(segs, _halts(segs, tp, model), accel, model.servo_period_s, SQUARE)
+        with compiling(_corner_speeds):
+            speeds = _corner_speeds(segs, _halts(segs, tp, model), accel, model.servo_period_s, SQUARE)
         out[segs["move"][1:]] = speeds[1:]
     # a junction of two straight feeds that a naive-CAM chain may absorb (at some feeds) has no corner
     # of its own: its three points lie within the tolerance of one line, so the triangle's width, its
@@ -203,7 +205,8 @@ def blend_zones(tp: Toolpath, model: ControllerModel, modes: PathModes) -> np.nd
     segs, _ = build_segments(tp, model, None, modes)
     if len(segs) < 2:
         return np.zeros((0, 3))
-    arcs = _largest_arcs(segs, _halts(segs, tp, model), np.asarray(model.accel_mm_s2, float), SQUARE)
+    with compiling(_largest_arcs):
+        arcs = _largest_arcs(segs, _halts(segs, tp, model), np.asarray(model.accel_mm_s2, float), SQUARE)
     at = np.cumsum(tp.lengths())[segs["move"]]
     fits = ~np.isnan(arcs[:, 0])
     return np.column_stack([at[:-1] - arcs[1:, 0], at[:-1] + arcs[1:, 0], arcs[1:, 1]])[fits[1:]]
