@@ -500,3 +500,28 @@ def test_naive_cam_chain_runs_as_one_line():
     for text, key in ((steps("G64 P0.01 Q0.01", 2000, 0.005, 300, zig_mm=0.005), "zigzag Q0.01"),
                       (steps("G64 P0.01 Q0.002", 2000, 0.005, 300, zig_mm=0.005), "zigzag Q0.002")):
         assert program_time(read_text(text), lcnc()) == pytest.approx(MEASURED[key], rel=0.005), key
+
+
+def test_compiled_blend_math_squares_as_python_does():
+    """The planner's kernels square with libm's pow(x, 2.0), as Python's x ** 2 does (the queue the
+    pure-Python planner built, and so the programs written, stay bit-identical): for this x, pow and
+    x·x differ in the last bit, and so does the plane's inscribed rate 100 / √(1 − x²)."""
+    from millpost.controller.segments import SQUARE, inscribed
+
+    x = 0.8040251668887082
+    python = 100.0 / math.sqrt(1.0 - x**2)
+    assert python != 100.0 / math.sqrt(1.0 - x * x)  # the case tells the two apart
+    assert inscribed(np.array([x, 0.0, 0.0]), np.array([100.0, 1e9, 1e9]), SQUARE) == python
+
+
+def test_sample_fractions_by_arc_length_along_each_move():
+    from types import SimpleNamespace
+
+    from millpost.controller import Execution
+
+    # move 0: samples at 0, 1, 4 mm; move 1 continues from 4 mm to 6 and 10 mm; move 2 starts a segment
+    # of its own at 10 mm (its first sample is its start); move 3 has no length
+    s = np.array([0.0, 1.0, 4.0, 6.0, 10.0, 10.0, 12.0, 14.0, 14.0])
+    samples = SimpleNamespace(s_mm=s, move=np.array([0, 0, 0, 1, 1, 2, 2, 2, 3]),
+                              segment_start=np.array([True, False, False, False, False, True, False, False, False]))
+    assert Execution.sample_fractions(samples).tolist() == [0.0, 0.25, 1.0, 2 / 6, 1.0, 0.0, 0.5, 1.0, 1.0]

@@ -85,17 +85,20 @@ class Execution:
 
     @staticmethod
     def sample_fractions(samples: Samples) -> np.ndarray:
-        """Fraction of each sample along its move from the resampling (samples of a move are contiguous)."""
+        """Fraction of each sample along its move from the resampling (samples of a move are contiguous):
+        by arc length from the move's start (the previous move's last sample, unless the move starts a
+        segment of its own) to its last sample; 1 on a move of no length."""
         s = samples.s_mm
-        mv = samples.move
-        u = np.zeros(len(s))
-        starts = np.r_[0, np.flatnonzero(np.diff(mv) != 0) + 1]
+        if not len(s):
+            return np.zeros(0)
+        new = np.r_[True, samples.move[1:] != samples.move[:-1]]
+        starts = np.flatnonzero(new)
         ends = np.r_[starts[1:], len(s)]
-        for a, b in zip(starts, ends):
-            s0 = s[a - 1] if a > 0 and not samples.segment_start[a] else s[a]
-            span = s[b - 1] - s0
-            u[a:b] = (s[a:b] - s0) / span if span > 0 else 1.0
-        return u
+        s0 = np.where((starts > 0) & ~samples.segment_start[starts], s[np.maximum(starts - 1, 0)], s[starts])
+        span = s[ends - 1] - s0
+        group = np.cumsum(new) - 1
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(span[group] > 0, (s - s0[group]) / span[group], 1.0)
 
     def time_at_samples(self, samples: Samples) -> np.ndarray:
         """Time (s) at which the tool passes every sample (motion only: no dwells or tool changes)."""

@@ -17,153 +17,171 @@ empty (a command, the end) keeps its parabolic end and half its acceleration."""
 
 from __future__ import annotations
 
-from array import array
 from dataclasses import dataclass
-from typing import NamedTuple
 
+import numba
 import numpy as np
 
+from .._kernels import compiling
 from ..toolpath import Toolpath
-from .blends import blend, parabolic_speed
+from .blends import blend, kink_jump, parabolic_speed
 from .model import EXACT_PATH, EXACT_STOP, ControllerModel, PathModes, Planner, Queue
 from .pauses import stops
 from .profile import peak_speed
-from .segments import (GAP_CYCLES, KINK_RATIO, MIN_SEGMENT_CYCLES, RAMP_TIME_S, SHARP_CORNER_COS, TANGENTIAL_SHARE,
-                       Segment, arc_maxvel, build_segments, dot, place)
+from .segments import (GAP_CYCLES, KINK_RATIO, MIN_SEGMENT_CYCLES, RAMP_TIME_S, SHARP_CORNER_COS, SQUARE,
+                       TANGENTIAL_SHARE, arc_maxvel, build_segments, dot, place)
 
 
-class _Joint(NamedTuple):
-    """How the queue passes from one segment to the next: kind "pause" (a command waits between them),
-    "stop", "tangent" (at the speed cap `cap`, mm/s), "blend" (on the arc `arc`: the trim of each
-    segment, the arc's length, speed and acceleration, `blends.blend`) or "parabolic"."""
-
-    kind: str
-    cap: float = 0.0
-    arc: tuple | None = None
+PAUSE, STOP, TANGENT, BLEND, PARABOLIC = range(5)  # how the queue passes a junction (`_joint`)
+BLOCK = np.dtype([("length", float), ("vnom", float), ("acc", float), ("vj2", float), ("move", np.int64),
+                  ("u_end", float), ("may_ramp", np.bool_)], align=True)  # a row of the `Queue`
 
 
-def _kinked(prev: Segment, cur: Segment, share: float) -> None:
-    """Both segments give up `share` of their acceleration to a tangent kink (tcSetKinkProperties)."""
-    prev.kink_share = max(prev.kink_share, share)
-    cur.kink_share = max(cur.kink_share, share)
+@numba.njit(cache=True)
+def _kinked(segs, j: int, share: float) -> None:
+    """Segments j − 1 and j give up `share` of their acceleration to a tangent kink (tcSetKinkProperties)."""
+    segs[j - 1].kink_share = max(segs[j - 1].kink_share, share)
+    segs[j].kink_share = max(segs[j].kink_share, share)
 
 
-def _joint(prev: Segment, cur: Segment, paused: bool, model: ControllerModel) -> _Joint:
-    """The junction between two queued segments; trims them for a blend arc, halves their acceleration
-    for a parabolic blend and takes a tangent kink's share of it."""
+@numba.njit(cache=True)
+def _joint(segs, j: int, paused: bool, exact_stop: bool, dt: float, accel, rates, two: float):
+    """How the queue passes from segment j − 1 to j: (kind, speed cap (mm/s), blend arc). PAUSE (a
+    command waits between them), STOP, TANGENT (at the cap), BLEND (on the arc: the trim of each
+    segment, the arc's length, speed and acceleration, `blends.blend`; it trims both segments) or
+    PARABOLIC (both segments at half acceleration). A tangent kink takes its share of both segments'
+    acceleration. dt: the servo period (s); accel, rates: the axes' mm/s², mm/s; two: `SQUARE`."""
+    prev, cur = segs[j - 1], segs[j]
+    none = (0.0, 0.0, 0.0, 0.0)
     if paused:
-        return _Joint("pause")
-    if (model.exact_stop or prev.rapid != cur.rapid or prev.tolerance == EXACT_STOP
+        return PAUSE, 0.0, none
+    if (exact_stop or prev.rapid != cur.rapid or prev.tolerance == EXACT_STOP
             or dot(prev.t1, cur.t0) < SHARP_CORNER_COS):
-        return _Joint("stop")
-    dt = model.servo_period_s
-    amax = model.accel_mm_s2
+        return STOP, 0.0, none
     v_max = min(prev.maxvel, prev.req, cur.maxvel, cur.req)
-    share = max(abs(cur.t0[i] - prev.t1[i]) / amax[i] for i in range(3)) * v_max / dt
+    share = kink_jump(prev, cur, accel) * v_max / dt
     share /= TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0
     if share < KINK_RATIO:
-        _kinked(prev, cur, share)
-        return _Joint("tangent", v_max)
+        _kinked(segs, j, share)
+        return TANGENT, v_max, none
     if prev.tolerance == EXACT_PATH:  # G61: no blending, a stop at every corner, where the kink
-        _kinked(prev, cur, KINK_RATIO)  # check (tcSetKinkProperties) has taken its share of both
-        return _Joint("stop")  # segments' acceleration all the same
+        _kinked(segs, j, KINK_RATIO)  # check (tcSetKinkProperties) has taken its share of both
+        return STOP, 0.0, none  # segments' acceleration all the same
     kink_vel = v_max * KINK_RATIO / share
-    arc = blend(prev, cur, model)
-    if arc is not None and min(arc[2], arc[1] / dt) < kink_vel:
-        _kinked(prev, cur, KINK_RATIO)
-        return _Joint("tangent", kink_vel)
-    if arc is not None:
-        prev.trim_end = arc[0]
-        prev.length -= arc[0]
-        cur.length -= arc[0]
-        cur.trim_start = arc[0]
-        return _Joint("blend", 0.0, arc)
-    prev.halved = cur.halved = True
-    return _Joint("parabolic")
+    fits, d, s_arc, v, a = blend(segs, j, accel, rates, two)
+    if fits and min(v, s_arc / dt) < kink_vel:
+        _kinked(segs, j, KINK_RATIO)
+        return TANGENT, kink_vel, none
+    if fits:
+        prev.trim_end = d
+        prev.length -= d
+        cur.length -= d
+        cur.trim_start = d
+        return BLEND, 0.0, (d, s_arc, v, a)
+    prev.halved = True
+    cur.halved = True
+    return PARABOLIC, 0.0, none
 
 
-def _joints(segs: list[Segment], stop: list[bool], model: ControllerModel) -> list[_Joint | None]:
-    """Per segment the joint before it (None before the first); stop: per move, whether the motion
-    stops before it (`pauses.stops`). The last queued segment before a pause (or the end) keeps its
-    parabolic term in G64: half its acceleration."""
-    joints: list[_Joint | None] = [None] * len(segs)
-    for j in range(1, len(segs)):
-        prev, cur = segs[j - 1], segs[j]
-        joints[j] = _joint(prev, cur, any(stop[prev.move + 1:cur.first + 1]), model)
-    for j, s in enumerate(segs):
-        if ((j + 1 == len(segs) or joints[j + 1].kind == "pause") and not model.exact_stop
-                and s.tolerance not in (EXACT_PATH, EXACT_STOP)):
+@numba.njit(cache=True)
+def _joints(segs, stop, exact_stop: bool, dt: float, accel, rates, two: float):
+    """Per segment the joint before it (`_joint`; kind −1 before the first): kinds, speed caps (mm/s)
+    and blend arcs (n, 4). stop: per move, whether the motion stops before it (`pauses.stops`). The
+    last queued segment before a pause (or the end) keeps its parabolic term in G64: half its
+    acceleration."""
+    n = len(segs)
+    kind, cap, arc = np.full(n, -1, np.int64), np.zeros(n), np.zeros((n, 4))
+    for j in range(1, n):
+        paused = False
+        for m in range(segs[j - 1].move + 1, segs[j].first + 1):
+            paused = paused or stop[m]
+        kind[j], cap[j], (arc[j, 0], arc[j, 1], arc[j, 2], arc[j, 3]) = _joint(segs, j, paused, exact_stop, dt,
+                                                                              accel, rates, two)
+    for j in range(n):
+        s = segs[j]
+        if ((j + 1 == n or kind[j + 1] == PAUSE) and not exact_stop
+                and s.tolerance != EXACT_PATH and s.tolerance != EXACT_STOP):
             s.halved = True
-    return joints
+    return kind, cap, arc
 
 
-def _entry_cap2(joint: _Joint | None, prev: Segment, s: Segment) -> float:
-    """The squared speed cap (mm²/s²) where segment s starts, after the joint from prev."""
-    if joint is None or joint.kind in ("stop", "pause"):
-        return 0.0
-    if joint.kind == "blend":
+@numba.njit(cache=True)
+def _entry_cap2(kind: int, cap: float, segs, j: int, two: float) -> float:
+    """The squared speed cap (mm²/s²) where segment j starts, after the joint before it."""
+    if kind == BLEND:
         return np.inf
-    if joint.kind == "tangent":
-        return joint.cap ** 2
-    return parabolic_speed(prev, s) ** 2
+    if kind == TANGENT:
+        return cap ** two
+    if kind == PARABOLIC:
+        return parabolic_speed(segs, j) ** two
+    return 0.0
 
 
-class _Rows:
-    """The queue's blocks as they are appended (`Queue`), the blend arcs flat (24 B an arc)."""
+@numba.njit(cache=True)
+def _add(blocks, k: int, length: float, vnom: float, acc: float, vj2: float, s, ends, x: float) -> None:
+    """Block k: of segment s (`place` by the moves' `ends`), ending x mm along it."""
+    b = blocks[k]
+    b.length, b.vnom, b.acc, b.vj2 = length, vnom, acc, vj2
+    b.move, b.u_end = place(s, ends, x)
+    b.may_ramp = not s.rapid
 
-    def __init__(self, tp: Toolpath, model: ControllerModel):
-        self.L, self.vnom, self.acc, self.vj2, self.move, self.u_end, self.ramps, self.cuts = ([] for _ in range(8))
-        self.blends = array("d")
-        self.at = np.r_[0.0, np.cumsum(tp.lengths())]
-        self.model = model
 
-    def arc_length(self, s: Segment, x: float) -> float:
-        """The program's arc length (mm) x mm along segment s."""
-        m, u = place(s, x)
-        return float(self.at[m] + u * (self.at[m + 1] - self.at[m]))
+@numba.njit(cache=True)
+def _arc_length(at, s, ends, x: float) -> float:
+    """The program's arc length (mm) x mm along segment s; at: the program's arc length at each move's start."""
+    m, u = place(s, ends, x)
+    return at[m] + u * (at[m + 1] - at[m])
 
-    def add(self, length: float, vnom: float, acc: float, vj2: float, s: Segment, x: float) -> int:
-        """A block of segment s ending x mm along it; returns its index."""
-        self.vj2.append(vj2)
-        self.L.append(length)
-        self.vnom.append(vnom)
-        self.acc.append(acc)
-        m, u = place(s, x)
-        self.move.append(m)
-        self.u_end.append(u)
-        self.ramps.append(not s.rapid)
-        return len(self.L) - 1
 
-    def add_arc(self, prev: Segment, s: Segment, arc: tuple, lead: float, lead_vj2: float) -> None:
-        """The blend arc between prev and s with the straight lead-in `lead` (mm) it absorbed; its
-        second half lies on s's first move."""
-        d, s_arc, v, a = arc
-        length = lead + s_arc
-        k = self.add(length, min(v, length / (MIN_SEGMENT_CYCLES * self.model.servo_period_s)), a, lead_vj2, s, d)
-        self.cuts.append((k, (lead + 0.5 * s_arc) / length, prev.move, 1.0))
-        self.blends.extend((self.arc_length(prev, prev.nominal - prev.trim_end - lead), self.arc_length(s, d), k))
+@numba.njit(cache=True)
+def _segment_block(blocks, k: int, cuts, c: int, s, ends, vj2: float, dt: float, block_rate: float) -> int:
+    """Block k: segment s at its own limits (halved, kinked, an arc's tangential share, the block rate, at
+    least 1.02 servo periods long); a merged chain cut where each of its moves ends (rows of `cuts` from
+    c on). Returns the next free row of `cuts`."""
+    a = s.acc * (0.5 if s.halved else 1.0) * (1.0 - s.kink_share)
+    vmax = min(s.req, arc_maxvel(s, s.halved) if s.arc else s.maxvel, s.nominal * block_rate)
+    if s.length > 0:
+        vmax = min(vmax, s.length / (MIN_SEGMENT_CYCLES * dt))
+    if s.arc:
+        a *= TANGENTIAL_SHARE
+    _add(blocks, k, max(s.length, 0.0), vmax, a, vj2, s, ends, s.nominal - s.trim_end)
+    span = s.nominal - s.trim_end - s.trim_start
+    for i in range(s.move - s.first):
+        x = ends[s.first + i]
+        if s.trim_start < x < s.nominal - s.trim_end and span > 0:
+            cuts[c, 0], cuts[c, 1], cuts[c, 2], cuts[c, 3] = k, (x - s.trim_start) / span, s.first + i, 1.0
+            c += 1
+    return c
 
-    def add_segment(self, s: Segment, vj2: float) -> None:
-        """Segment s as one block at its own limits (halved, kinked, an arc's tangential share, the
-        block rate, at least 1.02 servo periods long); a merged chain cut where each of its moves ends."""
-        dt = self.model.servo_period_s
-        a = s.acc * (0.5 if s.halved else 1.0) * (1.0 - s.kink_share)
-        vmax = min(s.req, arc_maxvel(s, s.halved) if s.arc else s.maxvel, s.nominal * self.model.block_rate_hz)
-        if s.length > 0:
-            vmax = min(vmax, s.length / (MIN_SEGMENT_CYCLES * dt))
-        if s.arc:
-            a *= TANGENTIAL_SHARE
-        k = self.add(max(s.length, 0.0), vmax, a, vj2, s, s.nominal - s.trim_end)
-        span = s.nominal - s.trim_end - s.trim_start
-        for i, x in enumerate(s.ends[:-1]):
-            if s.trim_start < x < s.nominal - s.trim_end and span > 0:
-                self.cuts.append((k, (x - s.trim_start) / span, s.first + i, 1.0))
 
-    def queue(self) -> Queue:
-        return Queue(np.asarray(self.L, float), np.asarray(self.vnom, float), np.asarray(self.acc, float),
-                     np.asarray(self.vj2 + [0.0], float), np.asarray(self.move, np.int64),
-                     np.asarray(self.u_end, float), np.asarray(self.ramps, bool), self.cuts,
-                     np.frombuffer(self.blends, float).reshape(-1, 3).copy())
+@numba.njit(cache=True)
+def _blocks(segs, ends, at, kind, cap, arc, dt: float, block_rate: float, two: float):
+    """The queue's blocks (`BLOCK`) after the joints (`_joints`), its cuts (`Queue.cuts`) and blend arcs
+    (`Queue.blends`). A line's rest shorter than GAP_CYCLES periods at the next blend arc's speed is
+    no block: it runs as that arc's lead-in (blendCheckConsume), from the speed cap at its start; the
+    arc's second half lies on the next segment's first move."""
+    n = len(segs)
+    blocks, cuts, blends = np.zeros(2 * n, BLOCK), np.zeros((n + len(ends), 4)), np.zeros((n, 3))
+    k = c = b = 0
+    lead, lead_vj2 = 0.0, np.inf  # a consumed rest waiting for its arc, and the speed cap at its start
+    for j in range(n):
+        s = segs[j]
+        if kind[j] == BLEND:
+            prev, (d, s_arc, v, a) = segs[j - 1], (arc[j, 0], arc[j, 1], arc[j, 2], arc[j, 3])
+            length = lead + s_arc
+            _add(blocks, k, length, min(v, length / (MIN_SEGMENT_CYCLES * dt)), a, lead_vj2, s, ends, d)
+            cuts[c, 0], cuts[c, 1], cuts[c, 2], cuts[c, 3] = k, (lead + 0.5 * s_arc) / length, prev.move, 1.0
+            blends[b, 0] = _arc_length(at, prev, ends, prev.nominal - prev.trim_end - lead)
+            blends[b, 1], blends[b, 2] = _arc_length(at, s, ends, d), k
+            k, c, b = k + 1, c + 1, b + 1
+            lead, lead_vj2 = 0.0, np.inf
+        start_vj2 = _entry_cap2(kind[j], cap[j], segs, j, two)
+        if j + 1 < n and kind[j + 1] == BLEND and not s.arc and s.length < GAP_CYCLES * dt * arc[j + 1, 2]:
+            lead, lead_vj2 = max(s.length, 0.0), start_vj2
+            continue
+        c = _segment_block(blocks, k, cuts, c, s, ends, start_vj2, dt, block_rate)
+        k += 1
+    return blocks[:k], cuts[:c], blends[:b]
 
 
 @dataclass(frozen=True)
@@ -183,24 +201,15 @@ class LinuxCNCPlanner(Planner):
         """LinuxCNC's queue: segments, blend arcs and the speed caps at their junctions; and the blend
         arcs' spans (`Execution.blends`). A line's rest shorter than GAP_CYCLES periods at the next
         blend arc's speed is dropped from the queue and runs as that arc's lead-in (blendCheckConsume)."""
-        segs = build_segments(tp, model, feed_mm_s, modes, merge=True)
-        joints = _joints(segs, stops(tp, pauses).tolist(), model)
+        segs, ends = build_segments(tp, model, feed_mm_s, modes, merge=True)
+        accel, rates = np.asarray(model.accel_mm_s2, float), np.asarray(model.max_rate_mm_s, float)
         dt = model.servo_period_s
-        consumed = [j + 1 < len(segs) and joints[j + 1].kind == "blend" and not s.arc
-                    and s.length < GAP_CYCLES * dt * joints[j + 1].arc[2] for j, s in enumerate(segs)]
-        rows = _Rows(tp, model)
-        lead, lead_vj2 = 0.0, np.inf  # a consumed rest waiting for its arc, and the speed cap at its start
-        for j, s in enumerate(segs):
-            joint = joints[j]
-            if joint is not None and joint.kind == "blend":
-                rows.add_arc(segs[j - 1], s, joint.arc, lead, lead_vj2)
-                lead, lead_vj2 = 0.0, np.inf
-            start_vj2 = _entry_cap2(joint, segs[j - 1], s)
-            if consumed[j]:
-                lead, lead_vj2 = max(s.length, 0.0), start_vj2
-                continue
-            rows.add_segment(s, start_vj2)
-        return rows.queue()
+        with compiling(_joints, _blocks):
+            kind, cap, arc = _joints(segs, stops(tp, pauses), model.exact_stop, dt, accel, rates, SQUARE)
+            blocks, cuts, blends = _blocks(segs, ends, np.r_[0.0, np.cumsum(tp.lengths())], kind, cap, arc, dt,
+                                           model.block_rate_hz, SQUARE)
+        return Queue(blocks["length"].copy(), blocks["vnom"].copy(), blocks["acc"].copy(), np.r_[blocks["vj2"], 0.0],
+                     blocks["move"].copy(), blocks["u_end"].copy(), blocks["may_ramp"].copy(), cuts, blends)
 
     def timed(self, q: Queue, ve: np.ndarray, t: np.ndarray, model: ControllerModel
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -41,8 +41,9 @@ class Queue:
     """The blocks a planner runs, in path order (lengths mm, speeds mm/s, accelerations mm/s²): per
     block its length, top speed, acceleration, the program move and the fraction of it where the block
     ends, and whether it may run as one linear ramp (`LinuxCNCPlanner.timed`); the squared speed caps at
-    the n+1 junctions (0 at the ends and where the motion stops). cuts: (block, fraction of it, move,
-    fraction of that move) where a block passes from one program move onto the next (`run.cut_blocks`).
+    the n+1 junctions (0 at the ends and where the motion stops). cuts (m, 4): (block, fraction of it,
+    move, fraction of that move) where a block passes from one program move onto the next
+    (`run.cut_blocks`).
     blends (k, 3): the blend arcs, each the program's arc length (mm) where it starts and ends and the
     index of its block."""
 
@@ -53,7 +54,7 @@ class Queue:
     move: np.ndarray
     u_end: np.ndarray
     may_ramp: np.ndarray
-    cuts: list = field(default_factory=list)
+    cuts: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     blends: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 

@@ -49,7 +49,7 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_s: np.ndarray | None =
     t, ramp, blends = model.planner.timed(q, ve, t, model)
     pause = paused_s(pauses, q.move[0], q.move[-1]) if n else 0.0
     move, u_end = q.move, q.u_end
-    if q.cuts:
+    if len(q.cuts):
         t, L, vnom, acc, ve, move, u_end, ramp = cut_blocks(q.cuts, t, L, vnom, acc, ve, ramp, move, u_end)
     return Execution(float(t.sum()) + pause, t, move, u_end, L, vnom, acc, ve, ramp,
                      np.r_[0.0, np.cumsum(tp.lengths())], pause, blends)
@@ -58,17 +58,16 @@ def execute(tp: Toolpath, model: ControllerModel, feed_mm_s: np.ndarray | None =
 def cut_blocks(cuts, t, L, vnom, acc, ve, ramp, move, u_end):
     """Blocks cut where they pass from one program move onto the next (a blend arc's two halves, a
     merged chain's moves), so that every piece lies on one move. cuts: (block, fraction of it at the
-    cut, the move and the fraction of it where the piece before the cut ends); the piece after the last
-    cut keeps the block's own place. A piece runs the block's speed profile between the cut points
+    cut, the move and the fraction of it where the piece before the cut ends: rows of an (m, 4) array);
+    the piece after the last cut keeps the block's own place. A piece runs the block's speed profile between the cut points
     (constant acceleration on a linear ramp, the trapezoid elsewhere); the pieces' times share the
     block's time in proportion to those runs. Returns the pieces' t, L, vnom, acc, entry speeds (n+1),
     move, u_end and ramp."""
     n = len(L)
-    k = np.array([c[0] for c in cuts], np.int64)
-    blk = np.r_[k, np.arange(n)]
-    f_end = np.r_[np.clip([c[1] for c in cuts], 0.0, 1.0), np.ones(n)]
-    mv = np.r_[np.array([c[2] for c in cuts], np.int64), move]
-    uu = np.r_[np.array([c[3] for c in cuts], float), u_end]
+    blk = np.r_[cuts[:, 0].astype(np.int64), np.arange(n)]
+    f_end = np.r_[np.clip(cuts[:, 1], 0.0, 1.0), np.ones(n)]
+    mv = np.r_[cuts[:, 2].astype(np.int64), move]
+    uu = np.r_[cuts[:, 3], u_end]
     order = np.lexsort((f_end, blk))
     blk, f_end, mv, uu = blk[order], f_end[order], mv[order], uu[order]
     f_start = np.r_[0.0, np.where(blk[1:] == blk[:-1], f_end[:-1], 0.0)]
