@@ -236,8 +236,8 @@ def format_number(value: float, decimals: int, trailing_point: bool) -> str:
     return text
 
 
-_SPACED = r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]"  # a word, blanks, the next word
-_UNSPACED = r"[0-9.\]>][A-Za-z]"  # a word's value, the next word
+_SPACED = re.compile(r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]")  # a word, blanks, the next word
+_UNSPACED = re.compile(r"[0-9.\]>][A-Za-z]")  # a word's value, the next word
 _UNITS = re.compile(r"[Gg]\s*0*2[01](?![\d.])")  # G20 or G21 (a comment's text may match: the lexer decides)
 
 
@@ -253,7 +253,7 @@ def program_spaced(program: Program) -> bool:
     """Whether the program usually puts blanks between its words (comments aside): the style of a line
     too short to show its own."""
     code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
-    return len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))
+    return len(_SPACED.findall(code)) >= len(_UNSPACED.findall(code))
 
 
 class LineWriter:
@@ -263,7 +263,7 @@ class LineWriter:
         self.raw, self.block = raw, block
         self.lower = bool(block.words) and all(w.text[0].islower() for w in block.words if w.text[0].isalpha())
         one_word = len(block.words) + (block.number is not None) < 2
-        self.sep = " " if (spaced if one_word else re.search(_SPACED, raw)) else ""
+        self.sep = " " if (spaced if one_word else _SPACED.search(raw)) else ""
 
     def replace(self, new: dict[str, str], drop: set[str] = frozenset()) -> str:
         """Words by letter set to new text (added where `_slot` puts them when absent, else after the
@@ -404,11 +404,9 @@ class _FeedWriter:
         if line.f_word is not None:
             self.in_f = line.f_word.value
         repeats = line.f_word is not None and in_before is not None and _same(line.f_word.value, in_before)
-        split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not self.compensated[i]
-                 and not computed(block)]
         one_feed = None  # a split move whose pieces all write one F: not split, that F
-        if split and len(moves) == 1:
-            i = moves[0]
+        i = moves[0]
+        if len(moves) == 1 and len(plan.fragments.get(i, ())) > 1 and not self.compensated[i] and not computed(block):
             pieces = line.distinct(i, plan.fragments[i], self.modal_f)
             if len(pieces) > 1:
                 new_lines, self.modal_f = _split_move(program, i, pieces, block, line.writer, ending,
@@ -424,12 +422,12 @@ class _FeedWriter:
             self.out.append(raw)
             return
         timed = [i for i in moves if lengths[i] > 0.0] or moves  # a block's moves that take time set its F
-        if all(math.isnan(planned[i]) for i in timed):
+        k = min(timed, key=lambda i: planned[i] if not math.isnan(planned[i]) else math.inf)
+        if math.isnan(planned[k]):  # none has a planned feed
             if line.f_word is not None:
                 self.modal_f = line.f_word.value
             self.out.append(raw)
             return
-        k = min(timed, key=lambda i: planned[i] if not math.isnan(planned[i]) else math.inf)
         if mode[k] == FeedMode.INVERSE_TIME and len(moves) > 1 and not all(self.compensated[i] for i in moves):
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
         self.modal_f = self._set_f(line, raw, ending, moves, k, planned[k] if one_feed is None else one_feed,
@@ -448,29 +446,30 @@ class _FeedWriter:
             else:
                 self.out.append(line.writer.replace({"F": line.f_text(value)}) + ending)
             return value
-        if (f_word is not None and _same(f_word.value, value) and modal_f is not None and _same(modal_f, value)
-                and not repeats and not inverse):
-            self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # its own F is now the F in force
-        elif f_word is not None and _same(f_word.value, value):
-            self.out.append(raw)  # the program's own F still holds: keep its bytes
-        elif (f_word is None and modal_f is not None and not inverse
-              and (_same(modal_f, value) or _same(modal_f, line.feed_value(k, feed_k, self.lengths[k], modal_f)))):
+        if f_word is not None and _same(f_word.value, value):
+            if modal_f is not None and _same(modal_f, value) and not repeats and not inverse:
+                self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # its own F is now the F in force
+            else:
+                self.out.append(raw)  # the program's own F still holds: keep its bytes
+            return value
+        modal_holds = f_word is None and modal_f is not None and not inverse  # no F of its own: the F in force may do
+        if modal_holds and _same(modal_f, value):
             self.out.append(raw)
-            value = modal_f  # the F in force stays the one written
-        elif standalone_f is not None and f_word is None and not inverse:
+            return modal_f
+        written = line.feed_value(k, feed_k, self.lengths[k], modal_f)
+        if modal_holds and _same(modal_f, written):
+            self.out.append(raw)
+            return modal_f  # the F in force stays the one written
+        text = line.f_text(written)
+        if standalone_f is not None and f_word is None and not inverse:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
-            text = line.feed_text(k, feed_k, self.lengths[k], modal_f)
             self.out[at] = LineWriter(f_body, f_block, self.spaced).replace({"F": text}) + f_ending
             self.out.append(raw)
-            value = float(text)
+        elif modal_f is not None and _same(written, modal_f) and not repeats and not inverse:
+            self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # the F in force holds: no repeat
         else:
-            text = line.feed_text(k, feed_k, self.lengths[k], modal_f)
-            if modal_f is not None and _same(float(text), modal_f) and not repeats and not inverse:
-                self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # the F in force holds: no repeat
-            else:
-                self.out.append(line.writer.replace({"F": text}) + ending)
-            value = float(text)
-        return value
+            self.out.append(line.writer.replace({"F": text}) + ending)
+        return written
 
 
 class _FeedLine:
