@@ -456,7 +456,7 @@ class _FeedWriter:
         if modal_holds and _same(modal_f, value):
             self.out.append(raw)
             return modal_f
-        written = line.feed_value(k, feed_k, self.lengths[k], modal_f)
+        written = line.feed_value(k, value, self.lengths[k], modal_f)
         if modal_holds and _same(modal_f, written):
             self.out.append(raw)
             return modal_f  # the F in force stays the one written
@@ -520,25 +520,26 @@ class _FeedLine:
             text = f"{whole}.{frac:0<{self.feeds.f_decimals}}"
         return text
 
-    def feed_value(self, i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> float:
-        """The F (program units, on the grid of `f_grid`) for move i at the feed after the F in force
-        `modal`, changes smaller than the plan's step made none or a full step, under the move's
-        programmed F only where a limit asks for it (`_stepped`; not in inverse time)."""
+    def feed_value(self, i: int, f_value: float, length_mm: float, modal: float | None) -> float:
+        """The F (program units, on the grid of `f_grid`) for move i at F value `f_value` (this line's F
+        units, as `_FeedLine.f_value` gives it) after the F in force `modal`, changes smaller than the
+        plan's step made none or a full step, under the move's programmed F only where a limit asks for
+        it (`_stepped`; not in inverse time)."""
         feeds = self.feeds
-        value = self.f_grid(self.f_value(i, feed_mm_min, length_mm))[0]
+        value = self.f_grid(f_value)[0]
         if feeds.flow or modal is None or feeds.mode[i] == FeedMode.INVERSE_TIME:
             return value
         programmed = feeds.programmed[i]
         keep = self.f_grid(self.f_value(i, programmed, length_mm))[0] if math.isfinite(programmed) else 0.0
         # the F in force is one a limit held under the programmed F of the move it was written for
-        held = _same(modal, self.written["f"]) and self.written["held"]
+        held = self.written["held"] and _same(modal, self.written["f"])
         out = self.f_grid(_stepped(value, modal, feeds.plan.step, keep, held))[0]
         self.written.update(f=out, held=out < keep)
         return out
 
     def feed_text(self, i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
         """`feed_value` as written (`f_text`: a value on the grid is written as it is)."""
-        return self.f_text(self.feed_value(i, feed_mm_min, length_mm, modal))
+        return self.f_text(self.feed_value(i, self.f_value(i, feed_mm_min, length_mm), length_mm, modal))
 
     def distinct(self, i: int, fragments: list[tuple[float, float]], modal: float | None) -> list[tuple[float, float]]:
         """Move i's fragments with each one whose F as written would be the F before it (`modal` the F in
