@@ -221,8 +221,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     new = np.r_[True, (move[1:] != move[:-1]) | (feeds[1:] != feeds[:-1])]
     head = np.flatnonzero(new)
     tail = np.r_[head[1:], len(move)] - 1
-    return [Fragment(int(m), float(a), float(b), float(f))
-            for m, a, b, f in zip(move[head], u0[head], u1[tail], feeds[head])]
+    return [Fragment(m, a, b, f) for m, a, b, f in zip(move[head].tolist(), u0[head].tolist(), u1[tail].tolist(),
+                                                        feeds[head].tolist())]
 
 
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,

@@ -334,7 +334,7 @@ class _FeedWriter:
         self.planned: list[float] = plan.feed_mm_min.tolist()  # mm/min
         self.programmed: list[float] = tp.feed_mm_min.tolist()  # mm/min
         self.mode: list[int] = program.feed_mode.tolist()
-        self.inch: list[bool] = program.move_inch.tolist()
+        self.move_inch: list[bool] = program.move_inch.tolist()
         self.compensated: list[bool] = program.compensated.tolist()
         self.rpm: list[float] = tp.rpm.tolist()
         self.by_line: dict[int, list[int]] = {}
@@ -393,7 +393,7 @@ class _FeedWriter:
         standalone_f, self.f_line = self.f_line, None
         block = lex_line(body, n, program.path, self.params)
         self.params.update(block.assigns)
-        line_units = INCH if self.inch[moves[0]] else 1.0
+        line_units = INCH if self.move_inch[moves[0]] else 1.0
         scale = self.units if self.before_units and _units_of(block, None) is not None else line_units  # its F's
         if self.modal_f is not None and self.f_units != scale:  # the F in force, in this line's F units
             self.modal_f = self.modal_f * self.f_units / scale
