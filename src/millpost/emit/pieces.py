@@ -14,11 +14,11 @@ def pieces_of_moves(original: Toolpath, emitted: Toolpath, tol_mm: float = 1e-4)
     first piece in the emitted program's toolpath (len(original) + 1 entries, the last one
     len(emitted)). Moves keep their order and end points (a split move's last piece ends where the
     move did), so pieces are matched in order by their end points (within tol_mm)."""
-    out = np.empty(len(original) + 1, np.int64)
+    out = []
     ends, e_ends = original.end.tolist(), emitted.end.tolist()
     k = 0
     for i, p in enumerate(ends):
-        out[i] = k
+        out.append(k)
         while k < len(e_ends) and max(abs(e_ends[k][0] - p[0]), abs(e_ends[k][1] - p[1]),
                                       abs(e_ends[k][2] - p[2])) > tol_mm:
             k += 1
@@ -26,10 +26,9 @@ def pieces_of_moves(original: Toolpath, emitted: Toolpath, tol_mm: float = 1e-4)
             raise MillpostError(f"the emitted program does not pass through the end of move {i} (line "
                                 f"{int(original.line[i])}) at {p}")
         k += 1
-    out[-1] = k
     if k != len(e_ends):
         raise MillpostError(f"the emitted program has {len(e_ends) - k} moves after the original program's end")
-    return out
+    return np.array(out + [k], np.int64)
 
 
 def emitted_positions(original: Toolpath, emitted: Toolpath, move: np.ndarray, u: np.ndarray

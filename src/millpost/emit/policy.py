@@ -19,6 +19,7 @@ they do not pull a fragment's feed to zero.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,22 +86,24 @@ def settle(feeds: np.ndarray, step: float, keep: np.ndarray | None = None) -> np
     if step <= 0 or len(out) == 0:
         return out
     keep = np.zeros_like(out) if keep is None else np.nan_to_num(keep, nan=0.0)
-    floor = np.minimum(out, keep)
+    floor = np.minimum(out, keep).tolist()  # Python numbers: the loop reads them one by one
     while True:
-        prev = out.copy()
-        held = out < keep * (1 - 1e-9)  # a limit holds it under its keep (its own, or its run's)
-        start, lo, hi, need, lo_held = 0, out[0], out[0], floor[0], held[0]
-        for i in range(1, len(out) + 1):
-            if i < len(out):
-                low, low_held = (out[i], held[i]) if out[i] < lo else (lo, lo_held)
-                if max(hi, out[i]) <= low * (1 + step) and (low_held or max(need, floor[i]) <= low):
-                    lo, hi, need, lo_held = low, max(hi, out[i]), max(need, floor[i]), low_held
+        held = (out < keep * (1 - 1e-9)).tolist()  # a limit holds it under its keep (its own, or its run's)
+        f = out.tolist()  # the loop reads at i and writes only behind it
+        start, lo, hi, need, lo_held = 0, f[0], f[0], floor[0], held[0]
+        for i in range(1, len(f) + 1):
+            if i < len(f):
+                low, low_held = (f[i], held[i]) if f[i] < lo else (lo, lo_held)
+                if max(hi, f[i]) <= low * (1 + step) and (low_held or max(need, floor[i]) <= low):
+                    lo, hi, need, lo_held = low, max(hi, f[i]), max(need, floor[i]), low_held
                     continue
-            out[start:i] = lo
-            if i < len(out):
-                start, lo, hi, need, lo_held = i, out[i], out[i], floor[i], held[i]
-        if np.array_equal(out, prev):
-            return out
+            f[start:i] = [lo] * (i - start)
+            if i < len(f):
+                start, lo, hi, need, lo_held = i, f[i], f[i], floor[i], held[i]
+        settled = np.array(f)
+        if np.array_equal(settled, out):
+            return settled
+        out = settled
 
 
 def cluster(feeds: np.ndarray, step: float) -> np.ndarray:
@@ -108,14 +111,13 @@ def cluster(feeds: np.ndarray, step: float) -> np.ndarray:
     feeds within `step` (relative) of its smallest; so any two different results differ by more
     than `step`."""
     f = np.asarray(feeds, float)
-    order = np.argsort(f)
-    out = f.copy()
-    lo = -np.inf
-    for k in order:
-        if not f[k] <= lo * (1 + step):
-            lo = f[k]
+    values, out = f.tolist(), [math.nan] * len(f)  # Python numbers: the loop reads them one by one
+    lo = -math.inf
+    for k in np.argsort(f).tolist():
+        if not values[k] <= lo * (1 + step):
+            lo = values[k]
         out[k] = lo
-    return out
+    return np.array(out, float)
 
 
 def reachable(feeds_mm_s: np.ndarray, length_mm: np.ndarray, accel_mm_s2: np.ndarray, joined: np.ndarray,
@@ -219,8 +221,8 @@ def piecewise_feeds(samples: Samples, limit_mm_s: np.ndarray, *, min_fragment_mm
     new = np.r_[True, (move[1:] != move[:-1]) | (feeds[1:] != feeds[:-1])]
     head = np.flatnonzero(new)
     tail = np.r_[head[1:], len(move)] - 1
-    return [Fragment(int(m), float(a), float(b), float(f))
-            for m, a, b, f in zip(move[head], u0[head], u1[tail], feeds[head])]
+    return [Fragment(m, a, b, f) for m, a, b, f in zip(move[head].tolist(), u0[head].tolist(), u1[tail].tolist(),
+                                                        feeds[head].tolist())]
 
 
 def emission_limit(samples: Samples, limits: list, schedule: ProgramSchedule,
@@ -273,20 +275,22 @@ def hold_runs(samples: Samples, limit_mm_s: np.ndarray, need_mm_s: np.ndarray) -
         lo = np.maximum.reduceat(np.asarray(need_mm_s, float), starts)
         free = np.isfinite(hi) & np.isfinite(lo) & (lo <= hi)
     last = np.where(samples.kind[starts] != RAPID, out[starts + counts - 1], np.nan)  # F is modal over rapids
-    value = np.full(len(starts), np.nan)
-    first, run_lo, run_hi, carry = 0, -np.inf, np.inf, np.nan
+    value = [math.nan] * len(starts)
+    first, run_lo, run_hi, carry = 0, -math.inf, math.inf, math.nan
+    free_k, lo_k, hi_k, last_k = free.tolist(), lo.tolist(), hi.tolist(), last.tolist()  # read one by one
     for k in range(len(starts) + 1):
-        if k < len(starts) and free[k] and max(run_lo, lo[k]) <= min(run_hi, hi[k]):
-            run_lo, run_hi = max(run_lo, lo[k]), min(run_hi, hi[k])
+        if k < len(starts) and free_k[k] and max(run_lo, lo_k[k]) <= min(run_hi, hi_k[k]):
+            run_lo, run_hi = max(run_lo, lo_k[k]), min(run_hi, hi_k[k])
             continue
         if k > first:
-            carry = value[first:k] = min(max(carry, run_lo), run_hi) if np.isfinite(carry) else run_lo
-        if k < len(starts) and free[k]:
-            first, run_lo, run_hi = k, lo[k], hi[k]
+            carry = min(max(carry, run_lo), run_hi) if math.isfinite(carry) else run_lo
+            value[first:k] = [carry] * (k - first)
+        if k < len(starts) and free_k[k]:
+            first, run_lo, run_hi = k, lo_k[k], hi_k[k]
         else:
-            first, run_lo, run_hi = k + 1, -np.inf, np.inf
-            if k < len(starts) and np.isfinite(last[k]):
-                carry = last[k]
+            first, run_lo, run_hi = k + 1, -math.inf, math.inf
+            if k < len(starts) and math.isfinite(last_k[k]):
+                carry = last_k[k]
     held = np.repeat(free, counts)
-    out[held] = np.repeat(value, counts)[held]
+    out[held] = np.repeat(np.array(value), counts)[held]
     return out

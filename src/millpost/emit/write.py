@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -235,8 +236,8 @@ def format_number(value: float, decimals: int, trailing_point: bool) -> str:
     return text
 
 
-_SPACED = r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]"  # a word, blanks, the next word
-_UNSPACED = r"[0-9.\]>][A-Za-z]"  # a word's value, the next word
+_SPACED = re.compile(r"[A-Za-z0-9.\]>][ \t]+[A-Za-z]")  # a word, blanks, the next word
+_UNSPACED = re.compile(r"[0-9.\]>][A-Za-z]")  # a word's value, the next word
 _UNITS = re.compile(r"[Gg]\s*0*2[01](?![\d.])")  # G20 or G21 (a comment's text may match: the lexer decides)
 
 
@@ -252,7 +253,7 @@ def program_spaced(program: Program) -> bool:
     """Whether the program usually puts blanks between its words (comments aside): the style of a line
     too short to show its own."""
     code = re.sub(r"\([^)\n]*\)|;[^\n]*", "", program.text)
-    return len(re.findall(_SPACED, code)) >= len(re.findall(_UNSPACED, code))
+    return len(_SPACED.findall(code)) >= len(_UNSPACED.findall(code))
 
 
 class LineWriter:
@@ -262,7 +263,7 @@ class LineWriter:
         self.raw, self.block = raw, block
         self.lower = bool(block.words) and all(w.text[0].islower() for w in block.words if w.text[0].isalpha())
         one_word = len(block.words) + (block.number is not None) < 2
-        self.sep = " " if (spaced if one_word else re.search(_SPACED, raw)) else ""
+        self.sep = " " if (spaced if one_word else _SPACED.search(raw)) else ""
 
     def replace(self, new: dict[str, str], drop: set[str] = frozenset()) -> str:
         """Words by letter set to new text (added where `_slot` puts them when absent, else after the
@@ -328,7 +329,14 @@ class _FeedWriter:
         self.program, self.plan = program, plan
         self.default_trailing = program_trailing_point(program) if trailing_point is None else trailing_point
         self.f_decimals = _f_decimals(program)
-        self.lengths = tp.lengths()
+        # per move, as Python numbers (indexing numpy arrays one element at a time costs more than the work)
+        self.lengths: list[float] = tp.lengths().tolist()
+        self.planned: list[float] = plan.feed_mm_min.tolist()  # mm/min
+        self.programmed: list[float] = tp.feed_mm_min.tolist()  # mm/min
+        self.mode: list[int] = program.feed_mode.tolist()
+        self.move_inch: list[bool] = program.move_inch.tolist()
+        self.compensated: list[bool] = program.compensated.tolist()
+        self.rpm: list[float] = tp.rpm.tolist()
         self.by_line: dict[int, list[int]] = {}
         for i in np.flatnonzero(tp.kind != RAPID):
             self.by_line.setdefault(int(tp.line[i]), []).append(int(i))
@@ -381,26 +389,24 @@ class _FeedWriter:
 
     def _cutting_line(self, n: int, raw: str, body: str, ending: str, moves: list[int]) -> None:
         """A line with cutting moves: its F (or, where the plan splits its one move, its pieces)."""
-        program, plan, lengths = self.program, self.plan, self.lengths
+        program, plan, lengths, planned, mode = self.program, self.plan, self.lengths, self.planned, self.mode
         standalone_f, self.f_line = self.f_line, None
         block = lex_line(body, n, program.path, self.params)
         self.params.update(block.assigns)
-        line_units = INCH if program.move_inch[moves[0]] else 1.0
+        line_units = INCH if self.move_inch[moves[0]] else 1.0
         scale = self.units if self.before_units and _units_of(block, None) is not None else line_units  # its F's
         if self.modal_f is not None and self.f_units != scale:  # the F in force, in this line's F units
             self.modal_f = self.modal_f * self.f_units / scale
             self.in_f = None if self.in_f is None else self.in_f * self.f_units / scale
         self.f_units, self.units = scale, line_units
-        line = _FeedLine(self, block, LineWriter(body, block, self.spaced), scale)
+        line = _FeedLine(self, block, body, scale)
         in_before = self.in_f  # the program's F in force before this line
         if line.f_word is not None:
             self.in_f = line.f_word.value
         repeats = line.f_word is not None and in_before is not None and _same(line.f_word.value, in_before)
-        split = [i for i in moves if i in plan.fragments and len(plan.fragments[i]) > 1 and not program.compensated[i]
-                 and not computed(block)]
         one_feed = None  # a split move whose pieces all write one F: not split, that F
-        if split and len(moves) == 1:
-            i = moves[0]
+        i = moves[0]
+        if len(moves) == 1 and len(plan.fragments.get(i, ())) > 1 and not self.compensated[i] and not computed(block):
             pieces = line.distinct(i, plan.fragments[i], self.modal_f)
             if len(pieces) > 1:
                 new_lines, self.modal_f = _split_move(program, i, pieces, block, line.writer, ending,
@@ -409,121 +415,139 @@ class _FeedWriter:
                 self.out.extend(new_lines)
                 return
             one_feed = pieces[0][1]
-        if not self.flow and all(lengths[i] <= 0.0 and int(program.feed_mode[i]) != FeedMode.INVERSE_TIME
-                                 for i in moves):
+        if not self.flow and all(lengths[i] <= 0.0 and mode[i] != FeedMode.INVERSE_TIME for i in moves):
             # a move to where the tool is takes no time: no F of its own, the F in force holds (or the one it
             # has, which then holds after it as in the program)
             self.modal_f = line.f_word.value if line.f_word is not None else self.modal_f
             self.out.append(raw)
             return
         timed = [i for i in moves if lengths[i] > 0.0] or moves  # a block's moves that take time set its F
-        if all(math.isnan(plan.feed_mm_min[i]) for i in timed):
+        k = min(timed, key=lambda i: planned[i] if not math.isnan(planned[i]) else math.inf)
+        if math.isnan(planned[k]):  # none has a planned feed
             if line.f_word is not None:
                 self.modal_f = line.f_word.value
             self.out.append(raw)
             return
-        k = min(timed, key=lambda i: plan.feed_mm_min[i] if not math.isnan(plan.feed_mm_min[i]) else math.inf)
-        if int(program.feed_mode[k]) == FeedMode.INVERSE_TIME and len(moves) > 1 and not program.compensated[moves].all():
+        if mode[k] == FeedMode.INVERSE_TIME and len(moves) > 1 and not all(self.compensated[i] for i in moves):
             raise MillpostError(f"{program.path}:{n}: inverse-time feed on a block with several moves")
-        self.modal_f = self._set_f(line, raw, ending, moves, k, plan.feed_mm_min[k] if one_feed is None else one_feed,
+        self.modal_f = self._set_f(line, raw, ending, moves, k, planned[k] if one_feed is None else one_feed,
                                    repeats, standalone_f)
 
     def _set_f(self, line: "_FeedLine", raw: str, ending: str, moves: list[int], k: int, feed_k: float,
                repeats: bool, standalone_f) -> float:
         """Write the line with the F of its move k at feed_k (mm/min): its own F kept, dropped, replaced or
         added, or the F line before it rewritten. Returns the F in force after the line (program units)."""
-        program, tp, modal_f, f_word = self.program, self.program.toolpath, self.modal_f, line.f_word
+        modal_f, f_word = self.modal_f, line.f_word
         value = line.f_value(k, feed_k, self.lengths[k])
-        inverse = int(program.feed_mode[k]) == FeedMode.INVERSE_TIME
+        inverse = self.mode[k] == FeedMode.INVERSE_TIME
         if self.flow:  # its own F, evaluated as it runs, still right on every run: keep it; else write one
-            if f_word is not None and all(self.plan.feed_mm_min[i] == tp.feed_mm_min[i] for i in moves):
+            if f_word is not None and all(self.planned[i] == self.programmed[i] for i in moves):
                 self.out.append(raw)
             else:
                 self.out.append(line.writer.replace({"F": line.f_text(value)}) + ending)
             return value
-        if (f_word is not None and _same(f_word.value, value) and modal_f is not None and _same(modal_f, value)
-                and not repeats and not inverse):
-            self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # its own F is now the F in force
-        elif f_word is not None and _same(f_word.value, value):
-            self.out.append(raw)  # the program's own F still holds: keep its bytes
-        elif (f_word is None and modal_f is not None and not inverse
-              and (_same(modal_f, value) or _same(modal_f, float(line.feed_text(k, feed_k, self.lengths[k], modal_f))))):
+        if f_word is not None and _same(f_word.value, value):
+            if modal_f is not None and _same(modal_f, value) and not repeats and not inverse:
+                self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # its own F is now the F in force
+            else:
+                self.out.append(raw)  # the program's own F still holds: keep its bytes
+            return value
+        modal_holds = f_word is None and modal_f is not None and not inverse  # no F of its own: the F in force may do
+        if modal_holds and _same(modal_f, value):
             self.out.append(raw)
-            value = modal_f  # the F in force stays the one written
-        elif standalone_f is not None and f_word is None and not inverse:
+            return modal_f
+        written = line.feed_value(k, value, self.lengths[k], modal_f)
+        if modal_holds and _same(modal_f, written):
+            self.out.append(raw)
+            return modal_f  # the F in force stays the one written
+        text = line.f_text(written)
+        if standalone_f is not None and f_word is None and not inverse:
             at, f_body, f_block, f_ending = standalone_f  # the F line before this one sets the feed
-            text = line.feed_text(k, feed_k, self.lengths[k], modal_f)
             self.out[at] = LineWriter(f_body, f_block, self.spaced).replace({"F": text}) + f_ending
             self.out.append(raw)
-            value = float(text)
+        elif modal_f is not None and _same(written, modal_f) and not repeats and not inverse:
+            self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # the F in force holds: no repeat
         else:
-            text = line.feed_text(k, feed_k, self.lengths[k], modal_f)
-            if modal_f is not None and _same(float(text), modal_f) and not repeats and not inverse:
-                self.out.append(line.writer.replace({}, drop={"F"}) + ending)  # the F in force holds: no repeat
-            else:
-                self.out.append(line.writer.replace({"F": text}) + ending)
-            value = float(text)
-        return value
+            self.out.append(line.writer.replace({"F": text}) + ending)
+        return written
 
 
 class _FeedLine:
     """The F words of one cutting line: its feed values in the line's F units (`scale` mm each), their
     text in its number style, and the last F written on it (`written`: and whether that F is under its
-    move's programmed F, which `_stepped` keeps)."""
+    move's programmed F, which `_stepped` keeps). Its `LineWriter` and number style are found when
+    first asked for: most lines keep their bytes."""
 
-    def __init__(self, writer: _FeedWriter, block: Block, line_writer: LineWriter, scale: float) -> None:
-        self.program, self.plan, self.flow, self.f_decimals = writer.program, writer.plan, writer.flow, writer.f_decimals
-        self.lengths = writer.lengths
-        self.block, self.writer, self.scale, self.inch = block, line_writer, scale, scale == INCH
-        self.trailing_point = line_trailing_point(block, writer.default_trailing)
+    def __init__(self, feeds: _FeedWriter, block: Block, body: str, scale: float) -> None:
+        self.feeds, self.block, self.body, self.scale, self.inch = feeds, block, body, scale, scale == INCH
         self.f_word = next((w for w in block.words if w.letter == "F"), None)
         self.written = {"f": math.nan, "held": False}
 
+    @cached_property
+    def writer(self) -> LineWriter:
+        return LineWriter(self.body, self.block, self.feeds.spaced)
+
+    @cached_property
+    def trailing_point(self) -> bool:
+        return line_trailing_point(self.block, self.feeds.default_trailing)
+
     def f_value(self, i: int, feed_mm_min: float, length_mm: float) -> float:
         """Move i's F value at feed_mm_min in its feed mode and this line's units."""
-        tp = self.program.toolpath
-        mode = int(self.program.feed_mode[i])  # an int: a numpy integer compares slowly with an enum
-        if mode == FeedMode.INVERSE_TIME and self.program.compensated[i]:  # timed by the programmed length
-            return self.f_word.value * feed_mm_min / tp.feed_mm_min[i]
+        feeds = self.feeds
+        mode = feeds.mode[i]
+        if mode == FeedMode.INVERSE_TIME and feeds.compensated[i]:  # timed by the programmed length
+            return self.f_word.value * feed_mm_min / feeds.programmed[i]
         if mode == FeedMode.INVERSE_TIME:
             return feed_mm_min / max(length_mm, 1e-12)  # inverse time: 1/min
         if mode == FeedMode.PER_REV:
-            return feed_mm_min / self.scale / max(tp.rpm[i], 1e-12)  # per revolution
+            return feed_mm_min / self.scale / max(feeds.rpm[i], 1e-12)  # per revolution
         return feed_mm_min / self.scale
 
+    def f_grid(self, value: float) -> tuple[float, int]:
+        """F `value` rounded down (never faster) to 0.1 mm/min or 0.01 in/min (two more decimals under
+        10, at least the program's own fixed decimals), and those decimals; a value within FEED_ROUNDOFF
+        under a grid value is that value (a cap the solver held, not an excess). The number `f_text` writes."""
+        d = max((2 if self.inch else 1) + (2 if value < 10 else 0), self.feeds.f_decimals or 0)
+        return math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d
+
     def f_text(self, value: float) -> str:
-        """F in the program's units, rounded down (never faster) to 0.1 mm/min or 0.01 in/min; a value
-        within FEED_ROUNDOFF under a grid value is that value (a cap the solver held, not an excess).
-        Padded with zeros to the program's own fixed decimals where it pads its F words (`_f_decimals`)."""
-        d = max((2 if self.inch else 1) + (2 if value < 10 else 0), self.f_decimals or 0)
-        text = format_number(math.floor(value * 10**d * (1 + FEED_ROUNDOFF)) / 10**d, d, self.trailing_point)
-        if self.f_decimals:
+        """F in the program's units on the grid of `f_grid`, padded with zeros to the program's own fixed
+        decimals where it pads its F words (`_f_decimals`)."""
+        rounded, d = self.f_grid(value)
+        text = format_number(rounded, d, self.trailing_point)
+        if self.feeds.f_decimals:
             whole, _, frac = text.partition(".")
-            text = f"{whole}.{frac:0<{self.f_decimals}}"
+            text = f"{whole}.{frac:0<{self.feeds.f_decimals}}"
         return text
 
-    def feed_text(self, i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
-        """F text for move i at the feed after the F in force `modal` (program units), changes
-        smaller than the plan's step made none or a full step, under the move's programmed F only
-        where a limit asks for it (`_stepped`; not in inverse time)."""
-        tp = self.program.toolpath
-        text = self.f_text(self.f_value(i, feed_mm_min, length_mm))
-        if self.flow or modal is None or int(self.program.feed_mode[i]) == FeedMode.INVERSE_TIME:
-            return text
-        keep = float(self.f_text(self.f_value(i, tp.feed_mm_min[i], length_mm))) if np.isfinite(tp.feed_mm_min[i]) else 0.0
+    def feed_value(self, i: int, f_value: float, length_mm: float, modal: float | None) -> float:
+        """The F (program units, on the grid of `f_grid`) for move i at F value `f_value` (this line's F
+        units, as `_FeedLine.f_value` gives it) after the F in force `modal`, changes smaller than the
+        plan's step made none or a full step, under the move's programmed F only where a limit asks for
+        it (`_stepped`; not in inverse time)."""
+        feeds = self.feeds
+        value = self.f_grid(f_value)[0]
+        if feeds.flow or modal is None or feeds.mode[i] == FeedMode.INVERSE_TIME:
+            return value
+        programmed = feeds.programmed[i]
+        keep = self.f_grid(self.f_value(i, programmed, length_mm))[0] if math.isfinite(programmed) else 0.0
         # the F in force is one a limit held under the programmed F of the move it was written for
-        held = _same(modal, self.written["f"]) and self.written["held"]
-        out = self.f_text(_stepped(float(text), modal, self.plan.step, keep, held))
-        self.written.update(f=float(out), held=float(out) < keep)
+        held = self.written["held"] and _same(modal, self.written["f"])
+        out = self.f_grid(_stepped(value, modal, feeds.plan.step, keep, held))[0]
+        self.written.update(f=out, held=out < keep)
         return out
+
+    def feed_text(self, i: int, feed_mm_min: float, length_mm: float, modal: float | None) -> str:
+        """`feed_value` as written (`f_text`: a value on the grid is written as it is)."""
+        return self.f_text(self.feed_value(i, self.f_value(i, feed_mm_min, length_mm), length_mm, modal))
 
     def distinct(self, i: int, fragments: list[tuple[float, float]], modal: float | None) -> list[tuple[float, float]]:
         """Move i's fragments with each one whose F as written would be the F before it (`modal` the F in
         force before the line) merged into that one: no split point where the feed does not change."""
         saved, pieces, u_prev = dict(self.written), [], 0.0
         for u_end, feed in fragments:
-            text = self.feed_text(i, feed, self.lengths[i] * (u_end - u_prev), modal)
-            if pieces and text == pieces[-1][2] and int(self.program.feed_mode[i]) != FeedMode.INVERSE_TIME:
+            text = self.feed_text(i, feed, self.feeds.lengths[i] * (u_end - u_prev), modal)
+            if pieces and text == pieces[-1][2] and self.feeds.mode[i] != FeedMode.INVERSE_TIME:
                 pieces[-1] = (u_end, pieces[-1][1], text)
             else:
                 pieces.append((u_end, feed, text))
