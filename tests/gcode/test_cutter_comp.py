@@ -445,6 +445,20 @@ def test_inverse_time_feeds_under_compensation_are_timed_by_the_programmed_move(
     assert "X20 F15" in write_feeds(p, plan)
 
 
+@pytest.mark.parametrize("comp", ["G41 ", ""])
+def test_inverse_time_move_of_no_length_keeps_its_f(comp):
+    """G93: a move of no length still takes 1/F minutes, whatever feed is planned for it, so its F is
+    kept (it was written F0, which LinuxCNC refuses in inverse time, or divided by zero under G41)."""
+    text = (f"G21 F600\nT1 M6\nG0 X0 Y-10\n{comp}G1 X0 Y0\nG93\nG1 Y20 F30\nG1 Y20 F20\nX20 F30\nG94\n"
+            "G40 G1 X-10 F600\nM2\n")
+    p = read(text)
+    plan = FeedPlan.programmed(p)
+    plan.feed_mm_min[p.toolpath.kind != RAPID] *= 0.5
+    out = write_feeds(p, plan).splitlines()
+    assert out[6] == "G1 Y20 F20"
+    assert out[5] == "G1 Y20 F15" and out[7] == "X20 F15"
+
+
 @needs_rs274
 @pytest.mark.parametrize("text", [
     "G21 F500\nT1 M6\nG0 X0 Y-10\nG41 G1 X0 Y0\nY10\nM0\nX10\nM1\nY0\nG40 G1 X20\nM2\n",  # M0/M1 flush

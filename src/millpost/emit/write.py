@@ -495,10 +495,12 @@ class _FeedLine:
         """Move i's F value at feed_mm_min in its feed mode and this line's units."""
         feeds = self.feeds
         mode = feeds.mode[i]
-        if mode == FeedMode.INVERSE_TIME and feeds.compensated[i]:  # timed by the programmed length
-            return self.f_word.value * feed_mm_min / feeds.programmed[i]
+        if mode == FeedMode.INVERSE_TIME and (feeds.compensated[i] or length_mm <= 0.0):
+            # timed by the programmed length; a move of no length takes 1/F minutes whatever its feed
+            programmed = feeds.programmed[i]
+            return self.f_word.value * feed_mm_min / programmed if programmed > 0.0 else self.f_word.value
         if mode == FeedMode.INVERSE_TIME:
-            return feed_mm_min / max(length_mm, 1e-12)  # inverse time: 1/min
+            return feed_mm_min / length_mm  # inverse time: 1/min
         if mode == FeedMode.PER_REV:
             return feed_mm_min / self.scale / max(feeds.rpm[i], 1e-12)  # per revolution
         return feed_mm_min / self.scale
