@@ -14,7 +14,7 @@ import pytest
 import trimesh
 
 from millpost import stock
-from millpost.engagement import simulate
+from millpost.engagement import _kappa, simulate
 from millpost.errors import MillpostError
 from millpost.toolpath import FEED, RAPID, Toolpath
 from millpost.tools import Tool
@@ -60,6 +60,8 @@ def test_slot_is_half_circle_and_area_is_d_times_ap():
     assert np.mean(e.ae_mm[k]) == pytest.approx(D, rel=1e-6)
     np.testing.assert_allclose(e.dz_mm[k].sum(axis=1), ap, rtol=1e-5)
     np.testing.assert_allclose(e.kappa[k], math.pi / 2)
+    # the flat tool's one κ (no per-slice array) is exactly what its profile gives at every slice
+    np.testing.assert_array_equal(e.kappa, _kappa(Tool(D), e.z_mm))
     np.testing.assert_allclose(np.hypot(e.feed_dir[k, 0], e.feed_dir[k, 1]), 1.0)
     np.testing.assert_allclose(e.feed_dir[k, :2], np.tile(f, (100, 1)), atol=1e-9)
 

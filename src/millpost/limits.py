@@ -218,7 +218,8 @@ def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray
     with np.errstate(divide="ignore", invalid="ignore"):
         v_cap = np.where(a > 0, (bound - b) / a, np.where(b <= bound, np.inf, -np.inf))
     held = v_cap < v_keep
-    return np.where(held, a * v_keep + b, bound), held
+    # memory: where nothing is held the bound itself (no copy of it per limit)
+    return (np.where(held, a * v_keep + b, bound) if held.any() else bound), held
 
 
 def _corners(model: ControllerModel, samples: Samples, toolpath: Toolpath, modes: PathModes):
