@@ -20,6 +20,7 @@ import numpy as np
 
 from . import controller, safety
 from ._kernels import set_threads
+from .compensate.predicted import SurfaceError
 from .emit import baseline_within, emission_limit, emit_programmed, emit_within, emitted_positions
 from .engagement import engage
 from .gcode import read_program
@@ -77,8 +78,8 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         limits, modes = None, controller.path_modes(program, model)
         zones = controller.blend_zones(program.toolpath, model, modes)  # the programmed corners' blend arcs
         if job.settings.rpm != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=True, modes=modes,
-                                  zones=zones)
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=not trace,
+                                  modes=modes, zones=zones)  # the trace's surface error reads the slices
         t_limits = time.perf_counter()
         result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits, modes=modes,
                                   zones=zones, trace=trace, cut=cut)
@@ -155,14 +156,17 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     # the programmed run first: only its ratios are kept, so its signals are freed before the emitted run's;
     # a load against its bound before the policy (the policy's held bound is the programmed feed's own load,
     # against which the programmed feeds would read 1 however far over the limit they are)
-    programmed_run = replay(job, samples, eng, limits, before.speed_at_samples(samples), columns=False)
+    programmed_speed = before.speed_at_samples(samples)
+    programmed_run = replay(job, samples, eng, limits, programmed_speed, columns=False)
     as_programmed = programmed_run.ratios | programmed_run.physical | f_words_over_caps(samples, limits)
     del programmed_run
     progress("replay", 2, 3)
     checked = replay(job, samples, eng, limits, executed, columns=trace)  # its columns: the trace's
     progress("replay", 3, 3)
+    surface = (SurfaceError.predict(job, program, samples, eng, {"programmed": programmed_speed, "optimized": executed})
+               if trace else None)
     run = Run(job, program, samples, eng, limits, sched, before, baseline, base_feeds, base_per_tool, emission,
-              executed, checked, as_programmed, status, message, spindle, Chatter.check(job, cut, samples))
+              executed, checked, as_programmed, status, message, spindle, Chatter.check(job, cut, samples), surface)
     stage_s = {"limits": round(t0 - t_limits, 3), "schedule": round(solver_s, 3),
                "emit": round(t_emit - t0 - solver_s, 3), "replay": round(time.perf_counter() - t_emit, 3)}
     summary = summarize(run, solver_s, stage_s)

@@ -26,6 +26,7 @@ from .operations import restart_points
 from .replay import Replay, binding_shares, feed_at_samples
 from .schedule import FeedLimit, PathGrid, ProgramSchedule
 from .signals import running_rpm
+from .compensate.predicted import SurfaceError
 from .stability.check import Chatter
 from .toolpath import RAPID, Samples
 
@@ -49,7 +50,8 @@ class Run:
     the honest baseline's feeds (mm/min per move, `base_per_tool` per tool and programmed F) and run,
     the emission, the executed speed (mm/s per sample) of the emitted program, its replay (`checked`)
     and the programmed feeds' ratios (`as_programmed`), `spindle`: the chosen spindle speeds (opt-in),
-    `chatter`: the chatter check (None: no tool has an FRF)."""
+    `chatter`: the chatter check (None: no tool has an FRF), `surface`: the predicted surface error as
+    programmed and as optimized (with the trace; None: not asked for, or no wall or floor finished)."""
 
     job: Job
     program: Program
@@ -69,6 +71,7 @@ class Run:
     message: str
     spindle: dict
     chatter: Chatter | None = None
+    surface: SurfaceError | None = None
 
 
 def run_status(failed: list, before: controller.Execution, after: controller.Execution | None
@@ -139,9 +142,10 @@ def summarize(run: Run, solver_s: float, stage_s: dict[str, float]) -> dict:
     }
     if spindle:
         summary["spindle"] = spindle
-    if run.chatter is not None:
-        summary[run.chatter.name] = run.chatter.summary()
-        summary["notes"] += run.chatter.notes()
+    for check in (run.chatter, run.surface):
+        if check is not None:
+            summary[check.name] = check.summary()
+            summary["notes"] += check.notes()
     _gates(run, summary)
     return summary
 
@@ -166,7 +170,7 @@ def trace_columns(run: Run) -> dict[str, np.ndarray]:
     """The per-sample trace (`--trace` CSV, the job report's plots): position, engagement, the feeds
     (mm/min) programmed, baseline, scheduled, executed, minimum-chip and hard cap, the loads and their
     bounds, which kind of limit binds, where the policy held a bound and (a tool with an FRF) the chatter
-    check (`Chatter.trace_columns`)."""
+    check (`Chatter.trace_columns`) and the predicted surface error (`SurfaceError.trace_columns`)."""
     samples, eng, limits, sched = run.samples, run.eng, run.limits, run.sched
     cut = samples.kind != RAPID
     trace = {"s_mm": samples.s_mm, "x": samples.xyz_mm[:, 0], "y": samples.xyz_mm[:, 1], "z": samples.xyz_mm[:, 2],
@@ -180,8 +184,9 @@ def trace_columns(run: Run) -> dict[str, np.ndarray]:
              "binding_hard": _binding_kind(samples, sched, limits, HARD), **run.checked.trace_columns()}
     # 1 where the policy held that limit's bound at the programmed or minimum-chip feed (reported)
     trace.update({f"held_{k}": v.astype(np.int8) for k, v in sorted(limits.held.items())})
-    if run.chatter is not None:
-        trace.update(run.chatter.trace_columns())
+    for check in (run.chatter, run.surface):
+        if check is not None:
+            trace.update(check.trace_columns())
     return trace
 
 

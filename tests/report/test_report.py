@@ -69,7 +69,8 @@ def test_report_numbers_and_self_contained(slotting_result):
     current = float(np.nanmax(np.where(data.cutting, data.signals["current_ratio"], np.nan)))
     assert result.summary["limits"]["current"] - 1e-3 <= current <= 2 * result.summary["limits"]["current"] + 0.05
     page = render(data)
-    assert len(re.findall(r"<svg data-figure=", page)) == 5
+    # cycle times, feed, loads, top view, final stock and the predicted surface error (the slots' walls)
+    assert len(re.findall(r"<svg data-figure=", page)) == 6 and "surface_error" in result.summary
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//)""", page)  # nothing fetched: opens offline
     assert "<script" not in page
     # the final stock: cut down to the deepest Z programmed where the tool overlaps the stock (the slots'

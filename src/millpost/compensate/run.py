@@ -31,7 +31,7 @@ from ..toolpath import RAPID, Samples
 from .deflection import deflection_vectors
 from .model import Deflected, deflected_run
 from .path import MoveOffsets, commanded, plan_offsets
-from .surface import Surfaces, error_table
+from .surface import Surfaces, per_operation
 from .write import check_writable, write_offsets
 
 TOLERANCE_MM = 0.002
@@ -135,10 +135,8 @@ def _summary(job: Job, program: Program, samples: Samples, surfaces: Surfaces, b
     comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
     ops = operations_from_lines(samples.line, samples.tool, comments)
     p = samples.xyz_mm
-    tables = [error_table(ops, *surfaces.errors_mm(run.actual_mm - p)) for run in (before, after)]
-    operations = [{"operation": b["operation"], "tool": b["tool"], "line": b["line"],
-                   "before": {s: b[s] for s in ("wall", "floor") if s in b},
-                   "after": {s: a[s] for s in ("wall", "floor") if s in a}} for b, a in zip(*tables)]
+    operations = per_operation(ops, {name: surfaces.errors_mm(run.actual_mm - p)
+                                     for name, run in (("before", before), ("after", after))})
     rms = [rms_error_mm(surfaces, run.actual_mm - p) * 1000.0 for run in (before, after)]
     largest = [float(np.abs(_errors_mm(surfaces, run.actual_mm - p)).max(initial=0.0)) * 1000.0
                for run in (before, after)]

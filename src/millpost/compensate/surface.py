@@ -87,3 +87,14 @@ def error_table(operations: list[Operation], wall_mm: np.ndarray, floor_mm: np.n
         if "wall" in row or "floor" in row:
             out.append(row)
     return out
+
+
+def per_operation(operations: list[Operation], errors: dict[str, tuple[np.ndarray, np.ndarray]]) -> list[dict]:
+    """Per operation that makes a wall or floor: its name, tool and line and, per state of the tool (e.g.
+    "before" and "after"; errors: that state's (wall, floor) error per sample, mm, as `Surfaces.errors_mm`
+    gives them), the `error_table` entries of its surfaces."""
+    tables = {state: error_table(operations, *e) for state, e in errors.items()}
+    first = next(iter(tables.values()), [])
+    return [{"operation": row["operation"], "tool": row["tool"], "line": row["line"],
+             **{state: {s: t[k][s] for s in ("wall", "floor") if s in t[k]} for state, t in tables.items()}}
+            for k, row in enumerate(first)]

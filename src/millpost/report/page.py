@@ -82,6 +82,7 @@ def render(data: ReportData) -> str:
     if data.stock is not None:
         parts += ["<h2>Final stock</h2>", f"<figure>{figures.stock_map(data)}</figure>"]
     parts += _lobes_section(data)
+    parts += _surface_section(data)
     notes = list(s.get("notes", []))
     for name, h in s.get("held", {}).items():
         notes.append(f"{name} ({h['kind']}) held by the feed policy on {h['line_count']} lines "
@@ -117,20 +118,39 @@ def write_report(path: str | os.PathLike, data: ReportData) -> None:
 def compensation_page(summary: dict, figure: str) -> str:
     """The page of `millpost compensate --report`: the predicted surface error per operation before and
     after, and its map (`figures.surface_error_map`)."""
-    rows = [{"operation": op["operation"], "surface": surf, "before": op["before"][surf]["rms_um"],
-             "after": op["after"][surf]["rms_um"], "before_max": op["before"][surf]["max_um"],
-             "after_max": op["after"][surf]["max_um"]}
-            for op in summary["operations"] for surf in ("wall", "floor") if surf in op["before"]]
     title = html.escape(str(summary.get("program", "")))
     body = "\n".join([
         f"<h1>millpost compensate: {title}</h1>",
         '<p class="headline">predicted surface error (RMS over walls and floors) '
         f'{summary["surface_error_before_um"]:.1f} → {summary["surface_error_after_um"]:.1f} µm</p>',
-        _table(rows, [("operation", "operation", ""), ("surface", "surface", ""), ("before", "RMS before (µm)", ".1f"),
-                      ("after", "RMS after (µm)", ".1f"), ("before_max", "largest before (µm)", ".1f"),
-                      ("after_max", "largest after (µm)", ".1f")]),
-        "<h2>Surface error along walls and floors</h2><p>The deflected tool's envelope against the programmed "
-        "one, at each sample that finishes a wall or a floor (wall where both): red material left, blue "
-        "overcut.</p>", f"<figure>{figure}</figure>"])
+        _surface_table(summary["operations"], ("before", "after")),
+        f"<h2>Surface error along walls and floors</h2><p>{SURFACE_MAP}</p>", f"<figure>{figure}</figure>"])
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>millpost compensate: {title}'
             f"</title><style>{STYLE}</style></head><body>\n{body}\n</body></html>\n")
+
+
+SURFACE_MAP = ("The deflected tool's envelope against the programmed one, at each sample that finishes a wall or a "
+               "floor (wall where both): red material left, blue overcut.")
+
+
+def _surface_table(operations: list[dict], states: tuple[str, ...]) -> str:
+    """Per operation and surface it finishes, each state's RMS and largest error (µm)."""
+    rows = [{"operation": op["operation"], "surface": surf,
+             **{f"{st}_{k}": op[st][surf][f"{k}_um"] for st in states for k in ("rms", "max")}}
+            for op in operations for surf in ("wall", "floor") if surf in op[states[0]]]
+    return _table(rows, [("operation", "operation", ""), ("surface", "surface", "")]
+                  + [(f"{st}_rms", f"RMS {st} (µm)", ".1f") for st in states]
+                  + [(f"{st}_max", f"largest {st} (µm)", ".1f") for st in states])
+
+
+def _surface_section(data: ReportData) -> list[str]:
+    """The predicted surface error as programmed and as optimized (nothing when the trace has none)."""
+    states = tuple(st for st in ("programmed", "optimized") if f"surface_error_{st}_um" in data.trace)
+    entry = data.summary.get("surface_error")
+    if not states or not entry:
+        return []
+    t = data.trace
+    figure = figures.surface_error_map(t["x"], t["y"], {st: t[f"surface_error_{st}_um"] for st in states})
+    return ["<h2>Predicted surface error</h2><p>Where the tool bends under the predicted force (its beam and the "
+            "machine's compliance), at the programmed and at the optimized feed: a faster feed pushes harder. "
+            f"{SURFACE_MAP}</p>", _surface_table(entry["operations"], states), f"<figure>{figure}</figure>"]
