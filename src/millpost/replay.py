@@ -11,7 +11,7 @@ compared with the bound the schedule was given (after the feed policy of `millpo
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -118,11 +118,6 @@ class Replay:
                 chip.bound_column: bound(chip), Load.DRIVE_CURRENT.column: np.where(cut, self.current_ratio, 0.0)}
 
 
-def _sample_range(samples: Samples, lo: int, hi: int) -> Samples:
-    """Samples lo..hi−1 (views)."""
-    return Samples(**{f.name: getattr(samples, f.name)[lo:hi] for f in fields(samples)})
-
-
 def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_s: np.ndarray,
            columns: bool = True) -> Replay:
     """The signals at the executed speeds (mm/s per sample) from the forward model (`signals.predict`
@@ -151,7 +146,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     for lo in range(0, n, LOAD_CHUNK):
         hi = min(lo + LOAD_CHUNK, n)
         a, b = max(lo - 1, 0), min(hi + 1, n)
-        sig = predict(job, _sample_range(samples, a, b), eng.select(slice(a, b)), v_mm_s[a:b],
+        sig = predict(job, samples.select(slice(a, b)), eng.select(slice(a, b)), v_mm_s[a:b],
                       loads=limits.loads.select(slice(a, b))).select(slice(lo - a, hi - a))
         at, on = slice(lo, hi), cut[lo:hi]
         raw_best: dict[str, np.ndarray] = {}  # per name: the highest value / raw bound so far in the chunk

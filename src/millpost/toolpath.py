@@ -280,6 +280,10 @@ class Samples:
     def __len__(self) -> int:
         return len(self.s_mm)
 
+    def select(self, index) -> "Samples":
+        """The samples at `index` (a slice: views; a mask or index array: copies)."""
+        return Samples(**{k: getattr(self, k)[index] for k in self.__dataclass_fields__})
+
     @classmethod
     def empty(cls) -> "Samples":
         z, z3 = np.zeros(0), np.zeros((0, 3))

@@ -22,7 +22,7 @@ the height difference (+ material left).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt
@@ -31,15 +31,11 @@ from .. import controller, engagement, stock as stocks
 from ..gcode.interpret import Program
 from ..job import Job
 from ..signals import controller_model, predict
-from ..toolpath import RAPID, Samples
+from ..toolpath import RAPID
 from .deflection import deflection_vectors
 from .run import across
 
 REACH_MM = 1.0  # beyond the tool's radius: the largest deflection looked for
-
-
-def _take(samples: Samples, index) -> Samples:
-    return replace(samples, **{f.name: np.asarray(getattr(samples, f.name))[index] for f in fields(samples)})
 
 
 def _near(lo: np.ndarray, hi: np.ndarray, xyz: np.ndarray, reach_mm: float) -> bool:
@@ -105,7 +101,7 @@ def deflected_cut(job: Job, program: Program, cell_mm: float, *, rigid: bool = F
     for k in range(start, len(samples)):
         joined = k > start and not samples.segment_start[k]
         idx = np.array([k - 1, k]) if joined else np.array([k])
-        sub = _take(samples, idx)
+        sub = samples.select(idx)
         if samples.kind[k] == RAPID or not _near(lo, hi, c[idx], reach[samples.tool[k]]):
             d = np.zeros(3)  # a rapid, or out of reach of the stock: no force, nothing to cut
             a[k] = c[k]

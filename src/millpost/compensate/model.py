@@ -91,10 +91,16 @@ def deflected_run(job: Job, eng: Engagement, surfaces: Surfaces, samples: Sample
     order, moves and feeds; programmed at `samples.xyz_mm`), the path speed per sample (mm/s), with `eng`
     the programmed positions' engagement through the stock and `surfaces` the surfaces it makes."""
     c, p = np.asarray(commanded_mm, float), np.asarray(samples.xyz_mm, float)
+    # a sample's force is its own cut's at its own speed, and only the cuts of the samples that make a
+    # wall or a floor move with the tool (`displaced`): the others' deflection is computed once
+    delta = deflection_vectors(job, predict(job, samples, eng, speed_mm_s))
+    on = np.flatnonzero(surfaces.wall | surfaces.floor)
+    at, cut, speed = samples.select(on), eng.select(on), np.asarray(speed_mm_s, float)[on]
+    made = Surfaces(surfaces.wall_normal[on], surfaces.floor[on])
     a = c.copy()
     for k in range(1, max_iterations + 1):
-        sig = predict(job, samples, displaced(eng, surfaces, a - p), speed_mm_s)
-        step = c + deflection_vectors(job, sig) - a
+        delta[on] = deflection_vectors(job, predict(job, at, displaced(cut, made, a[on] - p[on]), speed))
+        step = c + delta - a
         moved = float(np.quantile(np.abs(step).max(axis=1), SETTLED)) if len(step) else 0.0
         a = a + (1.0 if moved <= tolerance_mm else RELAX) * step
         if moved <= tolerance_mm:
