@@ -126,7 +126,7 @@ DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
 RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
 DESCENDING = 1e-9  # a sample whose tangent points down by more (dz/ds) goes down
-LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
+LOAD_CHUNK = 5_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
 
 
 @dataclass(frozen=True)
@@ -354,15 +354,15 @@ class _CutLoads:
     rpm: np.ndarray
     engaged: np.ndarray
     spin: np.ndarray
-    peak_limit: np.ndarray
-    defl_per_N: np.ndarray
+    peak_limit: Derived
+    defl_per_N: Derived
     defl_limit: np.ndarray
     chip_a: np.ndarray
     h_max: np.ndarray
     floor: np.ndarray
     sin_end: np.ndarray
-    thrust_limit: np.ndarray
-    tool_torque_limit: np.ndarray
+    thrust_limit: Derived
+    tool_torque_limit: Derived
     defaults: dict[str, str]
 
 
@@ -386,11 +386,12 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
         raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = LinearLoads.zeros(n)
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
-    peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
+    defl_limit = np.full(n, np.inf)
     chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
     # chip thickness per unit feed per tooth: flank (chip thinning) and end (axial chip over its share)
     sin_max, sin_end, chip_factor = np.zeros(n), np.zeros(n), np.zeros(n)
-    thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
+    # per tool (`_per_tool`): the breaking force and the compliance of the cut's depth, buckling, torsion
+    peak_by, defl_by, thrust_by, torque_by = {}, {}, {}, {}
     defaults: dict[str, str] = {}
     rough_by_tool: dict[int, float] = {}
     done = 0
@@ -439,16 +440,17 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
                 for key in ("power", "torque", "force"):
                     getattr(loads, f"{key}_a")[part] += getattr(le, f"{key}_a")
                     getattr(loads, f"{key}_b")[part] += getattr(le, f"{key}_b")
-        thrust_limit[idx] = thrust_limit_N(tool, job.settings.tool_safety_factor)
-        tool_torque_limit[idx] = torque_limit_Nm(tool, job.settings.tool_safety_factor)
+        thrust_by[int(number)] = lambda ap, v=thrust_limit_N(tool, job.settings.tool_safety_factor): v
+        torque_by[int(number)] = lambda ap, v=torque_limit_Nm(tool, job.settings.tool_safety_factor): v
         beam = ToolBeam.of(tool, safety_factor=job.settings.tool_safety_factor)
         if job.settings.tool_safety_factor is None:
             sf = f"T{number} {default_safety_factor(tool):g} (by diameter and slenderness)"
             defaults.setdefault("cutting_force", f"tool safety factor on the bending strength: {sf}")
             defaults.setdefault("thrust", f"tool safety factor on the buckling load: {sf}")
             defaults.setdefault("tool_torque", f"tool safety factor on the torsional strength: {sf}")
-        peak_limit[idx] = beam.breaking_force_N(eng.ap_mm[idx])  # the cut's depth sets the lever arm
-        defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + m.lateral_compliance_mm_per_N
+        peak_by[int(number)] = beam.breaking_force_N  # the cut's depth sets the lever arm
+        defl_by[int(number)] = lambda ap, beam=beam: (beam.compliance_mm_per_N(ap, at_tip=True)
+                                                      + m.lateral_compliance_mm_per_N)
         if job.settings.deflection_mm is not None:
             defl_limit[idx] = job.settings.deflection_mm
         else:
@@ -467,8 +469,23 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
-    return _CutLoads(loads, rpm, engaged, spin, peak_limit, defl_per_N, defl_limit, chip_a, h_max, floor, sin_end,
-                     thrust_limit, tool_torque_limit, defaults)
+    tool, ap = samples.tool, eng.ap_mm
+    return _CutLoads(loads, rpm, engaged, spin, _per_tool(tool, ap, peak_by, np.inf), _per_tool(tool, ap, defl_by, 0.0),
+                     defl_limit, chip_a, h_max, floor, sin_end, _per_tool(tool, ap, thrust_by, np.inf),
+                     _per_tool(tool, ap, torque_by, np.inf), defaults)
+
+
+def _per_tool(tool: np.ndarray, ap_mm: np.ndarray, by_tool: dict[int, Callable[[np.ndarray], Any]],
+              other: float) -> Derived:
+    """Per sample, `by_tool[number](ap)` on the samples of each tool number in it (elementwise in the depth of
+    cut ap_mm, or a constant), `other` on the others: computed on demand (`Derived`, memory)."""
+    def f(t: np.ndarray, ap: np.ndarray) -> np.ndarray:
+        out = np.full(len(t), other)
+        for number, g in by_tool.items():
+            if (mine := t == number).any():
+                out[mine] = g(ap[mine])
+        return out
+    return Derived(f, (tool, ap_mm), (len(tool),))
 
 
 @dataclass
