@@ -104,7 +104,7 @@ from .progress import Progress, silent
 from .schedule import (AxisAcceleration, AxisVelocity, Centripetal, CornerSpeed, CurrentSlew, FeedLimit, Junction,
                        MinSpeed, MotorCurrent, PathGrid, PathJerk, SpeedLoad)
 from .schedule.assemble import merged_bounds
-from .schedule.constraints import window_blocks
+from .schedule.constraints import Derived, window_blocks
 from .safety import spindle_off_message
 from .signals import Load, running_rpm
 from .engagement import path_radius
@@ -126,7 +126,7 @@ DEFLECTION_ROUGH_MM = 0.025  # 0.001 in
 DEFLECTION_ROUGH_RATIO = 0.004  # 0.001 in per 1/4 in of diameter
 RETRACT_COS = 0.999  # a feed move within 2.6° of straight up is a retract (the air clearance lets it go)
 DESCENDING = 1e-9  # a sample whose tangent points down by more (dz/ds) goes down
-LOAD_CHUNK = 20_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
+LOAD_CHUNK = 5_000  # samples per force-model call (bounds the per-slice temporaries, ~3 KB a sample)
 
 
 @dataclass(frozen=True)
@@ -212,14 +212,22 @@ def max_sin(eng) -> np.ndarray:
     return np.where(cuts, s * np.sin(eng.kappa), 0.0).max(axis=1, initial=0.0)
 
 
-def _policed(a: np.ndarray, b: np.ndarray, bound: np.ndarray, v_keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _policed(a, b, bound, v_keep: np.ndarray) -> tuple[np.ndarray | Derived, np.ndarray]:
     """Bound of a load a·v + b ≤ bound after the policy: where the load reaches its bound below
-    v_keep (mm/s), the bound becomes the load at v_keep. Returns (bound, held)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v_cap = np.where(a > 0, (bound - b) / a, np.where(b <= bound, np.inf, -np.inf))
-    held = v_cap < v_keep
-    # memory: where nothing is held the bound itself (no copy of it per limit)
-    return (np.where(held, a * v_keep + b, bound) if held.any() else bound), held
+    v_keep (mm/s), the bound becomes the load at v_keep. Returns (bound, held). a, b, bound: per-sample
+    arrays or `Derived` (read in chunks of LOAD_CHUNK samples); the bound is `Derived` where something is
+    held, else the bound itself (memory: no array of its own per limit)."""
+    n = len(v_keep)
+    held = np.empty(n, bool)
+    for lo in range(0, n, LOAD_CHUNK):
+        at = slice(lo, min(lo + LOAD_CHUNK, n))
+        a_, b_, bound_ = a[at], b[at], bound[at]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v_cap = np.where(a_ > 0, (bound_ - b_) / a_, np.where(b_ <= bound_, np.inf, -np.inf))
+        held[at] = v_cap < v_keep[at]
+    if not held.any():
+        return bound, held
+    return Derived(lambda h, a, v, b, bound: np.where(h, a * v + b, bound), (held, a, v_keep, b, bound), (n,)), held
 
 
 def _corners(model: ControllerModel, samples: Samples, toolpath: Toolpath, modes: PathModes):
@@ -346,15 +354,15 @@ class _CutLoads:
     rpm: np.ndarray
     engaged: np.ndarray
     spin: np.ndarray
-    peak_limit: np.ndarray
-    defl_per_N: np.ndarray
+    peak_limit: Derived
+    defl_per_N: Derived
     defl_limit: np.ndarray
     chip_a: np.ndarray
     h_max: np.ndarray
     floor: np.ndarray
     sin_end: np.ndarray
-    thrust_limit: np.ndarray
-    tool_torque_limit: np.ndarray
+    thrust_limit: Derived
+    tool_torque_limit: Derived
     defaults: dict[str, str]
 
 
@@ -378,11 +386,12 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
         raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
     loads = LinearLoads.zeros(n)
     rpm = np.where(spin, running_rpm(job, samples.rpm), 1.0)
-    peak_limit, defl_per_N, defl_limit = np.full(n, np.inf), np.zeros(n), np.full(n, np.inf)
+    defl_limit = np.full(n, np.inf)
     chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
     # chip thickness per unit feed per tooth: flank (chip thinning) and end (axial chip over its share)
     sin_max, sin_end, chip_factor = np.zeros(n), np.zeros(n), np.zeros(n)
-    thrust_limit, tool_torque_limit = np.full(n, np.inf), np.full(n, np.inf)
+    # per tool (`_per_tool`): the breaking force and the compliance of the cut's depth, buckling, torsion
+    peak_by, defl_by, thrust_by, torque_by = {}, {}, {}, {}
     defaults: dict[str, str] = {}
     rough_by_tool: dict[int, float] = {}
     done = 0
@@ -431,16 +440,17 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
                 for key in ("power", "torque", "force"):
                     getattr(loads, f"{key}_a")[part] += getattr(le, f"{key}_a")
                     getattr(loads, f"{key}_b")[part] += getattr(le, f"{key}_b")
-        thrust_limit[idx] = thrust_limit_N(tool, job.settings.tool_safety_factor)
-        tool_torque_limit[idx] = torque_limit_Nm(tool, job.settings.tool_safety_factor)
+        thrust_by[int(number)] = lambda ap, v=thrust_limit_N(tool, job.settings.tool_safety_factor): v
+        torque_by[int(number)] = lambda ap, v=torque_limit_Nm(tool, job.settings.tool_safety_factor): v
         beam = ToolBeam.of(tool, safety_factor=job.settings.tool_safety_factor)
         if job.settings.tool_safety_factor is None:
             sf = f"T{number} {default_safety_factor(tool):g} (by diameter and slenderness)"
             defaults.setdefault("cutting_force", f"tool safety factor on the bending strength: {sf}")
             defaults.setdefault("thrust", f"tool safety factor on the buckling load: {sf}")
             defaults.setdefault("tool_torque", f"tool safety factor on the torsional strength: {sf}")
-        peak_limit[idx] = beam.breaking_force_N(eng.ap_mm[idx])  # the cut's depth sets the lever arm
-        defl_per_N[idx] = beam.compliance_mm_per_N(eng.ap_mm[idx], at_tip=True) + m.lateral_compliance_mm_per_N
+        peak_by[int(number)] = beam.breaking_force_N  # the cut's depth sets the lever arm
+        defl_by[int(number)] = lambda ap, beam=beam: (beam.compliance_mm_per_N(ap, at_tip=True)
+                                                      + m.lateral_compliance_mm_per_N)
         if job.settings.deflection_mm is not None:
             defl_limit[idx] = job.settings.deflection_mm
         else:
@@ -459,8 +469,23 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
     if rough_by_tool:
         defaults["deflection"] = ("roughing, max(0.025 mm, 0.4 % of D): "
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
-    return _CutLoads(loads, rpm, engaged, spin, peak_limit, defl_per_N, defl_limit, chip_a, h_max, floor, sin_end,
-                     thrust_limit, tool_torque_limit, defaults)
+    tool, ap = samples.tool, eng.ap_mm
+    return _CutLoads(loads, rpm, engaged, spin, _per_tool(tool, ap, peak_by, np.inf), _per_tool(tool, ap, defl_by, 0.0),
+                     defl_limit, chip_a, h_max, floor, sin_end, _per_tool(tool, ap, thrust_by, np.inf),
+                     _per_tool(tool, ap, torque_by, np.inf), defaults)
+
+
+def _per_tool(tool: np.ndarray, ap_mm: np.ndarray, by_tool: dict[int, Callable[[np.ndarray], Any]],
+              other: float) -> Derived:
+    """Per sample, `by_tool[number](ap)` on the samples of each tool number in it (elementwise in the depth of
+    cut ap_mm, or a constant), `other` on the others: computed on demand (`Derived`, memory)."""
+    def f(t: np.ndarray, ap: np.ndarray) -> np.ndarray:
+        out = np.full(len(t), other)
+        for number, g in by_tool.items():
+            if (mine := t == number).any():
+                out[mine] = g(ap[mine])
+        return out
+    return Derived(f, (tool, ap_mm), (len(tool),))
 
 
 @dataclass
@@ -483,7 +508,7 @@ class _Policy:
         policy holds the limit's bound so far (over all its rows: a limit of several rows calls this once
         per row)."""
         held, forced, n = self.held, self.forced, len(self.cutting)
-        bound = np.broadcast_to(bound, a.shape)
+        bound = bound if isinstance(bound, Derived) else np.broadcast_to(bound, a.shape)
         bound_eff, h = _policed(a, b, bound, self.keep_hard if kind == HARD else self.keep_quality)
         held[name] = held.get(name, np.zeros(n, bool)) | (h & self.cutting)
         if kind == HARD:
@@ -498,21 +523,26 @@ def _cut_limits(policy: _Policy, job: Job, cut: _CutLoads) -> None:
     deflection, the tool's buckling (thrust) and torsion, the chip load."""
     m, loads, n, spin, rpm = job.machine, cut.loads, len(cut.rpm), cut.spin, cut.rpm
     defl_per_N, chip_a, defaults = cut.defl_per_N, cut.chip_a, cut.defaults
-    # each load is affine in the speed (the schedule's rows)
+    # each load is affine in the speed (the schedule's rows); arrays scaled from the loads or the spindle's
+    # speed are `Derived` (memory: computed per window, the same numbers)
+    power = Derived(lambda on, r: np.where(on, m.spindle.power_available_W(r), np.inf), (spin, rpm), (n,))
+    torque = Derived(lambda on, r: np.where(on, m.spindle.torque_Nm(r), np.inf), (spin, rpm), (n,))
     policy.load_limit("cutting_force", HARD, Load.PEAK_FORCE, "cutting force", loads.peak_a, loads.peak_b,
                       cut.peak_limit, lambda s, at: s.peak_force_xy_N, defaults.get("cutting_force", ""))
-    policy.load_limit("power", HARD, Load.POWER, "power", loads.power_a, loads.power_b,
-                      np.where(spin, m.spindle.power_available_W(rpm), np.inf), lambda s, at: s.cutting_power_W)
-    policy.load_limit("torque", HARD, Load.TORQUE, "power", loads.torque_a, loads.torque_b,
-                      np.where(spin, m.spindle.torque_Nm(rpm), np.inf), lambda s, at: s.torque_Nm)
-    policy.load_limit("deflection", QUALITY, Load.DEFLECTION, "deflection", loads.peak_a * defl_per_N,
-                      loads.peak_b * defl_per_N, cut.defl_limit, lambda s, at: s.peak_force_xy_N * defl_per_N[at],
-                      defaults.get("deflection", ""))
+    policy.load_limit("power", HARD, Load.POWER, "power", loads.power_a, loads.power_b, power,
+                      lambda s, at: s.cutting_power_W)
+    policy.load_limit("torque", HARD, Load.TORQUE, "power", loads.torque_a, loads.torque_b, torque,
+                      lambda s, at: s.torque_Nm)
+    policy.load_limit("deflection", QUALITY, Load.DEFLECTION, "deflection",
+                      Derived(np.multiply, (loads.peak_a, defl_per_N), (n,)),
+                      Derived(np.multiply, (loads.peak_b, defl_per_N), (n,)), cut.defl_limit,
+                      lambda s, at: s.peak_force_xy_N * defl_per_N[at], defaults.get("deflection", ""))
     policy.load_limit("thrust", HARD, Load.THRUST, "thrust", loads.force_a[:, 2], loads.force_b[:, 2],
                       cut.thrust_limit, lambda s, at: s.force_tool_N[:, 2], defaults.get("thrust", ""))
     policy.load_limit("tool_torque", HARD, Load.TORQUE, "tool torque", loads.torque_a, loads.torque_b,
                       cut.tool_torque_limit, lambda s, at: s.torque_Nm, defaults.get("tool_torque", ""))
-    policy.load_limit("chip_load_max", QUALITY, Load.CHIP, "chip load", chip_a, np.zeros(n), cut.h_max,
+    policy.load_limit("chip_load_max", QUALITY, Load.CHIP, "chip load", chip_a, Derived(np.zeros_like, (chip_a,), (n,)),
+                      cut.h_max,
                       lambda s, at: s.speed_mm_s * chip_a[at])  # a restart's descent has a chip where nothing cuts
 
 
@@ -554,20 +584,17 @@ def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: LinearLoad
     # acceleration (it ramps at a_max whatever the F words say): per axis
     # |F_b| + f_c + (|F_a| + c_v·|t|)·v ≤ k_f·I_max − m·a_max (N at the carriage), a conservative speed cap.
     capacity = np.asarray(kf) * np.asarray(current) - np.asarray(mass) * np.asarray(amax) * 1e-3
-    static = np.abs(loads.force_b) + friction
-    slope = np.abs(loads.force_a) + viscous * np.abs(samples.tangent)
-    for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed
-        stalled = policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope[:, k], static[:, k],
-                          np.where(engaged, capacity[k], np.inf),
-                          lambda s, at, k=k: slope[at, k] * s.speed_mm_s + static[at, k])
+    for k in range(3):  # the drive force the cut and friction take at most, at the sample's speed (`Derived`)
+        slope = Derived(lambda fa, t, c=viscous[k]: np.abs(fa) + c * np.abs(t),
+                        (loads.force_a[:, k], samples.tangent[:, k]), (n,))
+        static = Derived(lambda fb, c=friction[k]: np.abs(fb) + c, (loads.force_b[:, k],), (n,))
+        stalled = policy.load_limit("cutting_current", HARD, Load.DRIVE_CURRENT, "current", slope, static,
+                                    Derived(lambda e, c=capacity[k]: np.where(e, c, np.inf), (engaged,), (n,)),
+                                    lambda s, at, slope=slope, static=static: slope[at] * s.speed_mm_s + static[at])
     # The cutting share of the current is taken at each sample's speed cap (the speed-only limits
     # above), the endpoint of larger magnitude of the force over [0, cap]: linear rows, no √b term.
     v_cap = static_caps(samples, limits)
-    drive_force = np.empty((n, 3))
-    for k in range(3):  # per axis: temporaries of one column (memory)
-        at_cap = loads.force_a[:, k] * v_cap + loads.force_b[:, k]
-        drive_force[:, k] = -np.where(np.abs(at_cap) > np.abs(loads.force_b[:, k]), at_cap, loads.force_b[:, k])
-    drive_force[stalled] = 0.0  # inertia only there: the cutting share is held at the kept feed (reported)
+    drive_force = Derived(_drive_force, (loads.force_a, loads.force_b, v_cap, stalled), (n, 3))
     limits.append(Limit(MotorCurrent(mass, kf, current, tuple(friction), tuple(viscous), cut_beta=drive_force),
                         HARD, "current"))
     limits.append(Limit(CurrentSlew(mass, kf, current, tuple(a.motor.resistance_ohm for a in ax),
@@ -575,6 +602,16 @@ def _drive_limits(policy: _Policy, job: Job, samples: Samples, loads: LinearLoad
                                     min(a.motor.bus_voltage_V for a in ax), tuple(1.0 / (r * 1000.0) for r in rho)),
                         HARD, "current"))
     return v_cap
+
+
+def _drive_force(force_a: np.ndarray, force_b: np.ndarray, v_cap: np.ndarray, stalled: np.ndarray) -> np.ndarray:
+    """The cutting force on the axes (N, (n, 3)) the motor current takes, at the speed cap v_cap (mm/s) or at
+    standstill, whichever is larger; 0 where the policy held the cutting current (`stalled`: inertia only
+    there, the cutting share is held at the kept feed, reported)."""
+    at_cap = force_a * v_cap[:, None] + force_b
+    drive_force = -np.where(np.abs(at_cap) > np.abs(force_b), at_cap, force_b)
+    drive_force[stalled] = 0.0
+    return drive_force
 
 
 def _air_limits(policy: _Policy, job: Job, samples: Samples, eng, toolpath: Toolpath, engaged: np.ndarray,

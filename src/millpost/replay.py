@@ -22,7 +22,7 @@ from .gcode.interpret import Program
 from .job import Job
 from .limits import LOAD_CHUNK, JobLimits, static_caps
 from .schedule import PathGrid, SpeedLoad
-from .schedule.constraints import window_blocks
+from .schedule.constraints import rows_at, window_blocks
 from .signals import Load, predict, step_times_s
 from .toolpath import RAPID, Samples, Toolpath
 
@@ -140,7 +140,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     m = n if columns else 0  # per-sample columns: kept only when asked for
     value = {name: np.zeros(m) for name in rows_of}
     # a name of one row keeps that row's bound (no copy); of several, the bound of the highest per sample
-    bound = {lim.name: lim.bound if rows_of[lim.name] == 1 and columns else np.zeros(m) for lim in loads}
+    bound = {lim.name: np.asarray(lim.bound) if rows_of[lim.name] == 1 and columns else np.zeros(m) for lim in loads}
     cut_loads = {key: np.zeros(m) for key in ("peak_force_N", "power_W", "thrust_N", "torque_Nm")}
     current, ratios, physical, current_max = np.zeros(m), {}, {}, 0.0
     for lo in range(0, n, LOAD_CHUNK):
@@ -154,7 +154,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
             c = lim.constraint
             val, lim_bound = lim.signal(sig, at), lim.bound[at]
             with np.errstate(divide="ignore", invalid="ignore"):  # 0/0 off the cut: masked
-                ratio = np.where(on, val / np.broadcast_to(np.asarray(c.limit, float), (n,))[at], 0.0)
+                ratio = np.where(on, val / rows_at(c.limit, at, n), 0.0)
                 raw = np.where(on, val / lim_bound, 0.0)
             ratios[lim.name] = max(ratios.get(lim.name, 0.0), float(np.nanmax(ratio, initial=0)))
             physical[lim.name] = max(physical.get(lim.name, 0.0), float(np.nanmax(raw, initial=0)))

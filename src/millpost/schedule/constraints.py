@@ -15,6 +15,7 @@ Which limits are caps and which need real rows:
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
+from typing import Callable
 
 import numpy as np
 
@@ -25,6 +26,36 @@ _TINY_B = 1e-6  # mm²/s²: the cap used where a limit is exceeded even at stand
 
 def _per_sample(x, n: int) -> np.ndarray:
     return np.broadcast_to(np.asarray(x, float), (n,)).astype(float)
+
+
+@dataclass(frozen=True)
+class Derived:
+    """A per-sample array (first axis: the samples) computed on demand, `f(*inputs)` with f elementwise
+    along the samples: `x[index]` is f of the inputs' rows `index`, the same numbers as the whole array's
+    rows (memory: a limit scaled from shared loads stores only its inputs, e.g. the deflection
+    peak_a·compliance). `np.asarray(x)` computes the whole array."""
+
+    f: Callable[..., np.ndarray]
+    inputs: tuple
+    shape: tuple[int, ...]
+
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, index) -> np.ndarray:
+        return self.f(*(x[index] for x in self.inputs))
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        return np.asarray(self.f(*self.inputs), dtype)
+
+
+def rows_at(x, index, n: int) -> np.ndarray:
+    """Rows `index` of a per-sample array of n samples (an ndarray or `Derived`) or of a scalar broadcast to n."""
+    return x[index] if isinstance(x, (np.ndarray, Derived)) else np.broadcast_to(np.asarray(x, float), (n,))[index]
 
 
 @dataclass(frozen=True)
@@ -290,7 +321,7 @@ def window_blocks(grid: PathGrid, limits: list, lo: int, hi: int, *, caps_only: 
         if hasattr(c, "pin"):
             c = c.pin(grid)
         cut = {f.name: v[a:b] for f in fields(c)
-               if isinstance(v := getattr(c, f.name), np.ndarray) and v.ndim and v.shape[0] == n}
+               if isinstance(v := getattr(c, f.name), (np.ndarray, Derived)) and v.ndim and v.shape[0] == n}
         out += [blk.window(lo - a, hi - a) for blk in replace(c, **cut).blocks(sub)
                 if not caps_only or isinstance(blk, SpeedBounds)]
     return out
