@@ -142,7 +142,7 @@ class Limit:
     clamp: bool = False
     default: str = ""
     signal: Callable[[Any, slice], np.ndarray] | None = None
-    bound: np.ndarray | None = None
+    bound: np.ndarray | Derived | None = None
     load: Load | None = None
 
     @property

@@ -196,11 +196,12 @@ def _load_interval(a1: np.ndarray, a0: np.ndarray) -> tuple[np.ndarray, np.ndarr
 class SpeedLoad:
     """A load linear in path speed under a bound: alpha·v + beta ≤ limit per sample (any unit;
     alpha per mm/s). E.g. a force or power component from the mechanistic model. alpha > 0 gives
-    the cap b ≤ ((limit − beta)/alpha)²; alpha < 0 a (soft) floor."""
+    the cap b ≤ ((limit − beta)/alpha)²; alpha < 0 a (soft) floor. Per-sample fields may be `Derived`
+    (computed from shared loads when a window reads them)."""
 
-    alpha: np.ndarray
-    beta: np.ndarray
-    limit: float | np.ndarray
+    alpha: np.ndarray | Derived
+    beta: np.ndarray | Derived
+    limit: float | np.ndarray | Derived
     name: str = "load"
 
     def blocks(self, grid: PathGrid) -> list[Block]:
