@@ -130,7 +130,7 @@ def main() -> None:
             r["cycle_vs_clarabel"] = round(r["cycle_time_after_s"] / base["cycle_time_after_s"] - 1, 6)
         rows.append(r)
     print(json.dumps({"baseline": base, "rows": rows, "cores": os.cpu_count(),
-                      "goals": {"100k_wall_s": 30, "100k_peak_mb": 1024, "300k_wall_s": 100,
+                      "goals": {"100k_wall_s": 20, "100k_peak_mb": 700, "300k_wall_s": 100,
                                 "cycle_vs_clarabel": 0.001}}, indent=1))
 
 
