@@ -39,12 +39,16 @@ def operations_from_lines(lines: np.ndarray, tools: np.ndarray, comments: list[t
     return out
 
 
+def program_operations(program, samples) -> list[Operation]:
+    """The operations of a read program over its samples (`operations_from_lines`, the program's comments)."""
+    comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
+    return operations_from_lines(samples.line, samples.tool, comments)
+
+
 def restart_points(program, samples) -> list[dict]:
     """Where the program may be restarted (a broken tool, a stop): each operation's start, {"line",
     "operation", "tool"}, in program order. Restarted there, the optimized program's descents below
     the stock's top still keep their plunge feeds (`millpost.limits.restart_descents`); its air moves
     through space cut before may run up to `air_feed_max_mm_min` (the machine's maximum by default),
     which assumes the operations before it ran."""
-    comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
-    ops = operations_from_lines(samples.line, samples.tool, comments)
-    return [{"line": op.line, "operation": op.name, "tool": op.tool} for op in ops]
+    return [{"line": op.line, "operation": op.name, "tool": op.tool} for op in program_operations(program, samples)]

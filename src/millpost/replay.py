@@ -139,7 +139,8 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     rows_of = Counter(lim.name for lim in loads)
     m = n if columns else 0  # per-sample columns: kept only when asked for
     value = {name: np.zeros(m) for name in rows_of}
-    # a name of one row keeps that row's bound (no copy); of several, the bound of the highest per sample
+    # a name of one row keeps that row's bound (a Derived one computed whole, once); of several, the bound of
+    # the highest per sample
     bound = {lim.name: np.asarray(lim.bound) if rows_of[lim.name] == 1 and columns else np.zeros(m) for lim in loads}
     cut_loads = {key: np.zeros(m) for key in ("peak_force_N", "power_W", "thrust_N", "torque_Nm")}
     current, ratios, physical, current_max = np.zeros(m), {}, {}, 0.0

@@ -17,6 +17,7 @@ from enum import StrEnum
 import numpy as np
 
 from . import controller, safety
+from .compensate.predicted import SurfaceError
 from .emit import BLEND_PASSES, Emission, FeedPlan
 from .engagement import Engagement
 from .gcode.interpret import Program
@@ -26,7 +27,6 @@ from .operations import restart_points
 from .replay import Replay, binding_shares, feed_at_samples
 from .schedule import FeedLimit, PathGrid, ProgramSchedule
 from .signals import running_rpm
-from .compensate.predicted import SurfaceError
 from .stability.check import Chatter
 from .toolpath import RAPID, Samples
 

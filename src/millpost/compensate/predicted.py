@@ -16,10 +16,10 @@ import numpy as np
 from ..engagement import Engagement
 from ..gcode.interpret import Program
 from ..job import Job
-from ..operations import operations_from_lines
+from ..operations import program_operations
 from ..toolpath import Samples
 from .model import deflected_run
-from .surface import Surfaces, per_operation
+from .surface import Surfaces, per_operation, rms_mm
 
 
 @dataclass
@@ -44,8 +44,7 @@ class SurfaceError:
         p = samples.xyz_mm
         runs = {state: deflected_run(job, eng, surfaces, samples, p, speed) for state, speed in speeds_mm_s.items()}
         errors = {state: surfaces.errors_mm(run.actual_mm - p) for state, run in runs.items()}
-        comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
-        ops = operations_from_lines(samples.line, samples.tool, comments)
+        ops = program_operations(program, samples)
         return cls({s: e[0] for s, e in errors.items()}, {s: e[1] for s, e in errors.items()},
                    per_operation(ops, errors), tuple(s for s, run in runs.items() if not run.converged))
 
@@ -56,8 +55,7 @@ class SurfaceError:
 
     def rms_um(self, state: str) -> float:
         """The RMS error over the state's wall and floor samples (µm)."""
-        e = np.concatenate([a[np.isfinite(a)] for a in (self.wall_mm[state], self.floor_mm[state])]) * 1000.0
-        return float(np.sqrt(np.mean(e**2))) if len(e) else 0.0
+        return rms_mm(self.wall_mm[state], self.floor_mm[state]) * 1000.0
 
     def trace_columns(self) -> dict[str, np.ndarray]:
         """Per state the column surface_error_<state>_um (`errors_um`)."""

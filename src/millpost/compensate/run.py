@@ -23,7 +23,7 @@ from .. import controller, engagement
 from ..gcode import read_program
 from ..gcode.interpret import Program
 from ..job import Job
-from ..operations import operations_from_lines
+from ..operations import program_operations
 from ..progress import Progress, resolve
 from ..safety import check_spindle
 from ..signals import controller_model, predict
@@ -31,7 +31,7 @@ from ..toolpath import RAPID, Samples
 from .deflection import deflection_vectors
 from .model import Deflected, deflected_run
 from .path import MoveOffsets, commanded, plan_offsets
-from .surface import Surfaces, per_operation
+from .surface import Surfaces, finished_errors_mm, per_operation, rms_mm
 from .write import check_writable, write_offsets
 
 TOLERANCE_MM = 0.002
@@ -74,16 +74,9 @@ def across(samples: Samples, offset_mm: np.ndarray) -> np.ndarray:
     return offset_mm - np.einsum("ij,ij->i", offset_mm, t)[:, None] * t
 
 
-def _errors_mm(surfaces: Surfaces, displacement: np.ndarray) -> np.ndarray:
-    """The surface errors (mm) of all wall and floor samples."""
-    wall, floor = surfaces.errors_mm(displacement)
-    return np.concatenate([wall[np.isfinite(wall)], floor[np.isfinite(floor)]])
-
-
 def rms_error_mm(surfaces: Surfaces, displacement: np.ndarray) -> float:
     """The RMS surface error (mm) over the wall and floor samples (0 without any)."""
-    e = _errors_mm(surfaces, displacement)
-    return float(np.sqrt(np.mean(e**2))) if len(e) else 0.0
+    return rms_mm(*surfaces.errors_mm(displacement))
 
 
 def compensate(job: Job, *, tolerance_mm: float = TOLERANCE_MM, max_passes: int = MAX_PASSES,
@@ -132,13 +125,12 @@ def _summary(job: Job, program: Program, samples: Samples, surfaces: Surfaces, b
              plan: dict[int, MoveOffsets], spacing: np.ndarray, passes: int, tolerance_mm: float,
              notes: list[str]) -> dict:
     """The summary: surface error per operation before and after (µm), the passes and what was written."""
-    comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
-    ops = operations_from_lines(samples.line, samples.tool, comments)
+    ops = program_operations(program, samples)
     p = samples.xyz_mm
     operations = per_operation(ops, {name: surfaces.errors_mm(run.actual_mm - p)
                                      for name, run in (("before", before), ("after", after))})
     rms = [rms_error_mm(surfaces, run.actual_mm - p) * 1000.0 for run in (before, after)]
-    largest = [float(np.abs(_errors_mm(surfaces, run.actual_mm - p)).max(initial=0.0)) * 1000.0
+    largest = [float(np.abs(finished_errors_mm(*surfaces.errors_mm(run.actual_mm - p))).max(initial=0.0)) * 1000.0
                for run in (before, after)]
     offsets = np.concatenate([mo.offset_mm for mo in plan.values()]) if plan else np.zeros((0, 3))
     unsettled = [name for name, run in (("before", before), ("after", after)) if not run.converged]

@@ -69,6 +69,17 @@ class Surfaces:
         return wall, floor
 
 
+def finished_errors_mm(wall_mm: np.ndarray, floor_mm: np.ndarray) -> np.ndarray:
+    """The errors (mm) of all wall and floor samples (`Surfaces.errors_mm` without its nans)."""
+    return np.concatenate([wall_mm[np.isfinite(wall_mm)], floor_mm[np.isfinite(floor_mm)]])
+
+
+def rms_mm(wall_mm: np.ndarray, floor_mm: np.ndarray) -> float:
+    """The RMS error (mm) over the wall and floor samples (0 without any)."""
+    e = finished_errors_mm(wall_mm, floor_mm)
+    return float(np.sqrt(np.mean(e**2))) if len(e) else 0.0
+
+
 def error_table(operations: list[Operation], wall_mm: np.ndarray, floor_mm: np.ndarray) -> list[dict]:
     """Per operation the surface error on its walls and floors: the largest |e|, the RMS, the most
     undercut and overcut (µm, rounded to 0.1) and the samples; surfaces it does not make are left out, and

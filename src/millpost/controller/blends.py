@@ -22,13 +22,13 @@ _NO_ARC = (False, 0.0, 0.0, (0.0, 0.0, 0.0), 0.0, 0.0)
 
 
 @numba.njit(cache=True)
-def blend_geometry(segs, j: int, two: float):
+def blend_geometry(segs, j: int):
     """The feed-independent part of LinuxCNC's blend arc between segments j − 1 and j (blendmath.c:
     blendInit3From*, blendComputeParameters): (fits, θ, φ, binormal, d_geom, r_geom); fits is False
     where no arc fits. θ is half the angle between the reversed incoming and the outgoing direction,
     φ = π − 2θ the turn; the arc may reach d_geom (mm) into each segment (at most the blend tolerance
     from the corner, half a line, a third/two thirds of an arc's sweep), so its radius is at most
-    r_geom. two: `SQUARE`."""
+    r_geom."""
     prev, cur = segs[j - 1], segs[j]
     u1, u2 = prev.t1, cur.t0
     cos = min(max(dot(u1, u2), -1.0), 1.0)
@@ -65,7 +65,7 @@ def blend(segs, j: int, accel, rates, two: float):
     blendComputeParameters on `blend_geometry`; accel, rates: the axes' mm/s², mm/s): (fits, trim of
     each segment, arc length, arc speed, arc acceleration). The arc runs at up to the faster segment's
     requested speed."""
-    fits, theta, phi, binormal, d_geom, r_geom = blend_geometry(segs, j, two)
+    fits, theta, phi, binormal, d_geom, r_geom = blend_geometry(segs, j)
     if not fits:
         return False, 0.0, 0.0, 0.0, 0.0
     prev, cur = segs[j - 1], segs[j]
@@ -154,7 +154,7 @@ def _corner_speeds(segs, halts, accel, dt: float, two: float):
         if jump < 1e-12:
             continue
         v = KINK_RATIO * dt / jump * (TANGENTIAL_SHARE if prev.arc or cur.arc else 1.0)
-        fits, _, _, binormal, _, r_geom = blend_geometry(segs, j, two)
+        fits, _, _, binormal, _, r_geom = blend_geometry(segs, j)
         out[j] = max(v, _arc_top_speed(binormal, r_geom, accel, two) if fits else parabolic_speed(segs, j))
     return out
 
@@ -220,7 +220,7 @@ def _largest_arcs(segs, halts, accel, two: float):
     for j in range(1, len(segs)):
         if segs[j - 1].rapid or segs[j].rapid or halts[j]:
             continue
-        fits, _, _, binormal, d_geom, r_geom = blend_geometry(segs, j, two)
+        fits, _, _, binormal, d_geom, r_geom = blend_geometry(segs, j)
         if fits:
             out[j, 0] = d_geom
             out[j, 1] = _arc_top_speed(binormal, r_geom, accel, two)

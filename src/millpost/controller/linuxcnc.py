@@ -33,6 +33,7 @@ from .segments import (GAP_CYCLES, KINK_RATIO, MIN_SEGMENT_CYCLES, RAMP_TIME_S, 
 
 
 PAUSE, STOP, TANGENT, BLEND, PARABOLIC = range(5)  # how the queue passes a junction (`_joint`)
+FIRST = -1  # the "joint" before the first segment
 BLOCK = np.dtype([("length", float), ("vnom", float), ("acc", float), ("vj2", float), ("move", np.int64),
                   ("u_end", float), ("may_ramp", np.bool_)], align=True)  # a row of the `Queue`
 
@@ -85,12 +86,12 @@ def _joint(segs, j: int, paused: bool, exact_stop: bool, dt: float, accel, rates
 
 @numba.njit(cache=True)
 def _joints(segs, stop, exact_stop: bool, dt: float, accel, rates, two: float):
-    """Per segment the joint before it (`_joint`; kind −1 before the first): kinds, speed caps (mm/s)
+    """Per segment the joint before it (`_joint`; kind FIRST before the first): kinds, speed caps (mm/s)
     and blend arcs (n, 4). stop: per move, whether the motion stops before it (`pauses.stops`). The
     last queued segment before a pause (or the end) keeps its parabolic term in G64: half its
     acceleration."""
     n = len(segs)
-    kind, cap, arc = np.full(n, -1, np.int64), np.zeros(n), np.zeros((n, 4))
+    kind, cap, arc = np.full(n, FIRST, np.int64), np.zeros(n), np.zeros((n, 4))
     for j in range(1, n):
         paused = False
         for m in range(segs[j - 1].move + 1, segs[j].first + 1):

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import MillpostError
-from ..operations import Operation, operations_from_lines
+from ..operations import Operation, operations_from_lines, program_operations
 from ..signals import Load, step_times_s
 from .lobes import ToolLobes, tool_lobes, why_none
 
@@ -118,9 +118,8 @@ def collect(summary: dict, trace: dict[str, np.ndarray], job=None, *, stock_map:
     if len(samples) != n:
         raise MillpostError(f"the trace has {n} samples but {job.program} resamples to {len(samples)}: "
                             "trace and job do not match")
-    comments = [(e.line, str(e.value)) for e in program.events if e.kind == "comment"]
     data.title = job.program.name
-    data.operations = operations_from_lines(samples.line, samples.tool, comments)
+    data.operations = program_operations(program, samples)
     data.binding = _binding(data, feed_cap_mm_s(job) * 60.0)  # mm/min, as the trace
     if stock_map:
         data.stock = final_stock(job, samples)

@@ -115,6 +115,10 @@ def write_report(path: str | os.PathLike, data: ReportData) -> None:
     write_atomic(path, render(data))
 
 
+_SURFACE_MAP = ("The deflected tool's envelope against the programmed one, at each sample that finishes a wall or a "
+                "floor (wall where both): red material left, blue overcut.")
+
+
 def compensation_page(summary: dict, figure: str) -> str:
     """The page of `millpost compensate --report`: the predicted surface error per operation before and
     after, and its map (`figures.surface_error_map`)."""
@@ -124,13 +128,9 @@ def compensation_page(summary: dict, figure: str) -> str:
         '<p class="headline">predicted surface error (RMS over walls and floors) '
         f'{summary["surface_error_before_um"]:.1f} → {summary["surface_error_after_um"]:.1f} µm</p>',
         _surface_table(summary["operations"], ("before", "after")),
-        f"<h2>Surface error along walls and floors</h2><p>{SURFACE_MAP}</p>", f"<figure>{figure}</figure>"])
+        f"<h2>Surface error along walls and floors</h2><p>{_SURFACE_MAP}</p>", f"<figure>{figure}</figure>"])
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>millpost compensate: {title}'
             f"</title><style>{STYLE}</style></head><body>\n{body}\n</body></html>\n")
-
-
-SURFACE_MAP = ("The deflected tool's envelope against the programmed one, at each sample that finishes a wall or a "
-               "floor (wall where both): red material left, blue overcut.")
 
 
 def _surface_table(operations: list[dict], states: tuple[str, ...]) -> str:
@@ -153,4 +153,4 @@ def _surface_section(data: ReportData) -> list[str]:
     figure = figures.surface_error_map(t["x"], t["y"], {st: t[f"surface_error_{st}_um"] for st in states})
     return ["<h2>Predicted surface error</h2><p>Where the tool bends under the predicted force (its beam and the "
             "machine's compliance), at the programmed and at the optimized feed: a faster feed pushes harder. "
-            f"{SURFACE_MAP}</p>", _surface_table(entry["operations"], states), f"<figure>{figure}</figure>"]
+            f"{_SURFACE_MAP}</p>", _surface_table(entry["operations"], states), f"<figure>{figure}</figure>"]

@@ -28,7 +28,7 @@ def _per_sample(x, n: int) -> np.ndarray:
     return np.broadcast_to(np.asarray(x, float), (n,)).astype(float)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Derived:
     """A per-sample array (first axis: the samples) computed on demand, `f(*inputs)` with f elementwise
     along the samples: `x[index]` is f of the inputs' rows `index`, the same numbers as the whole array's
@@ -244,7 +244,7 @@ class MotorCurrent:
     friction_N: tuple[float, float, float] = (0.0, 0.0, 0.0)
     viscous_N_s_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     cut_alpha: np.ndarray | None = None
-    cut_beta: np.ndarray | None = None
+    cut_beta: np.ndarray | Derived | None = None
     name: str = "current"
     caps = False  # no SpeedBounds among its rows (see `window_blocks`)
 
