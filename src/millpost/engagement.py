@@ -38,7 +38,8 @@ class Engagement:
         does not cut). dz_mm: (N, K) axial thickness of the slice's engaged part (0 when not cutting).
     z_mm: (N, K) slice mid-height above the tool tip. r_mm: (N, K) cutting radius of the slice.
     kappa: (N, K) axial immersion angle of the edge (π/2 on a cylindrical flank; < π/2 on a ball or
-        corner radius), so chip thickness is h = f_z·sin φ·sin κ.
+        corner radius), so chip thickness is h = f_z·sin φ·sin κ; when every tool is flat, a read-only
+        view of the one value π/2.
     feed_dir: (N, 3) unit feed direction (the x of the convention) in machine coordinates.
     ap_mm, ae_mm: (N,) axial depth and radial width of cut. volume_mm3: (N,) material removed on the
     step ending at the sample; area_mm2 = volume / step length (the cross-section the feed sweeps).
