@@ -92,7 +92,9 @@ def test_cli_optimize_report_and_report_from_trace(tmp_path):
     html_b = tmp_path / "b.html"
     assert main(["report", str(trace), "--summary", str(summary), "--job", str(job), "-o", str(html_b)]) == 0
     a, b = html_a.read_text(), html_b.read_text()
-    assert a.count("<svg data-figure=") == b.count("<svg data-figure=") == 5
+    # the five figures and the predicted surface error, from the trace CSV too
+    assert a.count("<svg data-figure=") == b.count("<svg data-figure=") == 6
+    assert b.count('data-figure="surface-error"') == 1
     s = json.loads(summary.read_text())
     assert f"{s['cycle_time_after_s']:.1f} s optimized" in b
     html_c = tmp_path / "c.html"  # the trace alone: no stock, tools as operations

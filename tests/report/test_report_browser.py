@@ -74,7 +74,7 @@ def test_report_in_headless_chromium(browser, slotting_result, tmp_path):
     browser.get(page.as_uri())
     figures = browser.execute_script(FIGURE_BOXES)
     assert [f["name"] for f in figures] == ["cycle-times", "feed-along-path", "loads-vs-limits", "top-view",
-                                            "stock-map"]
+                                            "stock-map", "surface-error"]
     check_figures(figures)
     # rasterised parts (point clouds, the stock map) decode to real images
     images = browser.execute_script("""
