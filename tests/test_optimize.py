@@ -141,13 +141,15 @@ def test_cli_writes_program_and_summary(tmp_path):
 
 def test_trace_is_built_only_when_asked(tmp_path, slotting_result):
     """The per-sample trace (~30 columns a sample: ~180 MB at 100 k blocks) is built for --trace and
-    --report only; without it the program and the summary are the same."""
+    --report only, with the predicted surface error it carries; without it the program and the rest of
+    the summary are the same."""
     job, traced = slotting_result  # optimize(..., trace=True)
     plain = optimize(job, progress=False)
     assert plain.trace == {} and plain.text == traced.text
     timing = ("stage_s", "solver_s", "total_s")
+    assert "surface_error" in traced.summary and "surface_error" not in plain.summary
     assert ({k: v for k, v in plain.summary.items() if k not in timing}
-            == {k: v for k, v in traced.summary.items() if k not in timing})
+            == {k: v for k, v in traced.summary.items() if k not in timing + ("surface_error",)})
     assert {"feed_schedule_mm_min", "feed_executed_mm_min", "peak_force_N", "current_ratio"} <= set(traced.trace)
     assert all(len(column) == traced.summary["samples"] for column in traced.trace.values())
     csv = tmp_path / "trace.csv"
