@@ -92,4 +92,4 @@ def slotting_result():
     from millpost.job import load_job
     from millpost.optimize import optimize
     job = load_job(Path(__file__).resolve().parents[1] / "sample_jobs" / "slotting")
-    return job, optimize(job, progress=False, trace=True)
+    return job, optimize(job, progress=False, trace=True, surface_error=True)

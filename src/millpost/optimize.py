@@ -49,11 +49,13 @@ class Result:
 
 
 def optimize(job: Job, *, progress: Progress | bool | None = None, options: ScheduleOptions | None = None,
-             trace: bool = False) -> Result:
+             trace: bool = False, surface_error: bool = False) -> Result:
     """Run the whole post step on a job and return the new program and its summary. progress: a
     `millpost.progress` callback, or True/False/None (bars on stderr: always, never, on a terminal).
     `options` default to the job's `[limits] solver` on all cores. trace: also build the per-sample
-    trace (`Result.trace`: for `--trace` and `--report`; ~30 columns a sample, built only when asked)."""
+    trace (`Result.trace`: for `--trace` and `--report`; ~30 columns a sample, built only when asked).
+    surface_error: also predict the surface error as programmed and as optimized (`SurfaceError`: about
+    15 forward-model passes over the samples that finish a wall or floor, for each of the two feeds)."""
     t_start = time.perf_counter()
     options = options or ScheduleOptions.from_choices(solver=job.settings.solver)
     set_threads(options.processes)
@@ -78,11 +80,11 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
         limits, modes = None, controller.path_modes(program, model)
         zones = controller.blend_zones(program.toolpath, model, modes)  # the programmed corners' blend arcs
         if job.settings.rpm != "optimize":
-            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=not trace,
-                                  modes=modes, zones=zones)  # the trace's surface error reads the slices
+            limits = build_limits(job, samples, eng, program.toolpath, report, release_slices=not surface_error,
+                                  modes=modes, zones=zones)  # the surface error reads the slices
         t_limits = time.perf_counter()
         result = schedule_program(job, program, samples, eng, options, progress=report, limits=limits, modes=modes,
-                                  zones=zones, trace=trace, cut=cut)
+                                  zones=zones, trace=trace, cut=cut, surface_error=surface_error)
     result.summary["notes"] += notes
     result.summary["stage_s"] = {"read": round(t_read - t_start, 3), "engagement": round(t_engage - t_read, 3),
                                  **result.summary["stage_s"]}
@@ -95,12 +97,13 @@ def optimize(job: Job, *, progress: Progress | bool | None = None, options: Sche
 def schedule_program(job: Job, program: Program, samples: Samples, eng, options: ScheduleOptions | None = None,
                      progress: Progress = silent, limits: JobLimits | None = None,
                      modes: controller.PathModes | None = None, zones: np.ndarray | None = None,
-                     trace: bool = False, cut: CutImmersion | None = None) -> Result:
+                     trace: bool = False, cut: CutImmersion | None = None, surface_error: bool = False) -> Result:
     """From the engagement on: (with `[limits] rpm = "optimize"` the spindle speeds,
     `millpost.spindle_speed`), limits (unless given: `build_limits` of these samples and engagement),
     schedule, emitted text, cycle times and the replay check. modes: the program's path modes
     (`controller.path_modes`), zones: its programmed corners' blend arcs (`controller.blend_zones`),
-    both computed here unless given; trace: build the per-sample trace (`summary.trace_columns`); cut: the
+    both computed here unless given; trace: build the per-sample trace (`summary.trace_columns`);
+    surface_error: predict it (`optimize`); cut: the
     samples' immersion for the chatter check (`stability.check.CutImmersion`), taken from `eng` unless
     given. (Split from `optimize` so that tests can give engagements of known geometry.) progress: stages
     "forces", "schedule", "emission" and "replay"."""
@@ -130,7 +133,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     if failed and spindle.get("changed"):  # never new speeds with the programmed feeds: the programmed S
         programmed = replace(job, settings=replace(job.settings, rpm="programmed"))
         result = schedule_program(programmed, *as_given, eng, options, progress, modes=modes, zones=zones, trace=trace,
-                                  cut=cut)
+                                  cut=cut, surface_error=surface_error)
         result.summary["notes"].append("note: the schedule failed at the chosen spindle speeds: S kept as programmed")
         return result
     if failed:
@@ -164,7 +167,7 @@ def schedule_program(job: Job, program: Program, samples: Samples, eng, options:
     checked = replay(job, samples, eng, limits, executed, columns=trace)  # its columns: the trace's
     progress("replay", 3, 3)
     surface = (SurfaceError.predict(job, program, samples, eng, {"programmed": programmed_speed, "optimized": executed})
-               if trace else None)
+               if surface_error else None)
     run = Run(job, program, samples, eng, limits, sched, before, baseline, base_feeds, base_per_tool, emission,
               executed, checked, as_programmed, status, message, spindle, Chatter.check(job, cut, samples), surface)
     stage_s = {"limits": round(t0 - t_limits, 3), "schedule": round(solver_s, 3),

@@ -23,7 +23,7 @@ def test_programmed_state_is_compensates_before():
     compensate's errors before it moves any point (thin wall: 154.8 µm RMS on the walls, 109.8 µm over
     walls and floors)."""
     job = load_job(ROOT / "sample_jobs" / "thin_wall_finish")
-    entry = optimize(job, progress=False, trace=True).summary["surface_error"]
+    entry = optimize(job, progress=False, surface_error=True).summary["surface_error"]
     before = compensate(job).summary
     assert [op["programmed"] for op in entry["operations"]] == [op["before"] for op in before["operations"]]
     assert entry["rms_um"]["programmed"] == before["surface_error_before_um"]
@@ -32,7 +32,7 @@ def test_programmed_state_is_compensates_before():
 @pytest.fixture(scope="module")
 def slotting():
     job = load_job(ROOT / "sample_jobs" / "slotting")
-    return job, optimize(job, progress=False, trace=True), optimize(job, progress=False)
+    return job, optimize(job, progress=False, trace=True, surface_error=True), optimize(job, progress=False)
 
 
 def test_faster_feed_bends_the_tool_further(slotting):

@@ -53,7 +53,8 @@ def run(args: argparse.Namespace) -> int:
                   job.inputs)
     options = ScheduleOptions.from_choices(solver=args.solver or job.settings.solver, jobs=args.jobs)
     with Bars(enabled=False if args.quiet else None) as bars:
-        result = optimize(job, progress=bars, options=options, trace=bool(args.trace or args.report))
+        asked = bool(args.trace or args.report)  # the trace and the surface error: for --trace and --report
+        result = optimize(job, progress=bars, options=options, trace=asked, surface_error=asked)
         result.summary["output"] = str(output)
         text = json_text(result.summary)  # before anything is written: no NaN/inf reaches a report
         write_atomic(output, result.text)
