@@ -139,9 +139,9 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
     rows_of = Counter(lim.name for lim in loads)
     m = n if columns else 0  # per-sample columns: kept only when asked for
     value = {name: np.zeros(m) for name in rows_of}
-    # a name of one row keeps that row's bound (a Derived one computed whole, once); of several, the bound of
-    # the highest per sample
-    bound = {lim.name: np.asarray(lim.bound) if rows_of[lim.name] == 1 and columns else np.zeros(m) for lim in loads}
+    # per name the bound of its row, of several the bound of the highest per sample (chunk by chunk: a
+    # Derived bound is computed once, for the rows the chunk reads)
+    bound = {name: np.zeros(m) for name in rows_of}
     cut_loads = {key: np.zeros(m) for key in ("peak_force_N", "power_W", "thrust_N", "torque_Nm")}
     current, ratios, physical, current_max = np.zeros(m), {}, {}, 0.0
     for lo in range(0, n, LOAD_CHUNK):
@@ -168,8 +168,7 @@ def replay(job: Job, samples: Samples, eng: Engagement, limits: JobLimits, v_mm_
                 raw_best[lim.name] = np.maximum(raw, raw_best[lim.name])
             else:
                 value[lim.name][at] = val
-                if rows_of[lim.name] > 1:
-                    bound[lim.name][at] = lim_bound
+                bound[lim.name][at] = lim_bound
                 raw_best[lim.name] = raw
         for blk in window_blocks(grid, caps, lo, hi, caps_only=True):  # speed caps only millpost holds
             with np.errstate(divide="ignore", invalid="ignore"):
