@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
 
 from ..errors import ConfigError
 from ..files import json_text, write_atomic
@@ -30,14 +29,14 @@ def register(subparsers) -> None:
 
 def report_page(result) -> str:
     """The --report page: per sample its wall error, else its floor error (µm), before and after."""
+    from ..compensate.surface import map_errors_um
     from ..report.figures import surface_error_map
     from ..report.page import compensation_page
 
     p = result.samples.xyz_mm
     errors = {}
     for name, run in (("as programmed", result.before), ("compensated", result.after)):
-        wall, floor = result.surfaces.errors_mm(run.actual_mm - p)
-        errors[name] = np.where(np.isfinite(wall), wall, floor) * 1000.0
+        errors[name] = map_errors_um(*result.surfaces.errors_mm(run.actual_mm - p))
     return compensation_page(result.summary, surface_error_map(p[:, 0], p[:, 1], errors))
 
 

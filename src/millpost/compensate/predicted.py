@@ -19,7 +19,7 @@ from ..job import Job
 from ..operations import program_operations
 from ..toolpath import Samples
 from .model import deflected_run
-from .surface import Surfaces, per_operation, rms_mm
+from .surface import Surfaces, map_errors_um, per_operation, rms_mm
 
 
 @dataclass
@@ -50,8 +50,7 @@ class SurfaceError:
 
     def errors_um(self, state: str) -> np.ndarray:
         """Per sample its wall error, else its floor error (µm; nan where it makes neither)."""
-        wall = self.wall_mm[state]
-        return np.where(np.isfinite(wall), wall, self.floor_mm[state]) * 1000.0
+        return map_errors_um(self.wall_mm[state], self.floor_mm[state])
 
     def rms_um(self, state: str) -> float:
         """The RMS error over the state's wall and floor samples (µm)."""

@@ -69,6 +69,12 @@ class Surfaces:
         return wall, floor
 
 
+def map_errors_um(wall_mm: np.ndarray, floor_mm: np.ndarray) -> np.ndarray:
+    """Per sample its wall error, else its floor error (µm; nan where it finishes neither): what the
+    surface-error map colours."""
+    return np.where(np.isfinite(wall_mm), wall_mm, floor_mm) * 1000.0
+
+
 def finished_errors_mm(wall_mm: np.ndarray, floor_mm: np.ndarray) -> np.ndarray:
     """The errors (mm) of all wall and floor samples (`Surfaces.errors_mm` without its nans)."""
     return np.concatenate([wall_mm[np.isfinite(wall_mm)], floor_mm[np.isfinite(floor_mm)]])
