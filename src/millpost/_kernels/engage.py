@@ -771,16 +771,17 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, layout, M, sin_t, cos_t, pc, pw
 
 
 @njit(cache=True, error_model="numpy")
-def _ring_levels(H, M, pz, ap, lv):
+def _ring_levels(H, cells, M, pz, ap, lv):
     """The flat stock levels the ring meets strictly inside the step's axial depth, as heights above the
-    tip (mm) sorted into lv; returns their count. A level is a height two adjacent ring points share
-    (within PLATEAU_MM: a flat top, not the ramp the interpolation draws across a step) in
-    (tol, ap − tol), tol = LEVEL_TOL·ap; levels within tol of one another are one."""
+    tip (mm) sorted into lv; returns their count. A level is a height two adjacent ring points over
+    different columns share (within PLATEAU_MM: a flat top, neither the ramp the interpolation draws
+    across a step nor one column's top read twice on a slope) in (tol, ap − tol), tol = LEVEL_TOL·ap;
+    levels within tol of one another are one. cells: the ring points' columns (`_ring_cells`)."""
     tol = LEVEL_TOL * ap
     n = 0
     for i in range(1, M + 1):
         z = H[i] - pz
-        if z <= tol or z >= ap - tol or abs(H[i] - H[i - 1]) > PLATEAU_MM:
+        if z <= tol or z >= ap - tol or abs(H[i] - H[i - 1]) > PLATEAU_MM or cells[i, 0] == cells[i - 1, 0]:
             continue
         j = 0
         while j < n and lv[j] < z - tol:
@@ -814,15 +815,15 @@ def _drop_levels(lv, n, keep, ap):
 
 
 @njit(cache=True, error_model="numpy")
-def _layout(H, M, pz, ap, K, lv, zr, th, zm):
-    """The K axial slices of a step of depth ap (mm) whose ring of column tops is H: boundaries zr (K + 1),
+def _layout(H, cells, M, pz, ap, K, lv, zr, th, zm):
+    """The K axial slices of a step of depth ap (mm) whose ring of column tops is H (over `cells`): boundaries zr (K + 1),
     thicknesses th (K) and mid-heights zm (K), mm above the tip. The stock levels met inside (0, ap)
     (`_ring_levels`; at most K − 1, `_drop_levels`) are boundaries, so no slice holds a step: the
     bands between them share the slices, at least one each, each further slice going to the band whose
     slices are thickest; within a band the slices are equal. With no such level: ap/K each, as
     (uniform, ap/K) returns."""
     dzs = ap / K
-    n = _drop_levels(lv, _ring_levels(H, M, pz, ap, lv), K - 1, ap)
+    n = _drop_levels(lv, _ring_levels(H, cells, M, pz, ap, lv), K - 1, ap)
     if n == 0:
         for s in range(K + 1):
             zr[s] = s * dzs
@@ -918,7 +919,7 @@ def _slices(k, ap, K, M, cx, cy, gx, gy, pz, shape, R, rc, r_tip, tan_half, bili
     _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
     for i in range(M + 1):
         H[i] = _ring_height(cells, wts, i, bilinear, top, zf)
-    uniform, dzs = _layout(H, M, pz, ap, K, lv, zr, th, zmid[k])
+    uniform, dzs = _layout(H, cells, M, pz, ap, K, lv, zr, th, zmid[k])
     area = 0.0
     ae = 0.0
     s0 = K
