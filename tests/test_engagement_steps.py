@@ -80,28 +80,35 @@ def test_kienzle_mean_force_matches_the_two_band_closed_form(cut):
     np.testing.assert_allclose(got[:2], want[:2], rtol=0.01, atol=0.01 * np.hypot(*want[:2]))
 
 
-def _ring(levels_mm, pz=2.0, M=180):
-    """Ring heights with flat runs at the given heights above the tip pz, each over ~M/len ring points."""
-    H = np.full(M + 1, pz + 10.0)
-    for i, z in enumerate(levels_mm):
-        H[1 + i * (M // len(levels_mm)): (i + 1) * (M // len(levels_mm))] = pz + z
-    return H
+def test_sloped_wall_along_the_grid_keeps_the_uniform_slices_bit_for_bit():
+    """A side cut along a steep drafted wall (7° from vertical) parallel to the grid: near the arc's end the
+    ring runs along a row of columns of one height inside the axial depth, but the stock is not flat there
+    (one cell out along the radius it is 0.2 mm higher): no level, the slices are exactly ap/K, (s + ½)·ap/K as before."""
+    R, pz = D / 2, 10.0 - AP
+    o = np.array([15.0, 15.0])
+    s = stock.box((0, 0, 0), (30, 30, 10), CELL)
+    ys = s.y0 + (np.arange(s.ny) + 0.5) * CELL
+    # its foot 0.2 mm inside the tool's reach: at the ring's tangent point (φ = 0) the wall stands 1.6 mm high
+    wall = np.clip(pz + (ys - (o[1] + R - 0.2)) / math.tan(math.radians(7.0)), s.z0 + s.z_floor, 10.0) - s.z0
+    s.top[:] = wall[:, None].astype(np.float32)
+    e = simulate(s, Tool(D), polyline([(*(o - (12, 0)), pz), (*(o + (12, 0)), pz)]).resample(0.1), slices=SLICES)
+    k = (e.ap_mm > 1e-6) & (e.step_mm > 0)   # the samples whose slices were stepped
+    assert k.sum() > 100
+    assert np.array_equal(e.z_mm[k], (np.arange(SLICES) + 0.5)[None, :] * (e.ap_mm[k, None] / SLICES))
 
 
-def _layout(H, ap, K_=SLICES, pz=2.0):
-    M = len(H) - 1
-    lv, zr, th, zm = np.empty(M + 1), np.empty(K_ + 1), np.empty(K_), np.empty(K_)
-    cells = np.arange(4 * (M + 1)).reshape(M + 1, 4)   # every ring point over a column of its own
-    uniform, dzs = K._layout(H, cells, M, pz, ap, K_, lv, zr, th, zm)
+def _place(levels, ap, K_=SLICES):
+    lv = np.zeros(64)
+    lv[:len(levels)] = levels
+    n = K._drop_levels(lv, len(levels), K_ - 1, ap)
+    zr, th, zm = np.empty(K_ + 1), np.empty(K_), np.empty(K_)
+    uniform, dzs = K._place(lv, n, ap, K_, zr, th, zm)
     return uniform, dzs, zr, th, zm
 
 
-def test_no_interior_level_gives_the_uniform_slices_bit_for_bit():
-    """Heights only at or beyond the step's ends (the floor, the top, within 1 % of ap of them) or a
-    sloped run (no two equal neighbours): the slices are exactly ap/K, (s + ½)·ap/K as computed before."""
-    ap = 2.7
-    for H in (_ring([0.0, 0.01 * ap * 0.5, ap, ap * 0.995]), 2.0 + np.linspace(0.0, 4.0, 181)):
-        uniform, dzs, zr, th, zm = _layout(H, ap)
+def test_no_level_places_the_uniform_slices_bit_for_bit():
+    for ap in (2.7, 0.1, 13.3):
+        uniform, dzs, zr, th, zm = _place([], ap)
         assert uniform and dzs == ap / SLICES
         assert list(zr) == [s * (ap / SLICES) for s in range(SLICES + 1)]
         assert list(zm) == [(s + 0.5) * (ap / SLICES) for s in range(SLICES)]
@@ -111,11 +118,10 @@ def test_levels_become_boundaries_and_extra_levels_are_dropped_nearest_first():
     """Three levels: boundaries, each further slice going to the band whose slices are thickest (bands
     0.4, 1.6, 0.6, 0.4 mm of ap = 3: 1 + 4 + 2 + 1 slices). Nine levels (more than K − 1 = 7): the level
     nearest a neighbour (or an end) goes, one at a time: of the pairs 0.04 and 0.06 mm apart the lower."""
-    uniform, _, zr, th, zm = _layout(_ring([0.4, 2.0, 2.6]), 3.0)
+    uniform, _, zr, th, zm = _place([0.4, 2.0, 2.6], 3.0)
     assert not uniform
     np.testing.assert_allclose(zr, [0, 0.4, 0.8, 1.2, 1.6, 2.0, 2.3, 2.6, 3.0], atol=1e-12)
     np.testing.assert_allclose(th, np.diff(zr))
     np.testing.assert_allclose(zm, zr[:-1] + 0.5 * np.diff(zr))
-    levels = [0.3, 0.6, 0.66, 1.0, 1.5, 1.8, 2.1, 2.5, 2.54]
-    _, _, zr, _, _ = _layout(_ring(levels), 3.0)
+    _, _, zr, _, _ = _place([0.3, 0.6, 0.66, 1.0, 1.5, 1.8, 2.1, 2.5, 2.54], 3.0)
     np.testing.assert_allclose(zr, [0, 0.3, 0.66, 1.0, 1.5, 1.8, 2.1, 2.54, 3.0], atol=1e-12)

@@ -69,6 +69,16 @@ def profile_radius(z, shape, R, rc, r_tip, tan_half):
     return R
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _flank_foot(shape, R, rc, r_tip, tan_half):
+    """Height above the tip (mm) from which the cutting radius is R (the vertical flank's foot)."""
+    if shape == CORNER:
+        return rc
+    if shape == CHAMFER:
+        return (R - r_tip) / tan_half
+    return 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def _profile_integral(za, zb, shape, R, rc, r_tip, tan_half):
     """∫ r(z) dz over [za, zb] (mm²), composite Simpson on 32 intervals."""
@@ -771,17 +781,26 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, layout, M, sin_t, cos_t, pc, pw
 
 
 @njit(cache=True, error_model="numpy")
-def _ring_levels(H, cells, M, pz, ap, lv):
-    """The flat stock levels the ring meets strictly inside the step's axial depth, as heights above the
-    tip (mm) sorted into lv; returns their count. A level is a height two adjacent ring points over
-    different columns share (within PLATEAU_MM: a flat top, neither the ramp the interpolation draws
-    across a step nor one column's top read twice on a slope) in (tol, ap − tol), tol = LEVEL_TOL·ap;
-    levels within tol of one another are one. cells: the ring points' columns (`_ring_cells`)."""
+def _ring_levels(H, ring, z_lo, ap, pz, lv):
+    """The flat stock levels the ring meets inside the step's axial depth above z_lo, as heights above the
+    tip (mm) sorted into lv; returns their count. A level is a height in (z_lo + tol, ap − tol),
+    tol = LEVEL_TOL·ap, that a ring point shares (within PLATEAU_MM) with the next ring point and with
+    the stock one cell in and one cell out along its radius: flat around it, not the ramp interpolation
+    draws across a step nor a sloped wall read along its contour. Levels within tol of one another are one.
+    ring: (cx, cy, fx, fy, R, M, sin_t, cos_t, pc, pw, bilinear, grid) of the ring H was read on."""
+    cx, cy, fx, fy, R, M, sin_t, cos_t, pc, pw, bilinear, grid = ring
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
     tol = LEVEL_TOL * ap
     n = 0
     for i in range(1, M + 1):
         z = H[i] - pz
-        if z <= tol or z >= ap - tol or abs(H[i] - H[i - 1]) > PLATEAU_MM or cells[i, 0] == cells[i - 1, 0]:
+        if z <= z_lo + tol or z >= ap - tol or abs(H[i] - H[i - 1]) > PLATEAU_MM:
+            continue
+        flat = True
+        for r in (R - h, R + h):
+            _point_cells_sc(cx, cy, fx, fy, r, sin_t[i], cos_t[i], x0, y0, h, nx, ny, bilinear, pc, pw, 0)
+            flat = flat and abs(_ring_height(pc, pw, 0, bilinear, top, zf) - H[i]) <= PLATEAU_MM
+        if not flat:
             continue
         j = 0
         while j < n and lv[j] < z - tol:
@@ -815,15 +834,21 @@ def _drop_levels(lv, n, keep, ap):
 
 
 @njit(cache=True, error_model="numpy")
-def _layout(H, cells, M, pz, ap, K, lv, zr, th, zm):
-    """The K axial slices of a step of depth ap (mm) whose ring of column tops is H (over `cells`): boundaries zr (K + 1),
-    thicknesses th (K) and mid-heights zm (K), mm above the tip. The stock levels met inside (0, ap)
-    (`_ring_levels`; at most K − 1, `_drop_levels`) are boundaries, so no slice holds a step: the
-    bands between them share the slices, at least one each, each further slice going to the band whose
-    slices are thickest; within a band the slices are equal. With no such level: ap/K each, as
-    (uniform, ap/K) returns."""
+def _layout(H, ring, z_lo, pz, ap, K, lv, zr, th, zm):
+    """The K axial slices of a step of depth ap (mm) whose ring of column tops is H (`_ring_levels`' ring):
+    the stock levels met inside (z_lo, ap) (at most K − 1, `_drop_levels`) placed as boundaries by
+    `_place`. Returns (uniform, ap/K)."""
+    return _place(lv, _drop_levels(lv, _ring_levels(H, ring, z_lo, ap, pz, lv), K - 1, ap), ap, K, zr, th, zm)
+
+
+@njit(cache=True, error_model="numpy")
+def _place(lv, n, ap, K, zr, th, zm):
+    """K axial slices over [0, ap] (mm) with the n sorted levels lv (mm above the tip, n < K) as boundaries,
+    so no slice holds a step: boundaries zr (K + 1), thicknesses th (K) and mid-heights zm (K). The bands
+    between levels share the slices, at least one each, each further slice going to the band whose slices
+    are thickest; within a band the slices are equal. With no level: ap/K each, computed as they always
+    were (s·ap/K, (s + ½)·ap/K). Returns (uniform, ap/K)."""
     dzs = ap / K
-    n = _drop_levels(lv, _ring_levels(H, cells, M, pz, ap, lv), K - 1, ap)
     if n == 0:
         for s in range(K + 1):
             zr[s] = s * dzs
@@ -909,7 +934,8 @@ def _level_sweep(k, xyz, fresh, rapid, shape, px, py, pz, qx, qy, fx, fy, dxy, a
 def _slices(k, ap, K, M, cx, cy, gx, gy, pz, shape, R, rc, r_tip, tan_half, bilinear, grid, work, zmid, rad,
             phi_st, phi_ex, dz, arc):
     """Sample k's K axial slices over the depth ap (mm), placed by `_layout` from the column tops on the
-    ring of radius R centred (cx, cy), feed direction (gx, gy): each slice's engaged arc (rows k of
+    ring of radius R centred (cx, cy), feed direction (gx, gy) (the levels the vertical flank meets; below
+    its foot the slices' own rings are narrower): each slice's engaged arc (rows k of
     phi_st, phi_ex, dz, arc, zmid, rad written in place; rad at the slice's mid-height), and the step's
     chip cross-section (sum of the slices' ring areas, mm²) and radial engagement a_e (mm).
     Slices on the vertical flank (r = R) share that ring; below it each slice has its own.
@@ -919,7 +945,8 @@ def _slices(k, ap, K, M, cx, cy, gx, gy, pz, shape, R, rc, r_tip, tan_half, bili
     _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
     for i in range(M + 1):
         H[i] = _ring_height(cells, wts, i, bilinear, top, zf)
-    uniform, dzs = _layout(H, cells, M, pz, ap, K, lv, zr, th, zmid[k])
+    ring = (cx, cy, gx, gy, R, M, sin_t, cos_t, pc, pw, bilinear, grid)
+    uniform, dzs = _layout(H, ring, _flank_foot(shape, R, rc, r_tip, tan_half), pz, ap, K, lv, zr, th, zmid[k])
     area = 0.0
     ae = 0.0
     s0 = K
