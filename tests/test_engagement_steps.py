@@ -89,7 +89,8 @@ def test_sloped_wall_along_the_grid_keeps_the_uniform_slices_bit_for_bit():
     s = stock.box((0, 0, 0), (30, 30, 10), CELL)
     ys = s.y0 + (np.arange(s.ny) + 0.5) * CELL
     # its foot 0.2 mm inside the tool's reach: at the ring's tangent point (φ = 0) the wall stands 1.6 mm high
-    wall = np.clip(pz + (ys - (o[1] + R - 0.2)) / math.tan(math.radians(7.0)), s.z0 + s.z_floor, 10.0) - s.z0
+    height = pz + (ys - (o[1] + R - 0.2)) / math.tan(math.radians(7.0))
+    wall = np.clip(height, s.z0 + s.z_floor, 10.0) - s.z0
     s.top[:] = wall[:, None].astype(np.float32)
     e = simulate(s, Tool(D), polyline([(*(o - (12, 0)), pz), (*(o + (12, 0)), pz)]).resample(0.1), slices=SLICES)
     k = (e.ap_mm > 1e-6) & (e.step_mm > 0)   # the samples whose slices were stepped

@@ -8,7 +8,9 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
    of columns nearer the new centre than the old one; the full disk when descending or starting.
    Removed volume (column length × cell area) and the axial depth ap (deepest column cut) follow.
 2. Ring sampling of the updated stock on a ring centred a look-ahead distance further along the
-   path (so the thin fresh crescent near the arc's tangent ends is not yet cut), at K axial slices over [0, ap]: material inside slice k along the vertical line at
+   path (so the thin fresh crescent near the arc's tangent ends is not yet cut), at K axial slices over
+   [0, ap] (`_layout`: the flat stock levels the flank's ring meets inside the depth are slice
+   boundaries, else ap/K each): material inside slice k along the vertical line at
    immersion φ ∈ [0, π] (Altintas: φ clockwise from +y = left of feed, x = feed) decides whether
    the slice is engaged there (more than half the slice filled). Coarse samples find the arcs,
    bisection places each transition; the swept cross-section ∫ r sin φ · m(φ) dφ follows.
