@@ -83,7 +83,8 @@ def test_kienzle_mean_force_matches_the_two_band_closed_form(cut):
 def test_sloped_wall_along_the_grid_keeps_the_uniform_slices_bit_for_bit():
     """A side cut along a steep drafted wall (7° from vertical) parallel to the grid: near the arc's end the
     ring runs along a row of columns of one height inside the axial depth, but the stock is not flat there
-    (one cell out along the radius it is 0.2 mm higher): no level, the slices are exactly ap/K, (s + ½)·ap/K as before."""
+    (one cell out along the radius it is 0.2 mm higher): no level, the slices are exactly ap/K,
+    (s + ½)·ap/K as before."""
     R, pz = D / 2, 10.0 - AP
     o = np.array([15.0, 15.0])
     s = stock.box((0, 0, 0), (30, 30, 10), CELL)
