@@ -944,11 +944,15 @@ def _slices(k, ap, K, M, cx, cy, gx, gy, pz, shape, R, rc, r_tip, tan_half, bili
     work: the scratch arrays (sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known, H, lv, zr, th)."""
     sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known, H, lv, zr, th = work
     top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
-    _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
-    for i in range(M + 1):
-        H[i] = _ring_height(cells, wts, i, bilinear, top, zf)
-    ring = (cx, cy, gx, gy, R, M, sin_t, cos_t, pc, pw, bilinear, grid)
-    uniform, dzs = _layout(H, ring, _flank_foot(shape, R, rc, r_tip, tan_half), pz, ap, K, lv, zr, th, zmid[k])
+    z_lo = _flank_foot(shape, R, rc, r_tip, tan_half)
+    if z_lo < ap:  # the flank reaches into the depth: its ring's tops (the levels; `_ring_flank` reads them)
+        _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
+        for i in range(M + 1):
+            H[i] = _ring_height(cells, wts, i, bilinear, top, zf)
+        ring = (cx, cy, gx, gy, R, M, sin_t, cos_t, pc, pw, bilinear, grid)
+        uniform, dzs = _layout(H, ring, z_lo, pz, ap, K, lv, zr, th, zmid[k])
+    else:
+        uniform, dzs = _place(lv, 0, ap, K, zr, th, zmid[k])
     area = 0.0
     ae = 0.0
     s0 = K
