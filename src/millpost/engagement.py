@@ -6,7 +6,11 @@ safety gates on the cut.
 Conventions (Altintas): x = feed direction, y = in-plane normal to the left of x, z = tool axis.
 Immersion angle φ is measured clockwise from +y (the cutter turns clockwise seen from the spindle),
 so a tooth enters at φ_st and leaves at φ_ex; up-milling starts at 0, down-milling ends at π, a full
-slot spans [0, π]. The tool is cut into K axial slices; each slice carries its own engaged arc.
+slot spans [0, π]. The tool is cut into K axial slices; each slice carries its own engaged arc. A slice is
+engaged where more than half of it holds material, so a step in the stock inside the axial depth (a wall
+whose top is lower on one side: a pocket's earlier level, a stepped wall, a restart) would fall mid-slice
+and give that slice the wrong arc: the flat levels the flank meets inside the depth are slice boundaries,
+the slices shared among the bands between them; without such a level the slices are ap/K each.
 """
 
 from __future__ import annotations
@@ -36,7 +40,7 @@ class Engagement:
 
     phi_st, phi_ex: (N, K) outermost engaged immersion interval of the slice (nan when the slice
         does not cut). dz_mm: (N, K) axial thickness of the slice's engaged part (0 when not cutting).
-    z_mm: (N, K) slice mid-height above the tool tip. r_mm: (N, K) cutting radius of the slice.
+    z_mm: (N, K) slice mid-height above the tool tip (slices need not be equal: see above). r_mm: (N, K) cutting radius of the slice.
     kappa: (N, K) axial immersion angle of the edge (π/2 on a cylindrical flank; < π/2 on a ball or
         corner radius), so chip thickness is h = f_z·sin φ·sin κ; when every tool is flat, a read-only
         view of the one value π/2.
@@ -281,7 +285,8 @@ def simulate(stock, tool: Tool | Mapping[int, Tool], samples: Samples, *, slices
     """Step the tool(s) through `stock` (cut in place) along `samples` and return the engagement.
 
     tool: one Tool, or tools by number (samples.tool picks one; a change restarts the footprint).
-    slices: K axial slices spread over each step's axial depth. ring_samples: coarse immersion
+    slices: K axial slices over each step's axial depth (boundaries at the stock's levels inside it, else
+    ap/K each; z_mm, dz_mm per slice). ring_samples: coarse immersion
     samples over [0, π] (transitions are then refined by bisection to 1/256 of that spacing).
     look_ahead_mm: how far ahead along the path the ring is sampled (default max(2·step, √(R·cell)),
     so that material at the tangent ends of the arc is not yet cut by the current step); the

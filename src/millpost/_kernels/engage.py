@@ -8,7 +8,9 @@ Per step (sample k, tool tip p_k, coming from p_{k-1}):
    of columns nearer the new centre than the old one; the full disk when descending or starting.
    Removed volume (column length × cell area) and the axial depth ap (deepest column cut) follow.
 2. Ring sampling of the updated stock on a ring centred a look-ahead distance further along the
-   path (so the thin fresh crescent near the arc's tangent ends is not yet cut), at K axial slices over [0, ap]: material inside slice k along the vertical line at
+   path (so the thin fresh crescent near the arc's tangent ends is not yet cut), at K axial slices over
+   [0, ap] (`_layout`: the flat stock levels the flank's ring meets inside the depth are slice
+   boundaries, else ap/K each): material inside slice k along the vertical line at
    immersion φ ∈ [0, π] (Altintas: φ clockwise from +y = left of feed, x = feed) decides whether
    the slice is engaged there (more than half the slice filled). Coarse samples find the arcs,
    bisection places each transition; the swept cross-section ∫ r sin φ · m(φ) dφ follows.
@@ -39,6 +41,8 @@ FLAT, CORNER, CHAMFER = 0, 1, 2
 OK = -1
 BAND, WEDGE, CAP = 0, 1, 2  # parts of a level sweep (see _region); CAP is also any disk
 BISECT = 8  # transition refinement: coarse step / 2**8
+LEVEL_TOL = 0.01  # stock levels closer than this fraction of ap (to each other, to the tip or to ap) are one
+PLATEAU_MM = 1e-6  # adjacent ring heights this close are a flat level
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -65,6 +69,16 @@ def profile_radius(z, shape, R, rc, r_tip, tan_half):
     if shape == CHAMFER:
         return min(r_tip + z * tan_half, R)
     return R
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _flank_foot(shape, R, rc, r_tip, tan_half):
+    """Height above the tip (mm) from which the cutting radius is R (the vertical flank's foot)."""
+    if shape == CORNER:
+        return rc
+    if shape == CHAMFER:
+        return (R - r_tip) / tan_half
+    return 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -689,26 +703,32 @@ def _ring_slice(k, s, cx, cy, fx, fy, r, za, dzs, flank, rint, M, sin_t, cos_t, 
 
 
 @njit(cache=True, error_model="numpy")
-def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw, H, cnt, gs, tree,
-                known, bilinear, grid, phi_st, phi_ex, dz, arc):
+def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, layout, M, sin_t, cos_t, pc, pw, H, cnt, gs, tree, known, bilinear,
+                grid, phi_st, phi_ex, dz, arc):
     """Slices s0..K-1 on the vertical flank (radius R) of single-interval stock, from one ring of
-    column tops H(φ): slice s is engaged where H > its mid-height, so the engaged sets are nested
-    and one pass finds every slice's coarse ends. Returns (area, ae).
-    Work arrays: tree, known (2, 2**BISECT) float and bool (see below)."""
+    column tops H(φ) (read by `_slices`): slice s is engaged where H > its mid-height, so the engaged
+    sets are nested and one pass finds every slice's coarse ends. layout: `_layout`'s (uniform, dzs,
+    zr, th). Returns (area, ae). Work arrays: tree, known (2, 2**BISECT) float and bool (see below)."""
     top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
+    uniform, dzs, zr, th = layout
     dphi = math.pi / M
-    zbase = pz + s0 * dzs
+    zbase = pz + zr[s0]
     nk = K - s0
-    T = nk * dzs
+    T = nk * dzs if uniform else zr[K] - zr[s0]
     area = 0.0
     hmax = -1e300
     base = max(zbase, zf)
     m_prev = 0.0
     for i in range(M + 1):
-        Hi = _ring_height(cells, wts, i, bilinear, top, zf)
-        H[i] = Hi
+        Hi = H[i]
         hmax = max(hmax, Hi)
-        cnt[i] = min(max(int(math.floor((Hi - zbase) / dzs + 0.5)), 0), nk)
+        if uniform:
+            cnt[i] = min(max(int(math.floor((Hi - zbase) / dzs + 0.5)), 0), nk)
+        else:  # the slices whose mid-height Hi exceeds
+            c = 0
+            while c < nk and Hi - (pz + zr[s0 + c]) > 0.5 * th[s0 + c]:
+                c += 1
+            cnt[i] = c
         m = min(max(Hi - base, 0.0), T)
         if i > 0:
             area += 0.5 * dphi * R * (sin_t[i - 1] * m_prev + sin_t[i] * m)
@@ -727,15 +747,16 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         if first > last:
             break
         s = s0 + j
-        za = zbase + j * dzs
-        zb = za + dzs
+        za = zbase + j * dzs if uniform else pz + zr[s]
+        t = th[s]
+        zb = za + t
         if first != held0:  # another coarse interval: its tree of heights starts empty
             held0 = first
             known[0, :] = False
         if last != held1:
             held1 = last
             known[1, :] = False
-        half = 0.5 * dzs
+        half = 0.5 * t
         st = 0.0 if first == 0 else _bisect_heights((first - 1) * dphi, first * dphi, False, tree[0], known[0], cx, cy,
                                                     fx, fy, R, za, zb, half, x0, y0, h, nx, ny, bilinear, pc, pw, top, zf)
         ex = math.pi if last == M else _bisect_heights(last * dphi, (last + 1) * dphi, True, tree[1], known[1], cx, cy,
@@ -744,7 +765,7 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
         # this slice's share of the trapezoid in the two end intervals, replaced by the exact split
         for i in (first - 1, first, last, last + 1):
             if 0 <= i <= M:
-                gs[i] = R * min(max(H[i] - max(za, zf), 0.0), dzs)
+                gs[i] = R * min(max(H[i] - max(za, zf), 0.0), t)
         if st != st_c:
             st_c, cos_st = st, math.cos(st)
         if ex != ex_c:
@@ -755,10 +776,109 @@ def _ring_flank(k, s0, K, cx, cy, fx, fy, R, pz, dzs, M, sin_t, cos_t, cells, wt
             off += cnt[i] <= j
         phi_st[k, s] = st
         phi_ex[k, s] = ex
-        dz[k, s] = min(max(hmax - za, 0.0), dzs)
+        dz[k, s] = min(max(hmax - za, 0.0), t)
         arc[k, s] = ex - st - dphi * off
         ae = max(ae, R * (cos_st - cos_ex))
     return area, ae
+
+
+@njit(cache=True, error_model="numpy")
+def _ring_levels(H, ring, z_lo, ap, pz, lv):
+    """The flat stock levels the ring meets inside the step's axial depth above z_lo, as heights above the
+    tip (mm) sorted into lv; returns their count. A level is a height in (z_lo + tol, ap − tol),
+    tol = LEVEL_TOL·ap, that a ring point shares (within PLATEAU_MM) with the next ring point and with
+    the stock one cell in and one cell out along its radius: flat around it, not the ramp interpolation
+    draws across a step nor a sloped wall read along its contour. Levels within tol of one another are one.
+    ring: (cx, cy, fx, fy, R, M, sin_t, cos_t, pc, pw, bilinear, grid) of the ring H was read on."""
+    cx, cy, fx, fy, R, M, sin_t, cos_t, pc, pw, bilinear, grid = ring
+    top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
+    tol = LEVEL_TOL * ap
+    n = 0
+    for i in range(1, M + 1):
+        z = H[i] - pz
+        if z <= z_lo + tol or z >= ap - tol or abs(H[i] - H[i - 1]) > PLATEAU_MM:
+            continue
+        flat = True
+        for r in (R - h, R + h):
+            _point_cells_sc(cx, cy, fx, fy, r, sin_t[i], cos_t[i], x0, y0, h, nx, ny, bilinear, pc, pw, 0)
+            flat = flat and abs(_ring_height(pc, pw, 0, bilinear, top, zf) - H[i]) <= PLATEAU_MM
+        if not flat:
+            continue
+        j = 0
+        while j < n and lv[j] < z - tol:
+            j += 1
+        if j < n and lv[j] <= z + tol:
+            continue
+        for q in range(n, j, -1):
+            lv[q] = lv[q - 1]
+        lv[j] = z
+        n += 1
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def _drop_levels(lv, n, keep, ap):
+    """Keep `keep` of the n sorted levels in lv (mm above the tip, inside (0, ap)): repeatedly drop the
+    one nearest a neighbouring level or an end of [0, ap] (the thinnest band it bounds merges with the
+    next). Returns the count kept."""
+    while n > keep:
+        best, j_best = math.inf, 0
+        for j in range(n):
+            below = lv[j - 1] if j > 0 else 0.0
+            above = lv[j + 1] if j + 1 < n else ap
+            d = min(lv[j] - below, above - lv[j])
+            if d < best:
+                best, j_best = d, j
+        for q in range(j_best, n - 1):
+            lv[q] = lv[q + 1]
+        n -= 1
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def _layout(H, ring, z_lo, pz, ap, K, lv, zr, th, zm):
+    """The K axial slices of a step of depth ap (mm) whose ring of column tops is H (`_ring_levels`' ring):
+    the stock levels met inside (z_lo, ap) (at most K − 1, `_drop_levels`) placed as boundaries by
+    `_place`. Returns (uniform, ap/K)."""
+    return _place(lv, _drop_levels(lv, _ring_levels(H, ring, z_lo, ap, pz, lv), K - 1, ap), ap, K, zr, th, zm)
+
+
+@njit(cache=True, error_model="numpy")
+def _place(lv, n, ap, K, zr, th, zm):
+    """K axial slices over [0, ap] (mm) with the n sorted levels lv (mm above the tip, n < K) as boundaries,
+    so no slice holds a step: boundaries zr (K + 1), thicknesses th (K) and mid-heights zm (K). The bands
+    between levels share the slices, at least one each, each further slice going to the band whose slices
+    are thickest; within a band the slices are equal. With no level: ap/K each, computed as they always
+    were (s·ap/K, (s + ½)·ap/K). Returns (uniform, ap/K)."""
+    dzs = ap / K
+    if n == 0:
+        for s in range(K + 1):
+            zr[s] = s * dzs
+        for s in range(K):
+            th[s] = dzs
+            zm[s] = (s + 0.5) * dzs
+        return True, dzs
+    per = np.ones(n + 1, np.int64)
+    for _ in range(K - n - 1):
+        best, b_best = -1.0, 0
+        for b in range(n + 1):
+            lo_b = lv[b - 1] if b > 0 else 0.0
+            hi_b = lv[b] if b < n else ap
+            if (hi_b - lo_b) / per[b] > best:
+                best, b_best = (hi_b - lo_b) / per[b], b
+        per[b_best] += 1
+    s = 0
+    for b in range(n + 1):
+        lo_b = lv[b - 1] if b > 0 else 0.0
+        hi_b = lv[b] if b < n else ap
+        for j in range(per[b]):
+            zr[s] = lo_b + j * ((hi_b - lo_b) / per[b])
+            s += 1
+    zr[K] = ap
+    for s in range(K):
+        th[s] = zr[s + 1] - zr[s]
+        zm[s] = zr[s] + 0.5 * th[s]
+    return False, dzs
 
 
 @njit(cache=True, error_model="numpy")
@@ -815,35 +935,43 @@ def _level_sweep(k, xyz, fresh, rapid, shape, px, py, pz, qx, qy, fx, fy, dxy, a
 @njit(cache=True, error_model="numpy")
 def _slices(k, ap, K, M, cx, cy, gx, gy, pz, shape, R, rc, r_tip, tan_half, bilinear, grid, work, zmid, rad,
             phi_st, phi_ex, dz, arc):
-    """Sample k's K axial slices of depth ap/K mm on the ring centred (cx, cy), feed direction (gx, gy):
-    each slice's engaged arc (rows k of phi_st, phi_ex, dz, arc, zmid, rad written in place), and the
-    step's chip cross-section (sum of the slices' ring areas, mm²) and radial engagement a_e (mm).
-    Slices on the vertical flank (r = R) share one ring; below it each slice has its own.
-    work: the scratch arrays (sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known)."""
-    sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known = work
+    """Sample k's K axial slices over the depth ap (mm), placed by `_layout` from the column tops on the
+    ring of radius R centred (cx, cy), feed direction (gx, gy) (the levels the vertical flank meets; below
+    its foot the slices' own rings are narrower): each slice's engaged arc (rows k of
+    phi_st, phi_ex, dz, arc, zmid, rad written in place; rad at the slice's mid-height), and the step's
+    chip cross-section (sum of the slices' ring areas, mm²) and radial engagement a_e (mm).
+    Slices on the vertical flank (r = R) share that ring; below it each slice has its own.
+    work: the scratch arrays (sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known, H, lv, zr, th)."""
+    sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known, H, lv, zr, th = work
     top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi = grid
-    dzs = ap / K
+    z_lo = _flank_foot(shape, R, rc, r_tip, tan_half)
+    if z_lo < ap:  # the flank reaches into the depth: its ring's tops (the levels; `_ring_flank` reads them)
+        _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
+        for i in range(M + 1):
+            H[i] = _ring_height(cells, wts, i, bilinear, top, zf)
+        ring = (cx, cy, gx, gy, R, M, sin_t, cos_t, pc, pw, bilinear, grid)
+        uniform, dzs = _layout(H, ring, z_lo, pz, ap, K, lv, zr, th, zmid[k])
+    else:
+        uniform, dzs = _place(lv, 0, ap, K, zr, th, zmid[k])
     area = 0.0
     ae = 0.0
     s0 = K
-    while s0 > 0 and profile_radius((s0 - 1) * dzs, shape, R, rc, r_tip, tan_half) == R:
+    while s0 > 0 and profile_radius(zr[s0 - 1], shape, R, rc, r_tip, tan_half) == R:
         s0 -= 1
     for s in range(K):
-        zmid[k, s] = (s + 0.5) * dzs
-        rad[k, s] = profile_radius((s + 0.5) * dzs, shape, R, rc, r_tip, tan_half)
+        rad[k, s] = profile_radius(zmid[k, s], shape, R, rc, r_tip, tan_half)
     for s in range(s0 if not has_multi else K):
         r = rad[k, s]
         _ring_cells(cx, cy, gx, gy, r, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
         flank = s >= s0
-        rint = r * dzs if flank else _profile_integral(s * dzs, (s + 1) * dzs, shape, R, rc, r_tip, tan_half)
-        da, de = _ring_slice(k, s, cx, cy, gx, gy, r, pz + s * dzs, dzs, flank, rint, M, sin_t, cos_t,
+        rint = r * th[s] if flank else _profile_integral(zr[s], zr[s + 1], shape, R, rc, r_tip, tan_half)
+        da, de = _ring_slice(k, s, cx, cy, gx, gy, r, pz + zr[s], th[s], flank, rint, M, sin_t, cos_t,
                              cells, wts, pc, pw, mat, g, bilinear, grid, phi_st, phi_ex, dz, arc)
         area += da
         ae = max(ae, de)
     if s0 < K and not has_multi:
-        _ring_cells(cx, cy, gx, gy, R, M, sin_t, cos_t, x0, y0, h, nx, ny, bilinear, cells, wts)
-        da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, dzs, M, sin_t, cos_t, cells, wts, pc, pw,
-                             mat, cnt, g, tree, known, bilinear, grid, phi_st, phi_ex, dz, arc)
+        da, de = _ring_flank(k, s0, K, cx, cy, gx, gy, R, pz, (uniform, dzs, zr, th), M, sin_t, cos_t, pc, pw,
+                             H, cnt, g, tree, known, bilinear, grid, phi_st, phi_ex, dz, arc)
         area += da
         ae = max(ae, de)
     return area, ae
@@ -882,6 +1010,10 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
     spans_k = -2  # the last sample whose disk spans are in `spans`
     tree = np.empty((2, 1 << BISECT))
     known = np.zeros((2, 1 << BISECT), np.bool_)
+    H = np.empty(M + 1, np.float64)
+    lv = np.empty(M + 1, np.float64)
+    zr = np.empty(K + 1, np.float64)
+    th = np.empty(K, np.float64)
     fx, fy = prev_f[0], prev_f[1]
     for k in range(k0, k1):
         px, py, pz = xyz[k, 0], xyz[k, 1], xyz[k, 2]
@@ -936,7 +1068,7 @@ def run(xyz, fresh, rapid, k0, k1, prev_f, top, nx, ny, x0, y0, h, zf, has_multi
             area_o[k] = vol_o[k] / step if step > 0.0 else 0.0
             continue
         grid = (top, nx, ny, x0, y0, h, zf, has_multi, bits, rank, ptr, lo, hi)
-        work = (sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known)
+        work = (sin_t, cos_t, cells, wts, pc, pw, mat, cnt, g, tree, known, H, lv, zr, th)
         area, ae_o[k] = _slices(k, ap, K, M, ring_at[k, 0], ring_at[k, 1], gx, gy, pz, shape, R, rc, r_tip,
                                 tan_half, bilinear, grid, work, zmid, rad, phi_st, phi_ex, dz, arc)
         if descending:
