@@ -98,6 +98,7 @@ import numpy as np
 from .errors import MillpostError
 from .forces import LinearLoads
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
+from .forces.timedomain import reusing_runs
 from .job import Job
 from .controller import ControllerModel, PathModes, block_lengths, blend_zones, corner_speeds, programmed_arcs
 from .progress import Progress, silent
@@ -286,7 +287,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     limits = _machine_limits(job, samples, toolpath, modes, planner)
     cutting = samples.kind != RAPID
     restart = restart_descents(job, samples, eng)
-    cut = _cut_loads(job, samples, eng, toolpath, restart, progress)
+    with reusing_runs():  # a steady cut's engagement repeats: its time-domain runs are made once
+        cut = _cut_loads(job, samples, eng, toolpath, restart, progress)
     if release_slices:  # below, only the per-sample fields are read
         lean = eng.per_sample()
         for f in fields(eng):

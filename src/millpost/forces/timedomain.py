@@ -20,6 +20,9 @@ Without runout the loads repeat every tooth pitch, so one pitch is simulated; wi
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 
 import numpy as np
 from numba import njit, prange
@@ -123,15 +126,75 @@ def simulate(st, ex, b, z, dz, r, kappa, *, kc, ke, p: float, flutes: int, helix
     periods = flutes if has_runout else 1
     steps = max(8, int(math.ceil(steps_per_rev * periods / flutes)))
     fz = np.broadcast_to(np.asarray(fz_mm, float), (n,)).astype(float)
-    # identical samples (a cut that does not change along a move) are simulated once
-    key = np.column_stack([np.asarray(a, float).reshape(n, st.shape[1]) for a in (st, ex, b, z, dz, r, kappa)] + [fz])
+    tan_helix = math.tan(math.radians(helix_deg))
+    # identical samples (a cut that does not change along a move) are simulated once, and within
+    # `reusing_runs` once over all calls
+    key = np.nan_to_num(np.column_stack([np.asarray(a, float).reshape(n, st.shape[1])
+                                         for a in (st, ex, b, z, dz, r, kappa)] + [fz]), nan=-1e300)
+    settings = (tuple(np.asarray(kc, float)), tuple(np.asarray(ke, float)), float(p), int(flutes), tan_helix,
+                float(radius_mm), tuple(ro), steps, periods)
     with compiling(_row_hash, _simulate):
-        first, inverse = unique_rows(np.nan_to_num(key, nan=-1e300))
-        f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first])  # noqa: E731
-        peaks, mean = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
-                                np.asarray(ke, float), float(p), int(flutes), math.tan(math.radians(helix_deg)),
-                                float(radius_mm), ro, has_runout, f(fz), steps, periods)
+        first, inverse = unique_rows(key)
+        memo = _MEMO.get()
+        memo = RunMemo(max_rows=0) if memo is None else memo
+        new, peaks, mean = memo.recall(settings, key[first])
+        if new.size:
+            f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first[new]])  # noqa: E731
+            peaks[new], mean[new] = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
+                                              np.asarray(ke, float), float(p), int(flutes), tan_helix,
+                                              float(radius_mm), ro, has_runout, f(fz), steps, periods)
+            memo.keep(key[first[new]], peaks[new], mean[new])
     return peaks[inverse], mean[inverse]
+
+
+class RunMemo:
+    """The runs `simulate` made under one set of settings, by their input row bit for bit (the row's
+    arcs, widths, heights, radii, κ per slice and f_z): a row met again gets the same numbers without a
+    run (a steady cut repeats its engagement from chunk to chunk). Keeps at most `max_rows` rows
+    (memory: ~0.6 KB a row of 8 slices); other settings start it afresh."""
+
+    def __init__(self, max_rows: int = 50_000) -> None:
+        self.max_rows = max_rows
+        self._settings: tuple | None = None
+        self._runs: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def __len__(self) -> int:
+        """The rows kept."""
+        return len(self._runs)
+
+    def recall(self, settings: tuple, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(new, peaks, mean) for the distinct input rows `rows` (M, columns): the indices of the rows
+        never run, and (M, 4) peaks and means filled where a row was run before (zero elsewhere)."""
+        if settings != self._settings:
+            self._settings, self._runs = settings, {}
+        peaks, mean = np.zeros((len(rows), 4)), np.zeros((len(rows), 4))
+        new = []
+        for i, row in enumerate(rows):
+            run = self._runs.get(row.tobytes())
+            if run is None:
+                new.append(i)
+            else:
+                peaks[i], mean[i] = run
+        return np.asarray(new, dtype=np.intp), peaks, mean
+
+    def keep(self, rows: np.ndarray, peaks: np.ndarray, mean: np.ndarray) -> None:
+        """Remember the runs of these rows (the settings of the last `recall`), up to `max_rows` in all."""
+        for row, pk, mn in zip(rows[:max(0, self.max_rows - len(self._runs))], peaks, mean):
+            self._runs[row.tobytes()] = (pk, mn)
+
+
+_MEMO: ContextVar[RunMemo | None] = ContextVar("run_memo", default=None)
+
+
+@contextmanager
+def reusing_runs(max_rows: int = 50_000) -> Iterator[RunMemo]:
+    """Within: `simulate` runs each distinct input row once over all its calls (`RunMemo` of at most
+    max_rows rows), for the same numbers bit for bit (each row's run depends on that row alone)."""
+    token = _MEMO.set(memo := RunMemo(max_rows))
+    try:
+        yield memo
+    finally:
+        _MEMO.reset(token)
 
 
 @njit(cache=True)
