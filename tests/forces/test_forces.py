@@ -139,6 +139,9 @@ def test_reused_runs_are_the_same_numbers_bit_for_bit():
         for g, w in zip(got, want):
             assert np.array_equal(g, w)
     assert not np.array_equal(alone[1][0], alone[2][0])
+    air = np.zeros((2, 8))                         # nothing cuts: no load, nothing run
+    assert not np.any(simulate(air, air, air, air, air, air + 3, air + PI / 2, kc=k[:3], ke=k[3:], p=1.0, flutes=3,
+                               helix_deg=35, radius_mm=3, fz_mm=0.05))
 
 
 @settings(max_examples=25, deadline=None)

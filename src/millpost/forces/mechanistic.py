@@ -27,17 +27,32 @@ COEF_NAMES = ("Ktc", "Krc", "Kac", "Kte", "Kre", "Kae")
 def regressors(engagement: Engagement, flutes) -> tuple[np.ndarray, np.ndarray]:
     """G, E: (N, 4, 3) so that [F̄_x, F̄_y, F̄_z, T̄] (feed frame; N, N, N, N·mm) =
     f_z·G @ (K_tc, K_rc, K_ac) + E @ (K_te, K_re, K_ae)  (closed-form integrals, PHYSICS.md §1.3).
-    flutes: one number, or one per sample."""
-    st, ex, b = clipped_arcs(engagement)
-    s, c = np.sin(engagement.kappa), np.cos(engagement.kappa)
-    r = engagement.r_mm
+    flutes: one number, or one per sample. A sample where no slice cuts has G = E = 0."""
+    return arc_regressors(clipped_arcs(engagement), engagement.kappa, engagement.r_mm, flutes)
+
+
+def arc_regressors(arcs: tuple[np.ndarray, np.ndarray, np.ndarray], kappa: np.ndarray, r_mm: np.ndarray, flutes
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """`regressors` from the slices' `clipped_arcs` (entry, exit (rad), width b (mm)), κ (rad) and radii (mm)."""
+    st, ex, b = arcs
+    w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b
+    live = np.flatnonzero(np.any(b != 0, axis=1))  # only these are computed (b = 0: every term is 0)
+    G, E = np.zeros((len(b), 4, 3)), np.zeros((len(b), 4, 3))
+    G[live], E[live] = _regressors(st[live], ex[live], w[live], kappa[live], r_mm[live])
+    return G, E
+
+
+def _regressors(st: np.ndarray, ex: np.ndarray, w: np.ndarray, kappa: np.ndarray, r: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """`regressors` of (M, K) slices: engaged arcs [st, ex] (rad), weights w = flutes/(2π)·b (mm), κ (rad),
+    radii r (mm)."""
+    s, c = np.sin(kappa), np.cos(kappa)
     d = lambda f: f(ex) - f(st)  # noqa: E731
     i_sc = d(lambda p: -np.cos(2 * p) / 4)           # ∫ sin φ cos φ
     i_ss = d(lambda p: (2 * p - np.sin(2 * p)) / 4)  # ∫ sin² φ
     i_c = d(np.sin)                                  # ∫ cos φ
     i_s = d(lambda p: -np.cos(p))                    # ∫ sin φ
     i_1 = ex - st
-    w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b
     zero = np.zeros_like(w)
 
     def fold(x: np.ndarray) -> np.ndarray:  # Σ_k w·x over the slices, in slice order, one (N, K) at a time
@@ -165,11 +180,11 @@ class Mechanistic:
         n = len(engagement)
         rpm_n = rpm_array(rpm, n)
         per_feed = 1.0 / (tool.flutes * rpm_n)           # f_z per (mm/min)
-        G, E = regressors(engagement, tool.flutes)
+        st, ex, b = arcs = clipped_arcs(engagement)
+        G, E = arc_regressors(arcs, engagement.kappa, engagement.r_mm, tool.flutes)
         k = self._coef()
         slope, icpt = G @ k[:3], E @ k[3:]               # per f_z, and at f_z = 0
         omega = 2 * np.pi * rpm_n / 60.0
-        st, ex, b = clipped_arcs(engagement)
         geo = (st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa)
         peaks, _ = simulate(*geo, kc=k[:3], ke=k[3:], fz_mm=np.ones(n), p=1.0, flutes=tool.flutes,
                             helix_deg=tool.helix_deg, radius_mm=tool.radius_mm, steps_per_rev=self.steps_per_rev)
