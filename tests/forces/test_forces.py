@@ -115,6 +115,18 @@ def test_runout_changes_peaks_not_means():
     assert model.predict(eng, 0.05, 6000, tool).peak_force_xy_N[0] == pytest.approx(out[False][0][0, 0], rel=0.01)
 
 
+def test_regressors_of_a_sample_are_its_own_and_zero_where_nothing_cuts():
+    # only the slices that cut are computed: each sample's G, E are those it has alone (bit for bit), and a
+    # sample in air (nan arcs) or with an empty arc gets exactly 0
+    eng = concat([given_cut(Tool(diameter_mm=6, flutes=3, helix_deg=35), [1.0, 6.0], 4.0),
+                  cuts([(np.nan, np.nan), (0.3, 0.3), (0.2, 2.0)], ap=4.0, radius=3.0, slices=8)])
+    G, E = regressors(eng, 3)
+    for i in range(len(eng)):
+        Gi, Ei = regressors(eng.select([i]), 3)
+        assert np.array_equal(Gi[0], G[i]) and np.array_equal(Ei[0], E[i])
+    assert not G[2:4].any() and not E[2:4].any() and G[[0, 1, 4]].any(axis=(1, 2)).all()
+
+
 def test_reused_runs_are_the_same_numbers_bit_for_bit():
     # an independent run of every row (no memo) is the reference; within `reusing_runs` a row met in an
     # earlier call is not run again, and other settings (coefficients) are never served from the memo

@@ -53,28 +53,28 @@ def _regressors(st: np.ndarray, ex: np.ndarray, w: np.ndarray, kappa: np.ndarray
     i_c = d(np.sin)                                  # ∫ cos φ
     i_s = d(lambda p: -np.cos(p))                    # ∫ sin φ
     i_1 = ex - st
-    zero = np.zeros_like(w)
-
-    def fold(x: np.ndarray) -> np.ndarray:  # Σ_k w·x over the slices, in slice order, one (N, K) at a time
-        wx = w * x
-        out = np.zeros(len(wx))
-        for k in range(wx.shape[1]):
-            out += wx[:, k]
-        return out
-
-    G = np.stack([
-        np.stack([fold(-s * i_sc), fold(-s * s * i_ss), fold(-c * s * i_ss)], -1),
-        np.stack([fold(s * i_ss), fold(-s * s * i_sc), fold(-c * s * i_sc)], -1),
-        np.stack([fold(zero), fold(-c * s * i_s), fold(s * s * i_s)], -1),
-        np.stack([fold(r * s * i_s), fold(zero), fold(zero)], -1),
-    ], -2)
-    E = np.stack([
-        np.stack([fold(-i_c), fold(-s * i_s), fold(-c * i_s)], -1),
-        np.stack([fold(i_s), fold(-s * i_c), fold(-c * i_c)], -1),
-        np.stack([fold(zero), fold(-c * i_1), fold(s * i_1)], -1),
-        np.stack([fold(r * i_1), fold(zero), fold(zero)], -1),
-    ], -2)
+    G = _folded(w, [[-s * i_sc, -s * s * i_ss, -c * s * i_ss],
+                    [s * i_ss, -s * s * i_sc, -c * s * i_sc],
+                    [None, -c * s * i_s, s * s * i_s],
+                    [r * s * i_s, None, None]])
+    E = _folded(w, [[-i_c, -s * i_s, -c * i_s],
+                    [i_s, -s * i_c, -c * i_c],
+                    [None, -c * i_1, s * i_1],
+                    [r * i_1, None, None]])
     return G, E
+
+
+def _folded(w: np.ndarray, terms: list[list[np.ndarray | None]]) -> np.ndarray:
+    """(M, 4, 3): Σ_k w·x over the slices k in slice order, for each (M, K) term x of the 4 × 3 `terms`
+    (None: 0), all terms at once."""
+    present = np.array([[x is not None for x in row] for row in terms])
+    wx = w * np.stack([x for row in terms for x in row if x is not None])
+    out = np.zeros(wx.shape[:2])
+    for k in range(wx.shape[2]):
+        out += wx[:, :, k]
+    folded = np.zeros((w.shape[0], 4, 3))
+    folded[:, present] = out.T
+    return folded
 
 
 def design(engagement: Engagement, measured: Measurements, tool: Tool | Sequence[Tool]
