@@ -98,6 +98,7 @@ import numpy as np
 from .errors import MillpostError
 from .forces import LinearLoads
 from .forces.endcut import EndCut, end_chip_factor, entry_chip_factor, thrust_limit_N, torque_limit_Nm
+from .forces.timedomain import reusing_runs
 from .job import Job
 from .controller import ControllerModel, PathModes, block_lengths, blend_zones, corner_speeds, programmed_arcs
 from .progress import Progress, silent
@@ -205,11 +206,12 @@ class JobLimits:
 def max_sin(eng) -> np.ndarray:
     """Per sample: the largest sin φ·sin κ over the engaged arcs (0 where nothing cuts): the chip
     thickness per unit feed per tooth (chip thinning)."""
-    st, ex = eng.phi_st, eng.phi_ex
-    cuts = np.isfinite(st) & np.isfinite(ex) & (eng.dz_mm > 0)
-    s = np.where((st <= np.pi / 2) & (ex >= np.pi / 2), 1.0, np.maximum(np.sin(np.nan_to_num(st)),
-                                                                         np.sin(np.nan_to_num(ex))))
-    return np.where(cuts, s * np.sin(eng.kappa), 0.0).max(axis=1, initial=0.0)
+    cuts = np.isfinite(eng.phi_st) & np.isfinite(eng.phi_ex) & (eng.dz_mm > 0)
+    st, ex = eng.phi_st[cuts], eng.phi_ex[cuts]  # (only the slices that cut are computed)
+    s = np.zeros(cuts.shape)
+    s[cuts] = np.where((st <= np.pi / 2) & (ex >= np.pi / 2), 1.0, np.maximum(np.sin(st), np.sin(ex)))
+    s[cuts] *= np.sin(eng.kappa[cuts])
+    return s.max(axis=1, initial=0.0)
 
 
 def _policed(a, b, bound, v_keep: np.ndarray) -> tuple[np.ndarray | Derived, np.ndarray]:
@@ -286,7 +288,8 @@ def build_limits(job: Job, samples: Samples, eng, toolpath: Toolpath, progress: 
     limits = _machine_limits(job, samples, toolpath, modes, planner)
     cutting = samples.kind != RAPID
     restart = restart_descents(job, samples, eng)
-    cut = _cut_loads(job, samples, eng, toolpath, restart, progress)
+    with reusing_runs():  # a steady cut's engagement repeats: its time-domain runs are made once
+        cut = _cut_loads(job, samples, eng, toolpath, restart, progress)
     if release_slices:  # below, only the per-sample fields are read
         lean = eng.per_sample()
         for f in fields(eng):
@@ -374,13 +377,12 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
     (`restart_descents`). progress: stage "forces", in samples."""
     n = len(samples)
     m = job.machine
-    model = job.material.force_model(job.settings.model)
-    end_model = EndCut.from_material(job.material)
+    models = (job.material.force_model(job.settings.model), EndCut.from_material(job.material))
     cutting = samples.kind != RAPID
     engaged = eng.ap_mm > 1e-9
     spin = samples.rpm > 0
     # the force models' tangent (Kienzle, the end cut) at the programmed F word (mm/min)
-    f_word = toolpath.feed_mm_min[samples.move]
+    f_word = np.nan_to_num(toolpath.feed_mm_min[samples.move], nan=100.0)
     if np.any(engaged & ~spin):
         k = int(np.flatnonzero(engaged & ~spin)[0])
         raise MillpostError(spindle_off_message(str(job.program), int(samples.line[k])))
@@ -389,7 +391,7 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
     defl_limit = np.full(n, np.inf)
     chip_a, h_max, floor = np.zeros(n), np.full(n, np.inf), np.zeros(n)
     # chip thickness per unit feed per tooth: flank (chip thinning) and end (axial chip over its share)
-    sin_max, sin_end, chip_factor = np.zeros(n), np.zeros(n), np.zeros(n)
+    chips = _Chips(np.zeros(n), np.zeros(n), np.zeros(n))
     # per tool (`_per_tool`): the breaking force and the compliance of the cut's depth, buckling, torsion
     peak_by, defl_by, thrust_by, torque_by = {}, {}, {}, {}
     defaults: dict[str, str] = {}
@@ -404,42 +406,10 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
         h_min, h_chip = job.material.min_chip_mm(tool.edge_radius_mm, tool.diameter_mm), job.material.chip_load_mm(tool.diameter_mm)[1]
         # in chunks: the models' per-slice temporaries (kilobytes a sample) stay bounded by the chunk
         for part in np.array_split(idx, max(1, -(-len(idx) // LOAD_CHUNK))):
-            eng_p = eng.select(part)
             progress("forces", done, n)
             done += len(part)
-            # the flank cuts at the edge's feed, the centre's times `edge` (larger on an inside arc).
-            # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
-            edge = eng_p.edge
-            ll = model.linear_loads(eng_p, tool, rpm[part],
-                                    feed_ref_mm_min=np.nan_to_num(f_word[part], nan=100.0) * edge)
-            for key in ("peak", "power", "torque", "force"):
-                a = getattr(ll, f"{key}_a")  # per mm/s of the edge → per mm/s of the centre
-                getattr(loads, f"{key}_a")[part] = a * (edge[:, None] if a.ndim == 2 else edge)
-                getattr(loads, f"{key}_b")[part] = getattr(ll, f"{key}_b")
-            # a corner tighter than the tool (its centre's radius under R) wraps the tool: a full slot's
-            # chip at the wall (sin φ = 1) whatever the stock model shows (a closing corner pre-cut by
-            # the lead-in reads lighter than the cut a machinist programs it for)
-            wraps = (edge > 1.0) & (np.abs(path_radius(samples.tangent[part], samples.curvature[part])) < tool.radius_mm)
-            sin_flank = max_sin(eng_p)  # per chunk: its (N, K) temporaries stay bounded
-            sin_max[part] = np.where(wraps & (sin_flank > 0), 1.0, sin_flank) * edge
-            sin_end[part] = end_chip_factor(eng_p, tool)
-            ratio = job.material.strategies.plunge_fz_ratio
-            chip_factor[part] = np.maximum(sin_max[part], entry_chip_factor(eng_p, tool, ratio, sin_end[part]))
-            if restart is not None:  # a descent into space cut before: its chip as a plunge into solid
-                mine = restart[part]
-                full = replace(eng_p, end_engaged=np.ones_like(eng_p.end_engaged))
-                chip_factor[part] = np.where(mine, np.maximum(chip_factor[part], entry_chip_factor(
-                    full, tool, ratio, end_chip_factor(full, tool))), chip_factor[part])
-            if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
-                # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
-                # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
-                with np.errstate(divide="ignore"):
-                    fz_cap = np.where(chip_factor[part] > 0, h_chip / chip_factor[part], np.inf)
-                ref = np.minimum(np.nan_to_num(f_word[part], nan=100.0), fz_cap * tool.flutes * rpm[part])
-                le = end_model.linear_loads(eng_p, tool, rpm[part], feed_ref_mm_min=ref)
-                for key in ("power", "torque", "force"):
-                    getattr(loads, f"{key}_a")[part] += getattr(le, f"{key}_a")
-                    getattr(loads, f"{key}_b")[part] += getattr(le, f"{key}_b")
+            at = slice(part[0], part[-1] + 1) if part[-1] - part[0] + 1 == len(part) else part  # (a slice: views)
+            _chunk_loads(job, models, tool, samples, eng, at, rpm, f_word, restart, h_chip, loads, chips)
         thrust_by[int(number)] = lambda ap, v=thrust_limit_N(tool, job.settings.tool_safety_factor): v
         torque_by[int(number)] = lambda ap, v=torque_limit_Nm(tool, job.settings.tool_safety_factor): v
         beam = ToolBeam.of(tool, safety_factor=job.settings.tool_safety_factor)
@@ -456,13 +426,13 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
         else:
             defl_limit[idx] = rough_by_tool[int(number)] = max(DEFLECTION_ROUGH_MM,
                                                                DEFLECTION_ROUGH_RATIO * tool.diameter_mm)
-        cut_here = idx[chip_factor[idx] > 0]
+        cut_here = idx[chips.factor[idx] > 0]
         per_tooth = tool.flutes * rpm[cut_here] / 60.0  # mm/s per mm of feed per tooth
-        chip_a[cut_here] = chip_factor[cut_here] / per_tooth  # chip thickness (over its share) per mm/s
+        chip_a[cut_here] = chips.factor[cut_here] / per_tooth  # chip thickness (over its share) per mm/s
         h_max[cut_here] = h_chip
         # the floor: the thickest chip, flank's or end's, reaches the minimum chip (none where the tool
         # cuts nothing: a restart's descent)
-        thickest = np.maximum(sin_max[cut_here], sin_end[cut_here])
+        thickest = np.maximum(chips.flank[cut_here], chips.end[cut_here])
         with np.errstate(divide="ignore"):
             floor[cut_here] = np.where(thickest > 0, h_min / thickest * per_tooth, 0.0)
     progress("forces", n, n)
@@ -471,8 +441,60 @@ def _cut_loads(job: Job, samples: Samples, eng, toolpath: Toolpath, restart: np.
                                   + ", ".join(f"T{t} {v:.3g} mm" for t, v in rough_by_tool.items()))
     tool, ap = samples.tool, eng.ap_mm
     return _CutLoads(loads, rpm, engaged, spin, _per_tool(tool, ap, peak_by, np.inf), _per_tool(tool, ap, defl_by, 0.0),
-                     defl_limit, chip_a, h_max, floor, sin_end, _per_tool(tool, ap, thrust_by, np.inf),
+                     defl_limit, chip_a, h_max, floor, chips.end, _per_tool(tool, ap, thrust_by, np.inf),
                      _per_tool(tool, ap, torque_by, np.inf), defaults)
+
+
+@dataclass
+class _Chips:
+    """Per sample, the chip thickness per unit feed per tooth: `flank`, the flank's largest (chip thinning,
+    a wrapped corner's full slot; times the edge's feed ratio), `end`, the end's axial chip
+    (`end_chip_factor`), and `factor`, the chip-load limit's (the larger, the end's as `entry_chip_factor`
+    sees it; a restart's descent as a plunge into solid material)."""
+
+    flank: np.ndarray
+    end: np.ndarray
+    factor: np.ndarray
+
+
+def _chunk_loads(job: Job, models: tuple, tool, samples: Samples, eng, at, rpm: np.ndarray, f_word: np.ndarray,
+                 restart: np.ndarray | None, h_chip: float, loads: LinearLoads, chips: _Chips) -> None:
+    """The loads (into `loads`) and chips (into `chips`) of the samples `at` (a slice or indices) of one
+    tool from the force models (flank, and end: `EndCut` or None) at the programmed F words f_word
+    (mm/min), the end's at the chip-load cap h_chip (mm) where that feed is lower."""
+    model, end_model = models
+    eng_p, rpm_p, f_word = eng.select(at), rpm[at], f_word[at]
+    # the flank cuts at the edge's feed, the centre's times `edge` (larger on an inside arc).
+    # Kienzle is concave in the feed: its tangent at the programmed feed bounds it from above
+    edge = eng_p.edge
+    ll = model.linear_loads(eng_p, tool, rpm_p, feed_ref_mm_min=f_word * edge)
+    for key in ("peak", "power", "torque", "force"):
+        a = getattr(ll, f"{key}_a")  # per mm/s of the edge → per mm/s of the centre
+        getattr(loads, f"{key}_a")[at] = a * (edge[:, None] if a.ndim == 2 else edge)
+        getattr(loads, f"{key}_b")[at] = getattr(ll, f"{key}_b")
+    # a corner tighter than the tool (its centre's radius under R) wraps the tool: a full slot's
+    # chip at the wall (sin φ = 1) whatever the stock model shows (a closing corner pre-cut by
+    # the lead-in reads lighter than the cut a machinist programs it for)
+    wraps = (edge > 1.0) & (np.abs(path_radius(samples.tangent[at], samples.curvature[at])) < tool.radius_mm)
+    sin_flank = max_sin(eng_p)
+    flank = chips.flank[at] = np.where(wraps & (sin_flank > 0), 1.0, sin_flank) * edge
+    end = chips.end[at] = end_chip_factor(eng_p, tool)
+    ratio = job.material.strategies.plunge_fz_ratio
+    factor = np.maximum(flank, entry_chip_factor(eng_p, tool, ratio, end))
+    if restart is not None:  # a descent into space cut before: its chip as a plunge into solid
+        full = replace(eng_p, end_engaged=np.ones_like(eng_p.end_engaged))
+        factor = np.where(restart[at], np.maximum(factor, entry_chip_factor(full, tool, ratio,
+                                                                            end_chip_factor(full, tool))), factor)
+    chips.factor[at] = factor
+    if end_model is not None:  # the end's thrust and torque add to the axial force and spindle torque
+        # tangent at the programmed feed, or at the chip-load cap where that is lower (no feed above
+        # it is allowed: the bound is then exact where it can bind, not inflated by an absurd program)
+        with np.errstate(divide="ignore"):
+            fz_cap = np.where(factor > 0, h_chip / factor, np.inf)
+        le = end_model.linear_loads(eng_p, tool, rpm_p, feed_ref_mm_min=np.minimum(f_word, fz_cap * tool.flutes * rpm_p))
+        for key in ("power", "torque", "force"):
+            getattr(loads, f"{key}_a")[at] += getattr(le, f"{key}_a")
+            getattr(loads, f"{key}_b")[at] += getattr(le, f"{key}_b")
 
 
 def _per_tool(tool: np.ndarray, ap_mm: np.ndarray, by_tool: dict[int, Callable[[np.ndarray], Any]],

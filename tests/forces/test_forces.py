@@ -17,8 +17,8 @@ from millpost.forces import (Kienzle, Measurements, Mechanistic, NotFittedError,
                              max_chip_mm, mean_chip_mm)
 from millpost.forces.kienzle import sin_power_integral
 from millpost.forces.mechanistic import regressors
-from millpost.forces.timedomain import simulate
-from millpost.forces.base import clipped_arcs
+from millpost.forces.timedomain import reusing_runs, simulate
+from millpost.forces.base import clipped_arcs, given_cut
 from millpost.tools.cutter import Tool
 
 # Al7075-T6, CJME 2021 Table 5 row [190] (PHYSICS.md §1.6)
@@ -113,6 +113,47 @@ def test_runout_changes_peaks_not_means():
     assert out[False][0][0, 0] > 1.05 * out[True][0][0, 0]       # peak |F_xy| rises with runout
     model = Mechanistic.from_coefficients(**AL7075, runout_mm=(0.01, 0.0))
     assert model.predict(eng, 0.05, 6000, tool).peak_force_xy_N[0] == pytest.approx(out[False][0][0, 0], rel=0.01)
+
+
+def test_regressors_of_a_sample_are_its_own_and_zero_where_nothing_cuts():
+    # only the slices that cut are computed: each sample's G, E are those it has alone (bit for bit), and a
+    # sample in air (nan arcs) or with an empty arc gets exactly 0
+    eng = concat([given_cut(Tool(diameter_mm=6, flutes=3, helix_deg=35), [1.0, 6.0], 4.0),
+                  cuts([(np.nan, np.nan), (0.3, 0.3), (0.2, 2.0)], ap=4.0, radius=3.0, slices=8)])
+    G, E = regressors(eng, 3)
+    for i in range(len(eng)):
+        Gi, Ei = regressors(eng.select([i]), 3)
+        assert np.array_equal(Gi[0], G[i]) and np.array_equal(Ei[0], E[i])
+    assert not G[2:4].any() and not E[2:4].any() and G[[0, 1, 4]].any(axis=(1, 2)).all()
+
+
+def test_reused_runs_are_the_same_numbers_bit_for_bit():
+    # an independent run of every row (no memo) is the reference; within `reusing_runs` a row met in an
+    # earlier call is not run again, and other settings (coefficients) are never served from the memo
+    tool = Tool(diameter_mm=6, flutes=3, helix_deg=35)
+    k = np.array(list(AL7075.values()))
+    first, second = given_cut(tool, [1.0, 2.0, 3.0, 1.0], 4.0), given_cut(tool, [2.0, 5.0, 3.0], 4.0)
+
+    def run(eng, kc):
+        st_, ex_, b = clipped_arcs(eng)
+        return simulate(st_, ex_, b, eng.z_mm, eng.dz_mm, eng.r_mm, eng.kappa, kc=kc, ke=k[3:], p=1.0, flutes=3,
+                        helix_deg=35, radius_mm=3, fz_mm=0.05)
+
+    alone = [run(first, k[:3]), run(second, k[:3]), run(second, 2 * k[:3])]
+    with reusing_runs(max_rows=4) as memo:
+        reused = [run(first, k[:3])]
+        assert len(memo) == 3                      # the distinct rows of the first call
+        reused.append(run(second, k[:3]))
+        assert len(memo) == 4                      # only ae = 5 was new
+        reused.append(run(second, 2 * k[:3]))      # other settings: the memo starts afresh
+        assert len(memo) == 3
+    for got, want in zip(reused, alone):
+        for g, w in zip(got, want):
+            assert np.array_equal(g, w)
+    assert not np.array_equal(alone[1][0], alone[2][0])
+    air = np.zeros((2, 8))                         # nothing cuts: no load, nothing run
+    assert not np.any(simulate(air, air, air, air, air, air + 3, air + PI / 2, kc=k[:3], ke=k[3:], p=1.0, flutes=3,
+                               helix_deg=35, radius_mm=3, fz_mm=0.05))
 
 
 @settings(max_examples=25, deadline=None)

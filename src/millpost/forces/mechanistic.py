@@ -27,39 +27,54 @@ COEF_NAMES = ("Ktc", "Krc", "Kac", "Kte", "Kre", "Kae")
 def regressors(engagement: Engagement, flutes) -> tuple[np.ndarray, np.ndarray]:
     """G, E: (N, 4, 3) so that [F̄_x, F̄_y, F̄_z, T̄] (feed frame; N, N, N, N·mm) =
     f_z·G @ (K_tc, K_rc, K_ac) + E @ (K_te, K_re, K_ae)  (closed-form integrals, PHYSICS.md §1.3).
-    flutes: one number, or one per sample."""
-    st, ex, b = clipped_arcs(engagement)
-    s, c = np.sin(engagement.kappa), np.cos(engagement.kappa)
-    r = engagement.r_mm
+    flutes: one number, or one per sample. A sample where no slice cuts has G = E = 0."""
+    return arc_regressors(clipped_arcs(engagement), engagement.kappa, engagement.r_mm, flutes)
+
+
+def arc_regressors(arcs: tuple[np.ndarray, np.ndarray, np.ndarray], kappa: np.ndarray, r_mm: np.ndarray, flutes
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """`regressors` from the slices' `clipped_arcs` (entry, exit (rad), width b (mm)), κ (rad) and radii (mm)."""
+    st, ex, b = arcs
+    w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b
+    live = np.flatnonzero(np.any(b != 0, axis=1))  # only these are computed (b = 0: every term is 0)
+    G, E = np.zeros((len(b), 4, 3)), np.zeros((len(b), 4, 3))
+    G[live], E[live] = _regressors(st[live], ex[live], w[live], kappa[live], r_mm[live])
+    return G, E
+
+
+def _regressors(st: np.ndarray, ex: np.ndarray, w: np.ndarray, kappa: np.ndarray, r: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """`regressors` of (M, K) slices: engaged arcs [st, ex] (rad), weights w = flutes/(2π)·b (mm), κ (rad),
+    radii r (mm)."""
+    s, c = np.sin(kappa), np.cos(kappa)
     d = lambda f: f(ex) - f(st)  # noqa: E731
     i_sc = d(lambda p: -np.cos(2 * p) / 4)           # ∫ sin φ cos φ
     i_ss = d(lambda p: (2 * p - np.sin(2 * p)) / 4)  # ∫ sin² φ
     i_c = d(np.sin)                                  # ∫ cos φ
     i_s = d(lambda p: -np.cos(p))                    # ∫ sin φ
     i_1 = ex - st
-    w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b
-    zero = np.zeros_like(w)
-
-    def fold(x: np.ndarray) -> np.ndarray:  # Σ_k w·x over the slices, in slice order, one (N, K) at a time
-        wx = w * x
-        out = np.zeros(len(wx))
-        for k in range(wx.shape[1]):
-            out += wx[:, k]
-        return out
-
-    G = np.stack([
-        np.stack([fold(-s * i_sc), fold(-s * s * i_ss), fold(-c * s * i_ss)], -1),
-        np.stack([fold(s * i_ss), fold(-s * s * i_sc), fold(-c * s * i_sc)], -1),
-        np.stack([fold(zero), fold(-c * s * i_s), fold(s * s * i_s)], -1),
-        np.stack([fold(r * s * i_s), fold(zero), fold(zero)], -1),
-    ], -2)
-    E = np.stack([
-        np.stack([fold(-i_c), fold(-s * i_s), fold(-c * i_s)], -1),
-        np.stack([fold(i_s), fold(-s * i_c), fold(-c * i_c)], -1),
-        np.stack([fold(zero), fold(-c * i_1), fold(s * i_1)], -1),
-        np.stack([fold(r * i_1), fold(zero), fold(zero)], -1),
-    ], -2)
+    G = _folded(w, [[-s * i_sc, -s * s * i_ss, -c * s * i_ss],
+                    [s * i_ss, -s * s * i_sc, -c * s * i_sc],
+                    [None, -c * s * i_s, s * s * i_s],
+                    [r * s * i_s, None, None]])
+    E = _folded(w, [[-i_c, -s * i_s, -c * i_s],
+                    [i_s, -s * i_c, -c * i_c],
+                    [None, -c * i_1, s * i_1],
+                    [r * i_1, None, None]])
     return G, E
+
+
+def _folded(w: np.ndarray, terms: list[list[np.ndarray | None]]) -> np.ndarray:
+    """(M, 4, 3): Σ_k w·x over the slices k in slice order, for each (M, K) term x of the 4 × 3 `terms`
+    (None: 0), all terms at once."""
+    present = np.array([[x is not None for x in row] for row in terms])
+    wx = w * np.stack([x for row in terms for x in row if x is not None])
+    out = np.zeros(wx.shape[:2])
+    for k in range(wx.shape[2]):
+        out += wx[:, :, k]
+    folded = np.zeros((w.shape[0], 4, 3))
+    folded[:, present] = out.T
+    return folded
 
 
 def design(engagement: Engagement, measured: Measurements, tool: Tool | Sequence[Tool]
@@ -165,11 +180,11 @@ class Mechanistic:
         n = len(engagement)
         rpm_n = rpm_array(rpm, n)
         per_feed = 1.0 / (tool.flutes * rpm_n)           # f_z per (mm/min)
-        G, E = regressors(engagement, tool.flutes)
+        st, ex, b = arcs = clipped_arcs(engagement)
+        G, E = arc_regressors(arcs, engagement.kappa, engagement.r_mm, tool.flutes)
         k = self._coef()
         slope, icpt = G @ k[:3], E @ k[3:]               # per f_z, and at f_z = 0
         omega = 2 * np.pi * rpm_n / 60.0
-        st, ex, b = clipped_arcs(engagement)
         geo = (st, ex, b, engagement.z_mm, engagement.dz_mm, engagement.r_mm, engagement.kappa)
         peaks, _ = simulate(*geo, kc=k[:3], ke=k[3:], fz_mm=np.ones(n), p=1.0, flutes=tool.flutes,
                             helix_deg=tool.helix_deg, radius_mm=tool.radius_mm, steps_per_rev=self.steps_per_rev)

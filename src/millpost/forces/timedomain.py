@@ -20,6 +20,9 @@ Without runout the loads repeat every tooth pitch, so one pitch is simulated; wi
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 
 import numpy as np
 from numba import njit, prange
@@ -123,15 +126,94 @@ def simulate(st, ex, b, z, dz, r, kappa, *, kc, ke, p: float, flutes: int, helix
     periods = flutes if has_runout else 1
     steps = max(8, int(math.ceil(steps_per_rev * periods / flutes)))
     fz = np.broadcast_to(np.asarray(fz_mm, float), (n,)).astype(float)
-    # identical samples (a cut that does not change along a move) are simulated once
-    key = np.column_stack([np.asarray(a, float).reshape(n, st.shape[1]) for a in (st, ex, b, z, dz, r, kappa)] + [fz])
+    tan_helix = math.tan(math.radians(helix_deg))
+    # a sample that cuts nothing has no load; identical samples (a cut that does not change along a move)
+    # are simulated once, and within `reusing_runs` once over all calls
+    live = np.flatnonzero(~np.all(np.asarray(b, float).reshape(n, -1) <= 0.0, axis=1))
+    key = np.nan_to_num(np.column_stack([np.asarray(a, float).reshape(n, st.shape[1])[live]
+                                         for a in (st, ex, b, z, dz, r, kappa)] + [fz[live]]), nan=-1e300)
+    settings = (tuple(np.asarray(kc, float)), tuple(np.asarray(ke, float)), float(p), int(flutes), tan_helix,
+                float(radius_mm), tuple(ro), steps, periods)
+    peaks, mean = np.zeros((n, 4)), np.zeros((n, 4))
+    if not live.size:
+        return peaks, mean
     with compiling(_row_hash, _simulate):
-        first, inverse = unique_rows(np.nan_to_num(key, nan=-1e300))
-        f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[first])  # noqa: E731
-        peaks, mean = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
-                                np.asarray(ke, float), float(p), int(flutes), math.tan(math.radians(helix_deg)),
-                                float(radius_mm), ro, has_runout, f(fz), steps, periods)
-    return peaks[inverse], mean[inverse]
+        first, inverse = unique_rows(key)
+        memo = _MEMO.get()
+        memo = RunMemo(max_rows=0) if memo is None else memo
+        new, pk, mn = memo.recall(settings, key[first])
+        if new.size:
+            f = lambda a: np.ascontiguousarray(np.asarray(a, dtype=float)[live[first[new]]])  # noqa: E731
+            pk[new], mn[new] = _simulate(f(st), f(ex), f(b), f(z), f(dz), f(r), f(kappa), np.asarray(kc, float),
+                                         np.asarray(ke, float), float(p), int(flutes), tan_helix, float(radius_mm),
+                                         ro, has_runout, f(fz), steps, periods)
+            memo.keep(key[first[new]], pk[new], mn[new])
+    peaks[live], mean[live] = pk[inverse], mn[inverse]
+    return peaks, mean
+
+
+class RunMemo:
+    """The runs `simulate` made under one set of settings, by their input row bit for bit (the row's
+    arcs, widths, heights, radii, κ per slice and f_z): a row met again gets the same numbers without a
+    run (a steady cut repeats its engagement from chunk to chunk). Keeps at most `max_rows` rows
+    (memory: ~0.5 KB a row of 8 slices); other settings start it afresh. A row whose hash collides with a
+    kept row's is never recalled (its bits differ): it is run each time."""
+
+    def __init__(self, max_rows: int = 50_000) -> None:
+        self.max_rows = max_rows
+        self._settings: tuple | None = None
+        self._forget()
+
+    def _forget(self, columns: int = 0) -> None:
+        self._hash = np.empty(0, np.uint64)  # sorted row hashes (`_row_hash`) of the rows kept, and where each is
+        self._slot = np.empty(0, np.intp)    # in `_rows` (as bits) and `_runs` ([peaks, mean]), filled in order
+        # (memory: the pages of the rows not yet kept are never touched)
+        self._rows, self._runs = np.empty((self.max_rows, columns), np.uint64), np.empty((self.max_rows, 8))
+
+    def __len__(self) -> int:
+        """The rows kept."""
+        return len(self._hash)
+
+    def recall(self, settings: tuple, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(new, peaks, mean) for the distinct input rows `rows` (M, columns): the indices of the rows
+        never run, and (M, 4) peaks and means filled where a row was run before (zero elsewhere)."""
+        bits = np.ascontiguousarray(rows, np.float64).view(np.uint64)
+        if (settings, bits.shape[1]) != (self._settings, self._rows.shape[1]):
+            self._settings = settings
+            self._forget(bits.shape[1])
+        runs, hit = np.zeros((len(rows), 8)), np.zeros(len(rows), bool)
+        if len(self):  # a row is known when its hash and then all its bits match a kept row's
+            h = _row_hash(bits)
+            at = np.minimum(np.searchsorted(self._hash, h), len(self) - 1)
+            slot = self._slot[at]
+            hit = (self._hash[at] == h) & (self._rows[slot] == bits).all(axis=1)
+            runs[hit] = self._runs[slot[hit]]
+        return np.flatnonzero(~hit), runs[:, :4], runs[:, 4:]
+
+    def keep(self, rows: np.ndarray, peaks: np.ndarray, mean: np.ndarray) -> None:
+        """Remember the runs of these rows, never run before, of the settings of the last `recall` (up to
+        `max_rows` in all)."""
+        k = len(self)
+        m = min(len(rows), self.max_rows - k)
+        bits = np.ascontiguousarray(rows[:m], np.float64).view(np.uint64)
+        self._rows[k:k + m], self._runs[k:k + m] = bits, np.column_stack([peaks, mean])[:m]
+        h = np.concatenate([self._hash, _row_hash(bits)])
+        order = np.argsort(h, kind="stable")
+        self._hash, self._slot = h[order], np.concatenate([self._slot, np.arange(k, k + m)])[order]
+
+
+_MEMO: ContextVar[RunMemo | None] = ContextVar("run_memo", default=None)
+
+
+@contextmanager
+def reusing_runs(max_rows: int = 50_000) -> Iterator[RunMemo]:
+    """Within: `simulate` runs each distinct input row once over all its calls (`RunMemo` of at most
+    max_rows rows), for the same numbers bit for bit (each row's run depends on that row alone)."""
+    token = _MEMO.set(memo := RunMemo(max_rows))
+    try:
+        yield memo
+    finally:
+        _MEMO.reset(token)
 
 
 @njit(cache=True)
