@@ -19,7 +19,7 @@ from ..errors import MillpostError
 from ..tools.cutter import Tool
 from .base import (LinearLoads, Loads, Measurements, NotFittedError, assemble_loads, clipped_arcs, rpm_array,
                    to_feed, to_machine, tool_arrays)
-from .timedomain import simulate
+from .timedomain import cutting_samples, simulate
 
 COEF_NAMES = ("Ktc", "Krc", "Kac", "Kte", "Kre", "Kae")
 
@@ -36,7 +36,7 @@ def arc_regressors(arcs: tuple[np.ndarray, np.ndarray, np.ndarray], kappa: np.nd
     """`regressors` from the slices' `clipped_arcs` (entry, exit (rad), width b (mm)), κ (rad) and radii (mm)."""
     st, ex, b = arcs
     w = np.reshape(np.asarray(flutes, float), (-1, 1)) / (2 * np.pi) * b
-    live = np.flatnonzero(np.any(b != 0, axis=1))  # only these are computed (b = 0: every term is 0)
+    live = cutting_samples(b)  # only these are computed (b = 0: every term is 0)
     G, E = np.zeros((len(b), 4, 3)), np.zeros((len(b), 4, 3))
     G[live], E[live] = _regressors(st[live], ex[live], w[live], kappa[live], r_mm[live])
     return G, E

@@ -129,7 +129,7 @@ def simulate(st, ex, b, z, dz, r, kappa, *, kc, ke, p: float, flutes: int, helix
     tan_helix = math.tan(math.radians(helix_deg))
     # a sample that cuts nothing has no load; identical samples (a cut that does not change along a move)
     # are simulated once, and within `reusing_runs` once over all calls
-    live = np.flatnonzero(~np.all(np.asarray(b, float).reshape(n, -1) <= 0.0, axis=1))
+    live = cutting_samples(np.asarray(b, float).reshape(n, -1))
     key = np.nan_to_num(np.column_stack([np.asarray(a, float).reshape(n, st.shape[1])[live]
                                          for a in (st, ex, b, z, dz, r, kappa)] + [fz[live]]), nan=-1e300)
     settings = (tuple(np.asarray(kc, float)), tuple(np.asarray(ke, float)), float(p), int(flutes), tan_helix,
@@ -150,6 +150,12 @@ def simulate(st, ex, b, z, dz, r, kappa, *, kc, ke, p: float, flutes: int, helix
             memo.keep(key[first[new]], pk[new], mn[new])
     peaks[live], mean[live] = pk[inverse], mn[inverse]
     return peaks, mean
+
+
+def cutting_samples(b: np.ndarray) -> np.ndarray:
+    """Indices of the samples where some slice cuts: b (N, K) the slices' widths (mm) as `clipped_arcs`
+    gives them, 0 where a slice does not cut (every load term of such a sample is 0)."""
+    return np.flatnonzero(np.any(b > 0.0, axis=1))
 
 
 class RunMemo:
